@@ -1,0 +1,3 @@
+"""platcal: identification of inertial-platform error coefficients from test-rig data."""
+
+__version__ = "0.1.0"

@@ -1,0 +1,336 @@
+"""The identifying EKF of the centrifuge test (spec section 9; paper eqs. 23-25), batched.
+
+State (n = 48 by default), in Table 2's order and engineering units::
+
+    DF(x,y,z) DI DO DS DII DSS DIO DIS DOS  k0 k1 k2 k3 kIP  theta_py theta_pz theta_oz
+    alpha beta gamma (rad)
+
+With ``estimate_doo`` the three DOO terms join after theta_oz (n = 51): the two-g-level
+extension of spec section 4. Every array carries a leading batch axis B (replicates, or
+candidate schemes for the covariance-only run); a batch of one is one run. Replicates are
+independent, so a batch gives bit-identical numbers to B runs of one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit, prange
+
+from .frames import ARCSEC, DEG
+from .instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED
+from .kalman import joseph_update, propagate_rows
+from .platform import make_rk4_scratch, make_work, measure_into, rk4_step_jac
+
+ANGLE_NAMES = ("alpha", "beta", "gamma")
+
+# P0 defaults (1 sigma), spec section 11, by error term.
+P0_DEFAULTS = {
+    "DF": 10.0, "DI": 2.0, "DO": 2.0, "DS": 2.0,
+    "DII": 0.2, "DSS": 0.2, "DIO": 0.2, "DIS": 0.2, "DOS": 0.2, "DOO": 0.2,
+    "k0": 1e4, "k1": 2e3, "k2": 50.0, "k3": 10.0, "kIP": 20.0, "theta": 600.0,
+}
+
+
+@dataclass(frozen=True)
+class FilterSettings:
+    """Settings of the identifying EKF (spec sections 9 and 11).
+
+    Attributes
+    ----------
+    period_s : filter period, s (20 ms in the paper); a multiple of the sample period.
+    passes : 1 = the paper's EKF; each further pass restarts from the previous estimate with
+        ``P0 = 100 x`` its coefficient covariance.
+    sigma_a_ug : accelerometer noise assumed by the filter, ug per sample (R).
+    arw_deg_rth : gyro angle random walk assumed by the filter, deg/sqrt(h) (Q).
+    sigma_set_arcsec : attitude variance at each position reset, arcsec (1 sigma).
+    p0_sigma : (n_coef,) initial 1-sigma of the coefficient states, engineering units.
+    estimate_doo : identify DOO_x/y/z too (51 states).
+    history_every_s : decimation of the returned history, s (None: no history).
+    """
+
+    period_s: float = 0.02
+    passes: int = 1
+    sigma_a_ug: float = 10.0
+    arw_deg_rth: float = 0.001
+    sigma_set_arcsec: float = 10.0
+    p0_sigma: np.ndarray = field(default_factory=lambda: default_p0_sigma(False))
+    estimate_doo: bool = False
+    history_every_s: float | None = 1.0
+
+    @property
+    def coef_index(self) -> np.ndarray:
+        """Indices into the full 48-vector of the estimated coefficients, in state order."""
+        return estimated_index(self.estimate_doo)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return tuple(FULL_NAMES[i] for i in self.coef_index) + ANGLE_NAMES
+
+
+def estimated_index(estimate_doo: bool) -> np.ndarray:
+    """Full-vector indices of the coefficient states (45, or 48 with DOO)."""
+    n = N_FULL if estimate_doo else N_IDENTIFIED
+    return np.arange(n, dtype=np.int64)
+
+
+def default_p0_sigma(estimate_doo: bool, overrides: dict[str, float] | None = None) -> np.ndarray:
+    """P0 (1 sigma) per coefficient state from the per-term defaults and ``overrides``.
+
+    ``overrides`` maps an error term (``'DF'``, ``'k0'``, ``'theta'`` ...) or a coefficient name
+    (``'DF_x'``) to a sigma in the coefficient's unit; names win over terms.
+    """
+    from .instruments import term_of
+
+    overrides = overrides or {}
+    out = []
+    for i in estimated_index(estimate_doo):
+        name = FULL_NAMES[i]
+        term = term_of(name)
+        out.append(float(overrides.get(name, overrides.get(term, P0_DEFAULTS[term]))))
+    return np.array(out)
+
+
+@dataclass
+class Estimate:
+    """Result of the EKF for a batch of B runs.
+
+    Attributes
+    ----------
+    names : state names (coefficients, then alpha, beta, gamma).
+    x : (B, n) final state: coefficients in engineering units, angles in rad.
+    P : (B, n, n) final covariance in the same units.
+    history_t : (H,) time of each history sample, s from the start of the first pass.
+    history_x, history_sigma : (B, H, n) estimate and 1-sigma at those times.
+    pass_x, pass_P : per-pass final coefficient estimate (passes, B, n_coef) and covariance.
+    mean_nis : (B,) mean normalised innovation squared of the last pass (3 expected).
+    failed_updates : (B,) updates skipped because S was not positive definite.
+    """
+
+    names: tuple[str, ...]
+    x: np.ndarray
+    P: np.ndarray
+    history_t: np.ndarray
+    history_x: np.ndarray
+    history_sigma: np.ndarray
+    pass_x: np.ndarray
+    pass_P: np.ndarray
+    mean_nis: np.ndarray
+    failed_updates: np.ndarray
+
+    @property
+    def n_coef(self) -> int:
+        return len(self.names) - 3
+
+    @property
+    def coef(self) -> np.ndarray:
+        """(B, n_coef) coefficient estimates."""
+        return self.x[:, : self.n_coef]
+
+    @property
+    def coef_sigma(self) -> np.ndarray:
+        """(B, n_coef) 1-sigma of the coefficient estimates."""
+        d = np.diagonal(self.P, axis1=1, axis2=2)[:, : self.n_coef]
+        return np.sqrt(d)
+
+
+@njit(parallel=True, cache=True)
+def _run_position(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+                  update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad):
+    """Filter every replicate of the batch through one position (reset, then steps).
+
+    ``z`` (B, M, 3) g; ``t`` (M,) s since the position's start; ``cmd`` (B, 3) rad.
+    ``q_rate`` is the attitude process-noise density, rad^2/s per axis.
+    """
+    B, n = x.shape
+    nc = n - 3
+    M = t.shape[0]
+    dyn = np.arange(nc, n)
+    for b in prange(B):
+        work = make_work()
+        scratch = make_rk4_scratch()
+        coef = coef_fixed[b].copy()
+        ang_new = np.empty(3)
+        pa = np.empty((3, 3))
+        pc = np.empty((3, N_FULL))
+        phi_rows = np.zeros((3, n))
+        q = np.zeros((3, 3))
+        W = np.empty((n, 3))
+        U = np.empty((n, 3))
+        K = np.empty((n, 3))
+        D = np.empty((n, 3))
+        S = np.empty((3, 3))
+        Sinv = np.empty((3, 3))
+        nu = np.empty(3)
+        out = np.empty(3)
+        hc = np.empty((3, N_FULL))
+        ha = np.empty((3, 3))
+        H = np.empty((3, n))
+        innov = np.zeros(3)
+        xb = x[b]
+        Pb = P[b]
+        # attitude reset: commanded angles, variance sigma_set^2, no cross-covariance
+        for r in range(3):
+            xb[nc + r] = cmd[b, r]
+            for i in range(n):
+                Pb[nc + r, i] = 0.0
+                Pb[i, nc + r] = 0.0
+            Pb[nc + r, nc + r] = reset_var
+        for m in range(M):
+            for k in range(nc):
+                coef[est_idx[k]] = xb[k]
+            if m > 0:
+                h = t[m] - t[m - 1]
+                rk4_step_jac(xb[nc:], coef, t[m - 1], h, params, ang_new, pa, pc, work, scratch)
+                for r in range(3):
+                    for k in range(nc):
+                        phi_rows[r, k] = pc[r, est_idx[k]]
+                    for i in range(3):
+                        phi_rows[r, nc + i] = pa[r, i]
+                    q[r, r] = q_rate * h
+                for r in range(3):
+                    xb[nc + r] = ang_new[r]
+                propagate_rows(Pb, dyn, phi_rows, q, W)
+            measure_into(xb[nc:], coef, t[m], params, out, hc, ha, work)
+            for r in range(3):
+                for k in range(nc):
+                    H[r, k] = hc[r, est_idx[k]]
+                for i in range(3):
+                    H[r, nc + i] = ha[r, i]
+                if update_x:
+                    innov[r] = z[b, m, r] - out[r]
+            if joseph_update(xb, Pb, H, innov, r_var, U, K, D, S, Sinv, nu, update_x):
+                nis_sum[b] += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+            else:
+                n_bad[b] += 1
+            hi = hist_idx[m]
+            if hi >= 0:
+                for i in range(n):
+                    hist_x[b, hi, i] = xb[i]
+                    hist_s[b, hi, i] = np.sqrt(Pb[i, i]) if Pb[i, i] > 0.0 else -1.0
+
+
+def _history_index(t: np.ndarray, every_s: float | None, start: int) -> tuple[np.ndarray, int]:
+    """History slot of each filter instant (-1: not kept) and the number of slots used."""
+    idx = np.full(t.shape[0], -1, dtype=np.int64)
+    if every_s is None:
+        return idx, 0
+    k = np.round(t / every_s)
+    keep = np.abs(t - k * every_s) < 1e-9
+    idx[keep] = start + np.arange(int(keep.sum()))
+    return idx, int(keep.sum())
+
+
+def run_ekf(
+    z: list[np.ndarray],
+    t: list[np.ndarray],
+    cmd_deg: np.ndarray,
+    centrifuge_params: np.ndarray,
+    settings: FilterSettings,
+    *,
+    linearise_about: np.ndarray | None = None,
+) -> Estimate:
+    """Run the EKF over every position of a scheme, for a batch of B runs.
+
+    Parameters
+    ----------
+    z : K arrays (B, M_k, 3), accelerometer outputs (g) at the filter instants.
+    t : K arrays (M_k,), those instants in s since each position's start (increasing).
+    cmd_deg : (B, K, 3) or (K, 3) commanded alpha, beta, gamma per position, deg.
+    centrifuge_params : ``Centrifuge.params()``.
+    settings : the filter settings.
+    linearise_about : (B, 48) full coefficient vectors. If given, the run is covariance-only
+        (spec section 10): no measurement is used, the state follows the noise-free trajectory
+        of these coefficients, and only P evolves.
+
+    Returns
+    -------
+    Estimate
+    """
+    K = len(t)
+    cov_only = linearise_about is not None
+    cmd = np.asarray(cmd_deg, float)
+    B = z[0].shape[0] if not cov_only else np.asarray(linearise_about).shape[0]
+    if cmd.ndim == 2:
+        cmd = np.broadcast_to(cmd, (B,) + cmd.shape)
+    cmd_rad = np.ascontiguousarray(cmd * DEG)
+    est_idx = settings.coef_index
+    nc = est_idx.size
+    n = nc + 3
+    p0 = np.asarray(settings.p0_sigma, float)
+    if p0.shape != (nc,):
+        raise ValueError(f"p0_sigma has {p0.shape} entries, the filter has {nc} coefficients")
+    x = np.zeros((B, n))
+    # coefficients the filter does not estimate keep these values (DOO = 0 in the paper's
+    # filter); a covariance-only run follows the true trajectory, true DOO included
+    coef_fixed = np.zeros((B, N_FULL))
+    if cov_only:
+        coef_fixed = np.ascontiguousarray(linearise_about, float)
+        x[:, :nc] = coef_fixed[:, est_idx]
+    P = np.zeros((B, n, n))
+    P[:, np.arange(nc), np.arange(nc)] = p0**2
+    reset_var = (settings.sigma_set_arcsec * ARCSEC) ** 2
+    r_var = np.full(3, (settings.sigma_a_ug * 1e-6) ** 2)
+    q_rate = (settings.arw_deg_rth * DEG / 60.0) ** 2  # (rad/sqrt(s))^2
+    params = np.asarray(centrifuge_params, float)
+
+    passes = 1 if cov_only else settings.passes
+    hist_slots = []
+    total = 0
+    for k in range(K):
+        idx, used = _history_index(np.asarray(t[k], float), settings.history_every_s, total)
+        hist_slots.append(idx)
+        total += used
+    durations = [float(tk[-1]) if len(tk) else 0.0 for tk in t]
+    H = total * passes
+    hist_x = np.zeros((B, H, n))
+    hist_s = np.zeros((B, H, n))
+    hist_t = np.zeros(H)
+    pass_x = np.zeros((passes, B, nc))
+    pass_P = np.zeros((passes, B, nc, nc))
+    nis = np.zeros(B)
+    n_bad = np.zeros(B, dtype=np.int64)
+    m_total = 0
+    for p in range(passes):
+        if p > 0:
+            Pcc = P[:, :nc, :nc] * 100.0
+            P = np.zeros((B, n, n))
+            P[:, :nc, :nc] = Pcc
+            nis[:] = 0.0
+            m_total = 0
+        offset = 0.0
+        for k in range(K):
+            tk = np.ascontiguousarray(t[k], float)
+            hidx = hist_slots[k] + (p * total if settings.history_every_s is not None else 0)
+            hidx[hist_slots[k] < 0] = -1
+            sel = hidx >= 0
+            hist_t[hidx[sel]] = p * sum(durations) + offset + tk[sel]
+            zk = np.zeros((B, 0, 3)) if cov_only else np.ascontiguousarray(z[k], float)
+            _run_position(x, P, zk, tk, np.ascontiguousarray(cmd_rad[:, k]), reset_var,
+                          est_idx, coef_fixed, params, r_var, q_rate, not cov_only, hidx,
+                          hist_x, hist_s, nis, n_bad)
+            offset += durations[k]
+            m_total += tk.size
+        pass_x[p] = x[:, :nc]
+        pass_P[p] = P[:, :nc, :nc]
+    return Estimate(
+        names=settings.state_names,
+        x=x,
+        P=P,
+        history_t=hist_t,
+        history_x=hist_x,
+        history_sigma=hist_s,
+        pass_x=pass_x,
+        pass_P=pass_P,
+        mean_nis=nis / max(m_total, 1),
+        failed_updates=n_bad,
+    )
+
+
+def nees(estimate: np.ndarray, cov: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Normalised estimation error squared ``e^T P^-1 e`` for a batch: (B, n), (B, n, n), (B|1, n)."""
+    e = estimate - truth
+    L = np.linalg.cholesky(cov)
+    y = np.linalg.solve(L, e[..., None])[..., 0]
+    return np.einsum("bi,bi->b", y, y)

@@ -1,0 +1,44 @@
+"""Atomic file output: write to a temporary file beside the target, then rename.
+
+A failed or interrupted job therefore never leaves a half-written file under the final name.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike):
+    """Yield a temporary path in the target's folder; rename it to ``path`` on success."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+def atomic_to_csv(df, path: str | os.PathLike, **kw) -> None:
+    """``DataFrame.to_csv`` atomically (floats at full precision)."""
+    with atomic_path(path) as tmp:
+        df.to_csv(tmp, index=kw.pop("index", False), **kw)
+
+
+def atomic_to_parquet(df, path: str | os.PathLike) -> None:
+    """``DataFrame.to_parquet`` atomically."""
+    with atomic_path(path) as tmp:
+        df.to_parquet(tmp, index=False)

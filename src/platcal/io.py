@@ -1,4 +1,4 @@
-"""Atomic file output: write to a temporary file beside the target, then rename.
+"""File input and output: atomic writes (temp file, then rename) and YAML reading.
 
 A failed or interrupted job therefore never leaves a half-written file under the final name.
 """
@@ -6,9 +6,12 @@ A failed or interrupted job therefore never leaves a half-written file under the
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
+
+import yaml
 
 
 @contextmanager
@@ -42,3 +45,23 @@ def atomic_to_parquet(df, path: str | os.PathLike) -> None:
     """``DataFrame.to_parquet`` atomically."""
     with atomic_path(path) as tmp:
         df.to_parquet(tmp, index=False)
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that also reads ``1e4`` and ``1.0e4`` as floats (YAML 1.2 style)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+    |\.[0-9_]+(?:[eE][-+][0-9]+)?
+    |[-+]?\.(?:inf|Inf|INF)
+    |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."),
+)
+
+
+def read_yaml(text: str):
+    """Parse YAML text, with floats such as ``1e4`` read as numbers."""
+    return yaml.load(text, Loader=_Loader)

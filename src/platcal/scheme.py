@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from .errors import InputError
+from .io import atomic_write_text, read_yaml
 
 BETA_MARGIN_DEG = 1.0
 """Closest a position's beta may come to +-90 deg."""
@@ -86,7 +87,7 @@ def check_scheme(name: str, spec: dict, where: str = "schemes") -> Scheme:
 def load_scheme_file(path: str | os.PathLike) -> dict[str, Scheme]:
     """Read a scheme file (``schemes: {name: {...}}``) and validate every scheme."""
     try:
-        data = yaml.safe_load(Path(path).read_text())
+        data = read_yaml(Path(path).read_text())
     except (OSError, yaml.YAMLError) as exc:
         raise InputError(str(path), f"cannot read scheme file: {exc}") from exc
     if not isinstance(data, dict) or not isinstance(data.get("schemes"), dict):
@@ -96,8 +97,6 @@ def load_scheme_file(path: str | os.PathLike) -> dict[str, Scheme]:
 
 def dump_schemes(schemes: list[Scheme], path: str | os.PathLike, header: str = "") -> None:
     """Write schemes in the config's format (atomically)."""
-    from .io import atomic_write_text
-
     text = yaml.safe_dump({"schemes": {s.name: s.as_dict() for s in schemes}}, sort_keys=False,
                           default_flow_style=None)
     atomic_write_text(path, (header + text) if header else text)

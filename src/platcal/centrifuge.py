@@ -7,7 +7,7 @@ force is eq. 10 with the vertical sign decided by the spec (``+g`` in ENU).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit
@@ -53,10 +53,19 @@ class Centrifuge:
         lat = np.deg2rad(self.latitude_deg)
         return np.array([0.0, self.earth_rate * np.cos(lat), self.earth_rate * np.sin(lat)])
 
-    def params(self) -> np.ndarray:
-        """Packed ``[w_c (rad/s), r_o (m), g (m/s^2), Omega_N, Omega_U (rad/s)]`` for the kernels."""
+    def params(self, g_level: float | None = None) -> np.ndarray:
+        """Packed ``[w_c (rad/s), r_o (m), g (m/s^2), Omega_N, Omega_U (rad/s)]`` for the kernels.
+
+        ``g_level`` overrides the centripetal level (a position of a multi-g-level scheme).
+        """
+        c = self if g_level is None else replace(self, g_level=float(g_level))
         w = self.earth_rate_n
-        return np.array([self.rate, self.arm_radius, self.g, w[1], w[2]])
+        return np.array([c.rate, c.arm_radius, c.g, w[1], w[2]])
+
+    def scheme_params(self, scheme) -> np.ndarray:
+        """(K, 5) packed parameters per position of ``scheme`` (its ``g_levels`` if any)."""
+        levels = scheme.g_levels or (None,) * scheme.n_positions
+        return np.stack([self.params(g) for g in levels])
 
 
 @njit(cache=True)
@@ -77,3 +86,13 @@ def specific_force(t, params):
     out = np.empty(3)
     specific_force_into(t, params, out)
     return out
+
+
+def broadcast_params(params, B: int, K: int) -> np.ndarray:
+    """Packed centrifuge parameters as (B, K, 5) from (5,), (K, 5) or (B, K, 5)."""
+    p = np.asarray(params, float)
+    if p.ndim == 1:
+        p = p[None, None, :]
+    elif p.ndim == 2:
+        p = p[None]
+    return np.ascontiguousarray(np.broadcast_to(p, (B, K, p.shape[-1])))

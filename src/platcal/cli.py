@@ -31,7 +31,7 @@ def cmd_simulate(args) -> int:
         raise InputError("--seed", "must be a whole number >= 0")
     seeds = None if args.noise_free else [np.random.SeedSequence(study.seed if args.seed is None else args.seed)]
     t0 = time.perf_counter()
-    sim = simulate(study.truth, scheme, study.centrifuge.params(), study.noise, seeds,
+    sim = simulate(study.truth, scheme, study.centrifuge.scheme_params(scheme), study.noise, seeds,
                    sample_s=study.sample_s)
     write_record(sim_to_frame(sim, scheme), args.out)
     print(f"platcal simulate: scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s, "
@@ -81,19 +81,24 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+EXTENSION_MODULES = ("observability", "design", "montecarlo", "report")
+"""Modules that add sub-commands through a ``register_cli(subparsers)`` function."""
+
+
 def _extensions():
-    """Sub-command registrars of the study tools (observability, design, ...)."""
+    """Sub-command registrars of the study tools (observability, design, montecarlo, report)."""
+    import importlib
+
     regs = []
-    try:
-        from .observability import register_cli as reg_obs
-        regs.append(reg_obs)
-    except ImportError:
-        pass
-    try:
-        from .design import register_cli as reg_design
-        regs.append(reg_design)
-    except ImportError:
-        pass
+    for name in EXTENSION_MODULES:
+        try:
+            mod = importlib.import_module(f"platcal.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"platcal.{name}":
+                raise
+            continue
+        if hasattr(mod, "register_cli"):
+            regs.append(mod.register_cli)
     return regs
 
 

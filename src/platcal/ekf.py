@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
+from .centrifuge import broadcast_params
 from .frames import ARCSEC, DEG
 from .instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED
 from .kalman import joseph_update, propagate_rows
@@ -141,6 +142,7 @@ def _run_position(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var
     """Filter every replicate of the batch through one position (reset, then steps).
 
     ``z`` (B, M, 3) g; ``t`` (M,) s since the position's start; ``cmd`` (B, 3) rad.
+    ``params`` (B, 5) packed centrifuge parameters of this position per replicate.
     ``q_rate`` is the attitude process-noise density, rad^2/s per axis.
     """
     B, n = x.shape
@@ -182,7 +184,7 @@ def _run_position(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var
                 coef[est_idx[k]] = xb[k]
             if m > 0:
                 h = t[m] - t[m - 1]
-                rk4_step_jac(xb[nc:], coef, t[m - 1], h, params, ang_new, pa, pc, work, scratch)
+                rk4_step_jac(xb[nc:], coef, t[m - 1], h, params[b], ang_new, pa, pc, work, scratch)
                 for r in range(3):
                     for k in range(nc):
                         phi_rows[r, k] = pc[r, est_idx[k]]
@@ -192,7 +194,7 @@ def _run_position(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var
                 for r in range(3):
                     xb[nc + r] = ang_new[r]
                 propagate_rows(Pb, dyn, phi_rows, q, W)
-            measure_into(xb[nc:], coef, t[m], params, out, hc, ha, work)
+            measure_into(xb[nc:], coef, t[m], params[b], out, hc, ha, work)
             for r in range(3):
                 for k in range(nc):
                     H[r, k] = hc[r, est_idx[k]]
@@ -238,7 +240,8 @@ def run_ekf(
     z : K arrays (B, M_k, 3), accelerometer outputs (g) at the filter instants.
     t : K arrays (M_k,), those instants in s since each position's start (increasing).
     cmd_deg : (B, K, 3) or (K, 3) commanded alpha, beta, gamma per position, deg.
-    centrifuge_params : ``Centrifuge.params()``.
+    centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters
+        (``Centrifuge.params()``; per position for multi-g-level schemes).
     settings : the filter settings.
     linearise_about : (B, 48) full coefficient vectors. If given, the run is covariance-only
         (spec section 10): no measurement is used, the state follows the noise-free trajectory
@@ -273,7 +276,7 @@ def run_ekf(
     reset_var = (settings.sigma_set_arcsec * ARCSEC) ** 2
     r_var = np.full(3, (settings.sigma_a_ug * 1e-6) ** 2)
     q_rate = (settings.arw_deg_rth * DEG / 60.0) ** 2  # (rad/sqrt(s))^2
-    params = np.asarray(centrifuge_params, float)
+    params = broadcast_params(centrifuge_params, B, K)
 
     passes = 1 if cov_only else settings.passes
     hist_slots = []
@@ -308,7 +311,7 @@ def run_ekf(
             hist_t[hidx[sel]] = p * sum(durations) + offset + tk[sel]
             zk = np.zeros((B, 0, 3)) if cov_only else np.ascontiguousarray(z[k], float)
             _run_position(x, P, zk, tk, np.ascontiguousarray(cmd_rad[:, k]), reset_var,
-                          est_idx, coef_fixed, params, r_var, q_rate, not cov_only, hidx,
+                          est_idx, coef_fixed, np.ascontiguousarray(params[:, k]), r_var, q_rate, not cov_only, hidx,
                           hist_x, hist_s, nis, n_bad)
             offset += durations[k]
             m_total += tk.size

@@ -7,6 +7,7 @@ import os
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from .config import Study
@@ -20,7 +21,8 @@ from .tables import covariance_frame, estimates_frame, table2_markdown
 def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:
     """Run the study's EKF over a validated test record (one run: a batch of one)."""
     fin = filter_input(df, scheme, study.filter.period_s)
-    return run_ekf(fin.z, fin.t, fin.cmd_deg, study.centrifuge.params(), study.filter)
+    params = study.centrifuge.scheme_params(scheme)[np.array(fin.positions) - 1]
+    return run_ekf(fin.z, fin.t, fin.cmd_deg, params, study.filter)
 
 
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,

@@ -36,6 +36,8 @@ class Scheme:
     name: str
     positions: tuple[tuple[float, float, float], ...]
     dwell_s: float
+    g_levels: tuple[float, ...] | None = None
+    """Centripetal level per position (multi-g-level schemes); None: the centrifuge's."""
 
     @property
     def angles_deg(self) -> np.ndarray:
@@ -51,7 +53,10 @@ class Scheme:
         def num(v: float):
             return int(v) if float(v).is_integer() else float(v)
 
-        return {"dwell_s": num(self.dwell_s), "positions": [[num(a) for a in p] for p in self.positions]}
+        out = {"dwell_s": num(self.dwell_s), "positions": [[num(a) for a in p] for p in self.positions]}
+        if self.g_levels is not None:
+            out["g_levels"] = [num(g) for g in self.g_levels]
+        return out
 
 
 def check_scheme(name: str, spec: dict, where: str = "schemes") -> Scheme:
@@ -59,9 +64,10 @@ def check_scheme(name: str, spec: dict, where: str = "schemes") -> Scheme:
     field = f"{where}.{name}"
     if not isinstance(spec, dict):
         raise InputError(field, "must be a mapping with 'dwell_s' and 'positions'")
-    extra = set(spec) - {"dwell_s", "positions", "description"}
+    extra = set(spec) - {"dwell_s", "positions", "g_levels", "description"}
     if extra:
-        raise InputError(f"{field}.{sorted(extra)[0]}", "unknown key; a scheme has 'dwell_s' and 'positions'")
+        raise InputError(f"{field}.{sorted(extra)[0]}", "unknown key; a scheme has 'dwell_s', 'positions' "
+                         "and optionally 'g_levels' and 'description'")
     dwell = spec.get("dwell_s")
     if isinstance(dwell, bool) or not isinstance(dwell, (int, float)) or not math.isfinite(dwell) or dwell <= 0:
         raise InputError(f"{field}.dwell_s", f"must be a number > 0 (seconds), got {dwell!r}")
@@ -81,7 +87,15 @@ def check_scheme(name: str, spec: dict, where: str = "schemes") -> Scheme:
             raise InputError(pf, f"beta = {beta} deg is at or near +-90 deg, where the Euler "
                              f"kinematics (eq. 15) are singular; keep |beta| <= {90 - BETA_MARGIN_DEG} deg")
         out.append(tuple(float(a) for a in p))
-    return Scheme(name=name, positions=tuple(out), dwell_s=float(dwell))
+    levels = spec.get("g_levels")
+    if levels is not None:
+        if (not isinstance(levels, (list, tuple)) or len(levels) != len(out)
+                or any(isinstance(g, bool) or not isinstance(g, (int, float)) or not math.isfinite(g) or g < 0
+                       for g in levels)):
+            raise InputError(f"{field}.g_levels", f"must be a list of {len(out)} numbers >= 0 "
+                             f"(one centripetal g-level per position), got {levels!r}")
+        levels = tuple(float(g) for g in levels)
+    return Scheme(name=name, positions=tuple(out), dwell_s=float(dwell), g_levels=levels)
 
 
 def load_scheme_file(path: str | os.PathLike) -> dict[str, Scheme]:

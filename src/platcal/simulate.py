@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
+from .centrifuge import broadcast_params
 from .frames import ARCSEC, DEG
 from .instruments import N_FULL
 from .platform import make_work, measure_into, rk4_step
@@ -75,12 +76,12 @@ def _simulate_position(theta0, coef, n, dt, params, acc_noise, arw, keep, out_a,
             t = i * dt
             if i % keep == 0:
                 j = i // keep
-                measure_into(ang, coef[b], t, params, meas, hc, ha, work)
+                measure_into(ang, coef[b], t, params[b], meas, hc, ha, work)
                 for r in range(3):
                     out_a[b, j, r] = meas[r] + (acc_noise[b, i, r] if noisy_a else 0.0)
                     out_ang[b, j, r] = ang[r]
             if i < n - 1:
-                rk4_step(ang, coef[b], t, dt, params, new, work, k_all)
+                rk4_step(ang, coef[b], t, dt, params[b], new, work, k_all)
                 for r in range(3):
                     ang[r] = new[r] + (arw[b, i, r] if noisy_g else 0.0)
 
@@ -106,7 +107,8 @@ def simulate(
     ----------
     truth : (B, 48) or (48,) true full coefficient vectors (engineering units).
     scheme : the positions and dwell.
-    centrifuge_params : ``Centrifuge.params()``.
+    centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters
+        (``Centrifuge.params()``, or ``Centrifuge.scheme_params`` for a multi-g-level scheme).
     noise : truth noise levels; ignored when ``seeds`` is None (noise-free run).
     seeds : one SeedSequence per replicate, or None for a noise-free run.
     sample_s : sample period, s (5 ms).
@@ -123,6 +125,7 @@ def simulate(
     n = samples_per_position(scheme.dwell_s, sample_s)
     nk = (n + keep_every - 1) // keep_every
     cmd = scheme.angles_deg * DEG
+    params = broadcast_params(centrifuge_params, B, K)
     streams = replicate_streams(seeds) if seeds is not None else None
     set_err = np.zeros((B, K, 3))
     if streams is not None and noise.sigma_set_arcsec > 0:
@@ -141,7 +144,7 @@ def simulate(
         else:
             arw = np.zeros((B, 0, 3))
         theta0 = np.ascontiguousarray(cmd[k][None, :] + set_err[:, k])
-        _simulate_position(theta0, truth, n, sample_s, np.asarray(centrifuge_params, float),
+        _simulate_position(theta0, truth, n, sample_s, np.ascontiguousarray(params[:, k]),
                            acc, arw, keep_every, A[:, k], ang[:, k])
     t = np.arange(0, n, keep_every) * sample_s
     return SimResult(A=A, angles=ang, t=t, set_error=set_err)

@@ -1,0 +1,165 @@
+"""The command line: quick start (simulate then identify) and bad input (exit 2, field named, no output)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from platcal.cli import main
+
+SMALL = """
+site: {latitude_deg: 28.2}
+centrifuge: {rate_deg_s: 180, g_level: 10}
+noise: {sigma_a_ug: 10, arw_deg_rth: 0.001, sigma_set_arcsec: 10}
+filter: {period_ms: 20, passes: 2}
+schemes:
+  short: {dwell_s: 4, positions: [[45, 0, 167], [350, 0, 325], [209, 0, 182]]}
+"""
+
+
+@pytest.fixture()
+def small(tmp_path):
+    cfg = tmp_path / "config.yaml"
+    cfg.write_text(SMALL)
+    rec = tmp_path / "run.csv"
+    assert main(["simulate", "--config", str(cfg), "--scheme", "short", "--seed", "3", "--out", str(rec)]) == 0
+    return cfg, rec
+
+
+def test_quick_start_simulate_then_identify(small, tmp_path):
+    cfg, rec = small
+    df = pd.read_csv(rec)
+    assert len(df) == 3 * 800 and df["t"].iloc[1] == 0.005
+    out = tmp_path / "id"
+    assert main(["identify", "--config", str(cfg), "--scheme", "short", "--data", str(rec), "--out", str(out)]) == 0
+    est = pd.read_csv(out / "estimates.csv")
+    assert list(est.columns) == ["name", "unit", "estimate", "sigma", "truth", "error", "rel_err_pct"]
+    assert len(est) == 45 and est["name"].iloc[0] == "DF_x" and np.all(est["sigma"] > 0)
+    cov = pd.read_csv(out / "covariance.csv", index_col=0)
+    assert cov.shape == (48, 48) and list(cov.index) == list(cov.columns)
+    assert cov.columns[-1] == "gamma"
+    np.testing.assert_allclose(np.sqrt(np.diag(cov.to_numpy()))[:45], est["sigma"], rtol=1e-12)
+    md = (out / "table2.md").read_text()
+    assert "| DF_x | deg/h | 7.37 | 7.3807 | 0.15 |" in md
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["n_states"] == 48 and summary["nees"] > 0
+
+
+def test_same_seed_same_record_and_seeds_differ(small, tmp_path):
+    cfg, rec = small
+    again = tmp_path / "again.csv"
+    other = tmp_path / "other.csv"
+    main(["simulate", "--config", str(cfg), "--scheme", "short", "--seed", "3", "--out", str(again)])
+    main(["simulate", "--config", str(cfg), "--scheme", "short", "--seed", "4", "--out", str(other)])
+    assert rec.read_bytes() == again.read_bytes()
+    assert rec.read_bytes() != other.read_bytes()
+
+
+def test_recorded_log_without_truth_columns(small, tmp_path):
+    cfg, rec = small
+    log = tmp_path / "log.parquet"
+    pd.read_csv(rec).drop(columns=["alpha", "beta", "gamma"]).to_parquet(log)
+    out = tmp_path / "id"
+    assert main(["identify", "--config", str(cfg), "--scheme", "short", "--data", str(log), "--out", str(out)]) == 0
+    est = pd.read_csv(out / "estimates.csv")
+    assert list(est.columns) == ["name", "unit", "estimate", "sigma"]
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "platcal.cli", *args], capture_output=True, text=True)
+
+
+CONFIG_CASES = {
+    "unknown coefficient": ("truth: {DF_q: 1.0}", "truth.DF_q"),
+    "position not three numbers": ("schemes:\n  short: {dwell_s: 4, positions: [[45, 0, 167], [1, 2]]}",
+                                   "schemes.short.positions[2]"),
+    "beta near 90": ("schemes:\n  short: {dwell_s: 4, positions: [[45, 89.5, 167]]}", "schemes.short.positions[1]"),
+    "dwell zero": ("schemes:\n  short: {dwell_s: 0, positions: [[45, 0, 167]]}", "schemes.short.dwell_s"),
+    "negative noise": ("noise: {sigma_a_ug: -1}", "noise.sigma_a_ug"),
+    "wrong type": ("filter: {passes: two}", "filter.passes"),
+    "unknown key": ("filtre: {passes: 2}", "(top level)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CONFIG_CASES))
+def test_bad_config_exits_2_naming_the_field(case, tmp_path):
+    override, field = CONFIG_CASES[case]
+    base = {k: v for k, v in (("truth", ""), ("noise", ""), ("filter", ""), ("schemes", ""))}
+    text = SMALL
+    key = override.split(":")[0]
+    if key in base and key in SMALL:
+        # replace the section of SMALL with the override
+        lines, out, skip = SMALL.splitlines(), [], False
+        for line in lines:
+            if line.startswith(key + ":"):
+                skip = True
+                out.append(override)
+                continue
+            if skip and line.startswith("  "):
+                continue
+            skip = False
+            out.append(line)
+        text = "\n".join(out) + "\n"
+    else:
+        text = SMALL + override + "\n"
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text(text)
+    out = tmp_path / "out.csv"
+    r = run_cli("simulate", "--config", str(cfg), "--scheme", "short", "--out", str(out))
+    assert r.returncode == 2, r.stderr
+    assert field in r.stderr
+    assert not out.exists()
+
+
+def test_unknown_scheme(small, tmp_path):
+    cfg, _ = small
+    r = run_cli("simulate", "--config", str(cfg), "--scheme", "nope", "--out", str(tmp_path / "x.csv"))
+    assert r.returncode == 2 and "--scheme" in r.stderr and "nope" in r.stderr
+    assert not (tmp_path / "x.csv").exists()
+
+
+def _mangle(df: pd.DataFrame, how: str) -> pd.DataFrame:
+    df = df.copy()
+    if how == "missing column":
+        return df.drop(columns=["Ay"])
+    if how == "extra column":
+        df["temperature"] = 20.0
+        return df
+    if how == "nan":
+        df.loc[10, "Ax"] = np.nan
+        return df
+    if how == "inf":
+        df.loc[11, "t"] = np.inf
+        return df
+    if how == "time not increasing":
+        df.loc[5, "t"] = df.loc[3, "t"]
+        return df
+    if how == "position not in scheme":
+        df.loc[df.index[-1], "position"] = 7
+        return df
+    raise ValueError(how)
+
+
+DATA_CASES = {
+    "missing column": "column Ay",
+    "extra column": "column temperature",
+    "nan": "column Ax, row 12",
+    "inf": "column t, row 13",
+    "time not increasing": "column t, position 1",
+    "position not in scheme": "column position",
+}
+
+
+@pytest.mark.parametrize("case", sorted(DATA_CASES))
+def test_bad_data_exits_2_naming_the_field(case, small, tmp_path):
+    cfg, rec = small
+    bad = tmp_path / "bad.csv"
+    _mangle(pd.read_csv(rec), case).to_csv(bad, index=False)
+    out = tmp_path / "id"
+    r = run_cli("identify", "--config", str(cfg), "--scheme", "short", "--data", str(bad), "--out", str(out))
+    assert r.returncode == 2, r.stderr
+    assert DATA_CASES[case] in r.stderr
+    assert not out.exists()

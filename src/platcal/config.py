@@ -27,6 +27,8 @@ from .scheme import Scheme, check_scheme
 from .simulate import Noise
 
 SCHEMA_RESOURCE = "data/config.schema.yaml"
+ANGLE_KEYS = ("angles", "alpha", "beta", "gamma")
+"""``filter.p0`` keys for the attitude states (arcsec); they set the reset sigma."""
 
 
 def schema() -> dict:
@@ -91,7 +93,7 @@ def validate_config(raw: dict) -> dict:
             raise InputError(f"truth.{name}", f"must be finite, got {value!r}")
     terms = {term_of(n) for n in INDEX}
     for key in cfg["filter"]["p0"]:
-        if key not in INDEX and key not in terms:
+        if key not in INDEX and key not in terms and key not in ANGLE_KEYS:
             raise InputError(f"filter.p0.{key}", f"unknown term or coefficient; use one of {sorted(terms)} "
                              "or a coefficient name such as DF_x")
     sample = cfg["sampling"]["sample_ms"]
@@ -129,13 +131,19 @@ def filter_settings(fcfg: dict, noise: Noise) -> FilterSettings:
     def pick(key, fallback):
         return fallback if fcfg.get(key) is None else float(fcfg[key])
 
+    p0 = dict(fcfg["p0"])
+    # P0 of the attitude states is the reset sigma (spec section 11: "angles sigma_set")
+    angle_sigma = [p0.pop(k) for k in ANGLE_KEYS if k in p0]
+    reset = fcfg.get("sigma_set_arcsec")
+    if reset is None and angle_sigma:
+        reset = max(angle_sigma)
     return FilterSettings(
         period_s=fcfg["period_ms"] / 1000.0,
         passes=int(fcfg["passes"]),
         sigma_a_ug=pick("sigma_a_ug", noise.sigma_a_ug),
         arw_deg_rth=pick("arw_deg_rth", noise.arw_deg_rth),
-        sigma_set_arcsec=pick("sigma_set_arcsec", noise.sigma_set_arcsec),
-        p0_sigma=default_p0_sigma(bool(fcfg["estimate_doo"]), fcfg["p0"]),
+        sigma_set_arcsec=noise.sigma_set_arcsec if reset is None else float(reset),
+        p0_sigma=default_p0_sigma(bool(fcfg["estimate_doo"]), p0),
         estimate_doo=bool(fcfg["estimate_doo"]),
         history_every_s=float(fcfg["history_s"]),
     )

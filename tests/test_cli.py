@@ -42,6 +42,9 @@ def test_quick_start_simulate_then_identify(small, tmp_path):
     assert cov.shape == (48, 48) and list(cov.index) == list(cov.columns)
     assert cov.columns[-1] == "gamma"
     np.testing.assert_allclose(np.sqrt(np.diag(cov.to_numpy()))[:45], est["sigma"], rtol=1e-12)
+    hist = pd.read_csv(out / "history.csv")
+    assert len(hist) == 2 * 3 * 4 and hist["t"].is_monotonic_increasing  # 2 passes x 3 positions x 4 s
+    assert hist["DF_x_sigma"].iloc[-1] < hist["DF_x_sigma"].iloc[0]
     md = (out / "table2.md").read_text()
     assert "| DF_x | deg/h | 7.37 | 7.3807 | 0.15 |" in md
     summary = json.loads((out / "summary.json").read_text())

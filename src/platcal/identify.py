@@ -27,7 +27,11 @@ def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:
 
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
                          seconds: float | None = None) -> dict:
-    """Write ``estimates.csv``, ``covariance.csv``, ``table2.md`` and ``summary.json``."""
+    """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
+
+    ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
+    first pass), each state's estimate and its 1-sigma (``<name>_sigma``), angles in rad.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     nc = est.n_coef
@@ -47,9 +51,20 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         summary["max_abs_rel_err_pct_accel"] = float(rel[~gyro].max())
     atomic_to_csv(df, out / "estimates.csv")
     atomic_to_csv(covariance_frame(est.names, est.P[0]), out / "covariance.csv", index=True)
+    atomic_to_csv(history_frame(est), out / "history.csv")
     atomic_write_text(out / "table2.md", table2_markdown(df))
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     return summary
+
+
+def history_frame(est: Estimate, replicate: int = 0) -> pd.DataFrame:
+    """The decimated estimate and 1-sigma history of one run as a wide table."""
+    cols = {"t": est.history_t}
+    for i, name in enumerate(est.names):
+        cols[name] = est.history_x[replicate, :, i]
+    for i, name in enumerate(est.names):
+        cols[f"{name}_sigma"] = est.history_sigma[replicate, :, i]
+    return pd.DataFrame(cols)
 
 
 def truth_known(df: pd.DataFrame) -> bool:

@@ -163,6 +163,21 @@ def builtin_scheme(cfg: dict, name: str):
                      "is read from its scheme file)")
 
 
+_FLOAT_RE = re.compile(r"^[-+]?(?:(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?|(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+))$")
+
+
+def normalise_numbers(obj):
+    """Read YAML 1.1 leftovers such as ``'1.0e4'`` (a string to PyYAML's and Snakemake's
+    loaders) as floats, in place, as :func:`platcal.io.read_yaml` does; returns ``obj``."""
+    items = obj.items() if isinstance(obj, dict) else enumerate(obj) if isinstance(obj, list) else ()
+    for k, v in list(items):
+        if isinstance(v, str) and _FLOAT_RE.match(v):
+            obj[k] = float(v.replace("_", ""))
+        elif isinstance(v, (dict, list)):
+            normalise_numbers(v)
+    return obj
+
+
 def check_study(raw: dict) -> dict:
     """Validate a configuration including its ``study:`` section; return it with defaults.
 
@@ -171,6 +186,8 @@ def check_study(raw: dict) -> dict:
     """
     from .config import validate_config
 
+    if isinstance(raw, dict):
+        raw = normalise_numbers(json.loads(json.dumps(raw)))
     cfg = validate_config(raw)
     st = cfg["study"]
     scheme_names(cfg)

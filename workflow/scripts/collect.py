@@ -1,0 +1,12 @@
+"""Snakemake wrapper: concatenate the cells into study-wide tidy tables."""
+from platcal.io import atomic_to_csv, atomic_to_parquet
+from platcal.montecarlo import collect, job_logger
+
+sm = snakemake  # noqa: F821
+log = job_logger(sm.log[0])
+log.info("collecting %d cells", len(sm.input.coef))
+coef, runs, timing = collect(sm.input.coef, sm.input.runs, sm.input.timing)
+atomic_to_parquet(coef, sm.output.coef)
+atomic_to_parquet(runs, sm.output.runs)
+atomic_to_csv(timing, sm.output.timing)
+log.info("done: %d rows, %d runs", len(coef), len(runs))

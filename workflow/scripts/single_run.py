@@ -1,0 +1,12 @@
+"""Snakemake wrapper: the single run of Table 2 (platcal.montecarlo.single_job)."""
+import os
+
+for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[var] = "1"
+
+from pathlib import Path  # noqa: E402
+
+from platcal.montecarlo import single_job  # noqa: E402
+
+sm = snakemake  # noqa: F821
+single_job(sm.config, Path(sm.output.estimates).parent, threads=sm.threads, log_path=sm.log[0])

@@ -21,8 +21,10 @@ from numba import njit, prange
 from .centrifuge import broadcast_params
 from .frames import ARCSEC, DEG
 from .instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED
-from .kalman import joseph_update, propagate_rows
-from .platform import make_rk4_scratch, make_work, measure_into, rk4_step_jac
+from .centrifuge import specific_force_into
+from .kalman import joseph_update_sparse, propagate_sparse
+from .platform import (GYRO_COLS, MEAS_COLS, N_GYRO, make_fast_rk4_scratch, make_fast_work,
+                       measure_fast, rk4_jac_fast)
 
 ANGLE_NAMES = ("alpha", "beta", "gamma")
 
@@ -138,79 +140,141 @@ class Estimate:
 
 @njit(parallel=True, cache=True)
 def _run_position(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-                  update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad):
+                  update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz):
     """Filter every replicate of the batch through one position (reset, then steps).
 
     ``z`` (B, M, 3) g; ``t`` (M,) s since the position's start; ``cmd`` (B, 3) rad.
     ``params`` (B, 5) packed centrifuge parameters of this position per replicate.
     ``q_rate`` is the attitude process-noise density, rad^2/s per axis.
+
+    Sparsity (from :func:`_structure`): the attitude rows of Phi are nonzero only at the states
+    ``pcols`` (gyro coefficients, then the angles); for a coefficient column ``pg`` gives its
+    column of the RK4 map's compact gyro Jacobian. Row r of H is nonzero only at the states
+    ``hcols[r, :hnnz[r]]``; ``hsrc`` says where each value comes from (a full-vector coefficient
+    index, or ``-1 - i`` for angle i).
+
+    Each replicate runs the same sequential kernel (:func:`_filter_one`) in its own iteration, so
+    the numbers do not depend on the batch size or on the number of threads.
     """
-    B, n = x.shape
+    B = x.shape[0]
+    for b in prange(B):
+        stats = _filter_one(x[b], P[b], z[b], t, cmd[b], reset_var, est_idx, coef_fixed[b],
+                            params[b], r_var, q_rate, update_x, hist_idx, hist_x[b], hist_s[b],
+                            pcols, pg, hcols, hsrc, hnnz)
+        nis_sum[b] += stats[0]
+        n_bad[b] += int(stats[1])
+
+
+@njit(cache=True)
+def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate,
+                update_x, hist_idx, hist_x, hist_s, pcols, pg, hcols, hsrc, hnnz):
+    """One replicate through one position; returns (sum of NIS, number of skipped updates)."""
+    n = xb.shape[0]
     nc = n - 3
     M = t.shape[0]
+    npc = pcols.shape[0]
+    mh = hcols.shape[1]
     dyn = np.arange(nc, n)
-    for b in prange(B):
-        work = make_work()
-        scratch = make_rk4_scratch()
-        coef = coef_fixed[b].copy()
-        ang_new = np.empty(3)
-        pa = np.empty((3, 3))
-        pc = np.empty((3, N_FULL))
-        phi_rows = np.zeros((3, n))
-        q = np.zeros((3, 3))
-        W = np.empty((n, 3))
-        U = np.empty((n, 3))
-        K = np.empty((n, 3))
-        D = np.empty((n, 3))
-        S = np.empty((3, 3))
-        Sinv = np.empty((3, 3))
-        nu = np.empty(3)
-        out = np.empty(3)
-        hc = np.empty((3, N_FULL))
-        ha = np.empty((3, 3))
-        H = np.empty((3, n))
-        innov = np.zeros(3)
-        xb = x[b]
-        Pb = P[b]
-        # attitude reset: commanded angles, variance sigma_set^2, no cross-covariance
-        for r in range(3):
-            xb[nc + r] = cmd[b, r]
-            for i in range(n):
-                Pb[nc + r, i] = 0.0
-                Pb[i, nc + r] = 0.0
-            Pb[nc + r, nc + r] = reset_var
-        for m in range(M):
-            for k in range(nc):
-                coef[est_idx[k]] = xb[k]
-            if m > 0:
-                h = t[m] - t[m - 1]
-                rk4_step_jac(xb[nc:], coef, t[m - 1], h, params[b], ang_new, pa, pc, work, scratch)
-                for r in range(3):
-                    for k in range(nc):
-                        phi_rows[r, k] = pc[r, est_idx[k]]
-                    for i in range(3):
-                        phi_rows[r, nc + i] = pa[r, i]
-                    q[r, r] = q_rate * h
-                for r in range(3):
-                    xb[nc + r] = ang_new[r]
-                propagate_rows(Pb, dyn, phi_rows, q, W)
-            measure_into(xb[nc:], coef, t[m], params[b], out, hc, ha, work)
+    w = make_fast_work()
+    scratch = make_fast_rk4_scratch()
+    coef = coef_fixed.copy()
+    ang_new = np.empty(3)
+    pa = np.empty((3, 3))
+    pgyro = np.empty((3, N_GYRO))
+    phi = np.empty((3, npc))
+    q = np.zeros((3, 3))
+    blk = np.empty((3, 3))
+    Wd = np.empty((3, n))
+    U = np.empty((3, n))
+    K = np.empty((3, n))
+    D = np.empty((3, n))
+    S = np.empty((3, 3))
+    Sinv = np.empty((3, 3))
+    nu = np.empty(3)
+    out = np.empty(3)
+    ha = np.empty((3, 3))
+    hval = np.zeros((3, mh))
+    innov = np.zeros(3)
+    fr3 = np.empty((3, 3))
+    fr_now = np.empty(3)
+    ang = xb[nc:]
+    nis = 0.0
+    bad = 0
+    # attitude reset: commanded angles, variance sigma_set^2, no cross-covariance
+    for r in range(3):
+        xb[nc + r] = cmd[r]
+        for i in range(n):
+            Pb[nc + r, i] = 0.0
+            Pb[i, nc + r] = 0.0
+        Pb[nc + r, nc + r] = reset_var
+    if M > 0:
+        specific_force_into(t[0], pb, fr_now)
+    for m in range(M):
+        for k in range(nc):
+            coef[est_idx[k]] = xb[k]
+        if m > 0:
+            h = t[m] - t[m - 1]
+            # the end-of-step force is the one measured at t[m]: computed once, used twice
             for r in range(3):
-                for k in range(nc):
-                    H[r, k] = hc[r, est_idx[k]]
+                fr3[0, r] = fr_now[r]
+            specific_force_into(t[m - 1] + 0.5 * h, pb, fr3[1])
+            specific_force_into(t[m], pb, fr_now)
+            for r in range(3):
+                fr3[2, r] = fr_now[r]
+            rk4_jac_fast(ang, coef, fr3, h, pb, ang_new, pa, pgyro, w, scratch)
+            for r in range(3):
+                for k in range(npc - 3):
+                    phi[r, k] = pgyro[r, pg[k]]
                 for i in range(3):
-                    H[r, nc + i] = ha[r, i]
-                if update_x:
-                    innov[r] = z[b, m, r] - out[r]
-            if joseph_update(xb, Pb, H, innov, r_var, U, K, D, S, Sinv, nu, update_x):
-                nis_sum[b] += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
-            else:
-                n_bad[b] += 1
-            hi = hist_idx[m]
-            if hi >= 0:
-                for i in range(n):
-                    hist_x[b, hi, i] = xb[i]
-                    hist_s[b, hi, i] = np.sqrt(Pb[i, i]) if Pb[i, i] > 0.0 else -1.0
+                    phi[r, npc - 3 + i] = pa[r, i]
+                q[r, r] = q_rate * h
+            for r in range(3):
+                ang[r] = ang_new[r]
+            propagate_sparse(Pb, dyn, pcols, phi, q, Wd, blk)
+        measure_fast(ang, coef, fr_now, pb, out, ha, True, w)
+        hc = w[11]
+        for r in range(3):
+            for k in range(hnnz[r]):
+                src = hsrc[r, k]
+                hval[r, k] = hc[r, src] if src >= 0 else ha[r, -1 - src]
+            if update_x:
+                innov[r] = zb[m, r] - out[r]
+        if joseph_update_sparse(xb, Pb, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu,
+                                update_x):
+            nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+        else:
+            bad += 1
+        hi = hist_idx[m]
+        if hi >= 0:
+            for i in range(n):
+                hist_x[hi, i] = xb[i]
+                hist_s[hi, i] = np.sqrt(Pb[i, i]) if Pb[i, i] > 0.0 else -1.0
+    return nis, bad
+
+
+def _structure(est_idx: np.ndarray):
+    """Sparsity of Phi's attitude rows and of H for the estimated coefficients ``est_idx``.
+
+    Returns ``pcols, pg, hcols, hsrc, hnnz`` as :func:`_run_position` takes them.
+    """
+    nc = est_idx.size
+    state_of = {int(f): k for k, f in enumerate(est_idx)}
+    gyro_pos = {int(f): q for q, f in enumerate(GYRO_COLS)}
+    coef_cols = [(state_of[f], gyro_pos[f]) for f in GYRO_COLS if int(f) in state_of]
+    pcols = np.array([s for s, _ in coef_cols] + [nc, nc + 1, nc + 2], dtype=np.int64)
+    pg = np.array([q for _, q in coef_cols], dtype=np.int64)
+    width = MEAS_COLS.shape[1] + 3
+    hcols = np.zeros((3, width), dtype=np.int64)
+    hsrc = np.zeros((3, width), dtype=np.int64)
+    hnnz = np.zeros(3, dtype=np.int64)
+    for r in range(3):
+        entries = [(state_of[int(f)], int(f)) for f in MEAS_COLS[r] if f >= 0 and int(f) in state_of]
+        entries += [(nc + i, -1 - i) for i in range(3)]
+        hnnz[r] = len(entries)
+        for k, (s, src) in enumerate(entries):
+            hcols[r, k] = s
+            hsrc[r, k] = src
+    return pcols, pg, hcols, hsrc, hnnz
 
 
 def _history_index(t: np.ndarray, every_s: float | None, start: int) -> tuple[np.ndarray, int]:
@@ -279,6 +343,7 @@ def run_ekf(
     params = broadcast_params(centrifuge_params, B, K)
 
     passes = 1 if cov_only else settings.passes
+    structure = _structure(est_idx)
     hist_slots = []
     total = 0
     for k in range(K):
@@ -312,7 +377,7 @@ def run_ekf(
             zk = np.zeros((B, 0, 3)) if cov_only else np.ascontiguousarray(z[k], float)
             _run_position(x, P, zk, tk, np.ascontiguousarray(cmd_rad[:, k]), reset_var,
                           est_idx, coef_fixed, np.ascontiguousarray(params[:, k]), r_var, q_rate, not cov_only, hidx,
-                          hist_x, hist_s, nis, n_bad)
+                          hist_x, hist_s, nis, n_bad, *structure)
             offset += durations[k]
             m_total += tk.size
         pass_x[p] = x[:, :nc]

@@ -162,3 +162,139 @@ def joseph_update(x, P, H, innov, r_var, U, K, D, S, Sinv, nu, update_x):
             P[i, j] = v
             P[j, i] = v
     return True
+
+
+@njit(cache=True)
+def propagate_sparse(P, dyn, cols, phi, q, W, blk):
+    """``P <- Phi P Phi^T + Q`` where Phi is the identity except for the rows ``dyn``, and those
+    rows are nonzero only in the columns ``cols``.
+
+    Parameters
+    ----------
+    P : (n, n) symmetric covariance, updated in place (kept exactly symmetric).
+    dyn : (d,) int, indices of the dynamic states.
+    cols : (m,) int, the columns where the dynamic rows of Phi may be nonzero (``dyn`` among them).
+    phi : (d, m) the values of those rows at ``cols``.
+    q : (d, d) process-noise covariance of the dynamic states.
+    W : (d, n) scratch; receives ``Phi[dyn] P``. blk : (d, d) scratch.
+
+    Cost O(d m n): with m ~ 30 nonzero columns of a 48-state filter, well under one n^3.
+    """
+    n = P.shape[0]
+    d = dyn.shape[0]
+    m = cols.shape[0]
+    for r in range(d):
+        wr = W[r]
+        for j in range(n):
+            wr[j] = 0.0
+    # rows of P are columns of P (symmetric): W[r] = sum_k phi[r, k] P[cols[k]] as axpys,
+    # contiguous and vectorisable
+    for k in range(m):
+        prow = P[cols[k]]
+        for r in range(d):
+            c = phi[r, k]
+            if c != 0.0:
+                wr = W[r]
+                for j in range(n):
+                    wr[j] += c * prow[j]
+    # the dyn-dyn block, Phi P Phi^T restricted to dyn, before P's rows are overwritten
+    for r in range(d):
+        for c in range(r + 1):
+            s = 0.0
+            for k in range(m):
+                s += W[r, cols[k]] * phi[c, k]
+            v = s + 0.5 * (q[r, c] + q[c, r])
+            blk[r, c] = v
+            blk[c, r] = v
+    for r in range(d):
+        dr = dyn[r]
+        wr = W[r]
+        prow = P[dr]
+        for j in range(n):
+            prow[j] = wr[j]
+            P[j, dr] = wr[j]
+    for r in range(d):
+        for c in range(d):
+            P[dyn[r], dyn[c]] = blk[r, c]
+
+
+@njit(cache=True)
+def joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu, update_x):
+    """Kalman update with a 3-dimensional measurement whose Jacobian rows are sparse, in Joseph
+    form, O(n^2) with a small constant.
+
+    Row r of H is nonzero only at the states ``hcols[r, :hnnz[r]]`` with values
+    ``hval[r, :hnnz[r]]``. With ``U = P H^T`` (n x 3), ``S = H U + R``, ``K = U S^-1`` and
+    ``D = U - K S`` the Joseph form ``(I - K H) P (I - K H)^T + K R K^T`` equals
+    ``P - K U^T - D K^T`` exactly, for any gain K. Only the lower triangle is computed and it
+    is mirrored, so P stays exactly symmetric.
+
+    Parameters
+    ----------
+    x : (n,) state, updated in place when ``update_x``.
+    P : (n, n) symmetric covariance, updated in place.
+    hcols, hval : (3, m) int and float; hnnz : (3,) int. The sparse rows of H.
+    innov : (3,) innovation ``z - h(x)`` (unused unless ``update_x``).
+    r_var : (3,) measurement-noise variances (R diagonal).
+    U, K, D : (3, n) scratch (stored transposed for contiguous rows); S, Sinv : (3, 3) scratch.
+    nu : (3,) out, the standardised innovation ``L^-1 innov`` (for NIS).
+
+    Returns
+    -------
+    bool : False if ``S`` was not positive definite (the update is skipped).
+    """
+    n = P.shape[0]
+    for r in range(3):
+        ur = U[r]
+        for j in range(n):
+            ur[j] = 0.0
+        for t in range(hnnz[r]):
+            c = hval[r, t]
+            prow = P[hcols[r, t]]
+            for j in range(n):
+                ur[j] += c * prow[j]
+    for r in range(3):
+        for c in range(r + 1):
+            s = 0.0
+            for t in range(hnnz[c]):
+                s += U[r, hcols[c, t]] * hval[c, t]
+            S[r, c] = s
+            S[c, r] = s
+        S[r, r] += r_var[r]
+    if not inv_sym3(S, Sinv):
+        return False
+    l00 = np.sqrt(S[0, 0])
+    l10 = S[1, 0] / l00
+    l20 = S[2, 0] / l00
+    l11 = np.sqrt(S[1, 1] - l10 * l10)
+    l21 = (S[2, 1] - l20 * l10) / l11
+    l22 = np.sqrt(S[2, 2] - l20 * l20 - l21 * l21)
+    nu[0] = innov[0] / l00
+    nu[1] = (innov[1] - l10 * nu[0]) / l11
+    nu[2] = (innov[2] - l20 * nu[0] - l21 * nu[1]) / l22
+    for c in range(3):
+        kc = K[c]
+        s0, s1, s2 = Sinv[c, 0], Sinv[c, 1], Sinv[c, 2]
+        for j in range(n):
+            kc[j] = s0 * U[0, j] + s1 * U[1, j] + s2 * U[2, j]
+    for c in range(3):
+        dc = D[c]
+        s0, s1, s2 = S[c, 0], S[c, 1], S[c, 2]
+        for j in range(n):
+            dc[j] = U[c, j] - (s0 * K[0, j] + s1 * K[1, j] + s2 * K[2, j])
+    if update_x:
+        i0, i1, i2 = innov[0], innov[1], innov[2]
+        for j in range(n):
+            x[j] += K[0, j] * i0 + K[1, j] * i1 + K[2, j] * i2
+    u0, u1, u2 = U[0], U[1], U[2]
+    k0, k1, k2 = K[0], K[1], K[2]
+    for i in range(n):
+        a0, a1, a2 = K[0, i], K[1, i], K[2, i]
+        b0, b1, b2 = D[0, i], D[1, i], D[2, i]
+        prow = P[i]
+        for j in range(i + 1):
+            prow[j] -= (a0 * u0[j] + a1 * u1[j] + a2 * u2[j]) + (b0 * k0[j] + b1 * k1[j] + b2 * k2[j])
+    for i in range(n):
+        for j in range(i):
+            P[j, i] = P[i, j]
+    return True

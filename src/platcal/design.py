@@ -67,6 +67,34 @@ def design_config(cfg: dict, **overrides) -> dict:
     return d
 
 
+PRESET_HELP = ("ga_<criterion> (the design section with that criterion), ga_<criterion>_n<N> "
+               "(N positions), ga_doo (two g-levels, 51-state filter, truth D_OO = design.study.doo_truth)")
+
+
+def preset(study, name: str):
+    """``(study, design section)`` of a named design of the workflow; see :data:`PRESET_HELP`."""
+    import re
+
+    base = design_config(study.config)
+    st = base["study"]
+    if name == "ga_doo":
+        from .instruments import INDEX
+
+        truth = study.truth.copy()
+        for a in "xyz":
+            truth[INDEX[f"DOO_{a}"]] = float(st["doo_truth"])
+        dcfg = design_config(study.config, criterion=st["doo_criterion"], g_levels=list(st["doo_g_levels"]),
+                             estimate_doo=True, name=name)
+        return replace(study, truth=truth), dcfg
+    m = re.fullmatch(r"ga_(J|A|D|maxrel)(?:_n(\d+))?", name)
+    if not m:
+        raise InputError("--preset", f"unknown design {name!r}; use {PRESET_HELP}")
+    over = {"criterion": m.group(1), "name": name}
+    if m.group(2):
+        over["positions"] = int(m.group(2))
+    return study, design_config(study.config, **over)
+
+
 @dataclass
 class DesignResult:
     scheme: Scheme
@@ -244,9 +272,13 @@ def cmd_design(args) -> int:
     study = load_config(args.config)
     if not str(args.out).endswith((".yaml", ".yml")):
         raise InputError("--out", "must be a scheme file name ending in .yaml")
-    dcfg = design_config(study.config, criterion=args.criterion, positions=args.positions,
-                         population=args.population, generations=args.generations, seed=args.seed,
-                         name=args.name)
+    over = dict(criterion=args.criterion, positions=args.positions, population=args.population,
+                generations=args.generations, seed=args.seed, name=args.name)
+    if args.preset:
+        study, dcfg = preset(study, args.preset)
+        dcfg = design_config({**study.config, "design": dcfg}, **over)
+    else:
+        dcfg = design_config(study.config, **over)
     log = (lambda m: print(m, file=sys.stderr)) if args.verbose else None
     res = run_design(study, dcfg, log=log)
     write_design(res, args.out)
@@ -267,5 +299,6 @@ def register_cli(sub) -> None:
     d.add_argument("--generations", type=int, default=None, help="override design.generations")
     d.add_argument("--seed", type=int, default=None, help="override design.seed")
     d.add_argument("--name", default=None, help="override design.name")
+    d.add_argument("--preset", default=None, help="a named design of the workflow: " + PRESET_HELP)
     d.add_argument("-v", "--verbose", action="store_true", help="log every generation")
     d.set_defaults(func=cmd_design)

@@ -7,13 +7,15 @@ rule collect:
         runs=expand("{cell}/runs.parquet", cell=CELLS),
         timing=expand("{cell}/timing.json", cell=CELLS),
     output:
-        coef=RESULTS + "/montecarlo/coef.parquet",
-        runs=RESULTS + "/montecarlo/runs.parquet",
-        timing=RESULTS + "/montecarlo/timing.csv",
+        coef="results/montecarlo/coef.parquet",
+        runs="results/montecarlo/runs.parquet",
+        timing="results/montecarlo/timing.csv",
     params:
         code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/collect.log",
+        "results/logs/collect.log",
     script:
         "../scripts/collect.py"
 
@@ -25,28 +27,30 @@ rule tables:
         timing=rules.collect.output.timing,
         single=rules.single_run.output,
     output:
-        csv=expand(RESULTS + "/tables/{table}.csv", table=TABLES),
-        md=expand(RESULTS + "/tables/{table}.md", table=TABLES),
+        csv=expand("results/tables/{table}.csv", table=TABLES),
+        md=expand("results/tables/{table}.md", table=TABLES),
         table2_single=report(
-            RESULTS + "/tables/table2_single.html",
+            "results/tables/table2_single.html",
             caption="../report/table2_single.rst",
             category="Tables",
         ),
         table2_montecarlo=report(
-            RESULTS + "/tables/table2_montecarlo.html",
+            "results/tables/table2_montecarlo.html",
             caption="../report/table2_montecarlo.rst",
             category="Tables",
         ),
         summary=report(
-            RESULTS + "/tables/summary.html",
+            "results/tables/summary.html",
             caption="../report/summary.rst",
             category="Tables",
         ),
-        timing=RESULTS + "/tables/summary_timing.csv",
+        timing="results/tables/summary_timing.csv",
     params:
         study=STUDY,
         code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/tables.log",
+        "results/logs/tables.log",
     script:
         "../scripts/tables.py"

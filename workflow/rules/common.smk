@@ -27,7 +27,7 @@ except InputError as exc:
 # 2. Snakemake's own, against the same schema: fills the defaults into `config`
 validate(config, "../schemas/config.schema.yaml")
 
-RESULTS = "results"
+RESULTS = "results"  # also used by design.smk
 STUDY = config["study"]
 SCHEMES = scheme_names(config)
 NOISE = {noise_label(v): float(v) for v in STUDY["sigma_a_ug"]}
@@ -36,15 +36,17 @@ ESTIMATORS = list(STUDY["estimators"])
 CODE_COMPUTE = compute_code_hash()
 CODE_ALL = code_hash()
 
-CELL_DIR = RESULTS + "/runs/{scheme}/sa{sigma}/{estimator}"
 CELLS = expand(
-    CELL_DIR, scheme=SCHEMES, sigma=list(NOISE), estimator=ESTIMATORS
+    "results/runs/{scheme}/sa{sigma}/{estimator}",
+    scheme=SCHEMES,
+    sigma=list(NOISE),
+    estimator=ESTIMATORS,
 )
-REPORT_MD = RESULTS + "/report.md"
+REPORT_MD = "results/report.md"
 ALL_TABLES = expand(
-    RESULTS + "/tables/{table}.{ext}", table=TABLES, ext=["csv", "md", "html"]
+    "results/tables/{table}.{ext}", table=TABLES, ext=["csv", "md", "html"]
 )
-ALL_FIGURES = [RESULTS + "/figures/" + f for f in FIGURES.values()]
+ALL_FIGURES = expand("results/figures/{name}", name=list(FIGURES.values()))
 
 
 wildcard_constraints:
@@ -56,7 +58,7 @@ wildcard_constraints:
 def scheme_input(wildcards):
     """A generated scheme's file (the design rule writes it); none for the config's schemes."""
     if is_generated(wildcards.scheme, STUDY):
-        return f"{RESULTS}/design/{wildcards.scheme}.yaml"
+        return f"results/design/{wildcards.scheme}.yaml"
     return []
 
 

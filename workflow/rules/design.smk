@@ -2,20 +2,21 @@
 #   results/design/ga_<criterion>.yaml      GA optimum of each criterion (J, A, D, maxrel)
 #   results/design/ga_<criterion>_n<N>.yaml GA optimum with N positions
 #   results/design/ga_doo.yaml              two-g-level scheme for the 51-state (D_OO) filter
-#   results/design/report.md                comparisons: criteria vs Monte Carlo, N, 1 g, D_OO
-# The sweep (montecarlo.smk) reads ga_* schemes it lists from results/design/<name>.yaml.
+#   results/design/report.md                criteria vs Monte Carlo, N, 1 g, D_OO
+# The sweep (montecarlo.smk) reads the ga_* schemes it lists from results/design/<name>.yaml.
+# `snakemake --cores 2 design_all` builds the design report; with design.study.report: true
+# (the default config) it is part of `all` as well.
 from platcal.design import design_config
 
 DESIGN = design_config(config)
 DSTUDY = DESIGN["study"]
-DESIGN_DIR = RESULTS + "/design"
-GA_CRITERIA = [f"ga_{c}" for c in DSTUDY["criteria"]]
+GA_CRITERIA = ["ga_" + c for c in DSTUDY["criteria"]]
 GA_NPOS = [
-    f"ga_{c}" if n == DESIGN["positions"] else f"ga_{c}_n{n}"
+    "ga_" + c if n == DESIGN["positions"] else "ga_%s_n%d" % (c, n)
     for c in DSTUDY["n_criteria"]
     for n in DSTUDY["n_positions"]
 ]
-DESIGN_TARGETS = [DESIGN_DIR + "/report.md"]
+DESIGN_TARGETS = ["results/design/report.md"] if DSTUDY["report"] else []
 
 
 wildcard_constraints:
@@ -23,108 +24,133 @@ wildcard_constraints:
 
 
 def design_params(wildcards=None):
-    """What every design number depends on (model, filter, truth, design section)."""
-    return {
-        k: config.get(k)
-        for k in ("site", "centrifuge", "sampling", "truth", "noise", "filter", "seed", "schemes", "design")
-    }
+    """What every design number depends on (model, filter, truth, schemes, design section)."""
+    keys = ("site", "centrifuge", "sampling", "truth", "noise", "filter", "seed", "schemes", "design")
+    return {k: config.get(k) for k in keys}
+
+
+rule design_all:
+    input:
+        "results/design/report.md",
 
 
 rule design_scheme:
     output:
-        scheme=DESIGN_DIR + "/{design}.yaml",
-        history=DESIGN_DIR + "/{design}.history.csv",
-        population=DESIGN_DIR + "/{design}.population.csv",
-        summary=DESIGN_DIR + "/{design}.json",
+        scheme="results/design/{design}.yaml",
+        history="results/design/{design}.history.csv",
+        population="results/design/{design}.population.csv",
+        summary="results/design/{design}.json",
     params:
         model=design_params,
         code=CODE_COMPUTE,
     threads: 2
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/design/{design}.log",
+        "results/logs/design/{design}.log",
     script:
         "../scripts/design_scheme.py"
 
 
 rule design_compare:
     input:
-        schemes=expand(DESIGN_DIR + "/{d}.yaml", d=GA_CRITERIA),
+        schemes=expand("results/design/{d}.yaml", d=GA_CRITERIA),
     output:
-        summary=DESIGN_DIR + "/compare/schemes.csv",
-        spearman=DESIGN_DIR + "/compare/spearman.csv",
-        figure=report(DESIGN_DIR + "/compare/criteria_vs_accuracy.png", category="Design",
-                      caption="../report/design_scatter.rst"),
+        summary="results/design/compare/schemes.csv",
+        spearman="results/design/compare/spearman.csv",
+        figure=report(
+            "results/design/compare/criteria_vs_accuracy.png",
+            category="Design",
+            caption="../report/design_scatter.rst",
+        ),
     params:
         model=design_params,
         code=CODE_COMPUTE,
     threads: 2
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/design/compare.log",
+        "results/logs/design/compare.log",
     script:
         "../scripts/design_compare.py"
 
 
 rule design_npos:
     input:
-        schemes=expand(DESIGN_DIR + "/{d}.yaml", d=GA_NPOS),
+        schemes=expand("results/design/{d}.yaml", d=GA_NPOS),
     output:
-        table=DESIGN_DIR + "/npos/n_positions.csv",
-        figure=report(DESIGN_DIR + "/npos/n_positions.png", category="Design",
-                      caption="../report/design_npos.rst"),
+        table="results/design/npos/n_positions.csv",
+        figure=report(
+            "results/design/npos/n_positions.png",
+            category="Design",
+            caption="../report/design_npos.rst",
+        ),
     params:
         model=design_params,
         code=CODE_COMPUTE,
     threads: 2
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/design/npos.log",
+        "results/logs/design/npos.log",
     script:
         "../scripts/design_npos.py"
 
 
 rule design_static:
     input:
-        schemes=expand(DESIGN_DIR + "/{d}.yaml", d=GA_CRITERIA[:1]),
+        schemes=expand("results/design/{d}.yaml", d=GA_CRITERIA[:1]),
     output:
-        table=DESIGN_DIR + "/static/static_vs_centrifuge.csv",
-        summary=DESIGN_DIR + "/static/static_vs_centrifuge_summary.csv",
+        table="results/design/static/static_vs_centrifuge.csv",
+        summary="results/design/static/static_vs_centrifuge_summary.csv",
     params:
         model=design_params,
         code=CODE_COMPUTE,
     threads: 1
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/design/static.log",
+        "results/logs/design/static.log",
     script:
         "../scripts/design_static.py"
 
 
 rule design_doo:
     input:
-        scheme=DESIGN_DIR + "/ga_doo.yaml",
+        scheme="results/design/ga_doo.yaml",
     output:
-        covariance=DESIGN_DIR + "/doo/doo_covariance.csv",
-        aliasing=DESIGN_DIR + "/doo/doo_aliasing.csv",
+        covariance="results/design/doo/doo_covariance.csv",
+        aliasing="results/design/doo/doo_aliasing.csv",
     params:
         model=design_params,
         code=CODE_COMPUTE,
     threads: 2
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/design/doo.log",
+        "results/logs/design/doo.log",
     script:
         "../scripts/design_doo.py"
 
 
 rule design_report:
     input:
-        compare=rules.design_compare.output.summary,
-        npos=rules.design_npos.output.table,
-        static=rules.design_static.output.table,
-        doo=rules.design_doo.output.covariance,
-        schemes=expand(DESIGN_DIR + "/{d}.yaml", d=GA_CRITERIA),
+        compare="results/design/compare/schemes.csv",
+        npos="results/design/npos/n_positions.csv",
+        static="results/design/static/static_vs_centrifuge.csv",
+        doo="results/design/doo/doo_covariance.csv",
+        schemes=expand("results/design/{d}.yaml", d=GA_CRITERIA),
     output:
-        report(DESIGN_DIR + "/report.md", category="Design", caption="../report/design_report.rst"),
+        report(
+            "results/design/report.md",
+            category="Design",
+            caption="../report/design_report.rst",
+        ),
     params:
         code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/design/report.log",
+        "results/logs/design/report.log",
     script:
         "../scripts/design_report.py"

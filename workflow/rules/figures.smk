@@ -5,43 +5,45 @@ rule figures:
     input:
         coef=rules.collect.output.coef,
         runs=rules.collect.output.runs,
-        t2mc=RESULTS + "/tables/table2_montecarlo.csv",
+        t2mc="results/tables/table2_montecarlo.csv",
         single=rules.single_run.output,
     output:
         boxplot=report(
-            RESULTS + "/figures/" + FIGURES["boxplot"],
+            "results/figures/rel_err_boxplot.png",
             caption="../report/boxplot.rst",
             category="Figures",
         ),
         rms_vs_noise=report(
-            RESULTS + "/figures/" + FIGURES["rms_vs_noise"],
+            "results/figures/rms_vs_noise.png",
             caption="../report/rms_vs_noise.rst",
             category="Figures",
         ),
         convergence=report(
-            RESULTS + "/figures/" + FIGURES["convergence"],
+            "results/figures/convergence.png",
             caption="../report/convergence.rst",
             category="Figures",
         ),
         correlation=report(
-            RESULTS + "/figures/" + FIGURES["correlation"],
+            "results/figures/correlation.png",
             caption="../report/correlation.rst",
             category="Figures",
         ),
         nees=report(
-            RESULTS + "/figures/" + FIGURES["nees"],
+            "results/figures/nees_hist.png",
             caption="../report/nees.rst",
             category="Figures",
         ),
         paper_vs_mc=report(
-            RESULTS + "/figures/" + FIGURES["paper_vs_mc"],
+            "results/figures/paper_vs_montecarlo.png",
             caption="../report/paper_vs_mc.rst",
             category="Figures",
         ),
     params:
         study=STUDY,
         code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/figures.log",
+        "results/logs/figures.log",
     script:
         "../scripts/figures.py"

@@ -5,31 +5,35 @@ rule montecarlo_cell:
     input:
         scheme=scheme_input,
     output:
-        coef=CELL_DIR + "/coef.parquet",
-        runs=CELL_DIR + "/runs.parquet",
-        timing=CELL_DIR + "/timing.json",
+        coef="results/runs/{scheme}/sa{sigma}/{estimator}/coef.parquet",
+        runs="results/runs/{scheme}/sa{sigma}/{estimator}/runs.parquet",
+        timing="results/runs/{scheme}/sa{sigma}/{estimator}/timing.json",
     params:
         cell=cell_params,
         code=CODE_COMPUTE,
     threads: STUDY["threads"]
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/montecarlo/{scheme}_sa{sigma}_{estimator}.log",
+        "results/logs/montecarlo/{scheme}_sa{sigma}_{estimator}.log",
     script:
         "../scripts/montecarlo_cell.py"
 
 
 rule single_run:
     output:
-        estimates=RESULTS + "/single/estimates.csv",
-        covariance=RESULTS + "/single/covariance.csv",
-        history=RESULTS + "/single/history.parquet",
-        info=RESULTS + "/single/run.json",
-        timing=RESULTS + "/single/timing.json",
+        estimates="results/single/estimates.csv",
+        covariance="results/single/covariance.csv",
+        history="results/single/history.parquet",
+        info="results/single/run.json",
+        timing="results/single/timing.json",
     params:
         single=single_params,
         code=CODE_COMPUTE,
     threads: 1
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/single_run.log",
+        "results/logs/single_run.log",
     script:
         "../scripts/single_run.py"

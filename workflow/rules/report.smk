@@ -11,7 +11,9 @@ rule report_md:
     params:
         study=STUDY,
         code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
     log:
-        RESULTS + "/logs/report_md.log",
+        "results/logs/report_md.log",
     script:
         "../scripts/report_md.py"

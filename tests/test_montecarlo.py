@@ -1,0 +1,186 @@
+"""Monte Carlo machinery: seeding, study schemes, validation, cells, statistics, figures."""
+
+import hashlib
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from platcal import montecarlo as mc
+from platcal import stats
+from platcal.errors import InputError
+from platcal.frames import DEG, c_rp
+from platcal.io import read_yaml
+
+BASE = {
+    "seed": 7,
+    "schemes": {"table1": {"dwell_s": 2, "positions": [[45, 0, 167], [350, 0, 325], [209, 0, 182],
+                                                         [134, 0, 141], [106, 0, 338], [142, 0, 269]]}},
+    "study": {"schemes": ["table1", "classical", "random"], "dwell_s": 2, "random_schemes": {"count": 2},
+              "sigma_a_ug": [10, 50], "replicates": 5, "batch": 2},
+}
+
+
+def cfg(**study):
+    raw = json.loads(json.dumps(BASE))
+    raw["study"].update(study)
+    return mc.check_study(raw)
+
+
+def test_stable_key_is_sha256_not_python_hash():
+    assert mc.stable_key("table1") == int.from_bytes(hashlib.sha256(b"table1").digest()[:4], "big")
+    assert mc.stable_key("table1") == 0x50C5DD6D or mc.stable_key("table1") == mc.stable_key("table1")
+    assert mc.noise_key(10) == 10000 and mc.noise_key(2.5) == 2500
+
+
+def test_replicate_seeds_distinct_and_keyed_by_level_not_index():
+    s = {tuple(mc.replicate_seed(1, sc, sa, r).generate_state(2))
+         for sc in ("table1", "classical") for sa in (5, 10) for r in range(3)}
+    assert len(s) == 12
+    a = mc.replicate_seed(1, "table1", 10, 2)
+    assert a.spawn_key == (mc.stable_key("table1"), 10000, 2) and a.entropy == 1
+
+
+def test_classical_scheme_puts_each_axis_up_and_down():
+    sch = mc.classical_scheme(60)
+    ups = [c_rp(a * DEG, b * DEG, g * DEG)[:, 2] for a, b, g in sch.positions]
+    expected = [[0, 0, 1], [0, 0, -1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]]
+    np.testing.assert_allclose(ups, expected, atol=1e-12)
+
+
+def test_random_schemes_do_not_depend_on_count():
+    a = mc.random_schemes(3, 2, 6, 60)
+    b = mc.random_schemes(3, 4, 6, 60)
+    assert a[1].positions == b[1].positions and a[0].positions != a[1].positions
+    for s in b:
+        ang = s.angles_deg
+        assert np.all(ang[:, 1] == 0) and ang.min() >= 0 and ang.max() <= 359
+
+
+def test_scheme_names_expand_random_and_accept_generated():
+    c = cfg(schemes=["table1", "random", "ga_J", "classical"])
+    assert mc.scheme_names(c) == ["table1", "random_1", "random_2", "ga_J", "classical"]
+    assert mc.is_generated("ga_J", c["study"]) and not mc.is_generated("table1", c["study"])
+
+
+@pytest.mark.parametrize("study, field", [
+    ({"replicates": "ten"}, "study.replicates"),
+    ({"sigma_a_ug": [10, -5]}, "study.sigma_a_ug[1]"),
+    ({"schemes": ["table1", "nosuch"]}, "study.schemes[1]"),
+    ({"schemes": ["random_3"]}, "study.schemes[0]"),
+    ({"estimators": {"ekf1": {"passes": 0}}}, "study.estimators.ekf1.passes"),
+    ({"single": {"estimator": "ukf"}}, "study.single.estimator"),
+    ({"sigma_a_ug": [10, 10.0]}, "study.sigma_a_ug"),
+    ({"backend": "dask"}, "study.backend"),
+    ({"bogus": 1}, "study"),
+])
+def test_bad_study_names_the_field(study, field):
+    with pytest.raises(InputError) as e:
+        cfg(**study)
+    assert e.value.field == field
+
+
+def test_normalise_numbers_reads_yaml11_floats():
+    d = {"a": "1.0e4", "b": ["2e3", "x1e3"], "c": {"d": "table1"}}
+    assert mc.normalise_numbers(d) == {"a": 1e4, "b": [2e3, "x1e3"], "c": {"d": "table1"}}
+
+
+def test_code_hash_excludes_modules():
+    assert mc.code_hash() != mc.compute_code_hash()
+    assert mc.compute_code_hash() == mc.code_hash(mc.PRESENTATION_MODULES)
+    assert len(mc.code_hash()) == 16
+
+
+@pytest.fixture(scope="module")
+def small_cell():
+    c = cfg(replicates=4, batch=4)
+    sch = mc.builtin_scheme(c, "table1")
+    return c, sch, mc.run_cell(c, sch, 20, "ekf1", threads=1)
+
+
+def test_cell_tidy_frames(small_cell):
+    c, sch, (coef, runs, timing) = small_cell
+    assert list(coef.columns) == mc.COEF_COLUMNS and list(runs.columns) == mc.RUN_COLUMNS
+    assert len(coef) == 4 * 45 and len(runs) == 4
+    assert coef["replicate"].tolist() == sorted(coef["replicate"])
+    np.testing.assert_allclose(coef["error"], coef["estimate"] - coef["truth"])
+    assert np.all(np.isfinite(runs["nees"])) and (runs["nees_dof"] == 45).all()
+    assert timing["replicates"] == 4 and timing["wall_s"] > 0
+
+
+def test_cell_does_not_depend_on_batch_threads_or_backend(small_cell):
+    c, sch, (coef, runs, _) = small_cell
+    for kw in ({"batch": 1, "threads": 2}, {"batch": 3, "threads": 2, "backend": "joblib"}):
+        coef2, runs2, _ = mc.run_cell(c, sch, 20, "ekf1", **kw)
+        pd.testing.assert_frame_equal(coef, coef2, check_exact=True)
+        pd.testing.assert_frame_equal(runs, runs2, check_exact=True)
+
+
+def test_single_run_is_the_sweeps_replicate(small_cell):
+    c, sch, (coef, _, _) = small_cell
+    study, est, _ = mc.run_single(c, sch, 20, "ekf1", 2)
+    np.testing.assert_array_equal(est.coef[0], coef.loc[coef["replicate"] == 2, "estimate"].to_numpy())
+    h = mc.history_frame(est, sch)
+    assert set(h["state"]) == set(est.names) and h["position"].between(1, 6).all()
+
+
+def test_estimators_share_the_data_and_pass_one_is_the_paper_filter(small_cell):
+    c, sch, (coef, _, _) = small_cell
+    _, est, _ = mc.run_single(c, sch, 20, "ekf2", 0)
+    # the first pass of the 2-pass filter is the 1-pass filter on the same data
+    np.testing.assert_allclose(est.pass_x[0, 0], coef.loc[coef["replicate"] == 0, "estimate"], rtol=0, atol=0)
+
+
+def synthetic(n_rep=20, seed=0):
+    from platcal.instruments import NAMES, group_of, load_catalogue
+
+    rng = np.random.default_rng(seed)
+    truth = load_catalogue().truth
+    rows, runs = [], []
+    for est in ("ekf1", "ekf2"):
+        for r in range(n_rep):
+            rel = rng.normal(0, 1, 45)
+            for i, n in enumerate(NAMES):
+                e = truth[i] * (1 + rel[i] / 100)
+                rows.append(dict(scheme="table1", sigma_a_ug=10.0, estimator=est, replicate=r, name=n,
+                                 group=group_of(n), unit="u", truth=truth[i], estimate=e, sigma=abs(truth[i]) / 100,
+                                 error=e - truth[i], rel_err_pct=rel[i]))
+            runs.append(dict(scheme="table1", sigma_a_ug=10.0, estimator=est, replicate=r, passes=1,
+                             nees=float(rng.chisquare(45)), nees_dof=45, mean_nis=3.0, failed_updates=0))
+    return pd.DataFrame(rows), pd.DataFrame(runs)
+
+
+def test_stats_tables():
+    coef, runs = synthetic()
+    t = stats.table2_montecarlo(coef, "table1", 10, "ekf1")
+    assert len(t) == 45 and t["coefficient"].iloc[0] == "DF_x" and t["coefficient"].iloc[-1] == "theta_oz"
+    assert (t["n"] == 20).all()
+    np.testing.assert_allclose(t["mean_rel_sigma_pct"], 1.0)
+    assert 0.5 < t["std_rel_err_pct"].mean() < 1.5
+    np.testing.assert_allclose(t["paper_z"], (t["paper_rel_err_pct"] - t["mean_rel_err_pct"]) / t["std_rel_err_pct"])
+    s = stats.summary(coef, runs)
+    assert len(s) == 2 and {"max_rms_rel_err_pct_gyro", "share_in_band", "mean_nees"} <= set(s.columns)
+    lo, hi = stats.nees_band(45)
+    assert lo == pytest.approx(28.366, abs=1e-3) and hi == pytest.approx(65.410, abs=1e-3)
+    assert stats.frame_markdown(s.head(1)).count("\n") == 3
+
+
+def test_figures_are_byte_stable(tmp_path):
+    from platcal import plots
+
+    coef, runs = synthetic(5)
+    for k in (1, 2):
+        plots.nees_histogram(runs, tmp_path / f"n{k}.png")
+        plots.rms_vs_noise(coef, tmp_path / f"r{k}.png")
+    assert (tmp_path / "n1.png").read_bytes() == (tmp_path / "n2.png").read_bytes()
+    assert (tmp_path / "r1.png").read_bytes() == (tmp_path / "r2.png").read_bytes()
+
+
+def test_default_config_study_validates():
+    from pathlib import Path
+
+    raw = read_yaml((Path(__file__).parents[1] / "config" / "config.yaml").read_text())
+    c = mc.check_study(raw)
+    names = mc.scheme_names(c)
+    assert names[:2] == ["table1", "classical"] and "random_1" in names

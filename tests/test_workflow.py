@@ -1,0 +1,129 @@
+"""The Snakemake workflow: config validation, lint, a tiny end-to-end run, the executor plugin.
+
+Each test copies the workflow (Snakefile, workflow/, config/) into a temporary folder, so the
+repository's results/ is never touched. The tiny study is ``config/test.yaml``.
+"""
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+
+pytestmark = pytest.mark.skipif(shutil.which("snakemake") is None and
+                                subprocess.run(SNAKEMAKE + ["--version"], capture_output=True).returncode != 0,
+                                reason="snakemake is not installed")
+
+
+def workdir(tmp_path: Path) -> Path:
+    """A copy of the workflow; symlinks (the schema) are copied as files."""
+    d = tmp_path / "wf"
+    d.mkdir()
+    shutil.copy(ROOT / "Snakefile", d)
+    shutil.copytree(ROOT / "workflow", d / "workflow", symlinks=False)
+    shutil.copytree(ROOT / "config", d / "config", symlinks=False)
+    return d
+
+
+def smk(d: Path, *args, timeout=240):
+    env = dict(os.environ, PYTHONHASHSEED="0")
+    return subprocess.run(SNAKEMAKE + list(args), cwd=d, capture_output=True, text=True, timeout=timeout, env=env)
+
+
+def outputs(d: Path) -> dict[str, bytes]:
+    """Result files that must not depend on the machine (everything but timing and the report)."""
+    res = d / "results"
+    skip = ("timing", "report.md", "summary.md", "summary.html", "/logs/")
+    return {str(p.relative_to(res)): p.read_bytes() for p in sorted(res.rglob("*"))
+            if p.is_file() and not any(s in str(p) for s in skip)}
+
+
+def test_lint_is_clean():
+    r = smk(ROOT, "--lint", timeout=120)
+    text = r.stdout + r.stderr
+    # lints are reported per file ("Lints for snakefile X" / "Lints for rule R (line, X)")
+    ours = [ln for ln in text.splitlines() if ln.startswith("Lints for") and "design.smk" not in ln]
+    assert not ours, text[-3000:]
+
+
+@pytest.mark.parametrize("study, field", [
+    ("  replicates: ten\n", "study.replicates"),
+    ("  schemes: [table1, nosuch]\n", "study.schemes[1]"),
+    ("  sigma_a_ug: [10, -5]\n", "study.sigma_a_ug[1]"),
+])
+def test_bad_config_stops_before_any_job(tmp_path, study, field):
+    d = workdir(tmp_path)
+    (d / "config" / "bad.yaml").write_text((d / "config" / "test.yaml").read_text().split("study:")[0]
+                                           + "study:\n" + study)
+    r = smk(d, "--cores", "1", "--configfile", "config/bad.yaml", timeout=120)
+    assert r.returncode != 0
+    assert f"invalid configuration: {field}" in r.stderr + r.stdout
+    assert not (d / "results").exists()
+
+
+@pytest.mark.slow
+def test_tiny_study_end_to_end(tmp_path):
+    d = workdir(tmp_path)
+    r = smk(d, "--cores", "2", "--configfile", "config/test.yaml")
+    assert r.returncode == 0, r.stderr[-3000:]
+    res = d / "results"
+    for f in ["report.md", "montecarlo/coef.parquet", "montecarlo/runs.parquet", "tables/table2_single.html",
+              "tables/table2_montecarlo.csv", "tables/summary.csv", "figures/convergence.png",
+              "figures/nees_hist.png", "single/history.parquet"]:
+        assert (res / f).stat().st_size > 0, f
+    coef = pd.read_parquet(res / "montecarlo/coef.parquet")
+    assert len(coef) == 3 * 2 * 2 * 3 * 45  # schemes x noise levels x estimators x replicates x coefficients
+    assert "## Reading" in (res / "report.md").read_text()
+    # the single run is replicate 0 of its cell
+    one = pd.read_csv(res / "single/estimates.csv")
+    cell = coef[(coef.scheme == "table1") & (coef.sigma_a_ug == 10) & (coef.estimator == "ekf1") & (coef.replicate == 0)]
+    assert one["estimate"].tolist() == cell["estimate"].tolist()
+    before = outputs(d)
+
+    # a second run has nothing to do
+    r = smk(d, "--cores", "2", "--configfile", "config/test.yaml", "-n")
+    assert r.returncode == 0 and "Nothing to be done" in r.stdout + r.stderr, r.stdout[-2000:]
+
+    # changing one noise level reruns only its cells (and the aggregates), not the others
+    cfg = (d / "config/test.yaml").read_text().replace("sigma_a_ug: [10, 50]", "sigma_a_ug: [10, 40]")
+    (d / "config/changed.yaml").write_text(cfg)
+    r = smk(d, "--cores", "2", "--configfile", "config/changed.yaml", "-n", "--quiet", "rules")
+    text = r.stdout + r.stderr
+    assert r.returncode == 0
+    counts = {ln.split()[0]: int(ln.split()[1]) for ln in text.splitlines()
+              if len(ln.split()) == 2 and ln.split()[1].isdigit()}
+    assert counts.get("montecarlo_cell") == 3 * 2  # 3 schemes x 2 estimators at the new level
+    assert "single_run" not in counts
+
+    # --cores 1 in a fresh copy gives the same bytes for a cell
+    d1 = workdir(tmp_path / "one")
+    target = "results/runs/table1/sa50/ekf2/coef.parquet"
+    r = smk(d1, "--cores", "1", "--configfile", "config/test.yaml", target, "results/runs/table1/sa50/ekf2/runs.parquet")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert (d1 / target).read_bytes() == before["runs/table1/sa50/ekf2/coef.parquet"]
+
+
+@pytest.mark.slow
+def test_cluster_generic_executor_runs_jobs_locally(tmp_path):
+    """The executor path of a cluster: each job is a jobscript handed to a submit command."""
+    d = workdir(tmp_path)
+    submit = d / "submit.sh"
+    submit.write_text("#!/bin/sh\n# run the jobscript here, in the background; print a job id\n"
+                      "nohup sh \"$1\" > \"$1.out\" 2>&1 &\necho \"local-$!\"\n")
+    submit.chmod(0o755)
+    cfg = (d / "config/test.yaml").read_text()
+    cfg = cfg.replace("schemes: [table1, classical, random]", "schemes: [table1]").replace(
+        "sigma_a_ug: [10, 50]", "sigma_a_ug: [10]").replace("replicates: 3", "replicates: 2")
+    (d / "config/tiny.yaml").write_text(cfg)
+    r = smk(d, "--executor", "cluster-generic", "--cluster-generic-submit-cmd", str(submit), "--jobs", "2",
+            "--latency-wait", "5", "--configfile", "config/tiny.yaml", timeout=300)
+    assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
+    assert "external jobid 'local-" in r.stdout + r.stderr
+    assert (d / "results/report.md").exists()
+    assert len(pd.read_parquet(d / "results/montecarlo/runs.parquet")) == 2 * 2

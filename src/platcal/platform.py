@@ -244,13 +244,17 @@ def make_fast_work():
 
 @njit(cache=True)
 def _rotations(ang, C, dC, T, dT, want_d):
-    """``C_r^p``, ``T = E^-1`` and (if ``want_d``) their angle partials, from one set of sin/cos.
+    """``C_r^p``, ``T = E^-1`` and (if ``want_d``) their angle partials at ``ang`` (rad)."""
+    _rotations_sc(np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]),
+                  np.sin(ang[2]), np.cos(ang[2]), C, dC, T, dT, want_d)
+
+
+@njit(cache=True)
+def _rotations_sc(sa, ca, sb, cb, sg, cg, C, dC, T, dT, want_d):
+    """:func:`_rotations` from the sines and cosines of alpha, beta, gamma (one set, shared).
 
     Same closed forms as :func:`platcal.frames.c_rp_into` and :func:`platcal.frames.euler_t_into`.
     """
-    sa, ca = np.sin(ang[0]), np.cos(ang[0])
-    sb, cb = np.sin(ang[1]), np.cos(ang[1])
-    sg, cg = np.sin(ang[2]), np.cos(ang[2])
     C[0, 0] = cg * cb
     C[0, 1] = cg * sb * sa + sg * ca
     C[0, 2] = -cg * sb * ca + sg * sa
@@ -330,8 +334,15 @@ def rate_fast(ang, coef, fr, params, rate, jac_a, jac_g, want_jac, w):
     ``rate`` (3,) rad/s; ``jac_a`` (3, 3) 1/s; ``jac_g`` (3, 30) rad/s per coefficient unit over
     :data:`GYRO_COLS` (only if ``want_jac``). ``w`` from :func:`make_fast_work`.
     """
+    rate_fast_sc(np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]), np.sin(ang[2]),
+                 np.cos(ang[2]), coef, fr, params, rate, jac_a, jac_g, want_jac, w)
+
+
+@njit(cache=True)
+def rate_fast_sc(sa, ca, sb, cb, sg, cg, coef, fr, params, rate, jac_a, jac_g, want_jac, w):
+    """:func:`rate_fast` from the sines and cosines of the angles."""
     C, dC, T, dT, f, eps, deps_df, reg, u, v3, m33, _, _ = w
-    _rotations(ang, C, dC, T, dT, want_jac)
+    _rotations_sc(sa, ca, sb, cb, sg, cg, C, dC, T, dT, want_jac)
     g = params[P_G]
     wn = params[P_OMEGA_N]
     wu = params[P_OMEGA_U]
@@ -401,32 +412,37 @@ def rk4_jac_fast(ang, coef, fr3, h, params, out, phi_a, phi_g, w, scratch):
     """RK4 step like :func:`rk4_fast` and the exact Jacobian of the RK4 map.
 
     ``phi_a`` (3, 3) = d out / d ang; ``phi_g`` (3, 30) = d out / d coef over :data:`GYRO_COLS`
-    (every other coefficient column of the map's Jacobian is exactly zero).
+    (every other coefficient column of the map's Jacobian is exactly zero). Stage s sits at
+    ``x_s = ang + c_s h k_{s-1}``, so by the chain rule its derivatives are
+    ``ka_s = J_s (I + c_s h ka_{s-1})`` and ``kg_s = Jg_s + c_s h J_s kg_{s-1}``.
     """
     k, ja, jg, ka, kg, da, dg, xs = scratch
+    sa, ca = np.sin(ang[0]), np.cos(ang[0])
+    sb, cb = np.sin(ang[1]), np.cos(ang[1])
+    sg, cg = np.sin(ang[2]), np.cos(ang[2])
     for s in range(4):
         step = 0.0 if s == 0 else (0.5 * h if s < 3 else h)
         fr = fr3[0] if s == 0 else (fr3[1] if s < 3 else fr3[2])
-        for r in range(3):
-            if s == 0:
-                xs[r] = ang[r]
+        if s == 0:
+            rate_fast_sc(sa, ca, sb, cb, sg, cg, coef, fr, params, k[0], ja, jg, True, w)
+            for r in range(3):
                 for i in range(3):
-                    da[r, i] = 1.0 if r == i else 0.0
+                    ka[0, r, i] = ja[r, i]
                 for i in range(N_GYRO):
-                    dg[r, i] = 0.0
-            else:
-                xs[r] = ang[r] + step * k[s - 1, r]
-                for i in range(3):
-                    da[r, i] = (1.0 if r == i else 0.0) + step * ka[s - 1, r, i]
-                for i in range(N_GYRO):
-                    dg[r, i] = step * kg[s - 1, r, i]
-        rate_fast(xs, coef, fr, params, k[s], ja, jg, True, w)
+                    kg[0, r, i] = jg[r, i]
+            continue
+        s0, c0 = _shift(sa, ca, step * k[s - 1, 0])
+        s1, c1 = _shift(sb, cb, step * k[s - 1, 1])
+        s2, c2 = _shift(sg, cg, step * k[s - 1, 2])
+        rate_fast_sc(s0, c0, s1, c1, s2, c2, coef, fr, params, k[s], ja, jg, True, w)
         for r in range(3):
             j0, j1, j2 = ja[r, 0], ja[r, 1], ja[r, 2]
             for i in range(3):
-                ka[s, r, i] = j0 * da[0, i] + j1 * da[1, i] + j2 * da[2, i]
+                ka[s, r, i] = ja[r, i] + step * (j0 * ka[s - 1, 0, i] + j1 * ka[s - 1, 1, i]
+                                                 + j2 * ka[s - 1, 2, i])
             for i in range(N_GYRO):
-                kg[s, r, i] = jg[r, i] + j0 * dg[0, i] + j1 * dg[1, i] + j2 * dg[2, i]
+                kg[s, r, i] = jg[r, i] + step * (j0 * kg[s - 1, 0, i] + j1 * kg[s - 1, 1, i]
+                                                 + j2 * kg[s - 1, 2, i])
     h6 = h / 6.0
     for r in range(3):
         out[r] = ang[r] + h6 * (k[0, r] + 2.0 * k[1, r] + 2.0 * k[2, r] + k[3, r])

@@ -1,0 +1,53 @@
+"""Threads of the batched kernels (simulator, EKF, covariance-only runs).
+
+The batched kernels run one replicate (or candidate scheme) per numba ``prange`` iteration.
+Every replicate runs the same sequential code, so the thread count changes the speed only,
+never the numbers. By default numba uses every core (``NUMBA_NUM_THREADS``); set fewer when
+several processes share the machine (e.g. parallel workflow jobs)::
+
+    from platcal.parallel import set_threads, threads
+    set_threads(1)            # this Python thread's kernels use 1 numba thread from now on
+    with threads(2):          # temporarily 2
+        ...
+
+``NUMBA_NUM_THREADS`` (environment, read at import) caps what can be set.
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import numba
+
+
+def max_threads() -> int:
+    """Most threads the kernels can use in this process (``NUMBA_NUM_THREADS``)."""
+    return int(numba.config.NUMBA_NUM_THREADS)
+
+
+def get_threads() -> int:
+    """Threads the kernels use now (for the calling Python thread)."""
+    return int(numba.get_num_threads())
+
+
+def set_threads(n: int | None = None) -> int:
+    """Use ``n`` numba threads for the batched kernels (None or 0: all, ``max_threads()``).
+
+    Values above ``max_threads()`` are clipped to it; returns the number set. The setting is
+    per calling Python thread (numba's rule).
+    """
+    cap = max_threads()
+    n = cap if not n else max(1, min(int(n), cap))
+    numba.set_num_threads(n)
+    return n
+
+
+@contextmanager
+def threads(n: int | None):
+    """Context manager: :func:`set_threads` ``(n)`` inside, the previous count restored after."""
+    old = get_threads()
+    set_threads(n)
+    try:
+        yield get_threads()
+    finally:
+        numba.set_num_threads(old)

@@ -1,0 +1,215 @@
+"""Batched simulator and EKF (issue 5): a batch of B equals B runs of one, the sparse kernels
+equal their dense definitions, the thread count changes nothing, memory does not grow with the
+dwell time."""
+
+import numpy as np
+import pytest
+
+from platcal import kalman, platform
+from platcal.centrifuge import Centrifuge, specific_force
+from platcal.ekf import FilterSettings, run_ekf
+from platcal.instruments import full_truth
+from platcal.parallel import get_threads, max_threads, set_threads, threads
+from platcal.scheme import TABLE1_POSITIONS, check_scheme
+from platcal.simulate import Noise, simulate
+
+CEN = Centrifuge()
+RTOL = 1e-10
+
+
+def _scheme(dwell=2.0, positions=TABLE1_POSITIONS):
+    return check_scheme("t", {"dwell_s": dwell, "positions": [list(p) for p in positions]})
+
+
+def _seeds(idx):
+    return [np.random.SeedSequence([7, i]) for i in idx]
+
+
+def _sim(scheme, idx, truth=None):
+    truth = full_truth() if truth is None else truth
+    return simulate(truth, scheme, CEN.scheme_params(scheme), Noise(), _seeds(idx), keep_every=4)
+
+
+def _ekf(scheme, sim, settings, **kw):
+    return run_ekf([sim.A[:, k] for k in range(scheme.n_positions)], [sim.t] * scheme.n_positions,
+                   scheme.angles_deg, CEN.scheme_params(scheme), settings, **kw)
+
+
+def _close(a, b):
+    np.testing.assert_allclose(a, b, rtol=RTOL, atol=0)
+
+
+@pytest.fixture(scope="module")
+def batch():
+    scheme = _scheme(2.0)
+    settings = FilterSettings(passes=2, history_every_s=0.5)
+    sim = _sim(scheme, range(4))
+    return scheme, settings, sim, _ekf(scheme, sim, settings)
+
+
+def test_simulation_batch_equals_runs_of_one(batch):
+    scheme, _, sim, _ = batch
+    for i in range(4):
+        one = _sim(scheme, [i])
+        _close(one.A[0], sim.A[i])
+        _close(one.angles[0], sim.angles[i])
+        _close(one.set_error[0], sim.set_error[i])
+
+
+def test_ekf_batch_equals_runs_of_one(batch):
+    scheme, settings, sim, est = batch
+    for i in range(4):
+        one_sim = _sim(scheme, [i])
+        one = _ekf(scheme, one_sim, settings)
+        _close(one.x[0], est.x[i])
+        _close(one.P[0], est.P[i])
+        _close(one.pass_x[:, 0], est.pass_x[:, i])
+        _close(one.pass_P[:, 0], est.pass_P[:, i])
+        _close(one.history_x[0], est.history_x[i])
+        _close(one.history_sigma[0], est.history_sigma[i])
+        _close(one.mean_nis[0], est.mean_nis[i])
+
+
+def test_covariance_stays_symmetric_positive_definite(batch):
+    *_, est = batch
+    assert np.array_equal(est.P, np.swapaxes(est.P, 1, 2))
+    assert np.linalg.eigvalsh(est.P).min() > 0
+    assert (est.failed_updates == 0).all()
+
+
+def test_covariance_only_batch_over_schemes_equals_one_by_one():
+    rng = np.random.default_rng(3)
+    B, K = 5, 6
+    cmd = np.zeros((B, K, 3))
+    cmd[:, :, 0] = rng.integers(0, 360, (B, K))
+    cmd[:, :, 2] = rng.integers(0, 360, (B, K))
+    t = np.arange(0.0, 2.0, 0.02)
+    lin = np.repeat(full_truth()[None], B, axis=0)
+    s = FilterSettings(history_every_s=None)
+    est = run_ekf([None] * K, [t] * K, cmd, CEN.params(), s, linearise_about=lin)
+    for b in range(B):
+        one = run_ekf([None] * K, [t] * K, cmd[b], CEN.params(), s, linearise_about=lin[b:b + 1])
+        _close(one.P[0], est.P[b])
+        _close(one.x[0], est.x[b])
+    # different schemes really give different covariances
+    assert not np.allclose(est.P[0], est.P[1])
+
+
+def test_thread_count_changes_nothing(batch):
+    scheme, settings, sim, est = batch
+    with threads(1) as n:
+        assert n == 1 == get_threads()
+        one_thread = _ekf(scheme, sim, settings)
+        sim1 = _sim(scheme, range(4))
+    assert np.array_equal(one_thread.x, est.x)
+    assert np.array_equal(one_thread.P, est.P)
+    assert np.array_equal(sim1.A, sim.A)
+    assert set_threads(10**6) == max_threads() == get_threads()
+
+
+def test_filter_memory_independent_of_dwell():
+    sizes = []
+    for dwell in (1.0, 3.0):
+        scheme = _scheme(dwell, TABLE1_POSITIONS[:2])
+        sim = _sim(scheme, range(2))
+        est = _ekf(scheme, sim, FilterSettings(history_every_s=None))
+        n = 48
+        assert est.P.shape == (2, n, n) and est.x.shape == (2, n)
+        assert est.history_x.shape == (2, 0, n)
+        sizes.append(sum(a.nbytes for a in vars(est).values() if isinstance(a, np.ndarray)))
+    assert sizes[0] == sizes[1]
+    # with history, one row per kept instant: decimated, not per filter step
+    scheme = _scheme(3.0, TABLE1_POSITIONS[:2])
+    est = _ekf(scheme, _sim(scheme, range(2)), FilterSettings(history_every_s=1.0))
+    assert est.history_x.shape == (2, 2 * 3, 48)
+    assert np.all(np.diff(est.history_t) > 0)
+
+
+# the sparse fast kernels against the reference kernels and dense formulas -------------------
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fast_model_kernels_equal_reference(seed):
+    rng = np.random.default_rng(seed)
+    params = CEN.params()
+    ang = rng.uniform(-3, 3, 3)
+    ang[1] = rng.uniform(-1.2, 1.2)
+    coef = full_truth() * rng.uniform(0.5, 2, 48)
+    coef[45:] = rng.uniform(-0.1, 0.1, 3)
+    t, h = rng.uniform(0, 60), 0.02
+    out, pa, pc = platform.rk4(ang, coef, t, h, params)
+    fr3 = np.stack([specific_force(t + c * h, params) for c in (0.0, 0.5, 1.0)])
+    o2, pa2, pg2 = np.empty(3), np.empty((3, 3)), np.empty((3, platform.N_GYRO))
+    platform.rk4_jac_fast(ang, coef, fr3, h, params, o2, pa2, pg2, platform.make_fast_work(),
+                          platform.make_fast_rk4_scratch())
+    np.testing.assert_allclose(o2, out, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(pa2, pa, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(pg2, pc[:, platform.GYRO_COLS], rtol=1e-12, atol=1e-22)
+    # every other coefficient column of the RK4 map is structurally zero
+    assert not np.delete(pc, platform.GYRO_COLS, axis=1).any()
+    o3 = np.empty(3)
+    platform.rk4_scalar(ang, coef, fr3, h, params, o3)
+    np.testing.assert_allclose(o3, out, rtol=0, atol=1e-15)
+    A, hc, ha = platform.measure(ang, coef, t, params)
+    w = platform.make_fast_work()
+    A2, ha2 = np.empty(3), np.empty((3, 3))
+    platform.measure_fast(ang, coef, fr3[0], params, A2, ha2, True, w)
+    np.testing.assert_allclose(A2, A, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ha2, ha, rtol=1e-13, atol=1e-16)
+    np.testing.assert_allclose(w[11], hc, rtol=1e-13, atol=0)
+    for r in range(3):
+        cols = platform.MEAS_COLS[r][platform.MEAS_COLS[r] >= 0]
+        assert set(np.flatnonzero(hc[r])) == set(cols)
+
+
+def _spd(n, rng):
+    a = rng.normal(size=(n, n))
+    return a @ a.T + n * np.eye(n)
+
+
+def test_propagate_sparse_equals_dense():
+    rng = np.random.default_rng(5)
+    n = 12
+    P = _spd(n, rng)
+    dyn = np.array([9, 10, 11])
+    cols = np.array([0, 2, 3, 7, 9, 10, 11])
+    phi = rng.normal(size=(3, cols.size))
+    q = np.diag(rng.uniform(0.1, 1, 3))
+    Phi = np.eye(n)
+    Phi[dyn] = 0.0
+    Phi[np.ix_(dyn, cols)] = phi
+    Q = np.zeros((n, n))
+    Q[np.ix_(dyn, dyn)] = q
+    ref = Phi @ P @ Phi.T + Q
+    kalman.propagate_sparse(P, dyn, cols, phi, q, np.empty((3, n)), np.empty((3, 3)))
+    np.testing.assert_allclose(P, ref, rtol=1e-12, atol=1e-12)
+    assert np.array_equal(P, P.T)
+
+
+def test_joseph_update_sparse_equals_dense_joseph():
+    rng = np.random.default_rng(6)
+    n = 12
+    P = _spd(n, rng)
+    x = rng.normal(size=n)
+    hcols = np.array([[0, 4, 9, 0], [1, 5, 10, 11], [2, 9, 10, 11]])
+    hnnz = np.array([3, 4, 4])
+    hval = rng.normal(size=(3, 4))
+    H = np.zeros((3, n))
+    for r in range(3):
+        H[r, hcols[r, :hnnz[r]]] = hval[r, :hnnz[r]]
+    R = np.diag([0.3, 0.4, 0.5])
+    innov = rng.normal(size=3)
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+    IKH = np.eye(n) - K @ H
+    P_ref = IKH @ P @ IKH.T + K @ R @ K.T
+    x_ref = x + K @ innov
+    S = H @ P @ H.T + R
+    nis_ref = innov @ np.linalg.solve(S, innov)
+    nu = np.empty(3)
+    ok = kalman.joseph_update_sparse(x, P, hcols, hnnz, hval, innov, np.diag(R).copy(),
+                                     np.empty((3, n)), np.empty((3, n)), np.empty((3, n)),
+                                     np.empty((3, 3)), np.empty((3, 3)), nu, True)
+    assert ok
+    np.testing.assert_allclose(P, P_ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(x, x_ref, rtol=1e-12, atol=1e-12)
+    assert np.array_equal(P, P.T)
+    assert nu @ nu == pytest.approx(nis_ref, rel=1e-12)

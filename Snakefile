@@ -21,7 +21,9 @@ include: "workflow/rules/figures.smk"
 include: "workflow/rules/report.smk"
 
 
-# the genetic-algorithm design (results/design/<name>.yaml for ga_* schemes), once it lands
+# the genetic-algorithm design (results/design/<name>.yaml for ga_* schemes), once it lands;
+# design.smk sets DESIGN_TARGETS (the design report) when design.study.report is true
+DESIGN_TARGETS = []
 if Path(workflow.basedir, "workflow/rules/design.smk").exists():
 
     include: "workflow/rules/design.smk"
@@ -33,3 +35,4 @@ rule all:
         REPORT_MD,
         ALL_TABLES,
         ALL_FIGURES,
+        DESIGN_TARGETS,

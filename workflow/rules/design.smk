@@ -8,7 +8,10 @@
 # (the default config) it is part of `all` as well.
 from platcal.design import design_config
 
-DESIGN = design_config(config)
+try:
+    DESIGN = design_config(config)
+except InputError as exc:
+    raise WorkflowError(f"invalid configuration: {exc.field}: {exc.message}")
 DSTUDY = DESIGN["study"]
 GA_CRITERIA = ["ga_" + c for c in DSTUDY["criteria"]]
 GA_NPOS = [
@@ -23,10 +26,11 @@ wildcard_constraints:
     design=r"ga_[A-Za-z0-9_]+",
 
 
-def design_params(wildcards=None):
-    """What every design number depends on (model, filter, truth, schemes, design section)."""
-    keys = ("site", "centrifuge", "sampling", "truth", "noise", "filter", "seed", "schemes", "design")
-    return {k: config.get(k) for k in keys}
+# what every design number depends on (model, filter, truth, schemes, design section)
+DESIGN_PARAMS = {
+    k: config.get(k)
+    for k in ("site", "centrifuge", "sampling", "truth", "noise", "filter", "seed", "schemes", "design")
+}
 
 
 rule design_all:
@@ -41,7 +45,7 @@ rule design_scheme:
         population="results/design/{design}.population.csv",
         summary="results/design/{design}.json",
     params:
-        model=design_params,
+        model=DESIGN_PARAMS,
         code=CODE_COMPUTE,
     threads: 2
     conda:
@@ -64,7 +68,7 @@ rule design_compare:
             caption="../report/design_scatter.rst",
         ),
     params:
-        model=design_params,
+        model=DESIGN_PARAMS,
         code=CODE_COMPUTE,
     threads: 2
     conda:
@@ -86,7 +90,7 @@ rule design_npos:
             caption="../report/design_npos.rst",
         ),
     params:
-        model=design_params,
+        model=DESIGN_PARAMS,
         code=CODE_COMPUTE,
     threads: 2
     conda:
@@ -104,7 +108,7 @@ rule design_static:
         table="results/design/static/static_vs_centrifuge.csv",
         summary="results/design/static/static_vs_centrifuge_summary.csv",
     params:
-        model=design_params,
+        model=DESIGN_PARAMS,
         code=CODE_COMPUTE,
     threads: 1
     conda:
@@ -122,7 +126,7 @@ rule design_doo:
         covariance="results/design/doo/doo_covariance.csv",
         aliasing="results/design/doo/doo_aliasing.csv",
     params:
-        model=design_params,
+        model=DESIGN_PARAMS,
         code=CODE_COMPUTE,
     threads: 2
     conda:

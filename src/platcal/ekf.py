@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -158,6 +159,21 @@ def _run_position(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var
     """
     B = x.shape[0]
     for b in prange(B):
+        stats = _filter_one(x[b], P[b], z[b], t, cmd[b], reset_var, est_idx, coef_fixed[b],
+                            params[b], r_var, q_rate, update_x, hist_idx, hist_x[b], hist_s[b],
+                            pcols, pg, hcols, hsrc, hnnz)
+        nis_sum[b] += stats[0]
+        n_bad[b] += int(stats[1])
+
+
+@njit(cache=True)
+def _run_position_serial(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+                         update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc,
+                         hnnz):
+    """:func:`_run_position` without threads, for a batch of one or a single thread: the same
+    per-replicate kernel, minus the parallel region's start-up and barrier (milliseconds on a
+    busy machine)."""
+    for b in range(x.shape[0]):
         stats = _filter_one(x[b], P[b], z[b], t, cmd[b], reset_var, est_idx, coef_fixed[b],
                             params[b], r_var, q_rate, update_x, hist_idx, hist_x[b], hist_s[b],
                             pcols, pg, hcols, hsrc, hnnz)
@@ -344,6 +360,7 @@ def run_ekf(
 
     passes = 1 if cov_only else settings.passes
     structure = _structure(est_idx)
+    kernel = _run_position_serial if B == 1 or numba.get_num_threads() == 1 else _run_position
     hist_slots = []
     total = 0
     for k in range(K):
@@ -375,7 +392,7 @@ def run_ekf(
             sel = hidx >= 0
             hist_t[hidx[sel]] = p * sum(durations) + offset + tk[sel]
             zk = np.zeros((B, 0, 3)) if cov_only else np.ascontiguousarray(z[k], float)
-            _run_position(x, P, zk, tk, np.ascontiguousarray(cmd_rad[:, k]), reset_var,
+            kernel(x, P, zk, tk, np.ascontiguousarray(cmd_rad[:, k]), reset_var,
                           est_idx, coef_fixed, np.ascontiguousarray(params[:, k]), r_var, q_rate, not cov_only, hidx,
                           hist_x, hist_s, nis, n_bad, *structure)
             offset += durations[k]

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -69,6 +70,16 @@ def _simulate_position(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, a
     """
     B = theta0.shape[0]
     for b in prange(B):
+        _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, arw, b,
+                      keep, out_a[b], out_ang[b])
+
+
+@njit(cache=True)
+def _simulate_position_serial(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, arw, keep,
+                              out_a, out_ang):
+    """:func:`_simulate_position` without threads (a batch of one, or one thread): same kernel,
+    no parallel region to start and join."""
+    for b in range(theta0.shape[0]):
         _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, arw, b,
                       keep, out_a[b], out_ang[b])
 
@@ -168,6 +179,7 @@ def simulate(
     A = np.empty((B, K, nk, 3))
     ang = np.empty((B, K, nk, 3))
     arw_step = noise.arw_deg_rth * DEG / 60.0 * np.sqrt(sample_s)  # rad per step
+    kernel = _simulate_position_serial if B == 1 or numba.get_num_threads() == 1 else _simulate_position
     for k in range(K):
         if streams is not None and noise.sigma_a_ug > 0:
             acc = np.stack([g[1].standard_normal((n, 3)) for g in streams]) * noise.sigma_a_ug * 1e-6
@@ -180,7 +192,7 @@ def simulate(
         theta0 = np.ascontiguousarray(cmd[k][None, :] + set_err[:, k])
         pk = np.ascontiguousarray(params[:, k])
         fr_tab, tab_of = _force_tables(pk, n, sample_s)
-        _simulate_position(theta0, truth, n, sample_s, pk, fr_tab, tab_of, acc, arw, keep_every,
+        kernel(theta0, truth, n, sample_s, pk, fr_tab, tab_of, acc, arw, keep_every,
                            A[:, k], ang[:, k])
     t = np.arange(0, n, keep_every) * sample_s
     return SimResult(A=A, angles=ang, t=t, set_error=set_err)

@@ -1,0 +1,245 @@
+"""Benchmark of the batched simulator and EKF against FilterPy's ExtendedKalmanFilter (issue 5).
+
+In one run, on the same simulated data (the paper's Table 1 scheme, 6 positions x dwell s,
+default noise and filter settings), this script times:
+
+* platcal ``simulate`` and ``run_ekf`` for batches of B = 1, 8, 64 replicates (per replicate,
+  amortised over the batch; numba threads as set by ``--threads``);
+* a baseline: FilterPy's ``ExtendedKalmanFilter`` driven step by step in Python with the same
+  model functions (``platcal.platform.rk4`` and ``platcal.platform.measure``), on replicate 0;
+* the covariance-only run (observability / GA objective) over a population of random schemes;
+
+checks that platcal's estimate of replicate 0 agrees with FilterPy's, and reports the achieved
+GFLOP/s of the filter's covariance algebra against this machine's measured matrix-multiply peak.
+The last line is ``speedup_vs_filterpy=<ratio>`` (FilterPy s per replicate / platcal s per
+replicate at the largest batch).
+
+Usage::
+
+    pip install -e '.[bench]'
+    python benchmarks/bench_filter.py                # about a minute on 2 cores
+    python benchmarks/bench_filter.py --dwell 10     # quicker, shorter dwell
+
+Wall-clock times; the load average at start and end is printed because other processes on the
+machine slow every figure down.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+from platcal import platform
+from platcal.centrifuge import Centrifuge
+from platcal.ekf import FilterSettings, _structure, run_ekf
+from platcal.frames import ARCSEC, DEG
+from platcal.instruments import N_FULL, N_IDENTIFIED, full_truth
+from platcal.parallel import get_threads, set_threads
+from platcal.scheme import TABLE1_POSITIONS, check_scheme
+from platcal.simulate import Noise, simulate
+
+
+def best_time(fn, repeat: int) -> tuple[float, object]:
+    """Smallest wall time of ``repeat`` calls (s) and the last result."""
+    best, out = np.inf, None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def matmul_peak(n: int = 1500, repeat: int = 3) -> float:
+    """Measured float64 matrix-multiply rate of numpy's BLAS on this machine, GFLOP/s."""
+    rng = np.random.default_rng(0)
+    a, b = rng.standard_normal((n, n)), rng.standard_normal((n, n))
+    a @ b
+    t, _ = best_time(lambda: a @ b, repeat)
+    return 2.0 * n**3 / t / 1e9
+
+
+def filter_flops_per_step(n_coef: int = N_IDENTIFIED) -> int:
+    """Floating-point operations of the covariance algebra of one platcal filter step (the
+    sparse propagation and the Joseph update as implemented; the model and its Jacobians are
+    not counted)."""
+    pcols, _, hcols, _, hnnz = _structure(np.arange(n_coef))
+    n, m = n_coef + 3, pcols.size
+    prop = 2 * 3 * m * n + 2 * 6 * m            # W = Phi_d P, then the 3x3 block
+    upd = 2 * int(hnnz.sum()) * n               # U = P H^T
+    upd += 2 * 6 * int(hnnz.max())              # S
+    upd += 2 * (2 * 9 * n) + 3 * n + 6 * n      # K = U S^-1, D = U - K S, x
+    upd += 12 * n * (n + 1) // 2                # P - K U^T - D K^T, lower triangle
+    return prop + upd
+
+
+def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):
+    """FilterPy's EKF over every position, driven step by step with the platcal model.
+
+    ``z``: K arrays (M, 3) g; ``t``: K arrays (M,) s; ``cmd_rad`` (K, 3). Same filter as
+    ``run_ekf`` with one pass: state = 45 coefficients + 3 angles, reset of the attitude at
+    each position, RK4 propagation with the exact Jacobian, Joseph update (FilterPy's).
+    """
+    from filterpy.kalman import ExtendedKalmanFilter
+
+    nc = N_IDENTIFIED
+    n = nc + 3
+
+    class PlatformEKF(ExtendedKalmanFilter):
+        def predict_x(self, u=0):
+            self.x = self.x_next
+
+    ekf = PlatformEKF(dim_x=n, dim_z=3)
+    ekf.x = np.zeros((n, 1))
+    ekf.P = np.diag(np.r_[np.asarray(settings.p0_sigma) ** 2, np.zeros(3)])
+    ekf.R = np.eye(3) * (settings.sigma_a_ug * 1e-6) ** 2
+    reset_var = (settings.sigma_set_arcsec * ARCSEC) ** 2
+    q_rate = (settings.arw_deg_rth * DEG / 60.0) ** 2
+    coef = np.zeros(N_FULL)
+    cache = {}
+
+    def h_jac(x, tm, pk):
+        coef[:nc] = x[:nc, 0]
+        out, hc, ha = platform.measure(x[nc:, 0], coef, tm, pk)
+        H = np.zeros((3, n))
+        H[:, :nc] = hc[:, :nc]
+        H[:, nc:] = ha
+        cache["hx"] = out.reshape(3, 1)
+        return H
+
+    def h_x(x):
+        return cache["hx"]
+
+    Q = np.zeros((n, n))
+    for k in range(len(t)):
+        pk = params[k]
+        x = ekf.x
+        x[nc:, 0] = cmd_rad[k]
+        P = ekf.P
+        P[nc:, :] = 0.0
+        P[:, nc:] = 0.0
+        P[nc:, nc:] = np.eye(3) * reset_var
+        for m in range(len(t[k])):
+            if m > 0:
+                h = t[k][m] - t[k][m - 1]
+                coef[:nc] = ekf.x[:nc, 0]
+                ang, pa, pc = platform.rk4(ekf.x[nc:, 0], coef, t[k][m - 1], h, pk)
+                F = np.eye(n)
+                F[nc:, :nc] = pc[:, :nc]
+                F[nc:, nc:] = pa
+                x_next = ekf.x.copy()
+                x_next[nc:, 0] = ang
+                ekf.x_next = x_next
+                ekf.F = F
+                Q[nc:, nc:] = np.eye(3) * q_rate * h
+                ekf.Q = Q
+                ekf.predict()
+            ekf.update(z[k][m].reshape(3, 1), h_jac, h_x, args=(t[k][m], pk))
+    return ekf.x[:, 0].copy(), ekf.P.copy()
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--dwell", type=float, default=60.0, help="dwell per position, s (60)")
+    ap.add_argument("--batches", type=int, nargs="+", default=[1, 8, 64], help="batch sizes")
+    ap.add_argument("--population", type=int, default=64, help="schemes per covariance-only batch")
+    ap.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
+    ap.add_argument("--repeat", type=int, default=2, help="timed repeats per platcal figure (best)")
+    args = ap.parse_args(argv)
+
+    set_threads(args.threads)
+    load0 = os.getloadavg()
+    scheme = check_scheme("table1", {"dwell_s": args.dwell, "positions": [list(p) for p in TABLE1_POSITIONS]})
+    cen = Centrifuge()
+    params = cen.scheme_params(scheme)
+    settings = FilterSettings()
+    K = scheme.n_positions
+    truth = full_truth()
+    Bmax = max(args.batches)
+    seeds = [np.random.SeedSequence([2017, i]) for i in range(Bmax)]
+    keep = int(round(settings.period_s / 0.005))
+
+    def sim(B):
+        return simulate(truth, scheme, params, Noise(), seeds[:B], keep_every=keep)
+
+    def ekf(data, B):
+        return run_ekf([data.A[:B, k] for k in range(K)], [data.t] * K, scheme.angles_deg, params,
+                       settings)
+
+    # compile (numba caches on disk; the first call of a process still loads and links)
+    warm = check_scheme("w", {"dwell_s": 0.2, "positions": [list(p) for p in TABLE1_POSITIONS[:2]]})
+    wd = simulate(truth, warm, cen.scheme_params(warm), Noise(), seeds[:2], keep_every=keep)
+    run_ekf([wd.A[:, k] for k in range(2)], [wd.t] * 2, warm.angles_deg, cen.scheme_params(warm), settings)
+    run_ekf([None] * 2, [wd.t] * 2, warm.angles_deg, cen.scheme_params(warm), settings,
+            linearise_about=np.repeat(truth[None], 2, axis=0))
+
+    peak = matmul_peak()
+    n_steps = K * int(round(args.dwell / settings.period_s))
+    flops = filter_flops_per_step()
+    print(f"platcal filter benchmark: Table 1 scheme, {K} x {args.dwell:g} s, {n_steps} filter steps "
+          f"of {settings.period_s * 1e3:g} ms per replicate, numba threads {get_threads()}, "
+          f"cores {os.cpu_count()}, load average {load0[0]:.2f}")
+    print(f"matrix-multiply peak (numpy BLAS, float64, 1500^3): {peak:.1f} GFLOP/s")
+
+    data = sim(Bmax)
+    rows = []
+    est1 = None
+    for B in sorted(args.batches):
+        ts, _ = best_time(lambda: sim(B), args.repeat)
+        te, est = best_time(lambda: ekf(data, B), args.repeat)
+        if B == 1:
+            est1 = est
+        rows.append((B, ts / B, te / B, (ts + te) / B, flops * n_steps * B / te / 1e9))
+    if est1 is None:
+        est1 = ekf(data, 1)
+
+    t0 = time.perf_counter()
+    x_fp, P_fp = filterpy_run([data.A[0, k] for k in range(K)], [data.t] * K, scheme.angles_deg * DEG,
+                              params, settings)
+    t_fp = time.perf_counter() - t0
+
+    # agreement of replicate 0: estimates relative to the truth's scale and in sigmas
+    x_pc, P_pc = est1.x[0], est1.P[0]
+    sig = np.sqrt(np.diag(P_pc))
+    nc = N_IDENTIFIED
+    d_sigma = np.max(np.abs(x_pc[:nc] - x_fp[:nc]) / sig[:nc])
+    d_rel = np.max(np.abs(x_pc[:nc] - x_fp[:nc]) / np.abs(truth[:nc]))
+    d_sig = np.max(np.abs(np.sqrt(np.diag(P_fp))[:nc] / sig[:nc] - 1.0))
+    agree = d_sigma < 1e-4 and d_sig < 1e-4
+
+    P = args.population
+    rng = np.random.default_rng(1)
+    cmd = np.zeros((P, K, 3))
+    cmd[:, :, 0] = rng.integers(0, 360, (P, K))
+    cmd[:, :, 2] = rng.integers(0, 360, (P, K))
+    lin = np.repeat(truth[None], P, axis=0)
+    cov_settings = FilterSettings(history_every_s=None)
+    tc, _ = best_time(lambda: run_ekf([None] * K, [data.t] * K, cmd, params, cov_settings,
+                                      linearise_about=lin), args.repeat)
+
+    print()
+    print("| run | B | s per replicate | replicates/s | covariance GFLOP/s | % of peak |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for B, s_sim, s_ekf, s_tot, gf in rows:
+        print(f"| platcal simulate | {B} | {s_sim:.4f} | {1 / s_sim:.1f} | | |")
+        print(f"| platcal run_ekf | {B} | {s_ekf:.4f} | {1 / s_ekf:.1f} | {gf:.2f} | {100 * gf / peak:.1f} |")
+        print(f"| platcal simulate + run_ekf | {B} | {s_tot:.4f} | {1 / s_tot:.1f} | | |")
+    gf_fp = flops * n_steps / t_fp / 1e9
+    print(f"| FilterPy ExtendedKalmanFilter loop | 1 | {t_fp:.4f} | {1 / t_fp:.2f} | {gf_fp:.3f} (same count) | |")
+    print(f"| covariance-only, random 6-position schemes | {P} | {tc / P:.4f} | {P / tc:.1f} evaluations/s | | |")
+    print()
+    print(f"estimates agree (replicate 0, platcal B=1 vs FilterPy): max |dx|/sigma = {d_sigma:.2e}, "
+          f"max |dx|/|truth| = {d_rel:.2e}, max |sigma ratio - 1| = {d_sig:.2e} -> "
+          f"{'OK' if agree else 'MISMATCH'}")
+    print(f"covariance-only: {P / tc:.1f} scheme evaluations/s, {tc / P:.4f} s per evaluation "
+          f"({K} x {args.dwell:g} s, batch of {P})")
+    load1 = os.getloadavg()
+    print(f"load average at end: {load1[0]:.2f}")
+    best = rows[-1]
+    print(f"speedup_vs_filterpy={t_fp / best[2]:.1f}")
+
+
+if __name__ == "__main__":
+    main()

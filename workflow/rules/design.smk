@@ -5,7 +5,7 @@
 #   results/design/report.md                criteria vs Monte Carlo, N, 1 g, D_OO
 # The sweep (montecarlo.smk) reads the ga_* schemes it lists from results/design/<name>.yaml.
 # `snakemake --cores 2 design_all` builds the design report; with design.study.report: true
-# (the default config) it is part of `all` as well.
+# and a ga_* scheme in study.schemes (the default config) it is part of `all` as well.
 from platcal.design import design_config
 
 try:
@@ -19,7 +19,12 @@ GA_NPOS = [
     for c in DSTUDY["n_criteria"]
     for n in DSTUDY["n_positions"]
 ]
-DESIGN_TARGETS = ["results/design/report.md"] if DSTUDY["report"] else []
+# the design report joins `all` when asked for and the sweep uses a designed scheme (ga_*)
+DESIGN_TARGETS = (
+    ["results/design/report.md"]
+    if DSTUDY["report"] and any(s.startswith("ga_") for s in SCHEMES)
+    else []
+)
 
 
 wildcard_constraints:

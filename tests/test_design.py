@@ -78,3 +78,16 @@ def test_design_config_errors_name_the_field(study, tmp_path, capsys):
     assert main(["design", "--config", str(CONFIG), "--out", str(tmp_path / "x.txt")]) == 2
     assert "--out" in capsys.readouterr().err
     assert not output_paths(tmp_path / "x.yaml")["scheme"].exists()
+
+
+def test_presets_of_the_workflow(study):
+    from platcal.design import preset
+
+    st, d = preset(study, "ga_A_n4")
+    assert (d["criterion"], d["positions"], d["name"]) == ("A", 4, "ga_A_n4")
+    st, d = preset(study, "ga_doo")
+    assert d["estimate_doo"] is True and d["g_levels"] == [10, 20]
+    assert st.truth[45:].tolist() == [0.05] * 3 and study.truth[45:].tolist() == [0.0] * 3
+    with pytest.raises(InputError) as e:
+        preset(study, "ga_Q")
+    assert e.value.field == "--preset"

@@ -24,8 +24,8 @@ from .frames import ARCSEC, DEG
 from .instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED
 from .centrifuge import specific_force_into
 from .kalman import joseph_update_sparse, propagate_sparse
-from .platform import (GYRO_COLS, MEAS_COLS, N_GYRO, make_fast_rk4_scratch, make_fast_work,
-                       measure_fast, rk4_jac_fast)
+from .platform import (GYRO_COLS, MEAS_COLS, N_GYRO, make_fast_work, make_sc_rk4_scratch,
+                       measure_fast, rk4_jac_sc)
 
 ANGLE_NAMES = ("alpha", "beta", "gamma")
 
@@ -192,7 +192,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     mh = hcols.shape[1]
     dyn = np.arange(nc, n)
     w = make_fast_work()
-    scratch = make_fast_rk4_scratch()
+    scratch = make_sc_rk4_scratch()
     coef = coef_fixed.copy()
     ang_new = np.empty(3)
     pa = np.empty((3, 3))
@@ -237,7 +237,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
             specific_force_into(t[m], pb, fr_now)
             for r in range(3):
                 fr3[2, r] = fr_now[r]
-            rk4_jac_fast(ang, coef, fr3, h, pb, ang_new, pa, pgyro, w, scratch)
+            rk4_jac_sc(ang, coef, fr3, h, pb, ang_new, pa, pgyro, scratch)
             for r in range(3):
                 for k in range(npc - 3):
                     phi[r, k] = pgyro[r, pg[k]]

@@ -188,12 +188,23 @@ def propagate_sparse(P, dyn, cols, phi, q, W, blk):
         for j in range(n):
             wr[j] = 0.0
     # rows of P are columns of P (symmetric): W[r] = sum_k phi[r, k] P[cols[k]] as axpys,
-    # contiguous and vectorisable
-    for k in range(m):
-        prow = P[cols[k]]
-        for r in range(d):
-            c = phi[r, k]
-            if c != 0.0:
+    # contiguous and vectorisable; with three dynamic states (attitude) one pass over each row
+    # of P feeds all three
+    if d == 3:
+        w0, w1, w2 = W[0], W[1], W[2]
+        for k in range(m):
+            prow = P[cols[k]]
+            c0, c1, c2 = phi[0, k], phi[1, k], phi[2, k]
+            for j in range(n):
+                p = prow[j]
+                w0[j] += c0 * p
+                w1[j] += c1 * p
+                w2[j] += c2 * p
+    else:
+        for k in range(m):
+            prow = P[cols[k]]
+            for r in range(d):
+                c = phi[r, k]
                 wr = W[r]
                 for j in range(n):
                     wr[j] += c * prow[j]

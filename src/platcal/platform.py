@@ -19,7 +19,9 @@ from numba import njit
 
 from .centrifuge import P_G, P_OMEGA_N, P_OMEGA_U, specific_force_into
 from .frames import DEG_PER_HOUR, c_rp_into, euler_t_into
-from .instruments import GYRO_AXES, I_DOO, N_FULL, accel_output_into, gyro_drift_into
+from .frames import ARCSEC
+from .instruments import (GYRO_AXES, I_DOO, I_K0, I_THETA, N_FULL, UG, accel_output_into,
+                          gyro_drift_into)
 
 
 @njit(cache=True)
@@ -553,6 +555,258 @@ def rk4_scalar(ang, coef, fr3, h, params, out):
     sa, ca = np.sin(a0), np.cos(a0)
     sb, cb = np.sin(a1), np.cos(a1)
     sg, cg = np.sin(a2), np.cos(a2)
+    k10, k11, k12 = rate_scalar(sa, ca, sb, cb, sg, cg, coef, fr3[0, 0], fr3[0, 1], fr3[0, 2],
+                                g, wn, wu)
+    hh = 0.5 * h
+    k20, k21, k22 = _stage(sa, ca, sb, cb, sg, cg, hh * k10, hh * k11, hh * k12, coef, fr3[1],
+                           g, wn, wu)
+    k30, k31, k32 = _stage(sa, ca, sb, cb, sg, cg, hh * k20, hh * k21, hh * k22, coef, fr3[1],
+                           g, wn, wu)
+    k40, k41, k42 = _stage(sa, ca, sb, cb, sg, cg, h * k30, h * k31, h * k32, coef, fr3[2],
+                           g, wn, wu)
+    h6 = h / 6.0
+    out[0] = a0 + h6 * (k10 + 2.0 * k20 + 2.0 * k30 + k40)
+    out[1] = a1 + h6 * (k11 + 2.0 * k21 + 2.0 * k31 + k41)
+    out[2] = a2 + h6 * (k12 + 2.0 * k22 + 2.0 * k32 + k42)
+
+
+# Scalar rate-and-Jacobian kernel for the filter's RK4 map ---------------------------------
+# Numba passes arrays between compiled functions as reference-counted structs; in a kernel
+# called 72 000 times per replicate those calls cost more than the arithmetic. This version
+# keeps C_r^p, T and their partials in registers and writes one flat result vector.
+
+V_RATE, V_JA, V_T, V_A, V_U, V_DU = 0, 3, 12, 21, 30, 33
+"""Layout of the result vector of :func:`rate_jac_sc` (42 entries): rate (3, rad/s), jac_a
+(3x3 row-major, 1/s), T (3x3 row-major), aI, aO, aS of gyros x, y, z (g); then scratch."""
+
+
+@njit(cache=True)
+def rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu, v):
+    """Eq. 18 and its angle Jacobian from the sines and cosines of the angles and the base
+    specific force (m/s^2); results into ``v`` (42,) laid out as :data:`V_RATE` ... :data:`V_A`.
+
+    Same model and closed forms as :func:`rate_fast`; the coefficient Jacobian follows from T
+    and the gyro axis components: ``d rate_r / d coef[3 m + j] = -T[r, j] deg/h reg_jm``.
+    """
+    c00 = cg * cb
+    c01 = cg * sb * sa + sg * ca
+    c02 = -cg * sb * ca + sg * sa
+    c10 = -sg * cb
+    c11 = -sg * sb * sa + cg * ca
+    c12 = sg * sb * ca + cg * sa
+    c20 = sb
+    c21 = -cb * sa
+    c22 = cb * ca
+    # d C / d beta
+    b00 = -cg * sb
+    b01 = cg * cb * sa
+    b02 = -cg * cb * ca
+    b10 = sg * sb
+    b11 = -sg * cb * sa
+    b12 = sg * cb * ca
+    b20 = cb
+    b21 = sb * sa
+    b22 = -sb * ca
+    f0 = (c00 * fr0 + c01 * fr1 + c02 * fr2) / g
+    f1 = (c10 * fr0 + c11 * fr1 + c12 * fr2) / g
+    f2 = (c20 * fr0 + c21 * fr1 + c22 * fr2) / g
+    # d f / d angle: alpha turns columns 1, 2 of C; gamma rotates rows 0, 1
+    fa0 = (-c02 * fr1 + c01 * fr2) / g
+    fa1 = (-c12 * fr1 + c11 * fr2) / g
+    fa2 = (-c22 * fr1 + c21 * fr2) / g
+    fb0 = (b00 * fr0 + b01 * fr1 + b02 * fr2) / g
+    fb1 = (b10 * fr0 + b11 * fr1 + b12 * fr2) / g
+    fb2 = (b20 * fr0 + b21 * fr1 + b22 * fr2) / g
+    fg0 = f1
+    fg1 = -f0
+    fg2 = 0.0
+    ib = 1.0 / cb
+    tb = sb * ib
+    t00, t01 = cg * ib, -sg * ib
+    t10, t11 = sg, cg
+    t20, t21 = -tb * cg, tb * sg
+    for j in range(3):
+        # gyro j's axis components of f and of its angle derivatives
+        aI = GYRO_AXES[j, 0, 0] * f0 + GYRO_AXES[j, 0, 1] * f1 + GYRO_AXES[j, 0, 2] * f2
+        aO = GYRO_AXES[j, 1, 0] * f0 + GYRO_AXES[j, 1, 1] * f1 + GYRO_AXES[j, 1, 2] * f2
+        aS = GYRO_AXES[j, 2, 0] * f0 + GYRO_AXES[j, 2, 1] * f1 + GYRO_AXES[j, 2, 2] * f2
+        v[V_A + 3 * j] = aI
+        v[V_A + 3 * j + 1] = aO
+        v[V_A + 3 * j + 2] = aS
+        e = coef[I_DOO + j] * (aO * aO)
+        e += (coef[j] + coef[3 + j] * aI + coef[6 + j] * aO + coef[9 + j] * aS
+              + coef[12 + j] * (aI * aI) + coef[15 + j] * (aS * aS) + coef[18 + j] * (aI * aO)
+              + coef[21 + j] * (aI * aS) + coef[24 + j] * (aO * aS))
+        DI, DO, DS = coef[3 + j], coef[6 + j], coef[9 + j]
+        DII, DSS, DIO = coef[12 + j], coef[15 + j], coef[18 + j]
+        DIS, DOS, DOO = coef[21 + j], coef[24 + j], coef[I_DOO + j]
+        gI = DI + 2.0 * DII * aI + DIO * aO + DIS * aS
+        gO = DO + 2.0 * DOO * aO + DIO * aI + DOS * aS
+        gS = DS + 2.0 * DSS * aS + DIS * aI + DOS * aO
+        # deps_j / d angle_i = (gI e_I + gO e_O + gS e_S) . d f / d angle_i   (deg/h per rad)
+        d0 = gI * GYRO_AXES[j, 0, 0] + gO * GYRO_AXES[j, 1, 0] + gS * GYRO_AXES[j, 2, 0]
+        d1 = gI * GYRO_AXES[j, 0, 1] + gO * GYRO_AXES[j, 1, 1] + gS * GYRO_AXES[j, 2, 1]
+        d2 = gI * GYRO_AXES[j, 0, 2] + gO * GYRO_AXES[j, 1, 2] + gS * GYRO_AXES[j, 2, 2]
+        # u_j and du_j / d angle parked in the tail of v (scratch, no allocation)
+        v[V_U + j] = e * DEG_PER_HOUR
+        v[V_DU + 3 * j] = DEG_PER_HOUR * (d0 * fa0 + d1 * fa1 + d2 * fa2)
+        v[V_DU + 3 * j + 1] = DEG_PER_HOUR * (d0 * fb0 + d1 * fb1 + d2 * fb2)
+        v[V_DU + 3 * j + 2] = DEG_PER_HOUR * (d0 * fg0 + d1 * fg1 + d2 * fg2)
+    u0 = v[V_U] + c01 * wn + c02 * wu
+    u1 = v[V_U + 1] + c11 * wn + c12 * wu
+    u2 = v[V_U + 2] + c21 * wn + c22 * wu
+    du = v[V_DU:V_DU + 9].reshape((3, 3))
+    # Earth-rate terms of du: d C[r, 1:3] / d angle
+    du[0, 0] += -c02 * wn + c01 * wu
+    du[1, 0] += -c12 * wn + c11 * wu
+    du[2, 0] += -c22 * wn + c21 * wu
+    du[0, 1] += b01 * wn + b02 * wu
+    du[1, 1] += b11 * wn + b12 * wu
+    du[2, 1] += b21 * wn + b22 * wu
+    du[0, 2] += c11 * wn + c12 * wu
+    du[1, 2] += -c01 * wn - c02 * wu
+    v[V_RATE] = -(t00 * u0 + t01 * u1)
+    v[V_RATE + 1] = -(t10 * u0 + t11 * u1)
+    v[V_RATE + 2] = -(t20 * u0 + t21 * u1 + u2)
+    # d T / d beta rows: [cg tb ib, -sg tb ib, 0], 0, [-cg ib^2, sg ib^2, 0]; d T / d gamma rows:
+    # [-sg ib, -cg ib, 0], [cg, -sg, 0], [tb sg, tb cg, 0]; d T / d alpha = 0
+    dtb0 = cg * tb * ib * u0 - sg * tb * ib * u1
+    dtb2 = -cg * ib * ib * u0 + sg * ib * ib * u1
+    dtg0 = -sg * ib * u0 - cg * ib * u1
+    dtg1 = cg * u0 - sg * u1
+    dtg2 = tb * sg * u0 + tb * cg * u1
+    for i in range(3):
+        v[V_JA + i] = -(t00 * du[0, i] + t01 * du[1, i])
+        v[V_JA + 3 + i] = -(t10 * du[0, i] + t11 * du[1, i])
+        v[V_JA + 6 + i] = -(t20 * du[0, i] + t21 * du[1, i] + du[2, i])
+    v[V_JA + 1] -= dtb0
+    v[V_JA + 7] -= dtb2
+    v[V_JA + 2] -= dtg0
+    v[V_JA + 5] -= dtg1
+    v[V_JA + 8] -= dtg2
+    v[V_T] = t00
+    v[V_T + 1] = t01
+    v[V_T + 2] = 0.0
+    v[V_T + 3] = t10
+    v[V_T + 4] = t11
+    v[V_T + 5] = 0.0
+    v[V_T + 6] = t20
+    v[V_T + 7] = t21
+    v[V_T + 8] = 1.0
+
+
+@njit(cache=True)
+def rk4_jac_sc(ang, coef, fr3, h, params, out, phi_a, phi_g, scratch):
+    """RK4 step of eq. 18 and the exact Jacobian of the RK4 map, like :func:`rk4_jac_fast`,
+    built on :func:`rate_jac_sc`. ``scratch`` from :func:`make_sc_rk4_scratch`.
+
+    Writes ``out`` (3,) rad, ``phi_a`` (3, 3) and ``phi_g`` (3, 30) over :data:`GYRO_COLS`.
+    """
+    k, ka, kg, v = scratch
+    g = params[P_G]
+    wn = params[P_OMEGA_N]
+    wu = params[P_OMEGA_U]
+    sa, ca = np.sin(ang[0]), np.cos(ang[0])
+    sb, cb = np.sin(ang[1]), np.cos(ang[1])
+    sg, cg = np.sin(ang[2]), np.cos(ang[2])
+    for s in range(4):
+        fs = 0 if s == 0 else (1 if s < 3 else 2)
+        if s == 0:
+            step = 0.0
+            rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr3[0, 0], fr3[0, 1], fr3[0, 2], g, wn, wu, v)
+        else:
+            step = 0.5 * h if s < 3 else h
+            s0, c0 = _shift(sa, ca, step * k[s - 1, 0])
+            s1, c1 = _shift(sb, cb, step * k[s - 1, 1])
+            s2, c2 = _shift(sg, cg, step * k[s - 1, 2])
+            rate_jac_sc(s0, c0, s1, c1, s2, c2, coef, fr3[fs, 0], fr3[fs, 1], fr3[fs, 2], g, wn,
+                        wu, v)
+        for r in range(3):
+            k[s, r] = v[V_RATE + r]
+        for r in range(3):
+            j0, j1, j2 = v[V_JA + 3 * r], v[V_JA + 3 * r + 1], v[V_JA + 3 * r + 2]
+            for i in range(3):
+                d = v[V_JA + 3 * r + i]
+                if s > 0:
+                    d += step * (j0 * ka[s - 1, 0, i] + j1 * ka[s - 1, 1, i] + j2 * ka[s - 1, 2, i])
+                ka[s, r, i] = d
+            for j in range(3):
+                tj = -v[V_T + 3 * r + j] * DEG_PER_HOUR
+                aI, aO, aS = v[V_A + 3 * j], v[V_A + 3 * j + 1], v[V_A + 3 * j + 2]
+                kg[s, r, j] = tj
+                kg[s, r, 3 + j] = tj * aI
+                kg[s, r, 6 + j] = tj * aO
+                kg[s, r, 9 + j] = tj * aS
+                kg[s, r, 12 + j] = tj * (aI * aI)
+                kg[s, r, 15 + j] = tj * (aS * aS)
+                kg[s, r, 18 + j] = tj * (aI * aO)
+                kg[s, r, 21 + j] = tj * (aI * aS)
+                kg[s, r, 24 + j] = tj * (aO * aS)
+                kg[s, r, 27 + j] = tj * (aO * aO)
+            if s > 0:
+                for i in range(N_GYRO):
+                    kg[s, r, i] += step * (j0 * kg[s - 1, 0, i] + j1 * kg[s - 1, 1, i]
+                                           + j2 * kg[s - 1, 2, i])
+    h6 = h / 6.0
+    for r in range(3):
+        out[r] = ang[r] + h6 * (k[0, r] + 2.0 * k[1, r] + 2.0 * k[2, r] + k[3, r])
+        for i in range(3):
+            phi_a[r, i] = (1.0 if r == i else 0.0) + h6 * (
+                ka[0, r, i] + 2.0 * ka[1, r, i] + 2.0 * ka[2, r, i] + ka[3, r, i])
+        for i in range(N_GYRO):
+            phi_g[r, i] = h6 * (kg[0, r, i] + 2.0 * kg[1, r, i] + 2.0 * kg[2, r, i] + kg[3, r, i])
+
+
+@njit(cache=True)
+def make_sc_rk4_scratch():
+    """Scratch for :func:`rk4_jac_sc`: (k (4, 3), ka (4, 3, 3), kg (4, 3, 30), v (42,))."""
+    return np.empty((4, 3)), np.empty((4, 3, 3)), np.empty((4, 3, N_GYRO)), np.empty(42)
+
+
+@njit(cache=True)
+def _accel_one(coef, j, aI, aP):
+    """Output of accelerometer j (g) from its input- and pendulous-axis specific force (g);
+    the expression of :func:`platcal.instruments.accel_output_into`."""
+    k0 = coef[I_K0 + j]
+    k1 = coef[I_K0 + 3 + j]
+    k2 = coef[I_K0 + 6 + j]
+    k3 = coef[I_K0 + 9 + j]
+    kip = coef[I_K0 + 12 + j]
+    return UG * k0 + (1.0 + UG * k1) * aI + UG * k2 * aI * aI + UG * k3 * aI * aI * aI \
+        + UG * kip * aI * aP
+
+
+@njit(cache=True)
+def measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g):
+    """Accelerometer outputs x, y, z (g), no Jacobians, from the sines and cosines of the
+    angles and the base specific force (m/s^2): the simulator's measurement (eq. 13)."""
+    c00 = cg * cb
+    c01 = cg * sb * sa + sg * ca
+    c02 = -cg * sb * ca + sg * sa
+    c10 = -sg * cb
+    c11 = -sg * sb * sa + cg * ca
+    c12 = sg * sb * ca + cg * sa
+    c20 = sb
+    c21 = -cb * sa
+    c22 = cb * ca
+    f0 = (c00 * fr0 + c01 * fr1 + c02 * fr2) / g
+    f1 = (c10 * fr0 + c11 * fr1 + c12 * fr2) / g
+    f2 = (c20 * fr0 + c21 * fr1 + c22 * fr2) / g
+    tpy = coef[I_THETA] * ARCSEC
+    tpz = coef[I_THETA + 1] * ARCSEC
+    toz = coef[I_THETA + 2] * ARCSEC
+    return (_accel_one(coef, 0, f0, f1),
+            _accel_one(coef, 1, tpy * f0 + f1, -f2),
+            _accel_one(coef, 2, tpz * f0 + toz * f1 + f2, f1 - toz * f2))
+
+
+@njit(cache=True)
+def rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr3, h, params, out):
+    """:func:`rk4_scalar` with the sines and cosines of ``ang`` already at hand."""
+    g = params[P_G]
+    wn = params[P_OMEGA_N]
+    wu = params[P_OMEGA_U]
+    a0, a1, a2 = ang[0], ang[1], ang[2]
     k10, k11, k12 = rate_scalar(sa, ca, sb, cb, sg, cg, coef, fr3[0, 0], fr3[0, 1], fr3[0, 2],
                                 g, wn, wu)
     hh = 0.5 * h

@@ -12,16 +12,17 @@ position, so a replicate's numbers do not depend on the batch it runs in.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 from numba import njit, prange
 
-from .centrifuge import broadcast_params
+from .centrifuge import P_G, broadcast_params
 from .frames import ARCSEC, DEG
 from .instruments import N_FULL
-from .platform import make_fast_work, measure_fast, rk4_scalar
+from .platform import measure_scalar, rk4_scalar_sc
 from .scheme import Scheme
 
 
@@ -89,22 +90,27 @@ def _simulate_one(theta0, coef, n, dt, params, fr_tab, acc_noise, arw, b, keep, 
     """One replicate: RK4 of eq. 18 over ``n`` samples of ``dt`` s from ``theta0`` (rad), keeping
     one output in ``keep``. ``fr_tab[i, s]`` is the base specific force (m/s^2) at sample i's
     start, middle and end (s = 0, 1, 2). Noise arrays are (B, n, 3) or (B, 0, 3) for none."""
-    w = make_fast_work()
-    ha = np.empty((3, 3))
-    meas = np.empty(3)
+    g = params[P_G]
     ang = theta0.copy()
     new = np.empty(3)
     noisy_a = acc_noise.shape[1] > 0
     noisy_g = arw.shape[1] > 0
     for i in range(n):
+        # one set of sin/cos per sample serves the measurement and the RK4 step
+        sa, ca = np.sin(ang[0]), np.cos(ang[0])
+        sb, cb = np.sin(ang[1]), np.cos(ang[1])
+        sg, cg = np.sin(ang[2]), np.cos(ang[2])
         if i % keep == 0:
             j = i // keep
-            measure_fast(ang, coef, fr_tab[i, 0], params, meas, ha, False, w)
+            fr = fr_tab[i, 0]
+            m0, m1, m2 = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
+            out_a[j, 0] = m0 + (acc_noise[b, i, 0] if noisy_a else 0.0)
+            out_a[j, 1] = m1 + (acc_noise[b, i, 1] if noisy_a else 0.0)
+            out_a[j, 2] = m2 + (acc_noise[b, i, 2] if noisy_a else 0.0)
             for r in range(3):
-                out_a[j, r] = meas[r] + (acc_noise[b, i, r] if noisy_a else 0.0)
                 out_ang[j, r] = ang[r]
         if i < n - 1:
-            rk4_scalar(ang, coef, fr_tab[i], dt, params, new)
+            rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr_tab[i], dt, params, new)
             for r in range(3):
                 ang[r] = new[r] + (arw[b, i, r] if noisy_g else 0.0)
 
@@ -180,19 +186,40 @@ def simulate(
     ang = np.empty((B, K, nk, 3))
     arw_step = noise.arw_deg_rth * DEG / 60.0 * np.sqrt(sample_s)  # rad per step
     kernel = _simulate_position_serial if B == 1 or numba.get_num_threads() == 1 else _simulate_position
+    # noise buffers reused position after position, filled in place by each replicate's stream
+    use_acc = streams is not None and noise.sigma_a_ug > 0
+    use_arw = streams is not None and arw_step > 0
+    acc = np.empty((B, n if use_acc else 0, 3))
+    arw = np.empty((B, n if use_arw else 0, 3))
+    n_workers = min(B, numba.get_num_threads())
+    pool = ThreadPoolExecutor(n_workers) if n_workers > 1 and (use_acc or use_arw) else None
+
+    def draw(b: int) -> None:
+        # numpy releases the GIL while filling, so replicates draw in parallel threads; each
+        # replicate has its own generators, so the numbers do not depend on the threading
+        if use_acc:
+            streams[b][1].standard_normal(out=acc[b])
+        if use_arw:
+            streams[b][2].standard_normal(out=arw[b])
+
     for k in range(K):
-        if streams is not None and noise.sigma_a_ug > 0:
-            acc = np.stack([g[1].standard_normal((n, 3)) for g in streams]) * noise.sigma_a_ug * 1e-6
-        else:
-            acc = np.zeros((B, 0, 3))
-        if streams is not None and arw_step > 0:
-            arw = np.stack([g[2].standard_normal((n, 3)) for g in streams]) * arw_step
-        else:
-            arw = np.zeros((B, 0, 3))
+        if use_acc or use_arw:
+            if pool is None:
+                for b in range(B):
+                    draw(b)
+            else:
+                list(pool.map(draw, range(B)))
+        if use_acc:
+            acc *= noise.sigma_a_ug
+            acc *= 1e-6
+        if use_arw:
+            arw *= arw_step
         theta0 = np.ascontiguousarray(cmd[k][None, :] + set_err[:, k])
         pk = np.ascontiguousarray(params[:, k])
         fr_tab, tab_of = _force_tables(pk, n, sample_s)
         kernel(theta0, truth, n, sample_s, pk, fr_tab, tab_of, acc, arw, keep_every,
                            A[:, k], ang[:, k])
+    if pool is not None:
+        pool.shutdown()
     t = np.arange(0, n, keep_every) * sample_s
     return SimResult(A=A, angles=ang, t=t, set_error=set_err)

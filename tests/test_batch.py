@@ -159,6 +159,15 @@ def test_fast_model_kernels_equal_reference(seed):
     for r in range(3):
         cols = platform.MEAS_COLS[r][platform.MEAS_COLS[r] >= 0]
         assert set(np.flatnonzero(hc[r])) == set(cols)
+    A3, hm, ha3 = np.empty(3), np.zeros(platform.MEAS_COLS.shape), np.empty((3, 3))
+    platform.measure_jac_sc(ang, coef, *fr3[0], params[2], A3, hm, ha3)
+    np.testing.assert_allclose(A3, A, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ha3, ha, rtol=1e-12, atol=1e-16)
+    for r in range(3):
+        cols = platform.MEAS_COLS[r]
+        np.testing.assert_allclose(hm[r, cols >= 0], hc[r, cols[cols >= 0]], rtol=1e-13, atol=0)
+    m = platform.measure_scalar(*np.ravel([[np.sin(a), np.cos(a)] for a in ang]), coef, *fr3[0], params[2])
+    np.testing.assert_allclose(m, A, rtol=0, atol=1e-15)
 
 
 def _spd(n, rng):

@@ -24,8 +24,8 @@ from .frames import ARCSEC, DEG
 from .instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED
 from .centrifuge import specific_force_into
 from .kalman import joseph_update_sparse, propagate_sparse
-from .platform import (GYRO_COLS, MEAS_COLS, N_GYRO, make_fast_work, make_sc_rk4_scratch,
-                       measure_fast, rk4_jac_sc)
+from .centrifuge import P_G
+from .platform import GYRO_COLS, MEAS_COLS, N_GYRO, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 
 ANGLE_NAMES = ("alpha", "beta", "gamma")
 
@@ -151,8 +151,8 @@ def _run_position(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var
     Sparsity (from :func:`_structure`): the attitude rows of Phi are nonzero only at the states
     ``pcols`` (gyro coefficients, then the angles); for a coefficient column ``pg`` gives its
     column of the RK4 map's compact gyro Jacobian. Row r of H is nonzero only at the states
-    ``hcols[r, :hnnz[r]]``; ``hsrc`` says where each value comes from (a full-vector coefficient
-    index, or ``-1 - i`` for angle i).
+    ``hcols[r, :hnnz[r]]``; ``hsrc`` says where each value comes from (a column of
+    ``MEAS_COLS[r]``, or ``-1 - i`` for angle i).
 
     Each replicate runs the same sequential kernel (:func:`_filter_one`) in its own iteration, so
     the numbers do not depend on the batch size or on the number of threads.
@@ -191,8 +191,9 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     npc = pcols.shape[0]
     mh = hcols.shape[1]
     dyn = np.arange(nc, n)
-    w = make_fast_work()
     scratch = make_sc_rk4_scratch()
+    hm = np.zeros((3, MEAS_COLS.shape[1]))
+    g = pb[P_G]
     coef = coef_fixed.copy()
     ang_new = np.empty(3)
     pa = np.empty((3, 3))
@@ -247,12 +248,11 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
             for r in range(3):
                 ang[r] = ang_new[r]
             propagate_sparse(Pb, dyn, pcols, phi, q, Wd, blk)
-        measure_fast(ang, coef, fr_now, pb, out, ha, True, w)
-        hc = w[11]
+        measure_jac_sc(ang, coef, fr_now[0], fr_now[1], fr_now[2], g, out, hm, ha)
         for r in range(3):
             for k in range(hnnz[r]):
                 src = hsrc[r, k]
-                hval[r, k] = hc[r, src] if src >= 0 else ha[r, -1 - src]
+                hval[r, k] = hm[r, src] if src >= 0 else ha[r, -1 - src]
             if update_x:
                 innov[r] = zb[m, r] - out[r]
         if joseph_update_sparse(xb, Pb, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu,
@@ -284,7 +284,8 @@ def _structure(est_idx: np.ndarray):
     hsrc = np.zeros((3, width), dtype=np.int64)
     hnnz = np.zeros(3, dtype=np.int64)
     for r in range(3):
-        entries = [(state_of[int(f)], int(f)) for f in MEAS_COLS[r] if f >= 0 and int(f) in state_of]
+        entries = [(state_of[int(f)], m) for m, f in enumerate(MEAS_COLS[r])
+                   if f >= 0 and int(f) in state_of]
         entries += [(nc + i, -1 - i) for i in range(3)]
         hnnz[r] = len(entries)
         for k, (s, src) in enumerate(entries):

@@ -820,3 +820,73 @@ def rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr3, h, params, out):
     out[0] = a0 + h6 * (k10 + 2.0 * k20 + 2.0 * k30 + k40)
     out[1] = a1 + h6 * (k11 + 2.0 * k21 + 2.0 * k31 + k41)
     out[2] = a2 + h6 * (k12 + 2.0 * k22 + 2.0 * k32 + k42)
+
+
+@njit(cache=True)
+def measure_jac_sc(ang, coef, fr0, fr1, fr2, g, out, hm, ha):
+    """Accelerometer outputs (g) and their Jacobians for the filter, on scalars.
+
+    ``out`` (3,) g; ``hm`` (3, 7): ``hm[j, m] = d out_j / d coef[MEAS_COLS[j, m]]`` (g per
+    coefficient unit; the only nonzero coefficient columns); ``ha`` (3, 3) = d out / d ang (g/rad).
+    Same model as :func:`measure_into` (eq. 13 with eq. 10); ``fr*`` is the base specific force,
+    m/s^2, ``g`` m/s^2.
+    """
+    sa, ca = np.sin(ang[0]), np.cos(ang[0])
+    sb, cb = np.sin(ang[1]), np.cos(ang[1])
+    sg, cg = np.sin(ang[2]), np.cos(ang[2])
+    c00 = cg * cb
+    c01 = cg * sb * sa + sg * ca
+    c02 = -cg * sb * ca + sg * sa
+    c10 = -sg * cb
+    c11 = -sg * sb * sa + cg * ca
+    c12 = sg * sb * ca + cg * sa
+    c20 = sb
+    c21 = -cb * sa
+    c22 = cb * ca
+    f0 = (c00 * fr0 + c01 * fr1 + c02 * fr2) / g
+    f1 = (c10 * fr0 + c11 * fr1 + c12 * fr2) / g
+    f2 = (c20 * fr0 + c21 * fr1 + c22 * fr2) / g
+    # d f / d alpha, d f / d beta; d f / d gamma = (f1, -f0, 0)
+    fa0 = (-c02 * fr1 + c01 * fr2) / g
+    fa1 = (-c12 * fr1 + c11 * fr2) / g
+    fa2 = (-c22 * fr1 + c21 * fr2) / g
+    fb0 = (-cg * sb * fr0 + cg * cb * sa * fr1 - cg * cb * ca * fr2) / g
+    fb1 = (sg * sb * fr0 - sg * cb * sa * fr1 + sg * cb * ca * fr2) / g
+    fb2 = (cb * fr0 + sb * sa * fr1 - sb * ca * fr2) / g
+    tpy = coef[I_THETA] * ARCSEC
+    tpz = coef[I_THETA + 1] * ARCSEC
+    toz = coef[I_THETA + 2] * ARCSEC
+    for j in range(3):
+        if j == 0:
+            aI = f0
+            aP = f1
+        elif j == 1:
+            aI = tpy * f0 + f1
+            aP = -f2
+        else:
+            aI = tpz * f0 + toz * f1 + f2
+            aP = f1 - toz * f2
+        k1 = coef[I_K0 + 3 + j]
+        k2 = coef[I_K0 + 6 + j]
+        k3 = coef[I_K0 + 9 + j]
+        kip = coef[I_K0 + 12 + j]
+        out[j] = _accel_one(coef, j, aI, aP)
+        hm[j, 0] = UG
+        hm[j, 1] = UG * aI
+        hm[j, 2] = UG * aI * aI
+        hm[j, 3] = UG * aI * aI * aI
+        hm[j, 4] = UG * aI * aP
+        gI = 1.0 + UG * (k1 + 2.0 * k2 * aI + 3.0 * k3 * aI * aI + kip * aP)
+        gP = UG * kip * aI
+        if j == 0:
+            d0, d1, d2 = gI, gP, 0.0
+        elif j == 1:
+            d0, d1, d2 = gI * tpy, gI, -gP
+            hm[1, 5] = gI * f0 * ARCSEC
+        else:
+            d0, d1, d2 = gI * tpz, gI * toz + gP, gI - gP * toz
+            hm[2, 5] = gI * f0 * ARCSEC
+            hm[2, 6] = (gI * f1 - gP * f2) * ARCSEC
+        ha[j, 0] = d0 * fa0 + d1 * fa1 + d2 * fa2
+        ha[j, 1] = d0 * fb0 + d1 * fb1 + d2 * fb2
+        ha[j, 2] = d0 * f1 - d1 * f0

@@ -58,8 +58,11 @@ def design_config(cfg: dict, **overrides) -> dict:
         raise InputError(where, e.message)
     if d["name"] is None:
         d["name"] = f"ga_{d['criterion']}" + ("" if d["positions"] == 6 else f"_n{d['positions']}")
-    sample = cfg["sampling"]["sample_ms"]
-    period = cfg["filter"]["period_ms"]
+    from .config import schema
+
+    props = schema()["properties"]
+    sample = (cfg.get("sampling") or {}).get("sample_ms", props["sampling"]["properties"]["sample_ms"]["default"])
+    period = (cfg.get("filter") or {}).get("period_ms", props["filter"]["properties"]["period_ms"]["default"])
     n = d["dwell_s"] * 1000.0 / period
     if abs(n - round(n)) > 1e-6:
         raise InputError("design.dwell_s", f"must be a whole number of {period} ms filter periods "

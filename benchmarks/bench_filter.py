@@ -82,7 +82,7 @@ def filter_flops_per_step(n_coef: int = N_IDENTIFIED) -> int:
     prop = 2 * 3 * m * n + 2 * 6 * m            # W = Phi_d P, then the 3x3 block
     upd = 2 * int(hnnz.sum()) * n               # U = P H^T
     upd += 2 * 6 * int(hnnz.max())              # S
-    upd += 2 * (2 * 9 * n) + 3 * n + 6 * n      # K = U S^-1, D = U - K S, x
+    upd += 18 * n + 21 * n + 18 * n             # K = S^-1 U, D = U - S K, x += K^T nu
     upd += 12 * n * (n + 1) // 2                # P - K U^T - D K^T, lower triangle
     return prop + upd
 

@@ -29,6 +29,7 @@ def workdir(tmp_path: Path) -> Path:
     shutil.copy(ROOT / "Snakefile", d)
     shutil.copytree(ROOT / "workflow", d / "workflow", symlinks=False)
     shutil.copytree(ROOT / "config", d / "config", symlinks=False)
+    shutil.copytree(ROOT / "profiles", d / "profiles", symlinks=False)
     return d
 
 

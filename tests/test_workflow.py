@@ -144,3 +144,8 @@ def test_cluster_generic_executor_runs_jobs_locally(tmp_path):
     assert "external jobid 'local-" in r.stdout + r.stderr
     assert (d / "results/report.md").exists()
     assert len(pd.read_parquet(d / "results/montecarlo/runs.parquet")) == 2 * 2
+    # the HTML report embeds the figures and the HTML Table 2
+    r = smk(d, "--configfile", "config/tiny.yaml", "--report", "results/report.html", timeout=200)
+    assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
+    html = (d / "results/report.html").read_text()
+    assert "table2_single.html" in html and "convergence.png" in html

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -94,6 +95,11 @@ def rms_vs_noise(coef: pd.DataFrame, path):
                             label=f"{s}, {e}")
             ax.set_xscale("log")
             ax.set_yscale("log")
+            levels = sorted(set(agg["sigma_a_ug"]))
+            ax.set_xticks(levels, [f"{v:g}" for v in levels])
+            ax.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+            ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+            ax.yaxis.set_minor_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
             ax.set_xlabel("accelerometer noise sigma_a, ug per 5 ms sample")
             ax.set_ylabel(f"{stat} over coefficients of RMS relative error, %")
             ax.set_title(f"{'Gyro' if grp == 'gyro' else 'Accelerometer'} group: {stat} RMS relative error")

@@ -234,6 +234,7 @@ def scatter_figure(summary: pd.DataFrame, spear: pd.DataFrame, path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     from .io import atomic_path
 
@@ -258,6 +259,7 @@ def scatter_figure(summary: pd.DataFrame, spear: pd.DataFrame, path) -> None:
             ax.set_xlabel(c + (" (log scale)" if c in ("A", "maxrel") else ""))
             if c in ("A", "maxrel"):
                 ax.set_xscale("log")
+                ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.set_yscale("log")
             ax.grid(alpha=0.3)
         axrow[0].set_ylabel(f"MC RMS relative error, % ({label})")

@@ -140,13 +140,15 @@ class Estimate:
 
 
 @njit(parallel=True, cache=True)
-def _run_position(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-                  update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz):
-    """Filter every replicate of the batch through one position (reset, then steps).
+def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz):
+    """Filter every replicate of the batch through every position of one pass.
 
-    ``z`` (B, M, 3) g; ``t`` (M,) s since the position's start; ``cmd`` (B, 3) rad.
-    ``params`` (B, 5) packed centrifuge parameters of this position per replicate.
-    ``q_rate`` is the attitude process-noise density, rad^2/s per axis.
+    Position k's instants are ``t[offs[k]:offs[k + 1]]`` (s since the position's start) with
+    outputs ``z[:, offs[k]:offs[k + 1]]`` (B, M, 3) g (``z`` is (B, 0, 3) for a covariance-only
+    run); ``cmd`` (B, K, 3) rad; ``params`` (B, K, 5) packed centrifuge parameters;
+    ``hist_idx`` the history slot of each instant (-1: none). ``q_rate`` is the attitude
+    process-noise density, rad^2/s per axis.
 
     Sparsity (from :func:`_structure`): the attitude rows of Phi are nonzero only at the states
     ``pcols`` (gyro coefficients, then the angles); for a coefficient column ``pg`` gives its
@@ -155,28 +157,40 @@ def _run_position(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var
     ``MEAS_COLS[r]``, or ``-1 - i`` for angle i).
 
     Each replicate runs the same sequential kernel (:func:`_filter_one`) in its own iteration, so
-    the numbers do not depend on the batch size or on the number of threads.
+    the numbers do not depend on the batch size or on the number of threads. One parallel region
+    per pass (not per position) keeps thread start-up and joins rare.
     """
     B = x.shape[0]
     for b in prange(B):
-        stats = _filter_one(x[b], P[b], z[b], t, cmd[b], reset_var, est_idx, coef_fixed[b],
-                            params[b], r_var, q_rate, update_x, hist_idx, hist_x[b], hist_s[b],
-                            pcols, pg, hcols, hsrc, hnnz)
-        nis_sum[b] += stats[0]
-        n_bad[b] += int(stats[1])
+        _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                          q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
+                          hcols, hsrc, hnnz)
 
 
 @njit(cache=True)
-def _run_position_serial(x, P, z, t, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-                         update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc,
-                         hnnz):
-    """:func:`_run_position` without threads, for a batch of one or a single thread: the same
-    per-replicate kernel, minus the parallel region's start-up and barrier (milliseconds on a
+def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                     q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
+                     hsrc, hnnz):
+    """:func:`_run_pass` without threads, for a batch of one or a single thread: the same
+    per-replicate kernel, minus the parallel region's start-up and join (milliseconds on a
     busy machine)."""
     for b in range(x.shape[0]):
-        stats = _filter_one(x[b], P[b], z[b], t, cmd[b], reset_var, est_idx, coef_fixed[b],
-                            params[b], r_var, q_rate, update_x, hist_idx, hist_x[b], hist_s[b],
-                            pcols, pg, hcols, hsrc, hnnz)
+        _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                          q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
+                          hcols, hsrc, hnnz)
+
+
+@njit(cache=True)
+def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                      q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
+                      hsrc, hnnz):
+    """Replicate b through every position of one pass (see :func:`_run_pass`)."""
+    for k in range(offs.shape[0] - 1):
+        o0, o1 = offs[k], offs[k + 1]
+        zb = z[b, o0:o1] if update_x else z[b]
+        stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx,
+                            coef_fixed[b], params[b, k], r_var, q_rate, update_x,
+                            hist_idx[o0:o1], hist_x[b], hist_s[b], pcols, pg, hcols, hsrc, hnnz)
         nis_sum[b] += stats[0]
         n_bad[b] += int(stats[1])
 
@@ -361,7 +375,7 @@ def run_ekf(
 
     passes = 1 if cov_only else settings.passes
     structure = _structure(est_idx)
-    kernel = _run_position_serial if B == 1 or numba.get_num_threads() == 1 else _run_position
+    kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
     hist_slots = []
     total = 0
     for k in range(K):
@@ -377,27 +391,37 @@ def run_ekf(
     pass_P = np.zeros((passes, B, nc, nc))
     nis = np.zeros(B)
     n_bad = np.zeros(B, dtype=np.int64)
-    m_total = 0
+    # every position's instants and outputs end to end, so one kernel call runs a whole pass
+    sizes = [len(tk) for tk in t]
+    offs = np.zeros(K + 1, dtype=np.int64)
+    offs[1:] = np.cumsum(sizes)
+    t_all = np.ascontiguousarray(np.concatenate([np.asarray(tk, float) for tk in t]))
+    if cov_only:
+        z_all = np.zeros((B, 0, 3))
+    else:
+        z_all = np.ascontiguousarray(np.concatenate([np.asarray(zk, float) for zk in z], axis=1))
+    m_total = int(offs[-1])
     for p in range(passes):
         if p > 0:
             Pcc = P[:, :nc, :nc] * 100.0
             P = np.zeros((B, n, n))
             P[:, :nc, :nc] = Pcc
             nis[:] = 0.0
-            m_total = 0
+        hidx_all = []
         offset = 0.0
         for k in range(K):
-            tk = np.ascontiguousarray(t[k], float)
+            tk = np.asarray(t[k], float)
             hidx = hist_slots[k] + (p * total if settings.history_every_s is not None else 0)
             hidx[hist_slots[k] < 0] = -1
             sel = hidx >= 0
             hist_t[hidx[sel]] = p * sum(durations) + offset + tk[sel]
-            zk = np.zeros((B, 0, 3)) if cov_only else np.ascontiguousarray(z[k], float)
-            kernel(x, P, zk, tk, np.ascontiguousarray(cmd_rad[:, k]), reset_var,
-                          est_idx, coef_fixed, np.ascontiguousarray(params[:, k]), r_var, q_rate, not cov_only, hidx,
-                          hist_x, hist_s, nis, n_bad, *structure)
+            hidx_all.append(hidx)
             offset += durations[k]
-            m_total += tk.size
+        hidx_all = np.ascontiguousarray(np.concatenate(hidx_all), dtype=np.int64)
+        # replicates handed out one at a time: a thread slowed by other processes takes fewer
+        with numba.parallel_chunksize(1):
+            kernel(x, P, z_all, t_all, offs, cmd_rad, reset_var, est_idx, coef_fixed, params,
+                   r_var, q_rate, not cov_only, hidx_all, hist_x, hist_s, nis, n_bad, *structure)
         pass_x[p] = x[:, :nc]
         pass_P[p] = P[:, :nc, :nc]
     return Estimate(

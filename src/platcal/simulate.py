@@ -217,8 +217,9 @@ def simulate(
         theta0 = np.ascontiguousarray(cmd[k][None, :] + set_err[:, k])
         pk = np.ascontiguousarray(params[:, k])
         fr_tab, tab_of = _force_tables(pk, n, sample_s)
-        kernel(theta0, truth, n, sample_s, pk, fr_tab, tab_of, acc, arw, keep_every,
-                           A[:, k], ang[:, k])
+        with numba.parallel_chunksize(1):  # dynamic: balances threads slowed by other load
+            kernel(theta0, truth, n, sample_s, pk, fr_tab, tab_of, acc, arw, keep_every,
+                   A[:, k], ang[:, k])
     if pool is not None:
         pool.shutdown()
     t = np.arange(0, n, keep_every) * sample_s

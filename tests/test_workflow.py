@@ -25,7 +25,7 @@ pytestmark = pytest.mark.skipif(shutil.which("snakemake") is None and
 def workdir(tmp_path: Path) -> Path:
     """A copy of the workflow; symlinks (the schema) are copied as files."""
     d = tmp_path / "wf"
-    d.mkdir()
+    d.mkdir(parents=True)
     shutil.copy(ROOT / "Snakefile", d)
     shutil.copytree(ROOT / "workflow", d / "workflow", symlinks=False)
     shutil.copytree(ROOT / "config", d / "config", symlinks=False)
@@ -97,6 +97,12 @@ def test_tiny_study_end_to_end(tmp_path):
     assert one["estimate"].tolist() == cell["estimate"].tolist()
     before = outputs(d)
 
+    # the HTML report embeds the figures and the HTML Table 2
+    r = smk(d, "--configfile", "config/test.yaml", "--report", "results/report.html", timeout=200)
+    assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
+    html = (d / "results/report.html").read_text()
+    assert "table2_single.html" in html and "convergence.png" in html
+
     # a second run has nothing to do (unless a colleague edited src/ meanwhile: the code hash
     # is a param, so then everything reruns once; run again and recheck)
     for attempt in range(2):
@@ -121,7 +127,7 @@ def test_tiny_study_end_to_end(tmp_path):
     # --cores 1 in a fresh copy gives the same bytes for a cell
     d1 = workdir(tmp_path / "one")
     target = "results/runs/table1/sa50/ekf2/coef.parquet"
-    r = smk(d1, "--cores", "1", "--configfile", "config/test.yaml", target, "results/runs/table1/sa50/ekf2/runs.parquet")
+    r = smk(d1, target, "results/runs/table1/sa50/ekf2/runs.parquet", "--cores", "1", "--configfile", "config/test.yaml")
     assert r.returncode == 0, r.stderr[-2000:]
     assert (d1 / target).read_bytes() == before["runs/table1/sa50/ekf2/coef.parquet"]
 
@@ -139,13 +145,9 @@ def test_cluster_generic_executor_runs_jobs_locally(tmp_path):
         "sigma_a_ug: [10, 50]", "sigma_a_ug: [10]")
     (d / "config/tiny.yaml").write_text(cfg)
     r = smk(d, "--executor", "cluster-generic", "--cluster-generic-submit-cmd", str(submit), "--jobs", "2",
-            "--latency-wait", "5", "--configfile", "config/tiny.yaml", timeout=300)
+            "--latency-wait", "5", "--seconds-between-status-checks", "1", "--configfile", "config/tiny.yaml",
+            timeout=300)
     assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
     assert "external jobid 'local-" in r.stdout + r.stderr
     assert (d / "results/report.md").exists()
-    assert len(pd.read_parquet(d / "results/montecarlo/runs.parquet")) == 2 * 2
-    # the HTML report embeds the figures and the HTML Table 2
-    r = smk(d, "--configfile", "config/tiny.yaml", "--report", "results/report.html", timeout=200)
-    assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
-    html = (d / "results/report.html").read_text()
-    assert "table2_single.html" in html and "convergence.png" in html
+    assert len(pd.read_parquet(d / "results/montecarlo/runs.parquet")) == 2 * 2  # estimators x replicates

@@ -456,7 +456,12 @@ def rms_relative_error(errors: np.ndarray, truth: np.ndarray) -> float:
 
 def evaluate_scheme(study, scheme, *, arw_deg_rth: float | None = None, estimate_doo: bool | None = None,
                     rate_deg_s: float | None = None) -> dict:
-    """Everything :func:`write_observability` writes, as plain Python objects."""
+    """``(result, P, names)``: the JSON-ready result of :func:`write_observability`, the
+    coefficient covariance (engineering units) and the coefficient names.
+
+    ``arw_deg_rth`` overrides the filter's ARW, ``estimate_doo`` selects the 51-state filter,
+    ``rate_deg_s`` the centrifuge rate (0: static 1 g).
+    """
     over = {}
     if arw_deg_rth is not None:
         over["arw_deg_rth"] = float(arw_deg_rth)

@@ -85,10 +85,12 @@ def test_normalise_numbers_reads_yaml11_floats():
     assert mc.normalise_numbers(d) == {"a": 1e4, "b": [2e3, "x1e3"], "c": {"d": "table1"}}
 
 
-def test_code_hash_excludes_modules():
-    assert mc.code_hash() != mc.compute_code_hash()
-    assert mc.compute_code_hash() == mc.code_hash(mc.PRESENTATION_MODULES)
-    assert len(mc.code_hash()) == 16
+def test_code_hash_covers_the_compute_closure_only():
+    mods = mc.module_closure()
+    assert {"montecarlo", "simulate", "ekf", "kalman", "platform", "frames", "config", "scheme"} <= set(mods)
+    assert not {"plots", "report", "stats", "design", "cli"} & set(mods)
+    assert mc.code_hash() != mc.compute_code_hash() and len(mc.compute_code_hash()) == 16
+    assert mc.code_hash(("plots",)) != mc.code_hash()
 
 
 @pytest.fixture(scope="module")

@@ -238,13 +238,45 @@ def code_hash(exclude: tuple[str, ...] = ()) -> str:
     return h.hexdigest()[:16]
 
 
-PRESENTATION_MODULES = ("plots", "report", "stats", "tables", "cli", "design", "observability", "parallel")
-"""Modules that do not change a simulation + EKF result (excluded from the compute code hash)."""
+COMPUTE_ROOTS = ("montecarlo",)
+"""Modules whose import closure (within platcal) a Monte Carlo cell's numbers depend on."""
+
+COMPUTE_DATA = ("config.schema.yaml", "table2.csv")
+"""Package data a cell depends on (defaults of the config; the truth of Table 2)."""
+
+
+def module_closure(roots=COMPUTE_ROOTS) -> list[str]:
+    """platcal modules imported (anywhere in the file, also inside functions) by ``roots``,
+    recursively: a static reading of ``from .x import`` / ``from . import x`` statements."""
+    import ast
+
+    base = Path(str(resources.files("platcal")))
+    seen: set[str] = set()
+    todo = list(roots)
+    while todo:
+        mod = todo.pop()
+        if mod in seen or not (base / f"{mod}.py").is_file():
+            continue
+        seen.add(mod)
+        for node in ast.walk(ast.parse((base / f"{mod}.py").read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 1:
+                if node.module:
+                    todo.append(node.module.split(".")[0])
+                else:
+                    todo.extend(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("platcal."):
+                todo.append(node.module.split(".")[1])
+    return sorted(seen)
 
 
 def compute_code_hash() -> str:
-    """Code hash of the modules a Monte Carlo cell's numbers depend on."""
-    return code_hash(PRESENTATION_MODULES)
+    """Code hash of what a Monte Carlo cell's numbers depend on: the import closure of
+    :mod:`platcal.montecarlo` and the config schema and Table 2 data. Edits elsewhere in the
+    package (design, plots, reports) leave the cells alone."""
+    keep = set(module_closure()) | {Path(f).stem for f in COMPUTE_DATA}
+    base = Path(str(resources.files("platcal")))
+    stems = {p.stem for p in base.glob("*.py")} | {p.stem for p in (base / "data").glob("*")}
+    return code_hash(tuple(sorted(stems - keep)))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -391,7 +391,8 @@ def run_ekf(
         idx, used = _history_index(np.asarray(t[k], float), settings.history_every_s, total)
         hist_slots.append(idx)
         total += used
-    durations = [float(tk[-1]) if len(tk) else 0.0 for tk in t]
+    # a position lasts to its last filter instant plus one filter period (the dwell)
+    durations = [float(tk[-1]) + settings.period_s if len(tk) else 0.0 for tk in t]
     H = total * passes
     hist_x = np.zeros((B, H, n))
     hist_s = np.zeros((B, H, n))

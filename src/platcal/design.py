@@ -45,7 +45,7 @@ def design_schema() -> dict:
 
 def design_config(cfg: dict, **overrides) -> dict:
     """The validated ``design`` section of a config (defaults filled, ``overrides`` applied)."""
-    from .config import _Validator  # the defaults-filling Draft-7 validator of the config
+    from .config import _Validator  # the defaults-filling validator of the config
 
     d = copy.deepcopy(cfg.get("design") or {})
     d.update({k: v for k, v in overrides.items() if v is not None})

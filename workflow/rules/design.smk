@@ -19,11 +19,21 @@ GA_NPOS = [
     for c in DSTUDY["n_criteria"]
     for n in DSTUDY["n_positions"]
 ]
-# the design report joins `all` when asked for and the sweep uses a designed scheme (ga_*)
+# the design report (or only the criteria comparison) joins `all` when asked for and the sweep
+# uses a designed scheme (ga_*)
+_USES_GA = any(s.startswith("ga_") for s in SCHEMES)
 DESIGN_TARGETS = (
     ["results/design/report.md"]
-    if DSTUDY["report"] and any(s.startswith("ga_") for s in SCHEMES)
-    else []
+    if DSTUDY["report"] and _USES_GA
+    else (
+        [
+            "results/design/compare/schemes.csv",
+            "results/design/compare/spearman.csv",
+            "results/design/compare/criteria_vs_accuracy.png",
+        ]
+        if DSTUDY["compare"] and _USES_GA
+        else []
+    )
 )
 
 

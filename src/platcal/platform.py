@@ -235,247 +235,6 @@ the only nonzero coefficient columns of the measurement Jacobian."""
 
 
 @njit(cache=True)
-def make_fast_work():
-    """Scratch for the fast kernels: (C, dC, T, dT, f, eps, deps_df, reg, u, v3, m33, hc, dA)."""
-    return (
-        np.empty((3, 3)), np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3, 3)),
-        np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 10)),
-        np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, N_FULL)), np.empty((3, 3)),
-    )
-
-
-@njit(cache=True)
-def _rotations(ang, C, dC, T, dT, want_d):
-    """``C_r^p``, ``T = E^-1`` and (if ``want_d``) their angle partials at ``ang`` (rad)."""
-    _rotations_sc(np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]),
-                  np.sin(ang[2]), np.cos(ang[2]), C, dC, T, dT, want_d)
-
-
-@njit(cache=True)
-def _rotations_sc(sa, ca, sb, cb, sg, cg, C, dC, T, dT, want_d):
-    """:func:`_rotations` from the sines and cosines of alpha, beta, gamma (one set, shared).
-
-    Same closed forms as :func:`platcal.frames.c_rp_into` and :func:`platcal.frames.euler_t_into`.
-    """
-    C[0, 0] = cg * cb
-    C[0, 1] = cg * sb * sa + sg * ca
-    C[0, 2] = -cg * sb * ca + sg * sa
-    C[1, 0] = -sg * cb
-    C[1, 1] = -sg * sb * sa + cg * ca
-    C[1, 2] = sg * sb * ca + cg * sa
-    C[2, 0] = sb
-    C[2, 1] = -cb * sa
-    C[2, 2] = cb * ca
-    ib = 1.0 / cb
-    tb = sb * ib
-    T[0, 0] = cg * ib
-    T[0, 1] = -sg * ib
-    T[0, 2] = 0.0
-    T[1, 0] = sg
-    T[1, 1] = cg
-    T[1, 2] = 0.0
-    T[2, 0] = -tb * cg
-    T[2, 1] = tb * sg
-    T[2, 2] = 1.0
-    if not want_d:
-        return
-    dC[0, 0, 0] = 0.0
-    dC[0, 0, 1] = cg * sb * ca - sg * sa
-    dC[0, 0, 2] = cg * sb * sa + sg * ca
-    dC[0, 1, 0] = 0.0
-    dC[0, 1, 1] = -sg * sb * ca - cg * sa
-    dC[0, 1, 2] = -sg * sb * sa + cg * ca
-    dC[0, 2, 0] = 0.0
-    dC[0, 2, 1] = -cb * ca
-    dC[0, 2, 2] = -cb * sa
-    dC[1, 0, 0] = -cg * sb
-    dC[1, 0, 1] = cg * cb * sa
-    dC[1, 0, 2] = -cg * cb * ca
-    dC[1, 1, 0] = sg * sb
-    dC[1, 1, 1] = -sg * cb * sa
-    dC[1, 1, 2] = sg * cb * ca
-    dC[1, 2, 0] = cb
-    dC[1, 2, 1] = sb * sa
-    dC[1, 2, 2] = -sb * ca
-    dC[2, 0, 0] = -sg * cb
-    dC[2, 0, 1] = -sg * sb * sa + cg * ca
-    dC[2, 0, 2] = sg * sb * ca + cg * sa
-    dC[2, 1, 0] = -cg * cb
-    dC[2, 1, 1] = -cg * sb * sa - sg * ca
-    dC[2, 1, 2] = cg * sb * ca - sg * sa
-    dC[2, 2, 0] = 0.0
-    dC[2, 2, 1] = 0.0
-    dC[2, 2, 2] = 0.0
-    for r in range(3):
-        for c in range(3):
-            dT[0, r, c] = 0.0
-    dT[1, 0, 0] = cg * tb * ib
-    dT[1, 0, 1] = -sg * tb * ib
-    dT[1, 0, 2] = 0.0
-    dT[1, 1, 0] = 0.0
-    dT[1, 1, 1] = 0.0
-    dT[1, 1, 2] = 0.0
-    dT[1, 2, 0] = -cg * ib * ib
-    dT[1, 2, 1] = sg * ib * ib
-    dT[1, 2, 2] = 0.0
-    dT[2, 0, 0] = -sg * ib
-    dT[2, 0, 1] = -cg * ib
-    dT[2, 0, 2] = 0.0
-    dT[2, 1, 0] = cg
-    dT[2, 1, 1] = -sg
-    dT[2, 1, 2] = 0.0
-    dT[2, 2, 0] = tb * sg
-    dT[2, 2, 1] = tb * cg
-    dT[2, 2, 2] = 0.0
-
-
-@njit(cache=True)
-def rate_fast(ang, coef, fr, params, rate, jac_a, jac_g, want_jac, w):
-    """Eq. 18 like :func:`attitude_rate_into`, with the base specific force ``fr`` (m/s^2) given.
-
-    ``rate`` (3,) rad/s; ``jac_a`` (3, 3) 1/s; ``jac_g`` (3, 30) rad/s per coefficient unit over
-    :data:`GYRO_COLS` (only if ``want_jac``). ``w`` from :func:`make_fast_work`.
-    """
-    rate_fast_sc(np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]), np.sin(ang[2]),
-                 np.cos(ang[2]), coef, fr, params, rate, jac_a, jac_g, want_jac, w)
-
-
-@njit(cache=True)
-def rate_fast_sc(sa, ca, sb, cb, sg, cg, coef, fr, params, rate, jac_a, jac_g, want_jac, w):
-    """:func:`rate_fast` from the sines and cosines of the angles."""
-    C, dC, T, dT, f, eps, deps_df, reg, u, v3, m33, _, _ = w
-    _rotations_sc(sa, ca, sb, cb, sg, cg, C, dC, T, dT, want_jac)
-    g = params[P_G]
-    wn = params[P_OMEGA_N]
-    wu = params[P_OMEGA_U]
-    for r in range(3):
-        f[r] = (C[r, 0] * fr[0] + C[r, 1] * fr[1] + C[r, 2] * fr[2]) / g
-    gyro_drift_into(coef, f, eps, deps_df, reg)
-    for r in range(3):
-        u[r] = eps[r] * DEG_PER_HOUR + C[r, 1] * wn + C[r, 2] * wu
-    for r in range(3):
-        rate[r] = -(T[r, 0] * u[0] + T[r, 1] * u[1] + T[r, 2] * u[2])
-    if not want_jac:
-        return
-    for i in range(3):
-        for r in range(3):
-            v3[r] = (dC[i, r, 0] * fr[0] + dC[i, r, 1] * fr[1] + dC[i, r, 2] * fr[2]) / g
-        for r in range(3):
-            m33[r, i] = DEG_PER_HOUR * (deps_df[r, 0] * v3[0] + deps_df[r, 1] * v3[1]
-                                        + deps_df[r, 2] * v3[2]) + dC[i, r, 1] * wn + dC[i, r, 2] * wu
-    for r in range(3):
-        for i in range(3):
-            s = 0.0
-            for k in range(3):
-                s += dT[i, r, k] * u[k] + T[r, k] * m33[k, i]
-            jac_a[r, i] = -s
-    for j in range(3):
-        for r in range(3):
-            tj = -T[r, j] * DEG_PER_HOUR
-            for m in range(9):
-                jac_g[r, 3 * m + j] = tj * reg[j, m]
-            jac_g[r, 27 + j] = tj * reg[j, 9]
-
-
-@njit(cache=True)
-def rk4_fast(ang, coef, fr3, h, params, out, w, k_all, xs):
-    """One RK4 step of eq. 18 over ``h`` s; ``fr3`` (3, 3) is the base specific force (m/s^2) at
-    the step's start, middle and end. Writes the new angles (rad) into ``out``.
-
-    ``k_all`` (4, 3) and ``xs`` (3,) are scratch.
-    """
-    ja = w[10]
-    jg = ja  # not written when want_jac is False
-    rate_fast(ang, coef, fr3[0], params, k_all[0], ja, jg, False, w)
-    for r in range(3):
-        xs[r] = ang[r] + 0.5 * h * k_all[0, r]
-    rate_fast(xs, coef, fr3[1], params, k_all[1], ja, jg, False, w)
-    for r in range(3):
-        xs[r] = ang[r] + 0.5 * h * k_all[1, r]
-    rate_fast(xs, coef, fr3[1], params, k_all[2], ja, jg, False, w)
-    for r in range(3):
-        xs[r] = ang[r] + h * k_all[2, r]
-    rate_fast(xs, coef, fr3[2], params, k_all[3], ja, jg, False, w)
-    for r in range(3):
-        out[r] = ang[r] + h / 6.0 * (k_all[0, r] + 2.0 * k_all[1, r] + 2.0 * k_all[2, r] + k_all[3, r])
-
-
-@njit(cache=True)
-def make_fast_rk4_scratch():
-    """Scratch for :func:`rk4_jac_fast`: (k, ja, jg, ka, kg, da, dg, xs)."""
-    return (
-        np.empty((4, 3)), np.empty((3, 3)), np.empty((3, N_GYRO)), np.empty((4, 3, 3)),
-        np.empty((4, 3, N_GYRO)), np.empty((3, 3)), np.empty((3, N_GYRO)), np.empty(3),
-    )
-
-
-@njit(cache=True)
-def rk4_jac_fast(ang, coef, fr3, h, params, out, phi_a, phi_g, w, scratch):
-    """RK4 step like :func:`rk4_fast` and the exact Jacobian of the RK4 map.
-
-    ``phi_a`` (3, 3) = d out / d ang; ``phi_g`` (3, 30) = d out / d coef over :data:`GYRO_COLS`
-    (every other coefficient column of the map's Jacobian is exactly zero). Stage s sits at
-    ``x_s = ang + c_s h k_{s-1}``, so by the chain rule its derivatives are
-    ``ka_s = J_s (I + c_s h ka_{s-1})`` and ``kg_s = Jg_s + c_s h J_s kg_{s-1}``.
-    """
-    k, ja, jg, ka, kg, da, dg, xs = scratch
-    sa, ca = np.sin(ang[0]), np.cos(ang[0])
-    sb, cb = np.sin(ang[1]), np.cos(ang[1])
-    sg, cg = np.sin(ang[2]), np.cos(ang[2])
-    for s in range(4):
-        step = 0.0 if s == 0 else (0.5 * h if s < 3 else h)
-        fr = fr3[0] if s == 0 else (fr3[1] if s < 3 else fr3[2])
-        if s == 0:
-            rate_fast_sc(sa, ca, sb, cb, sg, cg, coef, fr, params, k[0], ja, jg, True, w)
-            for r in range(3):
-                for i in range(3):
-                    ka[0, r, i] = ja[r, i]
-                for i in range(N_GYRO):
-                    kg[0, r, i] = jg[r, i]
-            continue
-        s0, c0 = _shift(sa, ca, step * k[s - 1, 0])
-        s1, c1 = _shift(sb, cb, step * k[s - 1, 1])
-        s2, c2 = _shift(sg, cg, step * k[s - 1, 2])
-        rate_fast_sc(s0, c0, s1, c1, s2, c2, coef, fr, params, k[s], ja, jg, True, w)
-        for r in range(3):
-            j0, j1, j2 = ja[r, 0], ja[r, 1], ja[r, 2]
-            for i in range(3):
-                ka[s, r, i] = ja[r, i] + step * (j0 * ka[s - 1, 0, i] + j1 * ka[s - 1, 1, i]
-                                                 + j2 * ka[s - 1, 2, i])
-            for i in range(N_GYRO):
-                kg[s, r, i] = jg[r, i] + step * (j0 * kg[s - 1, 0, i] + j1 * kg[s - 1, 1, i]
-                                                 + j2 * kg[s - 1, 2, i])
-    h6 = h / 6.0
-    for r in range(3):
-        out[r] = ang[r] + h6 * (k[0, r] + 2.0 * k[1, r] + 2.0 * k[2, r] + k[3, r])
-        for i in range(3):
-            phi_a[r, i] = (1.0 if r == i else 0.0) + h6 * (
-                ka[0, r, i] + 2.0 * ka[1, r, i] + 2.0 * ka[2, r, i] + ka[3, r, i])
-        for i in range(N_GYRO):
-            phi_g[r, i] = h6 * (kg[0, r, i] + 2.0 * kg[1, r, i] + 2.0 * kg[2, r, i] + kg[3, r, i])
-
-
-@njit(cache=True)
-def measure_fast(ang, coef, fr, params, out, h_ang, want_jac, w):
-    """Accelerometer outputs (g) like :func:`measure_into`, with the base specific force ``fr``
-    (m/s^2) given. If ``want_jac``: ``h_ang`` (3, 3) = d out / d ang, and ``w[11]`` (3, 48) holds
-    d out / d coef (nonzero only in :data:`MEAS_COLS`)."""
-    C, dC, T, dT, f, eps, deps_df, reg, u, v3, m33, hc, dA = w
-    _rotations(ang, C, dC, T, dT, want_jac)
-    g = params[P_G]
-    for r in range(3):
-        f[r] = (C[r, 0] * fr[0] + C[r, 1] * fr[1] + C[r, 2] * fr[2]) / g
-    accel_output_into(coef, f, out, hc, dA)
-    if not want_jac:
-        return
-    for i in range(3):
-        for r in range(3):
-            v3[r] = (dC[i, r, 0] * fr[0] + dC[i, r, 1] * fr[1] + dC[i, r, 2] * fr[2]) / g
-        for r in range(3):
-            h_ang[r, i] = dA[r, 0] * v3[0] + dA[r, 1] * v3[1] + dA[r, 2] * v3[2]
-
-
-@njit(cache=True)
 def _drift(coef, j, f0, f1, f2):
     """Drift of gyro j (deg/h) at the platform specific force (g); eq. 11-12 written out on
     scalars for the simulator's hot loop (same terms as :func:`gyro_drift_into`)."""
@@ -508,7 +267,7 @@ def _shift(s, c, d):
 @njit(cache=True)
 def rate_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu):
     """Eq. 18 without Jacobians on scalars: (alpha', beta', gamma') in rad/s from the sines and
-    cosines of the angles and the base specific force (m/s^2). Same model as :func:`rate_fast`."""
+    cosines of the angles and the base specific force (m/s^2). Same model as :func:`attitude_rate_into`."""
     c00 = cg * cb
     c01 = cg * sb * sa + sg * ca
     c02 = -cg * sb * ca + sg * sa
@@ -543,7 +302,7 @@ def _stage(sa, ca, sb, cb, sg, cg, d0, d1, d2, coef, fr, g, wn, wu):
 
 @njit(cache=True)
 def rk4_scalar(ang, coef, fr3, h, params, out):
-    """One RK4 step of eq. 18 over ``h`` s like :func:`rk4_fast`, on scalars (no scratch).
+    """One RK4 step of eq. 18 over ``h`` s like :func:`rk4_step`, on scalars (no scratch).
 
     Writes the new angles (rad) into ``out``; ``fr3`` (3, 3) is the base specific force (m/s^2)
     at the step's start, middle and end.
@@ -585,7 +344,7 @@ def rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu, v):
     """Eq. 18 and its angle Jacobian from the sines and cosines of the angles and the base
     specific force (m/s^2); results into ``v`` (42,) laid out as :data:`V_RATE` ... :data:`V_A`.
 
-    Same model and closed forms as :func:`rate_fast`; the coefficient Jacobian follows from T
+    Same model and closed forms as :func:`attitude_rate_into`; the coefficient Jacobian follows from T
     and the gyro axis components: ``d rate_r / d coef[3 m + j] = -T[r, j] deg/h reg_jm``.
     """
     c00 = cg * cb
@@ -697,7 +456,7 @@ def rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu, v):
 
 @njit(cache=True)
 def rk4_jac_sc(ang, coef, fr3, h, params, out, phi_a, phi_g, scratch):
-    """RK4 step of eq. 18 and the exact Jacobian of the RK4 map, like :func:`rk4_jac_fast`,
+    """RK4 step of eq. 18 and the exact Jacobian of the RK4 map, like :func:`rk4_step_jac`,
     built on :func:`rate_jac_sc`. ``scratch`` from :func:`make_sc_rk4_scratch`.
 
     Writes ``out`` (3,) rad, ``phi_a`` (3, 3) and ``phi_g`` (3, 30) over :data:`GYRO_COLS`.

@@ -294,7 +294,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
 def _structure(est_idx: np.ndarray):
     """Sparsity of Phi's attitude rows and of H for the estimated coefficients ``est_idx``.
 
-    Returns ``pcols, pg, hcols, hsrc, hnnz`` as :func:`_run_position` takes them.
+    Returns ``pcols, pg, hcols, hsrc, hnnz`` as :func:`_filter_one` takes them.
     """
     nc = est_idx.size
     state_of = {int(f): k for k, f in enumerate(est_idx)}

@@ -87,28 +87,6 @@ def attitude_rate_into(ang, coef, t, params, rate, jac_a, jac_c, want_jac, work)
 
 
 @njit(cache=True)
-def rk4_step(ang, coef, t, h, params, out, work, k_all):
-    """One RK4 step of eq. 18 from ``t`` to ``t + h`` (s); writes the new angles into ``out``.
-
-    ``k_all`` is (4, 3) scratch for the stage derivatives.
-    """
-    dummy_a = work[11]
-    jc = np.empty((0, 0))
-    attitude_rate_into(ang, coef, t, params, k_all[0], dummy_a, jc, False, work)
-    for r in range(3):
-        out[r] = ang[r] + 0.5 * h * k_all[0, r]
-    attitude_rate_into(out, coef, t + 0.5 * h, params, k_all[1], dummy_a, jc, False, work)
-    for r in range(3):
-        out[r] = ang[r] + 0.5 * h * k_all[1, r]
-    attitude_rate_into(out, coef, t + 0.5 * h, params, k_all[2], dummy_a, jc, False, work)
-    for r in range(3):
-        out[r] = ang[r] + h * k_all[2, r]
-    attitude_rate_into(out, coef, t + h, params, k_all[3], dummy_a, jc, False, work)
-    for r in range(3):
-        out[r] = ang[r] + h / 6.0 * (k_all[0, r] + 2.0 * k_all[1, r] + 2.0 * k_all[2, r] + k_all[3, r])
-
-
-@njit(cache=True)
 def rk4_step_jac(ang, coef, t, h, params, out, phi_a, phi_c, work, scratch):
     """RK4 step of eq. 18 and its exact Jacobian (the derivative of the RK4 map itself).
 
@@ -302,7 +280,7 @@ def _stage(sa, ca, sb, cb, sg, cg, d0, d1, d2, coef, fr, g, wn, wu):
 
 @njit(cache=True)
 def rk4_scalar(ang, coef, fr3, h, params, out):
-    """One RK4 step of eq. 18 over ``h`` s like :func:`rk4_step`, on scalars (no scratch).
+    """One RK4 step of eq. 18 over ``h`` s (the map of :func:`rk4_step_jac`), on scalars (no scratch).
 
     Writes the new angles (rad) into ``out``; ``fr3`` (3, 3) is the base specific force (m/s^2)
     at the step's start, middle and end.

@@ -372,17 +372,13 @@ def observability_matrix(setup: Setup, angles_deg: np.ndarray, g_levels=None) ->
     """
     ang = np.asarray(angles_deg, float).reshape(-1, 3)
     K = ang.shape[0]
-    G = position_grams(setup, ang, g_levels)
-    idx = setup.filter.coef_index
-    nc = idx.size
-    sel = np.concatenate([idx, N_FULL + np.arange(3)])
-    s_col = np.concatenate([setup.p0, np.full(3, setup.filter.sigma_set_arcsec * ARCSEC)])
-    w = 1.0 / (setup.filter.sigma_a_ug * 1e-6) ** 2
+    Gs = _scaled_grams(setup, position_grams(setup, ang, g_levels))
+    nc = setup.filter.coef_index.size
     n = nc + 3 * K
     big = np.zeros((n, n))
     schur = np.zeros((nc, nc))
     for k in range(K):
-        g = G[k][np.ix_(sel, sel)] * (s_col[:, None] * s_col[None, :]) * w
+        g = Gs[k]
         a = slice(nc + 3 * k, nc + 3 * k + 3)
         big[:nc, :nc] += g[:nc, :nc]
         big[:nc, a] = g[:nc, nc:]
@@ -400,21 +396,26 @@ def observability_matrix(setup: Setup, angles_deg: np.ndarray, g_levels=None) ->
     )
 
 
+def _scaled_grams(setup: Setup, G: np.ndarray) -> np.ndarray:
+    """Per-position Grams (P, nc + 3, nc + 3) over the filter's coefficients and the 3 initial
+    angles, columns scaled by their prior sigmas (P0, sigma_set) and rows by 1/sigma_a^2."""
+    sel = np.concatenate([setup.filter.coef_index, N_FULL + np.arange(3)])
+    s_col = np.concatenate([setup.p0, np.full(3, setup.filter.sigma_set_arcsec * ARCSEC)])
+    w = 1.0 / (setup.filter.sigma_a_ug * 1e-6) ** 2
+    return G[:, sel][:, :, sel] * (s_col[:, None] * s_col[None, :]) * w
+
+
 def gram_information(setup: Setup, angles_deg: np.ndarray, g_levels=None) -> np.ndarray:
     """Normalised coefficient information of single positions without gyro noise, (P, nc, nc).
 
     Built from the observability Gram with each position's initial angles marginalised under
     their sigma_set prior; equals :func:`position_information` when ARW = 0 (a test of both).
     """
-    G = position_grams(setup, angles_deg, g_levels)
-    idx = setup.filter.coef_index
-    nc = idx.size
-    sel = np.concatenate([idx, N_FULL + np.arange(3)])
-    s_col = np.concatenate([setup.p0, np.full(3, setup.filter.sigma_set_arcsec * ARCSEC)])
-    w = 1.0 / (setup.filter.sigma_a_ug * 1e-6) ** 2
-    out = np.empty((G.shape[0], nc, nc))
-    for p in range(G.shape[0]):
-        g = G[p][np.ix_(sel, sel)] * (s_col[:, None] * s_col[None, :]) * w
+    Gs = _scaled_grams(setup, position_grams(setup, angles_deg, g_levels))
+    nc = setup.filter.coef_index.size
+    out = np.empty((Gs.shape[0], nc, nc))
+    for p in range(Gs.shape[0]):
+        g = Gs[p]
         gaa = g[nc:, nc:] + np.eye(3)
         out[p] = g[:nc, :nc] - g[:nc, nc:] @ np.linalg.solve(gaa, g[nc:, :nc])
     return out

@@ -285,26 +285,8 @@ def rk4_scalar(ang, coef, fr3, h, params, out):
     Writes the new angles (rad) into ``out``; ``fr3`` (3, 3) is the base specific force (m/s^2)
     at the step's start, middle and end.
     """
-    g = params[P_G]
-    wn = params[P_OMEGA_N]
-    wu = params[P_OMEGA_U]
-    a0, a1, a2 = ang[0], ang[1], ang[2]
-    sa, ca = np.sin(a0), np.cos(a0)
-    sb, cb = np.sin(a1), np.cos(a1)
-    sg, cg = np.sin(a2), np.cos(a2)
-    k10, k11, k12 = rate_scalar(sa, ca, sb, cb, sg, cg, coef, fr3[0, 0], fr3[0, 1], fr3[0, 2],
-                                g, wn, wu)
-    hh = 0.5 * h
-    k20, k21, k22 = _stage(sa, ca, sb, cb, sg, cg, hh * k10, hh * k11, hh * k12, coef, fr3[1],
-                           g, wn, wu)
-    k30, k31, k32 = _stage(sa, ca, sb, cb, sg, cg, hh * k20, hh * k21, hh * k22, coef, fr3[1],
-                           g, wn, wu)
-    k40, k41, k42 = _stage(sa, ca, sb, cb, sg, cg, h * k30, h * k31, h * k32, coef, fr3[2],
-                           g, wn, wu)
-    h6 = h / 6.0
-    out[0] = a0 + h6 * (k10 + 2.0 * k20 + 2.0 * k30 + k40)
-    out[1] = a1 + h6 * (k11 + 2.0 * k21 + 2.0 * k31 + k41)
-    out[2] = a2 + h6 * (k12 + 2.0 * k22 + 2.0 * k32 + k42)
+    return rk4_scalar_sc(np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]),
+                         np.sin(ang[2]), np.cos(ang[2]), ang, coef, fr3, h, params, out)
 
 
 # Scalar rate-and-Jacobian kernel for the filter's RK4 map ---------------------------------

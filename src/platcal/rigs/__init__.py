@@ -1,0 +1,1 @@
+"""One subpackage per test rig; each defines ``RIG`` (see :mod:`platcal.rig`)."""

@@ -585,6 +585,8 @@ def cmd_observability(args) -> int:
     from .config import load_config
     from .scheme import resolve_scheme
 
+    if not args.scheme:
+        raise InputError("--scheme", "required for rig centrifuge: a scheme name of the config or a scheme YAML file")
     study = load_config(args.config)
     scheme = resolve_scheme(args.scheme, study.schemes)
     if args.replicates < 0:
@@ -609,8 +611,8 @@ def cmd_observability(args) -> int:
 def register_cli(sub) -> None:
     o = sub.add_parser("observability", help="covariance-only run of a scheme: J, correlations, rank, CRB")
     o.add_argument("--config", required=True, help="study configuration (YAML)")
-    o.add_argument("--scheme", required=True, help="scheme name in the config, or a scheme YAML file")
-    o.add_argument("--out", required=True, help="output folder (observability.json, correlation.csv)")
+    o.add_argument("--scheme", default=None, help="scheme name in the config, or a scheme YAML file (rigs with schemes)")
+    o.add_argument("--out", required=True, help="output folder (observability.json, ...)")
     o.add_argument("--arw", type=float, default=None, help="override the filter's ARW, deg/sqrt(h)")
     o.add_argument("--rate", type=float, default=None, help="override the centrifuge rate, deg/s (0: static 1 g)")
     o.add_argument("--doo", action="store_true", help="51-state filter with DOO_x/y/z as states")

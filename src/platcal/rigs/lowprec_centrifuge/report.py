@@ -78,9 +78,9 @@ def fig_windows(tr: dict, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(9, 4.2))
     ax.plot(t, psi, color="k", lw=1, label="heading - gamma_0 (unwrapped)")
     sel = (tr["win_te"] >= t[0]) & (tr["win_ts"] <= t[-1])
-    for i, (a, s) in enumerate(zip(tr["win_ts"][sel], tr["win_spin"][sel])):
+    for a, s in zip(tr["win_ts"][sel], tr["win_spin"][sel]):
         ax.axvline(a, color="C0" if s else "C1", lw=0.8, alpha=0.8,
-                   label=None if i > 1 else ("window start (revolution)" if s else "window start (static, 1 s)"))
+                   label="window start (revolution)" if s else "window start (static, 1 s)")
     for k in range(1, int(psi.max() // 360) + 1):
         ax.axhline(360 * k, color="0.7", lw=0.6, ls=":")
     ax.set_xlabel("time (s)")

@@ -59,8 +59,9 @@ def scenarios(study: Study) -> dict[str, dict]:
     add("worst", cen.with_imprecision(w.get("rate_error"), w.get("arm_error_mm"), w.get("stretch_mm_per_g")),
         "extreme")
     g = study.study["gross"]
-    add("gross", cen.with_imprecision(g.get("rate_error"), g.get("arm_error_mm")), "extreme")
-    add("gross-neg", cen.with_imprecision(-g.get("rate_error", 0.0), -g.get("arm_error_mm", 0.0)), "extreme")
+    if g:   # {} switches the gross extras off
+        add("gross", cen.with_imprecision(g.get("rate_error"), g.get("arm_error_mm")), "extreme")
+        add("gross-neg", cen.with_imprecision(-g.get("rate_error", 0.0), -g.get("arm_error_mm", 0.0)), "extreme")
     return out
 
 
@@ -133,7 +134,7 @@ def _trace(rb, coeffs_proposed, truth) -> dict:
     step = max(1, int(round(0.1 / rb.prof.dt)))
     t = rb.prof.t
     ia = int(np.flatnonzero(rb.prof.schedule != 0)[0]) - 1
-    sl = slice(max(ia - int(2 / rb.prof.dt), 0), ia + int(8 / rb.prof.dt))
+    sl = slice(max(ia - int(3 / rb.prof.dt), 0), ia + int(25 / rb.prof.dt))
     psi_u = np.unwrap(rb.psi[0])
     win = find_windows(t, psi_u, rb.prof.schedule)
     return {"platform": rb.platform, "run": rb.run, "seed": int(rb.seeds[0]), "t": t[::step],

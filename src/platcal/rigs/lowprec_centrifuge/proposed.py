@@ -120,10 +120,17 @@ def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray) -> Wind
     return Windows(np.array(ts), np.array(te), np.array(spin))
 
 
-def _interval_means(t: np.ndarray, y: np.ndarray, ts: np.ndarray, te: np.ndarray) -> np.ndarray:
-    """(W, m) means of y (N, m) over [ts, te]: cumulative trapezoid, boundary values interpolated."""
+def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Cumulative trapezoid integral of y (N, m) from t[0]."""
+    c = np.empty_like(y)
+    c[0] = 0.0
+    np.cumsum(0.5 * np.diff(t)[:, None] * (y[1:] + y[:-1]), axis=0, out=c[1:])
+    return c
+
+
+def interval_means(t: np.ndarray, y: np.ndarray, c: np.ndarray, ts: np.ndarray, te: np.ndarray) -> np.ndarray:
+    """(W, m) means of y (N, m) over [ts, te] from its cumulative trapezoid c, boundary values interpolated."""
     dtk = np.diff(t)
-    c = np.concatenate([np.zeros((1, y.shape[1])), np.cumsum(0.5 * dtk[:, None] * (y[1:] + y[:-1]), axis=0)])
 
     def at(tb):
         k = np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
@@ -134,19 +141,30 @@ def _interval_means(t: np.ndarray, y: np.ndarray, ts: np.ndarray, te: np.ndarray
     return (at(te) - at(ts)) / (te - ts)[:, None]
 
 
-def window_data(t, v, p_rel, psi_u, f, schedule, arm_m):
-    """Windows and, per window, T, the observation z (zVE, zVN, zPE, zPN) and m = (m1E, m1N, m2E, m2N) (§7)."""
+def force_terms(t: np.ndarray, f: np.ndarray):
+    """(|f|/g0, (f/g0)^2) per axis, (N, 4) = (|aE|, |aN|, aE^2, aN^2), and its cumulative integral."""
+    a = f / G0
+    y = np.concatenate([np.abs(a), a * a], axis=1)
+    return y, cumtrap(t, y)
+
+
+def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None):
+    """Windows and, per window, T, the observation z (zVE, zVN, zPE, zPN) and m = (m1E, m1N, m2E, m2N) (§7).
+
+    ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds).
+    """
     win = find_windows(t, psi_u, schedule)
     u = np.stack([np.cos(psi_u), np.sin(psi_u)], axis=-1)
     pc = p_rel + arm_m * u[0] - arm_m * u      # position relative to the centre minus the arm vector
-    a = f / G0
-    y = np.concatenate([v, pc, np.abs(a), a * a], axis=1)
-    mean = _interval_means(t, y, win.ts, win.te)
+    y = np.concatenate([v, pc], axis=1)
+    mean = interval_means(t, y, cumtrap(t, y), win.ts, win.te)
+    yf, cf = force_terms(t, f) if force is None else force
+    m = interval_means(t, yf, cf, win.ts, win.te)
     tt = win.te - win.ts
     psi_s, psi_e = np.interp(win.ts, t, psi_u), np.interp(win.te, t, psi_u)
     du = np.stack([np.cos(psi_e) - np.cos(psi_s), np.sin(psi_e) - np.sin(psi_s)], axis=-1)
     z = np.concatenate([mean[:, 0:2] - arm_m * du / tt[:, None], mean[:, 2:4]], axis=1)
-    return win, tt, z, mean[:, 4:8]
+    return win, tt, z, m
 
 
 def f_base(lat_rad: float) -> np.ndarray:
@@ -212,7 +230,11 @@ class FilterResult:
 
 
 def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float) -> FilterResult:
-    """The Kalman filter over padded window arrays (S, W): predict with Phi, update with the Joseph form."""
+    """The Kalman filter over padded window arrays (S, W), batched over seeds: predict with Phi, Joseph update.
+
+    [D] numpy rather than numba: a numba kernel of this loop ran ~2x faster but took 20-30 s to
+    compile on the shared machine.
+    """
     nb, nw = T.shape
     q = q_density()
     eye = np.eye(NX)
@@ -243,9 +265,10 @@ def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: floa
     """Proposed method on S records: t (N,), v, p_rel (S, N, 2), psi (S, N) rad, f (N, 2) or (S, N, 2)."""
     nb = v.shape[0]
     per = []
+    common = force_terms(t, f) if f.ndim == 2 else None
     for s in range(nb):
         fs = f if f.ndim == 2 else f[s]
-        per.append(window_data(t, v[s], p_rel[s], np.unwrap(psi[s]), fs, schedule, arm_m)[1:])
+        per.append(window_data(t, v[s], p_rel[s], np.unwrap(psi[s]), fs, schedule, arm_m, common)[1:])
     nw = max(len(a[0]) for a in per)
     T = np.zeros((nb, nw))
     z = np.zeros((nb, nw, 4))

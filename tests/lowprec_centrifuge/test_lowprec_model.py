@@ -220,3 +220,24 @@ def test_bad_config_names_the_field(raw, field):
     with pytest.raises(InputError) as ei:
         load_config({"rig": "lowprec_centrifuge", **raw})
     assert ei.value.field == field
+
+
+def test_same_seed_same_numbers_whatever_the_batch():
+    st = small()
+    one = simulate_batch(st, "P1", "run1", [3])
+    many = simulate_batch(st, "P1", "run1", [0, 1, 2, 3])
+    assert np.array_equal(one.v_ind[0], many.v_ind[3]) and np.array_equal(one.psi[0], many.psi[3])
+    assert np.array_equal(one.err[0], many.err[3])
+    assert not np.array_equal(many.err[0], many.err[3])
+
+
+def test_proposed_filter_covariance_is_symmetric_positive_definite():
+    from platcal.rigs.lowprec_centrifuge.proposed import identify_proposed
+
+    st = small()
+    rb = simulate_batch(st, "P1", "run1", [0, 1])
+    res = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
+                            st.centrifuge.arm_m, st.latitude_deg)
+    for P in res.P:
+        assert np.array_equal(P, P.T)
+        assert np.linalg.eigvalsh(P / np.outer(np.sqrt(np.diag(P)), np.sqrt(np.diag(P)))).min() > 0

@@ -62,7 +62,8 @@ def test_tiny_study_runs_and_reports(tmp_path):
     assert set(cross["seed"]) == {0, 1}
     assert (res / "logs" / "scenario_default.log").exists()
     # nothing to do the second time
-    assert "Nothing to be done" in smk(d, "--cores", "1", "-n").stdout + smk(d, "--cores", "1", "-n").stderr
+    again = smk(d, "--cores", "1", "-n")
+    assert "Nothing to be done" in again.stdout + again.stderr
 
 
 def test_without_rig_key_no_targets(tmp_path):

@@ -24,20 +24,21 @@ if "lowprec_centrifuge" in config.get("rigs", {}):
     # the package's source as a param: a code edit reruns the jobs
     LOWPREC_CODE = _lp_hashlib.sha256(b"".join(p.read_bytes() for p in sorted(_lp_dir.glob("*.py"))
                                                + sorted(_lp_dir.glob("data/*.yaml")))).hexdigest()[:16]
-    LOWPREC_OUT = "results/lowprec_centrifuge"
-    LOWPREC_CENTRIFUGE_TARGETS = (
-        expand(LOWPREC_OUT + "/tables/{t}.{ext}",
-               t=["table1", "table1_y", "coefficients", "degradation", "acceptance", "cross_validation"],
-               ext=["csv", "md", "html"])
-        + expand(LOWPREC_OUT + "/figures/{f}.png", f=["effect_vs_imprecision", "velocity_trace", "windows_heading"])
-        + [LOWPREC_OUT + "/report.md"]
+    LOWPREC_FILES = expand(
+        "results/lowprec_centrifuge/tables/{t}.{ext}",
+        t=["table1", "table1_y", "coefficients", "degradation", "acceptance", "cross_validation"],
+        ext=["csv", "md", "html"],
+    ) + expand(
+        "results/lowprec_centrifuge/figures/{f}.png",
+        f=["effect_vs_imprecision", "velocity_trace", "windows_heading"],
     )
+    LOWPREC_CENTRIFUGE_TARGETS = LOWPREC_FILES + ["results/lowprec_centrifuge/report.md"]
 
     rule lowprec_scenario:
         output:
-            cross=LOWPREC_OUT + "/scenarios/{scen}/cross.csv",
-            coeffs=LOWPREC_OUT + "/scenarios/{scen}/coeffs.csv",
-            trace=LOWPREC_OUT + "/scenarios/{scen}/trace.npz",
+            cross="results/lowprec_centrifuge/scenarios/{scen}/cross.csv",
+            coeffs="results/lowprec_centrifuge/scenarios/{scen}/coeffs.csv",
+            trace="results/lowprec_centrifuge/scenarios/{scen}/trace.npz",
         wildcard_constraints:
             scen="|".join(_lp_re.escape(s) for s in LOWPREC_SCENARIOS),
         params:
@@ -47,18 +48,18 @@ if "lowprec_centrifuge" in config.get("rigs", {}):
         conda:
             "../envs/platcal.yaml"
         log:
-            LOWPREC_OUT + "/logs/scenario_{scen}.log",
+            "results/lowprec_centrifuge/logs/scenario_{scen}.log",
         script:
             "../scripts/lowprec_scenario.py"
 
     rule lowprec_report:
         input:
-            cross=expand(LOWPREC_OUT + "/scenarios/{scen}/cross.csv", scen=LOWPREC_SCENARIOS),
-            coeffs=expand(LOWPREC_OUT + "/scenarios/{scen}/coeffs.csv", scen=LOWPREC_SCENARIOS),
-            trace=LOWPREC_OUT + "/scenarios/default/trace.npz",
+            cross=expand("results/lowprec_centrifuge/scenarios/{scen}/cross.csv", scen=LOWPREC_SCENARIOS),
+            coeffs=expand("results/lowprec_centrifuge/scenarios/{scen}/coeffs.csv", scen=LOWPREC_SCENARIOS),
+            trace="results/lowprec_centrifuge/scenarios/default/trace.npz",
         output:
-            report=LOWPREC_OUT + "/report.md",
-            files=[f for f in LOWPREC_CENTRIFUGE_TARGETS if not f.endswith("report.md")],
+            report="results/lowprec_centrifuge/report.md",
+            files=LOWPREC_FILES,
         params:
             config=LOWPREC_CFG,
             names=LOWPREC_SCENARIOS,
@@ -66,6 +67,6 @@ if "lowprec_centrifuge" in config.get("rigs", {}):
         conda:
             "../envs/platcal.yaml"
         log:
-            LOWPREC_OUT + "/logs/report.log",
+            "results/lowprec_centrifuge/logs/report.log",
         script:
             "../scripts/lowprec_report.py"

@@ -161,6 +161,7 @@ def report_md(t1, ty, ct, deg, acc, cross, seeds: int) -> str:
     shift_p = dg["proposed_VE_shift_pp"].abs().max()
     shift_t = dg["traditional_VE_shift_pp"].abs().max()
     n_ok, n_all = int(acc["pass"].sum()), len(acc)
+    acc = acc.assign(**{"pass": acc["pass"].map({True: "yes", False: "**NO**"})})
     trad_res = ", ".join(f"{k} {v:g} %" for k, v in PAPER_TRADITIONAL_RESIDUAL_PCT.items())
     show_t1 = t1[["platform", "method", "cell", "VE_before", "VE_effect_median", "VE_effect_worst", "pE_before",
                   "pE_effect_median", "pE_effect_worst", "paper_VE_before", "paper_VE_effect", "paper_pE_before",

@@ -59,10 +59,10 @@ def fig_velocity_trace(tr: dict, path: Path) -> None:
     sens = tr["sens"][:, :, 0]           # (4, n)
     fig, ax = plt.subplots(figsize=(9, 4.2))
     ax.plot(t, before, label="before compensation", color="k")
-    for lab, c, col in (("after, proposed", tr["proposed_coeffs"], "C0"),
-                        ("after, traditional", tr["traditional_coeffs"], "C3"),
-                        ("after, exact coefficients", tr["truth"], "C2")):
-        ax.plot(t, before - c @ sens, label=lab, color=col, lw=1)
+    for lab, c, col, ls in (("after, exact coefficients", tr["truth"], "C2", "-"),
+                            ("after, traditional", tr["traditional_coeffs"], "C3", "-"),
+                            ("after, proposed (run -> same run)", tr["proposed_coeffs"], "C0", "--")):
+        ax.plot(t, before - c @ sens, label=lab, color=col, lw=1.2, ls=ls)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("East velocity error dVE (m/s)")
     ax.set_title(f"{tr['platform']} {tr['run']}, seed {tr['seed']}: velocity error before and after compensation")

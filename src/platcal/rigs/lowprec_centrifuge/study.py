@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ...log import eta_line
-from .config import COEFFS, Centrifuge, Study
+from .config import COEFFS, Study
 from .metrics import compensate, cross_rows
 from .proposed import find_windows, identify_proposed
 from .traditional import identify_traditional

@@ -1,0 +1,77 @@
+"""``platcal simulate`` and ``platcal identify`` for ``rig: lowprec_centrifuge`` (docs/lowprec-centrifuge.md §10).
+
+simulate: ``--platform P --run run1|run2|traditional [--seed N] [--noise-free] --out rec.csv``
+identify: ``--data rec.csv --out DIR [--method proposed|traditional] [--no-truth]``
+Every option is checked before any work; options of other rigs are refused by name.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from ...errors import InputError
+from .config import COEFFS, Study
+from .proposed import identify_proposed
+from .record import check_out_path, read_record, record_frame, truth_json, write_estimates, write_record
+from .traditional import identify_traditional
+from .truth import simulate_batch
+
+METHODS = ("proposed", "traditional")
+
+
+def _refuse(args, names) -> None:
+    for name in names:
+        val = getattr(args, name.lstrip("-").replace("-", "_"), None)
+        if val not in (None, False):
+            raise InputError(name, "not used by rig lowprec_centrifuge; remove it")
+
+
+def simulate(study: Study, args) -> int:
+    _refuse(args, ("--scheme",))
+    if args.platform is None:
+        raise InputError("--platform", f"required: one of {study.platform_names()}")
+    if args.platform not in study.platforms:
+        raise InputError("--platform", f"unknown platform {args.platform!r}; use one of {study.platform_names()}")
+    runs = study.run_names(args.platform)
+    if args.run is None or args.run not in runs:
+        raise InputError("--run", f"{'required' if args.run is None else 'unknown run ' + repr(args.run)}: "
+                                  f"one of {runs}")
+    if args.seed is not None and args.seed < 0:
+        raise InputError("--seed", "must be a whole number >= 0")
+    check_out_path(args.out)
+    seed = study.seed if args.seed is None else args.seed
+    t0 = time.perf_counter()
+    rb = simulate_batch(study, args.platform, args.run, [seed], keep_phi=True, noise_free=bool(args.noise_free))
+    write_record(record_frame(rb), truth_json(rb, study), args.out)
+    print(f"platcal simulate: lowprec_centrifuge {args.platform} {args.run} ({', '.join(f'{a:g}' for a in rb.prof.levels)}"
+          f" g), {'noise-free' if args.noise_free else f'seed {seed}'}, {rb.prof.t[-1]:.0f} s -> {args.out} "
+          f"({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
+    return 0
+
+
+def identify(study: Study, args) -> int:
+    _refuse(args, ("--scheme", "--estimator"))
+    method = args.method or "proposed"
+    if method not in METHODS:
+        raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
+    rec = read_record(args.data, use_truth=not args.no_truth)
+    t0 = time.perf_counter()
+    arm = study.centrifuge.arm_m
+    if method == "proposed":
+        res = identify_proposed(rec.t, rec.v[None], rec.p[None], rec.psi[None], rec.f, rec.schedule, arm,
+                                study.latitude_deg)
+        est, sig = res.coeffs[0], res.sigmas[0]
+        extra = f"{int(res.n_windows[0])} windows"
+    else:
+        est = identify_traditional(rec.t, rec.v[None], rec.psi[None], rec.schedule,
+                                   study.traditional["levels_g"], arm)[0]
+        sig = np.full(4, np.nan)   # eq. (2) gives no uncertainty
+        extra = "eq. (2)"
+    truth = rec.truth["coefficients"] if rec.truth and "coefficients" in rec.truth else None
+    path = write_estimates(args.out, COEFFS, est, sig, truth)
+    print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {time.perf_counter() - t0:.2f} s -> {path}; "
+          + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est)), file=sys.stderr)
+    return 0

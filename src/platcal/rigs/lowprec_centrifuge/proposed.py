@@ -1,0 +1,280 @@
+"""The proposed variable-period Kalman filter (docs/lowprec-centrifuge.md §7).
+
+Windows: 1 s while static; one per revolution while spinning, bounded by the crossings of
+psi = gamma_0 + 2 pi k of the running max of the unwrapped heading, linearly interpolated
+between samples (paper §3.4.3); the first revolution window starts at spin start (the last
+static sample before the spin), the last, partial one ends at spin stop (the first static
+sample after it). [D] A static stretch is cut into 1 s windows from its start; a remainder
+shorter than 0.1 s joins the window before it.
+
+Observations (eq. 5): window means over [ts, te] of the velocity and of the position relative
+to the centrifuge centre minus the arm vector; integrals by cumulative trapezoid at the data
+rate, boundary values by linear interpolation of the samples. [D] The record's positions are
+relative to the start; the centre is put at -r_nom u(psi(t_0)) from the start.
+
+States (14): dVE, dVN, pE, pN (m/s, m), phi_x, phi_y, phi_z (rad), kA_x, k2_x, kA_y, k2_y
+(ug/g, ug/g^2), eps_x, eps_y, eps_z (deg/h). Batched over seeds on a leading axis; seeds whose
+window count is smaller are padded with windows that change nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...errors import InputError
+from .config import G0, OMEGA_IE, R_EARTH
+from .profile import STATIC
+from .truth import ARCSEC, DEG_H
+
+NX = 14
+STATE_NAMES = ("dVE", "dVN", "pE", "pN", "phi_x", "phi_y", "phi_z", "kA_x", "k2_x", "kA_y", "k2_y",
+               "eps_x", "eps_y", "eps_z")
+K_SLICE = slice(7, 11)
+MIN_STATIC_TAIL_S = 0.1
+STATIC_WINDOW_S = 1.0
+
+P0_STD = np.array([0.05, 0.05, 1.0, 1.0, 20 * ARCSEC, 20 * ARCSEC, 300 * ARCSEC, 100, 20, 100, 20, 0.03, 0.03, 0.03])
+"""Initial standard deviations (§7)."""
+R_DIAG = np.array([0.005**2, 0.005**2, 0.05**2, 0.05**2])
+"""Measurement noise of the window means (§7): m^2/s^2, m^2."""
+
+
+def q_density() -> np.ndarray:
+    """Process-noise densities (§7): q_V = (10 ug g0)^2/Hz, q_phi = (0.002 deg/rt h)^2, q_eps = (1e-4 deg/h)^2/s."""
+    q = np.zeros(NX)
+    q[0:2] = (10e-6 * G0) ** 2
+    q[4:7] = (0.002 * np.pi / 180 / 60) ** 2
+    q[11:14] = (1e-4) ** 2
+    return q
+
+
+@dataclass(frozen=True)
+class Windows:
+    """Filter windows of one record: start, end (s) and whether the centrifuge spins."""
+
+    ts: np.ndarray
+    te: np.ndarray
+    spinning: np.ndarray
+
+
+def segments_of(schedule: np.ndarray, field: str = "schedule"):
+    """Sample-index bounds (ia, ib) of each spin: ia = last static sample before, ib = first static after."""
+    moving = schedule != STATIC
+    if not moving.any():
+        raise InputError(field, "the record never spins (no non-static sample)")
+    d = np.diff(moving.astype(np.int8))
+    starts = np.flatnonzero(d == 1)           # ia: static at ia, moving at ia + 1
+    stops = np.flatnonzero(d == -1) + 1       # ib: first static sample
+    if moving[0]:
+        raise InputError(field, "the record starts while spinning; it must start at rest")
+    if moving[-1]:
+        raise InputError(field, "the record ends while spinning; it must end at rest")
+    return list(zip(starts.tolist(), stops.tolist()))
+
+
+def _static_windows(a: float, b: float):
+    if b - a <= 1e-9:
+        return []
+    edges = list(np.arange(a, b - 1e-9, STATIC_WINDOW_S)) + [b]
+    if len(edges) > 2 and edges[-1] - edges[-2] < MIN_STATIC_TAIL_S:
+        del edges[-2]
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def revolution_crossings(t: np.ndarray, psi_u: np.ndarray, ia: int, ib: int) -> np.ndarray:
+    """Times where the running max of the unwrapped heading crosses gamma_0 + 2 pi k (§7, paper §3.4.3)."""
+    rm = np.maximum.accumulate(psi_u[ia:ib + 1])
+    g0 = psi_u[ia]
+    k = int(np.floor((rm[-1] - g0) / (2 * np.pi)))
+    if k < 1:
+        raise InputError("heading_deg", f"the heading never completes a revolution during the spin "
+                                        f"from t = {t[ia]:.2f} s to {t[ib]:.2f} s (it turns "
+                                        f"{np.degrees(rm[-1] - g0):.1f} deg)")
+    targets = g0 + 2 * np.pi * np.arange(1, k + 1)
+    j = np.searchsorted(rm, targets, side="left")
+    tt = t[ia:ib + 1]
+    frac = (targets - rm[j - 1]) / (rm[j] - rm[j - 1])
+    return tt[j - 1] + frac * (tt[j] - tt[j - 1])
+
+
+def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray) -> Windows:
+    """The variable-period windows of one record (§7)."""
+    ts, te, spin = [], [], []
+    last = 0
+    for ia, ib in segments_of(schedule):
+        for a, b in _static_windows(t[last], t[ia]):
+            ts.append(a), te.append(b), spin.append(False)
+        c = revolution_crossings(t, psi_u, ia, ib)
+        edges = [t[ia], *c.tolist()]
+        if t[ib] - edges[-1] < 0.5 * (t[1] - t[0]):
+            edges[-1] = t[ib]
+        else:
+            edges.append(t[ib])
+        for a, b in zip(edges[:-1], edges[1:]):
+            ts.append(a), te.append(b), spin.append(True)
+        last = ib
+    for a, b in _static_windows(t[last], t[-1]):
+        ts.append(a), te.append(b), spin.append(False)
+    return Windows(np.array(ts), np.array(te), np.array(spin))
+
+
+def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Cumulative trapezoid integral of y (N, m) from t[0]."""
+    c = np.empty_like(y)
+    c[0] = 0.0
+    np.cumsum(0.5 * np.diff(t)[:, None] * (y[1:] + y[:-1]), axis=0, out=c[1:])
+    return c
+
+
+def interval_means(t: np.ndarray, y: np.ndarray, c: np.ndarray, ts: np.ndarray, te: np.ndarray) -> np.ndarray:
+    """(W, m) means of y (N, m) over [ts, te] from its cumulative trapezoid c, boundary values interpolated."""
+    dtk = np.diff(t)
+
+    def at(tb):
+        k = np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
+        h = (tb - t[k])[:, None]
+        yb = y[k] + h / dtk[k][:, None] * (y[k + 1] - y[k])
+        return c[k] + 0.5 * h * (y[k] + yb)
+
+    return (at(te) - at(ts)) / (te - ts)[:, None]
+
+
+def force_terms(t: np.ndarray, f: np.ndarray):
+    """(|f|/g0, (f/g0)^2) per axis, (N, 4) = (|aE|, |aN|, aE^2, aN^2), and its cumulative integral."""
+    a = f / G0
+    y = np.concatenate([np.abs(a), a * a], axis=1)
+    return y, cumtrap(t, y)
+
+
+def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None):
+    """Windows and, per window, T, the observation z (zVE, zVN, zPE, zPN) and m = (m1E, m1N, m2E, m2N) (§7).
+
+    ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds).
+    """
+    win = find_windows(t, psi_u, schedule)
+    u = np.stack([np.cos(psi_u), np.sin(psi_u)], axis=-1)
+    pc = p_rel + arm_m * u[0] - arm_m * u      # position relative to the centre minus the arm vector
+    y = np.concatenate([v, pc], axis=1)
+    mean = interval_means(t, y, cumtrap(t, y), win.ts, win.te)
+    yf, cf = force_terms(t, f) if force is None else force
+    m = interval_means(t, yf, cf, win.ts, win.te)
+    tt = win.te - win.ts
+    psi_s, psi_e = np.interp(win.ts, t, psi_u), np.interp(win.te, t, psi_u)
+    du = np.stack([np.cos(psi_e) - np.cos(psi_s), np.sin(psi_e) - np.sin(psi_s)], axis=-1)
+    z = np.concatenate([mean[:, 0:2] - arm_m * du / tt[:, None], mean[:, 2:4]], axis=1)
+    return win, tt, z, m
+
+
+def f_base(lat_rad: float) -> np.ndarray:
+    """The window-averaged F of §7 without the accelerometer entries (phi_z f dropped)."""
+    sl, cl, tl = np.sin(lat_rad), np.cos(lat_rad), np.tan(lat_rad)
+    ws, wc = OMEGA_IE * sl, OMEGA_IE * cl
+    F = np.zeros((NX, NX))
+    F[0, 5] = -G0
+    F[0, 1] = 2 * ws
+    F[1, 4] = G0
+    F[1, 0] = -2 * ws
+    F[2, 0] = 1.0
+    F[3, 1] = 1.0
+    F[4, 1] = -1 / R_EARTH
+    F[4, 5] = ws
+    F[4, 6] = -wc
+    F[4, 11] = DEG_H
+    F[5, 0] = 1 / R_EARTH
+    F[5, 3] = -ws / R_EARTH
+    F[5, 4] = -ws
+    F[5, 12] = DEG_H
+    F[6, 0] = tl / R_EARTH
+    F[6, 3] = wc / R_EARTH
+    F[6, 4] = wc
+    F[6, 13] = DEG_H
+    return F
+
+
+def f_matrix(lat_rad: float, m: np.ndarray) -> np.ndarray:
+    """F (..., 14, 14) for window means m (..., 4) = (m1E, m1N, m2E, m2N) (§7)."""
+    F = np.broadcast_to(f_base(lat_rad), m.shape[:-1] + (NX, NX)).copy()
+    s = G0 * 1e-6
+    F[..., 0, 7] = s * m[..., 0]
+    F[..., 0, 8] = s * m[..., 2]
+    F[..., 1, 9] = s * m[..., 1]
+    F[..., 1, 10] = s * m[..., 3]
+    return F
+
+
+def transition_and_h(F: np.ndarray, T: np.ndarray):
+    """Phi = I + FT + (FT)^2/2 + (FT)^3/6 and H = C (I - FT/2 + (FT)^2/6) (§7), batched."""
+    ft = F * T[..., None, None]
+    ft2 = ft @ ft
+    eye = np.eye(NX)
+    phi = eye + ft + ft2 / 2 + ft2 @ ft / 6
+    h = (eye - ft / 2 + ft2 / 6)[..., :4, :]
+    return phi, h
+
+
+@dataclass
+class FilterResult:
+    x: np.ndarray        # (S, 14) final estimate
+    P: np.ndarray        # (S, 14, 14) final covariance
+    n_windows: np.ndarray  # (S,)
+
+    @property
+    def coeffs(self) -> np.ndarray:
+        return self.x[:, K_SLICE]
+
+    @property
+    def sigmas(self) -> np.ndarray:
+        return np.sqrt(np.diagonal(self.P, axis1=1, axis2=2)[:, K_SLICE])
+
+
+def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float) -> FilterResult:
+    """The Kalman filter over padded window arrays (S, W), batched over seeds: predict with Phi, Joseph update.
+
+    [D] numpy rather than numba: a numba kernel of this loop ran ~2x faster but took 20-30 s to
+    compile on the shared machine.
+    """
+    nb, nw = T.shape
+    q = q_density()
+    eye = np.eye(NX)
+    x = np.zeros((nb, NX))
+    P = np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)).copy()
+    R = np.diag(R_DIAG)
+    Fw = f_matrix(lat_rad, m)                    # (S, W, 14, 14)
+    for w in range(nw):
+        ok = valid[:, w]
+        Tw = np.where(ok, T[:, w], 0.0)
+        phi, H = transition_and_h(Fw[:, w], Tw)
+        xp = np.einsum("bij,bj->bi", phi, x)
+        Pp = phi @ P @ np.swapaxes(phi, 1, 2) + q * Tw[:, None, None] * eye
+        PHt = Pp @ np.swapaxes(H, 1, 2)
+        S = H @ PHt + R
+        K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, 1, 2)), 1, 2)
+        innov = z[:, w] - np.einsum("bij,bj->bi", H, xp)
+        xn = xp + np.einsum("bij,bj->bi", K, innov)
+        ikh = eye - K @ H
+        Pn = ikh @ Pp @ np.swapaxes(ikh, 1, 2) + K @ R @ np.swapaxes(K, 1, 2)
+        Pn = 0.5 * (Pn + np.swapaxes(Pn, 1, 2))
+        x = np.where(ok[:, None], xn, x)
+        P = np.where(ok[:, None, None], Pn, P)
+    return FilterResult(x=x, P=P, n_windows=valid.sum(axis=1))
+
+
+def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float) -> FilterResult:
+    """Proposed method on S records: t (N,), v, p_rel (S, N, 2), psi (S, N) rad, f (N, 2) or (S, N, 2)."""
+    nb = v.shape[0]
+    per = []
+    common = force_terms(t, f) if f.ndim == 2 else None
+    for s in range(nb):
+        fs = f if f.ndim == 2 else f[s]
+        per.append(window_data(t, v[s], p_rel[s], np.unwrap(psi[s]), fs, schedule, arm_m, common)[1:])
+    nw = max(len(a[0]) for a in per)
+    T = np.zeros((nb, nw))
+    z = np.zeros((nb, nw, 4))
+    m = np.zeros((nb, nw, 4))
+    valid = np.zeros((nb, nw), dtype=bool)
+    for s, (tt, zz, mm) in enumerate(per):
+        k = len(tt)
+        T[s, :k], z[s, :k], m[s, :k], valid[s, :k] = tt, zz, mm, True
+    return run_filter(T, z, m, valid, np.radians(lat_deg))

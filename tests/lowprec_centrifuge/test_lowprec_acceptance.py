@@ -1,0 +1,73 @@
+"""Spec §11 "What an implementation must show", items 1-6 (docs/lowprec-centrifuge.md).
+
+Items 1-4 and 6: the default scenario on seeds 0-19 (one batched scenario, ~12 s). Item 5:
+perfect vs worst centrifuge on seeds 0-3 (common random numbers); the pipeline checks it on
+20 seeds (results/lowprec_centrifuge/tables/acceptance.csv).
+"""
+
+import numpy as np
+import pytest
+
+from platcal.rigs.lowprec_centrifuge.config import load_config
+from platcal.rigs.lowprec_centrifuge.study import acceptance, run_scenario, scenarios
+
+
+@pytest.fixture(scope="module")
+def study():
+    return load_config({"rig": "lowprec_centrifuge"})
+
+
+@pytest.fixture(scope="module")
+def default20(study):
+    return run_scenario(study, np.arange(20))
+
+
+@pytest.fixture(scope="module")
+def extremes(study):
+    sc = scenarios(study)
+    return {k: run_scenario(study.with_centrifuge(sc[k]["centrifuge"]), np.arange(4)) for k in ("perfect", "worst")}
+
+
+def _check(table, items):
+    sub = table[table["item"].isin(items)]
+    assert len(sub) > 0
+    bad = sub[~sub["pass"]]
+    assert bad.empty, "\n" + bad.to_string()
+
+
+@pytest.fixture(scope="module")
+def table(default20):
+    return acceptance(default20["cross"], default20["coeffs"])
+
+
+def test_item1_proposed_coefficients(table):
+    _check(table, [1])
+
+
+def test_item2_table1_proposed_effects(table):
+    _check(table, [2])
+
+
+def test_item3_nonlinear_part_effect(table):
+    _check(table, [3])
+
+
+def test_item4_traditional_biased(table, default20):
+    _check(table, [4])
+    c = default20["coeffs"]
+    tr = c[(c["method"] == "traditional")].groupby(["platform", "coefficient"])["estimate"].mean()
+    # k2 too small in magnitude (about 30 %), as the independent implementation found
+    assert abs(tr["P1", "k2_x"]) < 0.85 * 8 and abs(tr["P2", "k2_x"]) < 0.85 * 20
+
+
+def test_item5_centrifuge_imprecision(extremes):
+    p, w = extremes["perfect"], extremes["worst"]
+    t = acceptance(p["cross"], p["coeffs"], p["cross"], p["coeffs"], w["cross"], w["coeffs"])
+    _check(t, [5])
+    # the traditional method, by contrast, moves with the centrifuge (its A_i are nominal)
+    ct = lambda r: r["coeffs"][r["coeffs"]["method"] == "traditional"].groupby("coefficient")["estimate"].mean()  # noqa: E731
+    assert (ct(w) - ct(p)).abs().max() > 0.1
+
+
+def test_item6_normalised_errors(table):
+    _check(table, [6])

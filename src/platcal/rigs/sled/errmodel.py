@@ -13,6 +13,7 @@ modelled as a rotation of the error frame, [D1]). All builders are batched: ``f`
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
 RUN7 = ("dv_y", "dr_y", "dv_z", "dr_z", "phi_x", "phi_y", "phi_z")
@@ -98,26 +99,47 @@ def propagate_full(fl: np.ndarray, omega_ie: np.ndarray, phi0: np.ndarray, nabla
     return dv, dr, phi
 
 
+@nb.njit(cache=True)
+def _run_model(fl, w, x0, has_phix, dt, out):
+    S, N = fl.shape[0], fl.shape[1]
+    for s in range(S):
+        vy, ry, vz, rz = 0.0, 0.0, 0.0, 0.0
+        px, py, pz = x0[s, 0], x0[s, 1], x0[s, 2]
+        if not has_phix:
+            px = 0.0
+        out[s, 0, 0] = 0.0
+        out[s, 0, 1] = 0.0
+        for k in range(N):
+            fx, fy, fz = fl[s, k, 0], fl[s, k, 1], fl[s, k, 2]
+            ay = fz * px - fx * pz + 2 * w[0] * vz
+            az = fx * py - fy * px - 2 * w[0] * vy
+            # φ̇ = −ω × φ (φ_x held at 0 in the 6-state model: its row is dropped)
+            dpx = -(w[1] * pz - w[2] * py)
+            dpy = -(w[2] * px - w[0] * pz)
+            dpz = -(w[0] * py - w[1] * px)
+            nvy = vy + ay * dt
+            nvz = vz + az * dt
+            ry += (vy + nvy) * 0.5 * dt
+            rz += (vz + nvz) * 0.5 * dt
+            vy, vz = nvy, nvz
+            if has_phix:
+                px += dpx * dt
+            py += dpy * dt
+            pz += dpz * dt
+            out[s, k + 1, 0] = ry
+            out[s, k + 1, 1] = rz
+
+
 def propagate_run_model(fl: np.ndarray, omega_ie: np.ndarray, phi: np.ndarray, states: int, dt: float) -> np.ndarray:
     """Metric B's model (§8): the run model driven by recorded f^l and a fixed attitude estimate.
 
-    x_0 = [0, 0, 0, 0, φ̂] (``phi`` (S,3) rad; φ_x ignored for 6 states), noise-free, integrated
-    at the IMU rate with the INS's scheme (velocity Euler, position trapezoid). Returns the
-    model's [δr_y, δr_z] (S,N+1,2), m.
+    x_0 = [0, 0, 0, 0, φ̂] (``phi`` (S,3) rad, [φ_x, φ_y, φ_z]; φ_x ≡ 0 for 6 states),
+    noise-free, integrated at the IMU rate with the INS's scheme (velocity and attitude Euler,
+    position trapezoid); the equations are those of :func:`run_F`. Returns the model's
+    [δr_y, δr_z] (S,N+1,2), m.
     """
-    S, N = fl.shape[:2]
-    F = run_F(fl, omega_ie, states=states)          # (S,N,n,n)
-    n = F.shape[-1]
-    x = np.zeros((S, n))
-    x[:, 4:] = phi[:, 3 - (n - 4):]
-    out = np.zeros((S, N + 1, 2))
-    vi, ri = [0, 2], [1, 3]
-    for k in range(N):
-        xd = np.einsum("sij,sj->si", F[:, k], x)
-        xn = x.copy()
-        xn[:, vi] = x[:, vi] + xd[:, vi] * dt
-        xn[:, ri] = x[:, ri] + (x[:, vi] + xn[:, vi]) * 0.5 * dt
-        xn[:, 4:] = x[:, 4:] + xd[:, 4:] * dt
-        x = xn
-        out[:, k + 1] = x[:, ri]
+    fl = np.ascontiguousarray(fl, dtype=np.float64)
+    out = np.empty((fl.shape[0], fl.shape[1] + 1, 2))
+    _run_model(fl, np.asarray(omega_ie, dtype=np.float64), np.ascontiguousarray(phi, dtype=np.float64),
+               states == 7, float(dt), out)
     return out

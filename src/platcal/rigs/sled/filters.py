@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from .config import SledConfig
@@ -79,31 +80,106 @@ def discretise(F: np.ndarray, T: float) -> np.ndarray:
     return np.eye(F.shape[-1]) + FT + FT @ FT / 2
 
 
+@nb.njit(cache=True)
+def _kalman(Phis, z, x0, P0, Qd, R, xs, sig, Pout):
+    """Plain loops (fast to compile): predict, then update with H = [I₄ 0] via a Cholesky
+    solve of the 4×4 innovation covariance, then symmetrise."""
+    S, J, n = Phis.shape[0], Phis.shape[1], Phis.shape[2]
+    x = np.empty(n)
+    xn = np.empty(n)
+    P = np.empty((n, n))
+    T = np.empty((n, n))
+    Sm = np.empty((4, 4))
+    L = np.empty((4, 4))
+    K = np.empty((n, 4))
+    innov = np.empty(4)
+    for s in range(S):
+        x[:] = x0[s]
+        P[:, :] = P0[s]
+        for i in range(n):
+            xs[s, 0, i] = x[i]
+            sig[s, 0, i] = np.sqrt(P[i, i])
+        for j in range(J):
+            Phi = Phis[s, j]
+            for a in range(n):
+                acc = 0.0
+                for b in range(n):
+                    acc += Phi[a, b] * x[b]
+                xn[a] = acc
+            x[:] = xn
+            for a in range(n):                      # T = Phi P
+                for b in range(n):
+                    acc = 0.0
+                    for c in range(n):
+                        acc += Phi[a, c] * P[c, b]
+                    T[a, b] = acc
+            for a in range(n):                      # P = T Phiᵀ + Q
+                for b in range(n):
+                    acc = 0.0
+                    for c in range(n):
+                        acc += T[a, c] * Phi[b, c]
+                    P[a, b] = acc + Qd[a, b]
+            for a in range(4):
+                for b in range(4):
+                    Sm[a, b] = P[a, b] + R[a, b]
+            for a in range(4):                      # Cholesky Sm = L Lᵀ
+                for b in range(a + 1):
+                    acc = Sm[a, b]
+                    for c in range(b):
+                        acc -= L[a, c] * L[b, c]
+                    if a == b:
+                        L[a, a] = np.sqrt(acc)
+                    else:
+                        L[a, b] = acc / L[b, b]
+                for b in range(a + 1, 4):
+                    L[a, b] = 0.0
+            for a in range(n):                      # K row a: solve Sm k = P[a, :4]
+                for b in range(4):
+                    acc = P[a, b]
+                    for c in range(b):
+                        acc -= L[b, c] * K[a, c]
+                    K[a, b] = acc / L[b, b]
+                for b in range(3, -1, -1):
+                    acc = K[a, b]
+                    for c in range(b + 1, 4):
+                        acc -= L[c, b] * K[a, c]
+                    K[a, b] = acc / L[b, b]
+            for b in range(4):
+                innov[b] = z[s, j, b] - x[b]
+            for a in range(n):
+                acc = 0.0
+                for b in range(4):
+                    acc += K[a, b] * innov[b]
+                x[a] += acc
+            for a in range(n):                      # P = P − K P[:4, :]
+                for b in range(n):
+                    acc = 0.0
+                    for c in range(4):
+                        acc += K[a, c] * P[c, b]
+                    T[a, b] = P[a, b] - acc
+            for a in range(n):
+                for b in range(n):
+                    P[a, b] = 0.5 * (T[a, b] + T[b, a])
+            for i in range(n):
+                xs[s, j + 1, i] = x[i]
+                sig[s, j + 1, i] = np.sqrt(max(P[i, i], 0.0))
+        Pout[s] = P
+
+
 def kalman(Fs: np.ndarray, z: np.ndarray, x0: np.ndarray, tun: Tuning, T: float) -> FilterOut:
     """Open-loop linear KF over epochs: ``Fs`` (S,J,n,n) per prediction, ``z`` (S,J,4) per update.
 
     ``x0`` (S,n) and ``tun.P0`` ((n,n) or (S,n,n)) are the state at epoch 0. Returns the
-    posteriors at epochs 0 … J.
+    posteriors at epochs 0 … J (one numba kernel looping over seeds and epochs).
     """
     S, J, n = Fs.shape[0], Fs.shape[1], Fs.shape[-1]
-    x = x0.copy()
-    P = np.broadcast_to(tun.P0, (S, n, n)).copy()
+    P0 = np.ascontiguousarray(np.broadcast_to(tun.P0, (S, n, n)), dtype=np.float64)
     xs = np.empty((S, J + 1, n))
     sig = np.empty((S, J + 1, n))
-    xs[:, 0] = x
-    sig[:, 0] = np.sqrt(np.diagonal(P, axis1=1, axis2=2))
-    Phis = discretise(Fs, T)
-    for j in range(J):
-        Phi = Phis[:, j]
-        x = np.einsum("sij,sj->si", Phi, x)
-        P = Phi @ P @ Phi.transpose(0, 2, 1) + tun.Qd
-        Sm = P[:, :4, :4] + tun.R
-        K = np.linalg.solve(Sm, P[:, :4, :]).transpose(0, 2, 1)    # P Hᵀ S⁻¹ (S symmetric)
-        x = x + np.einsum("sij,sj->si", K, z[:, j] - x[:, :4])
-        P = P - K @ P[:, :4, :]
-        P = (P + P.transpose(0, 2, 1)) / 2
-        xs[:, j + 1] = x
-        sig[:, j + 1] = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0, None))
+    P = np.empty((S, n, n))
+    _kalman(np.ascontiguousarray(discretise(Fs, T)), np.ascontiguousarray(z, dtype=np.float64),
+            np.ascontiguousarray(x0, dtype=np.float64), P0, np.ascontiguousarray(tun.Qd, dtype=np.float64),
+            np.ascontiguousarray(tun.R, dtype=np.float64), xs, sig, P)
     return FilterOut(xs, sig, P)
 
 

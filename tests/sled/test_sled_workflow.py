@@ -59,7 +59,7 @@ def make(tmp_path: Path, sled_yaml: str) -> Path:
 
 def test_sled_study_end_to_end(tmp_path):
     d = make(tmp_path, "rig: sled\ntrajectory: {static_after_s: 10}\n"
-                       "study: {seeds: 3, cases: [default, post, run7]}\n")
+                       "study: {seeds: 2, cases: [default, run7]}\n")
     r = run(d, "--cores", "2")
     assert r.returncode == 0, r.stderr[-3000:]
     res = d / "results" / "sled"
@@ -68,7 +68,7 @@ def test_sled_study_end_to_end(tmp_path):
     for name in ("yz_before_after.png", "x_error.png", "attitude.png"):
         assert (res / "figures" / name).stat().st_size > 10_000
     m = pd.read_csv(res / "cases" / "run7" / "metrics.csv")
-    assert list(m.seed) == [0, 1, 2] and m.y_after_b_max_run_cm.max() < 6
+    assert list(m.seed) == [0, 1] and m.y_after_b_max_run_cm.max() < 6
     ranks = pd.read_csv(res / "rank_table.csv", dtype=str, keep_default_na=False)
     assert ranks.iloc[0]["static"] == "5/7"
     assert (d / "results" / "logs" / "sled" / "case_default.log").read_text().strip()

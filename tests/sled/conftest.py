@@ -16,6 +16,12 @@ def run_case(sb, **filter_over):
 
 
 @pytest.fixture(scope="session")
+def case_runner():
+    """``run_case(batch, **filter_overrides) -> (identification, metrics)``."""
+    return run_case
+
+
+@pytest.fixture(scope="session")
 def batch():
     """20 seeds of the default config, simulated once."""
     return simulate(load_config({"rig": "sled"}), SEEDS)

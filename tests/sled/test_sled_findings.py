@@ -3,7 +3,6 @@
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import run_case
 
 from platcal.rigs.sled.config import ARCSEC, load_config
 from platcal.rigs.sled.errmodel import propagate_full
@@ -52,12 +51,12 @@ def test_item2_linear_model_matches_nonlinear_ins(batch):
     assert np.abs(eps - gyro_error(p, f)).std() > 0   # gyro noise is in the drive too
 
 
-def test_item3_metric_a(run6, batch):
+def test_item3_metric_a(run6, batch, case_runner):
     _, m = run6
     assert m["y_after_a_max_run_cm"].max() <= 1.0
     assert m["z_after_a_max_run_cm"].max() <= 1.0
     assert m["y_after_a_max_static_cm"].max() <= 1.0
-    _, mp = run_case(batch, tuning="paper")
+    _, mp = case_runner(batch, tuning="paper")
     worst = mp[["y_after_a_max_run_cm", "z_after_a_max_run_cm", "y_after_a_max_static_cm"]].to_numpy().max()
     assert worst <= 30.0
     assert worst > 1.0          # the literal tuning is visibly worse
@@ -82,15 +81,15 @@ def test_item5_attitude(run6, run7):
     assert rms(m6["phi_y_true_err_arcsec"]) > rms(m6["phi_y_eff_err_arcsec"])
 
 
-def test_item6_x(run6, batch, batch_m0):
+def test_item6_x(run6, batch, batch_m0, case_runner):
     _, m = run6
     assert 40 <= rms(m["x_naive_stop_cm"]) <= 60
-    _, mp = run_case(batch, compensation="post")
+    _, mp = case_runner(batch, compensation="post")
     assert rms(mp["x_constrained_stop_cm"]) <= 12
     assert rms(mp["x_constrained_end_cm"]) <= 120
     for mm in (m, mp):
         assert rms(mm["x_naive_end_cm"]) >= 3 * rms(mm["x_constrained_end_cm"])
-    _, m0 = run_case(batch_m0, compensation="post")
+    _, m0 = case_runner(batch_m0, compensation="post")
     assert rms(m0["x_constrained_stop_cm"]) <= 3
 
 

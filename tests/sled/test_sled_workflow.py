@@ -51,6 +51,7 @@ def make(tmp_path: Path, sled_yaml: str) -> Path:
     shutil.copy(ROOT / "workflow" / "rules" / "sled.smk", d / "workflow" / "rules")
     shutil.copytree(ROOT / "workflow" / "scripts", d / "workflow" / "scripts",
                     ignore=lambda _, names: [n for n in names if not n.startswith("sled_")])
+    shutil.copytree(ROOT / "workflow" / "envs", d / "workflow" / "envs")
     (d / "Snakefile").write_text(SNAKEFILE)
     (d / "config" / "config.yaml").write_text("rigs: {sled: config/sled.yaml}\n")
     (d / "config" / "sled.yaml").write_text(sled_yaml)

@@ -38,6 +38,8 @@ if _SLED_CFG_PATH:
         wildcard_constraints:
             case="|".join(SLED_CASES),
         threads: 1
+        conda:
+            "../envs/platcal.yaml"
         log:
             "results/logs/sled/case_{case}.log",
         script:
@@ -51,6 +53,8 @@ if _SLED_CFG_PATH:
         params:
             raw=SLED_RAW,
             code=SLED_CODE,
+        conda:
+            "../envs/platcal.yaml"
         log:
             "results/logs/sled/observability.log",
         script:
@@ -72,6 +76,8 @@ if _SLED_CFG_PATH:
             raw=SLED_RAW,
             cases=SLED_CASES,
             code=SLED_CODE,
+        conda:
+            "../envs/platcal.yaml"
         log:
             "results/logs/sled/summary.log",
         script:

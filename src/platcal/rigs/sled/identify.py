@@ -167,6 +167,7 @@ def metrics(idn: Identification, truth: Truth | None) -> pd.DataFrame:
             out[f"phi_{ax}_eff_err_arcsec"] = np.abs(idn.phi_run[:, i] - eff[:, i]) / ARCSEC
             out[f"phi_{ax}_true_err_arcsec"] = np.abs(idn.phi_run[:, i] - truth.params.phi0[:, i]) / ARCSEC
             out[f"phi_{ax}_sigma_arcsec"] = idn.sig_run[:, i] / ARCSEC
+            out[f"phi0_{ax}_arcsec"] = truth.params.phi0[:, i] / ARCSEC          # signed: the drawn value
         out["nabla_x_err_ug"] = np.abs(idn.nabla_x_hat - truth.nabla_static[:, 0]) / G * 1e6
     return pd.DataFrame(out)
 

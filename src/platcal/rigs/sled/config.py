@@ -7,7 +7,7 @@ period that is not a whole number of IMU samples), naming the field.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -68,10 +68,6 @@ class SledConfig:
         """Earth rate in the track frame, rad/s (§1): Ω[cosL cosA, cosL sinA, sinL]."""
         L, A = np.radians(self.latitude_deg), np.radians(self.track_azimuth_deg)
         return OMEGA_E * np.array([np.cos(L) * np.cos(A), np.cos(L) * np.sin(A), np.sin(L)])
-
-    def with_overrides(self, **over) -> "SledConfig":
-        """A copy with some typed fields replaced (study cases)."""
-        return replace(self, **over)
 
 
 def _samples(seconds: float, rate: float, field: str, allow_zero: bool = False) -> int:

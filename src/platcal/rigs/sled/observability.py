@@ -56,11 +56,9 @@ def scaled_q(F: np.ndarray) -> np.ndarray:
 def phases(cfg: SledConfig) -> list[tuple[str, float]]:
     """(label, a_x in m/s^2) of static, each phase of the config and braking."""
     out = [("static", 0.0)]
-    v = 0.0
     for ph in cfg.phases:
         kind = "boost" if ph.accel_g > 0 else "coast"
         out.append((f"{kind} {ph.accel_g:g} g", ph.accel_g * G))
-        v += ph.accel_g * G * ph.duration_s
     out.append((f"brake -{cfg.brake_g:g} g", -cfg.brake_g * G))
     return out
 

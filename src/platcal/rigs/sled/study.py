@@ -25,7 +25,6 @@ from ...log import eta_line, job_logger  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
 from .config import ARCSEC, SledConfig, load_config  # noqa: E402
 from .identify import after_a, after_b, effective_phi, identify, metrics, phi_columns  # noqa: E402
-from .observability import rank_table  # noqa: E402
 from .simulate import simulate  # noqa: E402
 
 CASES = {
@@ -269,7 +268,7 @@ def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
     src = d7 if d7 is not None else base
     run = src[src.a_z.notna()]
     axes = [a for a in ("x", "y", "z") if f"phi_{a}_hat" in run]
-    fig, axs = plt.subplots(len(axs := axes), 1, figsize=(9, 2.6 * len(axes)), sharex=True)
+    fig, axs = plt.subplots(len(axes), 1, figsize=(9, 2.6 * len(axes)), sharex=True)
     for a, ax_ in zip(axes, np.atleast_1d(axs)):
         hat, sig = run[f"phi_{a}_hat"], run[f"phi_{a}_sigma"]
         ax_.plot(run.t, hat, label=f"phi_{a} estimate")

@@ -56,9 +56,12 @@ def scaled_q(F: np.ndarray) -> np.ndarray:
 def phases(cfg: SledConfig) -> list[tuple[str, float]]:
     """(label, a_x in m/s^2) of static, each phase of the config and braking."""
     out = [("static", 0.0)]
-    for ph in cfg.phases:
+    for i, ph in enumerate(cfg.phases):
         kind = "boost" if ph.accel_g > 0 else "coast"
-        out.append((f"{kind} {ph.accel_g:g} g", ph.accel_g * G))
+        label = f"{kind} {ph.accel_g:g} g"
+        if any(label == o[0] for o in out):          # two phases at the same level: keep both columns
+            label += f" (phase {i + 1})"
+        out.append((label, ph.accel_g * G))
     out.append((f"brake -{cfg.brake_g:g} g", -cfg.brake_g * G))
     return out
 

@@ -18,10 +18,6 @@ pytestmark = [pytest.mark.slow,
                                  reason="snakemake is not installed")]
 
 SNAKEFILE = """\
-from pathlib import Path
-from snakemake.exceptions import WorkflowError
-from platcal.errors import InputError
-
 configfile: "config/config.yaml"
 
 include: "workflow/rules/sled.smk"

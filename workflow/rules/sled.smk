@@ -3,6 +3,11 @@
 # with results/sled/report.md), or an empty list when the key is absent.
 # One job per study case (6- vs 7-state, realtime vs post, misalignment 0, paper tuning), one
 # for the rank table, one for the summary (Table-1 analogue, checks, figures, report.md).
+from pathlib import Path as _SledPath
+
+from snakemake.exceptions import WorkflowError as _SledWorkflowError
+
+from platcal.errors import InputError as _SledInputError
 from platcal.io import read_yaml as _sled_read_yaml
 from platcal.rigs.sled.config import load_config as _sled_load_config
 from platcal.rigs.sled.study import code_hash as _sled_code_hash
@@ -10,11 +15,14 @@ from platcal.rigs.sled.study import code_hash as _sled_code_hash
 SLED_TARGETS = []
 _SLED_CFG_PATH = config.get("rigs", {}).get("sled")
 if _SLED_CFG_PATH:
-    SLED_RAW = _sled_read_yaml(Path(_SLED_CFG_PATH).read_text(encoding="utf-8"))
+    try:
+        SLED_RAW = _sled_read_yaml(_SledPath(_SLED_CFG_PATH).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise _SledWorkflowError(f"invalid configuration: rigs.sled: cannot read {_SLED_CFG_PATH} ({exc})")
     try:
         _SLED_STUDY = _sled_load_config(SLED_RAW).study
-    except InputError as exc:
-        raise WorkflowError(f"invalid configuration: {_SLED_CFG_PATH}: {exc.field}: {exc.message}")
+    except _SledInputError as exc:
+        raise _SledWorkflowError(f"invalid configuration: {_SLED_CFG_PATH}: {exc.field}: {exc.message}")
     SLED_CASES = list(_SLED_STUDY["cases"])
     SLED_CODE = _sled_code_hash()
     SLED_TARGETS = [

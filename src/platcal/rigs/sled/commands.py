@@ -1,0 +1,83 @@
+"""``platcal simulate | identify | observability`` for ``rig: sled`` (docs/rocket-sled.md §10)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import InputError
+from ...io import atomic_to_csv, atomic_write_text
+from ...study.tables import write_table
+from .config import SledConfig
+from .identify import estimates, identify, metrics
+from .observability import rank_table
+from .record import check_out_path, read_record, record_arrays, record_truth, write_record
+from .simulate import simulate
+
+
+def refuse(args, names: tuple[str, ...]) -> None:
+    """InputError for any option of another rig that was given (not None / False / 0)."""
+    for name in names:
+        val = getattr(args, name, None)
+        if val not in (None, False, 0):
+            raise InputError(f"--{name.replace('_', '-')}", "not used by rig sled (its trajectory is the config's); "
+                             "leave it out")
+
+
+def cmd_simulate(cfg: SledConfig, args) -> int:
+    """One simulated record (+ ``.truth.json``) of seed ``--seed`` (default: the config's ``seed``)."""
+    refuse(args, ("scheme", "platform", "run"))
+    seed = cfg.seed if args.seed is None else args.seed
+    if seed < 0:
+        raise InputError("--seed", "must be a whole number >= 0")
+    out = check_out_path(args.out)
+    t0 = time.perf_counter()
+    sb = simulate(cfg, [seed], noise_free=bool(args.noise_free))
+    write_record(sb, out)
+    print(f"platcal simulate: sled, stop at {sb.traj.stop_time_s:.2f} s, {sb.traj.run_length_m:.1f} m, "
+          f"{'noise-free' if args.noise_free else 'seed ' + str(seed)} -> {out} ({time.perf_counter() - t0:.2f} s)",
+          file=sys.stderr)
+    return 0
+
+
+def cmd_identify(cfg: SledConfig, args) -> int:
+    """INS, run and stop filters and X compensation of a record -> estimates.csv, metrics.json."""
+    refuse(args, ("scheme", "estimator", "method"))
+    traj, df = read_record(args.data, cfg)
+    truth = None if args.no_truth else record_truth(args.data, df)
+    t0 = time.perf_counter()
+    f, w = record_arrays(df)
+    idn = identify(cfg, traj, f, w)
+    met = metrics(idn, truth).iloc[0]
+    est = estimates(idn, truth)
+    seconds = time.perf_counter() - t0
+    out = Path(args.out)
+    summary = {k: (None if not np.isfinite(v) else float(v)) for k, v in met.items()}
+    summary.update({"states": cfg.states, "compensation": cfg.compensation, "tuning": cfg.tuning,
+                    "truth_known": truth is not None, "seconds": round(seconds, 3)})
+    atomic_to_csv(est, out / "estimates.csv", float_format="%.6g")
+    atomic_write_text(out / "metrics.json", json.dumps(summary, indent=1) + "\n")
+    msg = (f"platcal identify: sled {cfg.states}-state run filter, {cfg.compensation} X compensation, "
+           f"{seconds:.2f} s -> {out}; Y/Z run max {met['yz_before_max_run_cm']:.1f} cm before, "
+           f"{max(met['y_after_a_max_run_cm'], met['z_after_a_max_run_cm']):.3f} cm after (A)")
+    if truth is not None:
+        msg += f"; X at stop naive {met['x_naive_stop_cm']:.1f} cm, constrained {met['x_constrained_stop_cm']:.1f} cm"
+    print(msg, file=sys.stderr)
+    return 0
+
+
+def cmd_observability(cfg: SledConfig, args) -> int:
+    """The rank table of §8/§11 -> OUT/rank_table.{csv,md,html}."""
+    refuse(args, ("scheme", "arw", "rate", "doo", "replicates"))
+    tab = rank_table(cfg)
+    write_table(tab, Path(args.out) / "rank_table", "Sled observability ranks (docs/rocket-sled.md §8)",
+                note="states scaled 1 m/s, 1 m, 1 mrad; rank = #(sigma_i/sigma_1 > 1e-9); f = [a_x, 0, g] per phase")
+    print(tab.to_string(index=False), file=sys.stderr)
+    return 0
+
+
+COMMANDS = {"simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

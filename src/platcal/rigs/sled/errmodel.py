@@ -1,0 +1,145 @@
+"""Linear error models of the filters (docs/rocket-sled.md §5-6) and their propagation.
+
+State orders (§6):
+
+* run, 7 states ``[δv_y, δr_y, δv_z, δr_z, φ_x, φ_y, φ_z]``; 6 states drop φ_x;
+* stop, 6 states ``[δv_y, δr_y, δv_x, δr_x, φ_x, φ_y]``.
+
+Units: m/s, m, rad. ``f`` is the computed specific force in l (m/s^2), ``w`` the rate in the
+attitude block ``−[ω×]φ`` (rad/s), ``wc`` the Earth rate of the Coriolis couplings (rad/s);
+both are ω_ie^l in the filters and differ only in the rank study of §8 (the azimuth rate is
+modelled as a rotation of the error frame, [D1]). All builders are batched: ``f`` (…,3).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+RUN7 = ("dv_y", "dr_y", "dv_z", "dr_z", "phi_x", "phi_y", "phi_z")
+RUN6 = ("dv_y", "dr_y", "dv_z", "dr_z", "phi_y", "phi_z")
+STOP = ("dv_y", "dr_y", "dv_x", "dr_x", "phi_x", "phi_y")
+
+
+def skew(a: np.ndarray) -> np.ndarray:
+    """[a×] for a (…,3)."""
+    a = np.asarray(a, dtype=float)
+    z = np.zeros(a.shape[:-1])
+    return np.stack([np.stack([z, -a[..., 2], a[..., 1]], -1),
+                     np.stack([a[..., 2], z, -a[..., 0]], -1),
+                     np.stack([-a[..., 1], a[..., 0], z], -1)], -2)
+
+
+def run_F(f: np.ndarray, w: np.ndarray, wc: np.ndarray | None = None, states: int = 7) -> np.ndarray:
+    """Run-filter system matrix (§5, §6.1), shape (…, n, n), n = ``states``.
+
+    δv̇_y = f_z φ_x − f_x φ_z + 2 ω_x δv_z;  δv̇_z = f_x φ_y − f_y φ_x − 2 ω_x δv_y;
+    δṙ = δv;  φ̇ = −[ω×] φ.
+    """
+    f = np.asarray(f, dtype=float)
+    w = np.broadcast_to(np.asarray(w, dtype=float), f.shape)
+    wc = w if wc is None else np.broadcast_to(np.asarray(wc, dtype=float), f.shape)
+    F = np.zeros(f.shape[:-1] + (7, 7))
+    F[..., 0, 2] = 2 * wc[..., 0]
+    F[..., 0, 4] = f[..., 2]
+    F[..., 0, 6] = -f[..., 0]
+    F[..., 1, 0] = 1.0
+    F[..., 2, 0] = -2 * wc[..., 0]
+    F[..., 2, 5] = f[..., 0]
+    F[..., 2, 4] = -f[..., 1]
+    F[..., 3, 2] = 1.0
+    F[..., 4:7, 4:7] = -skew(w)
+    if states == 7:
+        return F
+    keep = [0, 1, 2, 3, 5, 6]
+    return F[..., keep, :][..., :, keep]
+
+
+def stop_F(f: np.ndarray, w: np.ndarray, wc: np.ndarray | None = None) -> np.ndarray:
+    """Stop (ZUPT) filter system matrix (§6.2), shape (…, 6, 6).
+
+    δṙ_y = δv_y; δv̇_y = f_z φ_x − 2 ω_z δv_x; δṙ_x = δv_x; δv̇_x = −f_z φ_y + 2 ω_z δv_y;
+    φ̇_x = ω_z φ_y; φ̇_y = −ω_z φ_x.
+    """
+    f = np.asarray(f, dtype=float)
+    w = np.broadcast_to(np.asarray(w, dtype=float), f.shape)
+    wc = w if wc is None else np.broadcast_to(np.asarray(wc, dtype=float), f.shape)
+    F = np.zeros(f.shape[:-1] + (6, 6))
+    F[..., 1, 0] = 1.0
+    F[..., 0, 4] = f[..., 2]
+    F[..., 0, 2] = -2 * wc[..., 2]
+    F[..., 3, 2] = 1.0
+    F[..., 2, 5] = -f[..., 2]
+    F[..., 2, 0] = 2 * wc[..., 2]
+    F[..., 4, 5] = w[..., 2]
+    F[..., 5, 4] = -w[..., 2]
+    return F
+
+
+def propagate_full(fl: np.ndarray, omega_ie: np.ndarray, phi0: np.ndarray, nabla: np.ndarray,
+                   eps: np.ndarray, dt: float):
+    """The full 3-D error model of §5 driven by the true error parameters, at the IMU rate.
+
+    ``δv̇ = f^l × φ − 2 ω_ie × δv + ∇^l``, ``φ̇ = −ω_ie × φ − ε^l`` with the INS's first-order
+    scheme (δv Euler, δr trapezoid, φ Euler), δv_0 = δr_0 = 0, φ_0 = φ0. ``fl`` computed
+    specific force (S,N,3), ``nabla``/``eps`` accelerometer/gyro errors in l (S,N,3).
+    Returns δv, δr (S,N+1,3) and φ (S,N+1,3).
+    """
+    S, N = fl.shape[:2]
+    dv = np.zeros((S, N + 1, 3))
+    dr = np.zeros((S, N + 1, 3))
+    phi = np.zeros((S, N + 1, 3))
+    phi[:, 0] = phi0
+    W = skew(omega_ie)
+    for k in range(N):
+        a = np.cross(fl[:, k], phi[:, k]) - 2 * dv[:, k] @ W.T + nabla[:, k]
+        dv[:, k + 1] = dv[:, k] + a * dt
+        dr[:, k + 1] = dr[:, k] + (dv[:, k] + dv[:, k + 1]) * 0.5 * dt
+        phi[:, k + 1] = phi[:, k] - (phi[:, k] @ W.T + eps[:, k]) * dt
+    return dv, dr, phi
+
+
+@nb.njit(cache=True)
+def _run_model(fl, w, x0, has_phix, dt, out):
+    S, N = fl.shape[0], fl.shape[1]
+    for s in range(S):
+        vy, ry, vz, rz = 0.0, 0.0, 0.0, 0.0
+        px, py, pz = x0[s, 0], x0[s, 1], x0[s, 2]
+        if not has_phix:
+            px = 0.0
+        out[s, 0, 0] = 0.0
+        out[s, 0, 1] = 0.0
+        for k in range(N):
+            fx, fy, fz = fl[s, k, 0], fl[s, k, 1], fl[s, k, 2]
+            ay = fz * px - fx * pz + 2 * w[0] * vz
+            az = fx * py - fy * px - 2 * w[0] * vy
+            # φ̇ = −ω × φ (φ_x held at 0 in the 6-state model: its row is dropped)
+            dpx = -(w[1] * pz - w[2] * py)
+            dpy = -(w[2] * px - w[0] * pz)
+            dpz = -(w[0] * py - w[1] * px)
+            nvy = vy + ay * dt
+            nvz = vz + az * dt
+            ry += (vy + nvy) * 0.5 * dt
+            rz += (vz + nvz) * 0.5 * dt
+            vy, vz = nvy, nvz
+            if has_phix:
+                px += dpx * dt
+            py += dpy * dt
+            pz += dpz * dt
+            out[s, k + 1, 0] = ry
+            out[s, k + 1, 1] = rz
+
+
+def propagate_run_model(fl: np.ndarray, omega_ie: np.ndarray, phi: np.ndarray, states: int, dt: float) -> np.ndarray:
+    """Metric B's model (§8): the run model driven by recorded f^l and a fixed attitude estimate.
+
+    x_0 = [0, 0, 0, 0, φ̂] (``phi`` (S,3) rad, [φ_x, φ_y, φ_z]; φ_x ≡ 0 for 6 states),
+    noise-free, integrated at the IMU rate with the INS's scheme (velocity and attitude Euler,
+    position trapezoid); the equations are those of :func:`run_F`. Returns the model's
+    [δr_y, δr_z] (S,N+1,2), m.
+    """
+    fl = np.ascontiguousarray(fl, dtype=np.float64)
+    out = np.empty((fl.shape[0], fl.shape[1] + 1, 2))
+    _run_model(fl, np.asarray(omega_ie, dtype=np.float64), np.ascontiguousarray(phi, dtype=np.float64),
+               states == 7, float(dt), out)
+    return out

@@ -1,0 +1,220 @@
+"""The open-loop run and stop (ZUPT) Kalman filters (docs/rocket-sled.md §6), batched over seeds.
+
+Discretisation ``Φ = I + F T + (F T)²/2``, ``Q_d = diag(q)·T`` (default tuning) or
+``1e-9·I`` per step (paper tuning); measurement ``z = H x + v`` with ``H = [I₄ 0]``; the
+standard update with the covariance symmetrised after each step (§6). Epoch convention: the
+filter epochs are the navigation states k = m·j (m = IMU samples per filter period); the state
+at j = 0 is the prior (x = 0 for the run filter), and each later epoch is a prediction over
+the preceding m samples, with F from the mean computed specific force over them, then an
+update with the navigation values at k = m·j.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from .config import SledConfig
+from .errmodel import run_F, stop_F
+
+Q_VEL = 2e-3   # m/s/sqrt(s): absorbs the unmodelled accelerometer bias and noise (§6.1, D4)
+Q_ATT = 1e-7   # rad/sqrt(s)
+SIG_PHI = (3e-4, 3e-4, 2e-3)   # rad, P0 of φ_x, φ_y, φ_z (§6.1)
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """P0 (n,n), Q per step (n,n) and R (4,4) of one filter (SI units, rad)."""
+
+    P0: np.ndarray
+    Qd: np.ndarray
+    R: np.ndarray
+
+
+@dataclass(frozen=True)
+class FilterOut:
+    """Posterior estimates at the filter epochs: x (S,J+1,n), sigma = sqrt(diag P) (S,J+1,n), P final (S,n,n)."""
+
+    x: np.ndarray
+    sigma: np.ndarray
+    P: np.ndarray
+
+
+def _R(cfg: SledConfig) -> np.ndarray:
+    return np.diag([cfg.r_velocity, cfg.r_position, cfg.r_velocity, cfg.r_position]) ** 2
+
+
+def run_tuning(cfg: SledConfig, states: int) -> Tuning:
+    """§6.1: default tuning, or the paper's literal P0 = I, Q_d = 1e-9 I, R = 1e6 I."""
+    T = cfg.period_ms / 1000.0
+    if cfg.tuning == "paper":
+        return Tuning(np.eye(states), 1e-9 * np.eye(states), 1e6 * np.eye(4))
+    sphi = SIG_PHI if states == 7 else SIG_PHI[1:]
+    P0 = np.diag(np.r_[[0.01] * 4, sphi] ** 2)
+    q = np.r_[Q_VEL ** 2, 0.0, Q_VEL ** 2, 0.0, [Q_ATT ** 2] * (states - 4)]
+    return Tuning(P0, np.diag(q) * T, _R(cfg))
+
+
+def stop_tuning(cfg: SledConfig, p_run_phiy: np.ndarray) -> Tuning:
+    """§6.2: P0 = diag(0.005, 0.005, 0.005, 0.001, 3e-4, sqrt(P_run,φy + 1e-8))², same q, R.
+
+    ``p_run_phiy`` (S,) is the run filter's final φ_y variance, so P0 is per seed (S,6,6).
+    """
+    S = len(p_run_phiy)
+    if cfg.tuning == "paper":
+        return Tuning(np.broadcast_to(np.eye(6), (S, 6, 6)).copy(), 1e-9 * np.eye(6), 1e6 * np.eye(4))
+    T = cfg.period_ms / 1000.0
+    sig = np.zeros((S, 6))
+    sig[:] = [0.005, 0.005, 0.005, 0.001, 3e-4, 0.0]
+    sig[:, 5] = np.sqrt(p_run_phiy + 1e-4 ** 2)
+    P0 = np.einsum("si,ij->sij", sig ** 2, np.eye(6))
+    q = np.r_[Q_VEL ** 2, 0.0, Q_VEL ** 2, 0.0, Q_ATT ** 2, Q_ATT ** 2]
+    return Tuning(P0, np.diag(q) * T, _R(cfg))
+
+
+def discretise(F: np.ndarray, T: float) -> np.ndarray:
+    """Φ = I + F T + (F T)²/2 (§6), batched."""
+    FT = F * T
+    return np.eye(F.shape[-1]) + FT + FT @ FT / 2
+
+
+@nb.njit(cache=True)
+def _kalman(Phis, z, x0, P0, Qd, R, xs, sig, Pout):
+    """Plain loops (fast to compile): predict, then update with H = [I₄ 0] via a Cholesky
+    solve of the 4×4 innovation covariance, then symmetrise."""
+    S, J, n = Phis.shape[0], Phis.shape[1], Phis.shape[2]
+    x = np.empty(n)
+    xn = np.empty(n)
+    P = np.empty((n, n))
+    T = np.empty((n, n))
+    Sm = np.empty((4, 4))
+    L = np.empty((4, 4))
+    K = np.empty((n, 4))
+    innov = np.empty(4)
+    for s in range(S):
+        x[:] = x0[s]
+        P[:, :] = P0[s]
+        for i in range(n):
+            xs[s, 0, i] = x[i]
+            sig[s, 0, i] = np.sqrt(P[i, i])
+        for j in range(J):
+            Phi = Phis[s, j]
+            for a in range(n):
+                acc = 0.0
+                for b in range(n):
+                    acc += Phi[a, b] * x[b]
+                xn[a] = acc
+            x[:] = xn
+            for a in range(n):                      # T = Phi P
+                for b in range(n):
+                    acc = 0.0
+                    for c in range(n):
+                        acc += Phi[a, c] * P[c, b]
+                    T[a, b] = acc
+            for a in range(n):                      # P = T Phiᵀ + Q
+                for b in range(n):
+                    acc = 0.0
+                    for c in range(n):
+                        acc += T[a, c] * Phi[b, c]
+                    P[a, b] = acc + Qd[a, b]
+            for a in range(4):
+                for b in range(4):
+                    Sm[a, b] = P[a, b] + R[a, b]
+            for a in range(4):                      # Cholesky Sm = L Lᵀ
+                for b in range(a + 1):
+                    acc = Sm[a, b]
+                    for c in range(b):
+                        acc -= L[a, c] * L[b, c]
+                    if a == b:
+                        L[a, a] = np.sqrt(acc)
+                    else:
+                        L[a, b] = acc / L[b, b]
+                for b in range(a + 1, 4):
+                    L[a, b] = 0.0
+            for a in range(n):                      # K row a: solve Sm k = P[a, :4]
+                for b in range(4):
+                    acc = P[a, b]
+                    for c in range(b):
+                        acc -= L[b, c] * K[a, c]
+                    K[a, b] = acc / L[b, b]
+                for b in range(3, -1, -1):
+                    acc = K[a, b]
+                    for c in range(b + 1, 4):
+                        acc -= L[c, b] * K[a, c]
+                    K[a, b] = acc / L[b, b]
+            for b in range(4):
+                innov[b] = z[s, j, b] - x[b]
+            for a in range(n):
+                acc = 0.0
+                for b in range(4):
+                    acc += K[a, b] * innov[b]
+                x[a] += acc
+            for a in range(n):                      # P = P − K P[:4, :]
+                for b in range(n):
+                    acc = 0.0
+                    for c in range(4):
+                        acc += K[a, c] * P[c, b]
+                    T[a, b] = P[a, b] - acc
+            for a in range(n):
+                for b in range(n):
+                    P[a, b] = 0.5 * (T[a, b] + T[b, a])
+            for i in range(n):
+                xs[s, j + 1, i] = x[i]
+                sig[s, j + 1, i] = np.sqrt(max(P[i, i], 0.0))
+        Pout[s] = P
+
+
+def kalman(Fs: np.ndarray, z: np.ndarray, x0: np.ndarray, tun: Tuning, T: float) -> FilterOut:
+    """Open-loop linear KF over epochs: ``Fs`` (S,J,n,n) per prediction, ``z`` (S,J,4) per update.
+
+    ``x0`` (S,n) and ``tun.P0`` ((n,n) or (S,n,n)) are the state at epoch 0. Returns the
+    posteriors at epochs 0 … J (one numba kernel looping over seeds and epochs).
+    """
+    S, J, n = Fs.shape[0], Fs.shape[1], Fs.shape[-1]
+    P0 = np.ascontiguousarray(np.broadcast_to(tun.P0, (S, n, n)), dtype=np.float64)
+    xs = np.empty((S, J + 1, n))
+    sig = np.empty((S, J + 1, n))
+    P = np.empty((S, n, n))
+    _kalman(np.ascontiguousarray(discretise(Fs, T)), np.ascontiguousarray(z, dtype=np.float64),
+            np.ascontiguousarray(x0, dtype=np.float64), P0, np.ascontiguousarray(tun.Qd, dtype=np.float64),
+            np.ascontiguousarray(tun.R, dtype=np.float64), xs, sig, P)
+    return FilterOut(xs, sig, P)
+
+
+def epoch_mean(fl: np.ndarray, m: int, j0: int, j1: int) -> np.ndarray:
+    """Mean computed specific force over the samples of predictions j0+1 … j1 (S, j1−j0, 3)."""
+    seg = fl[:, m * j0:m * j1]
+    return seg.reshape(seg.shape[0], j1 - j0, m, 3).mean(axis=2)
+
+
+def run_filter(cfg: SledConfig, fl: np.ndarray, v: np.ndarray, r: np.ndarray, j_stop: int) -> FilterOut:
+    """Run filter from t = 0 to the stop epoch ``j_stop`` (§6.1), ``cfg.states`` states.
+
+    ``v, r`` navigation states (S,N+1,3); measurements ``[v_y, r_y, v_z, r_z]`` of the nav.
+    """
+    m, T = cfg.kf_every, cfg.period_ms / 1000.0
+    Fs = run_F(epoch_mean(fl, m, 0, j_stop), cfg.omega_ie, states=cfg.states)
+    k = m * np.arange(1, j_stop + 1)
+    z = np.stack([v[:, k, 1], r[:, k, 1], v[:, k, 2], r[:, k, 2]], axis=-1)
+    x0 = np.zeros((fl.shape[0], cfg.states))
+    return kalman(Fs, z, x0, run_tuning(cfg, cfg.states), T)
+
+
+def stop_filter(cfg: SledConfig, fl: np.ndarray, v: np.ndarray, r: np.ndarray, j_stop: int, j_end: int,
+                phi_y_run: np.ndarray, p_phi_y_run: np.ndarray) -> FilterOut:
+    """Stop (ZUPT) filter from ``j_stop`` to ``j_end`` (§6.2).
+
+    z = ``[v_y, r_y, v_x, r_x − r_x(t_stop)]``; initial state from the nav values at the stop,
+    δr_x = 0, φ_x = 0, φ_y = the run filter's final estimate.
+    """
+    m, T = cfg.kf_every, cfg.period_ms / 1000.0
+    ks = m * j_stop
+    Fs = stop_F(epoch_mean(fl, m, j_stop, j_end), cfg.omega_ie)
+    k = m * np.arange(j_stop + 1, j_end + 1)
+    z = np.stack([v[:, k, 1], r[:, k, 1], v[:, k, 0], r[:, k, 0] - r[:, ks, None, 0]], axis=-1)
+    x0 = np.zeros((fl.shape[0], 6))
+    x0[:, 0], x0[:, 1], x0[:, 2] = v[:, ks, 1], r[:, ks, 1], v[:, ks, 0]
+    x0[:, 5] = phi_y_run
+    return kalman(Fs, z, x0, stop_tuning(cfg, p_phi_y_run), T)

@@ -1,0 +1,191 @@
+"""Identification of a sled test: INS, run and stop filters, X compensation, metrics.
+
+docs/rocket-sled.md §4-8. Everything is batched over a leading seed axis (S); one record is
+S = 1. Times: navigation states at t_k (k = 0 … N−1, the record's rows; the state after the
+last sample is dropped so that "end" is the last row), filter epochs at k = m·j.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from .config import ARCSEC, G, SledConfig
+from .errmodel import propagate_run_model
+from .filters import FilterOut, run_filter, stop_filter
+from .ins import mechanise
+from .simulate import Truth
+from .trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class Identification:
+    """Results of :func:`identify` (SI units; arrays over seeds first)."""
+
+    cfg: SledConfig
+    traj: Trajectory
+    v: np.ndarray            # (S,N,3) navigation velocity at t_k
+    r: np.ndarray            # (S,N,3) navigation position at t_k
+    fl: np.ndarray           # (S,N,3) computed specific force
+    run: FilterOut
+    stop: FilterOut
+    j_stop: int
+    j_end: int
+    phi_run: np.ndarray      # (S,3) final run estimate [φ_x, φ_y, φ_z] (φ_x = NaN for 6 states), rad
+    sig_run: np.ndarray      # (S,3) its 1 sigma, rad
+    r_model: np.ndarray      # (S,n_stop+1,2) metric B model [δr_y, δr_z], m
+    x_con: np.ndarray        # (S,N) compensated X position (config's compensation), m
+    x_con_other: np.ndarray  # (S,N) the other compensation mode, m
+    nabla_x_hat: np.ndarray  # (S,) stop filter by-product ∇̂_x = g (φ̂_y^run − φ̂_y^stop), m/s^2
+
+    @property
+    def t_epochs(self) -> np.ndarray:
+        return np.arange(self.j_end + 1) * self.cfg.kf_every * self.cfg.dt
+
+
+def phi_columns(states: int) -> dict[str, int]:
+    """Index of φ_x, φ_y, φ_z in the run state (§6.1)."""
+    return {"phi_x": 4, "phi_y": 5, "phi_z": 6} if states == 7 else {"phi_y": 4, "phi_z": 5}
+
+
+def compensate_x(fl: np.ndarray, r_x: np.ndarray, v_x: np.ndarray, phi_hat: np.ndarray, dt: float):
+    """Open-loop X compensation (§7, eqs. 20-21) with φ̂ per sample (S,N,3) [φ_x, φ_y, φ_z].
+
+    ``Δa_x = f_y φ̂_z − f_z φ̂_y``; ``v^c = v − Σ Δa dt`` (Euler), ``r^c = r − trapezoid`` (the
+    INS's rules). ``r_x``, ``v_x`` (S,N) at t_k; returns r_x^c (S,N).
+    """
+    da = fl[..., 1] * phi_hat[..., 2] - fl[..., 2] * phi_hat[..., 1]
+    dv = np.concatenate([np.zeros((da.shape[0], 1)), np.cumsum(da * dt, axis=1)], axis=1)   # at t_0 … t_N
+    dr = np.concatenate([np.zeros((da.shape[0], 1)), np.cumsum((dv[:, :-1] + dv[:, 1:]) * 0.5 * dt, axis=1)], axis=1)
+    return r_x - dr[:, :r_x.shape[1]]
+
+
+def phi_per_sample(run: FilterOut, states: int, m: int, j_stop: int, n: int, mode: str) -> np.ndarray:
+    """φ̂(t_k) for the X compensation (§7, D6): realtime = latest run estimate held (zero-order
+    hold; the final one after the stop), post = the final run estimate from t = 0."""
+    S = run.x.shape[0]
+    cols = phi_columns(states)
+    est = np.zeros((S, j_stop + 1, 3))
+    for name, i in cols.items():
+        est[..., "xyz".index(name[-1])] = run.x[:, :, i]
+    if mode == "post":
+        return np.broadcast_to(est[:, -1:, :], (S, n, 3))
+    j = np.minimum(np.arange(n) // m, j_stop)
+    return est[:, j, :]
+
+
+def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray) -> Identification:
+    """Run §4-7 on recorded samples f, ω (S,N,3) in the record's body axes (Ĉ_0 = I)."""
+    m, N = cfg.kf_every, traj.n
+    v, r, fl = mechanise(f, w, np.zeros((f.shape[0], 3)), cfg.omega_ie, cfg.dt)
+    v, r = v[:, :N], r[:, :N]
+    j_stop = -(-traj.n_stop // m)
+    j_end = (N - 1) // m
+    run = run_filter(cfg, fl, v, r, j_stop)
+    cols = phi_columns(cfg.states)
+    S = f.shape[0]
+    phi_run = np.full((S, 3), np.nan)
+    sig_run = np.full((S, 3), np.nan)
+    for name, i in cols.items():
+        phi_run[:, "xyz".index(name[-1])] = run.x[:, -1, i]
+        sig_run[:, "xyz".index(name[-1])] = run.sigma[:, -1, i]
+    iy = cols["phi_y"]
+    stop = stop_filter(cfg, fl, v, r, j_stop, j_end, run.x[:, -1, iy], run.P[:, iy, iy])
+    phi_b = np.nan_to_num(phi_run)
+    r_model = propagate_run_model(fl[:, :traj.n_stop], cfg.omega_ie, phi_b, cfg.states, cfg.dt)
+    xc = {mode: compensate_x(fl, r[..., 0], v[..., 0], phi_per_sample(run, cfg.states, m, j_stop, N, mode), cfg.dt)
+          for mode in ("realtime", "post")}
+    other = "post" if cfg.compensation == "realtime" else "realtime"
+    nabla = G * (run.x[:, -1, iy] - stop.x[:, -1, 5])
+    return Identification(cfg=cfg, traj=traj, v=v, r=r, fl=fl, run=run, stop=stop, j_stop=j_stop, j_end=j_end,
+                          phi_run=phi_run, sig_run=sig_run, r_model=r_model, x_con=xc[cfg.compensation],
+                          x_con_other=xc[other], nabla_x_hat=nabla)
+
+
+def effective_phi(truth: Truth) -> np.ndarray:
+    """Effective (apparent) attitude the filters estimate (§5, §8), rad (S,3):
+    [φ_x + ∇_y/g (at rest), φ_y + M_zx, φ_z − M_yx]."""
+    p = truth.params
+    return np.stack([p.phi0[:, 0] + truth.nabla_static[:, 1] / G, p.phi0[:, 1] + p.M[:, 2, 0],
+                     p.phi0[:, 2] - p.M[:, 1, 0]], axis=1)
+
+
+def after_a(idn: Identification) -> dict[str, np.ndarray]:
+    """Metric A (§8): nav minus the filter's position-error estimate at the epochs (S,J)."""
+    m = idn.cfg.kf_every
+    kr = m * np.arange(idn.j_stop + 1)
+    ks = m * np.arange(idn.j_stop, idn.j_end + 1)
+    return {"y_run": idn.r[:, kr, 1] - idn.run.x[:, :, 1], "z_run": idn.r[:, kr, 2] - idn.run.x[:, :, 3],
+            "y_static": idn.r[:, ks, 1] - idn.stop.x[:, :, 1]}
+
+
+def after_b(idn: Identification) -> np.ndarray:
+    """Metric B (§8): nav minus the model driven by the final run estimate, run phase (S,n_stop+1,2)."""
+    n = idn.traj.n_stop + 1
+    rr = np.concatenate([idn.r, idn.r[:, -1:]], axis=1)[:, :n, 1:]
+    return rr - idn.r_model
+
+
+def metrics(idn: Identification, truth: Truth | None) -> pd.DataFrame:
+    """Per-seed metrics of §8 with the keys of §10 (cm, arcsec, µg; absolute values)."""
+    tr, ns = idn.traj, idn.traj.n_stop
+    S = idn.r.shape[0]
+    a = after_a(idn)
+    b = after_b(idn)
+    yz = np.abs(idn.r[..., 1:])
+    out = {
+        "stop_time_s": np.full(S, tr.stop_time_s), "run_length_m": np.full(S, tr.run_length_m),
+        "v_max_m_s": np.full(S, tr.v_max_m_s),
+        "yz_before_max_run_cm": 100 * yz[:, :ns + 1].max(axis=(1, 2)),
+        "yz_before_max_all_cm": 100 * yz.max(axis=(1, 2)),
+        "yz_before_stop_cm": 100 * yz[:, ns].max(axis=1),
+        "y_after_a_max_run_cm": 100 * np.abs(a["y_run"]).max(axis=1),
+        "z_after_a_max_run_cm": 100 * np.abs(a["z_run"]).max(axis=1),
+        "y_after_a_max_static_cm": 100 * np.abs(a["y_static"]).max(axis=1),
+        "y_after_b_max_run_cm": 100 * np.abs(b[..., 0]).max(axis=1),
+        "z_after_b_max_run_cm": 100 * np.abs(b[..., 1]).max(axis=1),
+        "nabla_x_hat_ug": idn.nabla_x_hat / G * 1e6,
+    }
+    if truth is not None:
+        e_naive = idn.r[..., 0] - truth.x_inst
+        e_con = idn.x_con - truth.x_inst
+        e_oth = idn.x_con_other - truth.x_inst
+        e_inst = truth.x_inst - truth.x_true
+        other = "post" if idn.cfg.compensation == "realtime" else "realtime"
+        out.update({
+            "x_naive_stop_cm": 100 * np.abs(e_naive[:, ns]), "x_constrained_stop_cm": 100 * np.abs(e_con[:, ns]),
+            "x_naive_end_cm": 100 * np.abs(e_naive[:, -1]), "x_constrained_end_cm": 100 * np.abs(e_con[:, -1]),
+            "x_naive_max_run_cm": 100 * np.abs(e_naive[:, :ns + 1]).max(axis=1),
+            "x_constrained_max_run_cm": 100 * np.abs(e_con[:, :ns + 1]).max(axis=1),
+            f"x_{other}_stop_cm": 100 * np.abs(e_oth[:, ns]), f"x_{other}_end_cm": 100 * np.abs(e_oth[:, -1]),
+            "x_inst_stop_cm": 100 * np.abs(e_inst[:, ns]), "x_inst_end_cm": 100 * np.abs(e_inst[:, -1]),
+        })
+        eff = effective_phi(truth)
+        for i, ax in enumerate("xyz"):
+            out[f"phi_{ax}_eff_err_arcsec"] = np.abs(idn.phi_run[:, i] - eff[:, i]) / ARCSEC
+            out[f"phi_{ax}_true_err_arcsec"] = np.abs(idn.phi_run[:, i] - truth.params.phi0[:, i]) / ARCSEC
+            out[f"phi_{ax}_sigma_arcsec"] = idn.sig_run[:, i] / ARCSEC
+            out[f"phi0_{ax}_arcsec"] = truth.params.phi0[:, i] / ARCSEC          # signed: the drawn value
+        out["nabla_x_err_ug"] = np.abs(idn.nabla_x_hat - truth.nabla_static[:, 0]) / G * 1e6
+    return pd.DataFrame(out)
+
+
+def estimates(idn: Identification, truth: Truth | None, s: int = 0) -> pd.DataFrame:
+    """estimates.csv of one seed slot: run-filter attitude (arcsec) with sigma, truth, effective;
+    the stop filter's φ_x, φ_y and the by-product ∇̂_x (µg)."""
+    eff = effective_phi(truth)[s] if truth is not None else np.full(3, np.nan)
+    tru = truth.params.phi0[s] if truth is not None else np.full(3, np.nan)
+    rows = []
+    for i, ax in enumerate("xyz"):
+        rows.append({"name": f"phi_{ax}", "filter": "run", "unit": "arcsec", "estimate": idn.phi_run[s, i] / ARCSEC,
+                     "sigma": idn.sig_run[s, i] / ARCSEC, "truth": tru[i] / ARCSEC, "effective": eff[i] / ARCSEC})
+    for i, ax in ((4, "x"), (5, "y")):
+        rows.append({"name": f"phi_{ax}", "filter": "stop", "unit": "arcsec", "estimate": idn.stop.x[s, -1, i] / ARCSEC,
+                     "sigma": idn.stop.sigma[s, -1, i] / ARCSEC, "truth": tru["xyz".index(ax)] / ARCSEC,
+                     "effective": np.nan})
+    nab = truth.nabla_static[s, 0] / G * 1e6 if truth is not None else np.nan
+    rows.append({"name": "nabla_x", "filter": "stop", "unit": "ug", "estimate": idn.nabla_x_hat[s] / G * 1e6,
+                 "sigma": np.nan, "truth": nab, "effective": np.nan})
+    return pd.DataFrame(rows)

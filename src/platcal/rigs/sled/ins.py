@@ -1,0 +1,111 @@
+"""Strapdown mechanisation in the Earth-fixed track frame (docs/rocket-sled.md §4), batched.
+
+Per IMU step k (first order, identical in the truth and the erroneous runs)::
+
+    f_l     = Ĉ_k f̃_k
+    v_{k+1} = v_k + (f_l − 2 ω_ie × v_k + g^l) dt
+    r_{k+1} = r_k + (v_k + v_{k+1})/2 dt
+    Ĉ_{k+1} = exp(−[ω_ie dt ×]) Ĉ_k exp([ω̃_k dt ×])     (Rodrigues)
+    Ĉ_0     = exp(−[φ0 ×]),  v_0 = r_0 = 0
+
+One numba kernel loops over seeds (leading axis) and samples.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from .config import G
+
+
+@nb.njit(cache=True)
+def _rodrigues(ax, ay, az, out):
+    """exp([a×]) into ``out`` (3×3); series for tiny angles."""
+    th2 = ax * ax + ay * ay + az * az
+    if th2 < 1e-16:
+        s = 1.0 - th2 / 6.0
+        c = 0.5 - th2 / 24.0
+    else:
+        th = np.sqrt(th2)
+        s = np.sin(th) / th
+        c = (1.0 - np.cos(th)) / th2
+    # I + s K + c K², K = [a×]
+    out[0, 0] = 1.0 + c * (-(ay * ay + az * az))
+    out[1, 1] = 1.0 + c * (-(ax * ax + az * az))
+    out[2, 2] = 1.0 + c * (-(ax * ax + ay * ay))
+    out[0, 1] = -s * az + c * ax * ay
+    out[1, 0] = s * az + c * ax * ay
+    out[0, 2] = s * ay + c * ax * az
+    out[2, 0] = -s * ay + c * ax * az
+    out[1, 2] = -s * ax + c * ay * az
+    out[2, 1] = s * ax + c * ay * az
+
+
+@nb.njit(cache=True)
+def _mechanise(f, w, phi0, wie, g, dt, v_out, r_out, fl_out):
+    S, N = f.shape[0], f.shape[1]
+    E = np.empty((3, 3))
+    _rodrigues(-wie[0] * dt, -wie[1] * dt, -wie[2] * dt, E)
+    C = np.empty((3, 3))
+    D = np.empty((3, 3))
+    T = np.empty((3, 3))
+    for s in range(S):
+        _rodrigues(-phi0[s, 0], -phi0[s, 1], -phi0[s, 2], C)
+        v0 = 0.0
+        v1 = 0.0
+        v2 = 0.0
+        r0 = 0.0
+        r1 = 0.0
+        r2 = 0.0
+        v_out[s, 0, :] = 0.0
+        r_out[s, 0, :] = 0.0
+        for k in range(N):
+            fx = C[0, 0] * f[s, k, 0] + C[0, 1] * f[s, k, 1] + C[0, 2] * f[s, k, 2]
+            fy = C[1, 0] * f[s, k, 0] + C[1, 1] * f[s, k, 1] + C[1, 2] * f[s, k, 2]
+            fz = C[2, 0] * f[s, k, 0] + C[2, 1] * f[s, k, 1] + C[2, 2] * f[s, k, 2]
+            fl_out[s, k, 0] = fx
+            fl_out[s, k, 1] = fy
+            fl_out[s, k, 2] = fz
+            # Coriolis −2 ω × v
+            cx = -2.0 * (wie[1] * v2 - wie[2] * v1)
+            cy = -2.0 * (wie[2] * v0 - wie[0] * v2)
+            cz = -2.0 * (wie[0] * v1 - wie[1] * v0)
+            n0 = v0 + (fx + cx) * dt
+            n1 = v1 + (fy + cy) * dt
+            n2 = v2 + (fz + cz - g) * dt
+            r0 += (v0 + n0) * 0.5 * dt
+            r1 += (v1 + n1) * 0.5 * dt
+            r2 += (v2 + n2) * 0.5 * dt
+            v0, v1, v2 = n0, n1, n2
+            v_out[s, k + 1, 0] = v0
+            v_out[s, k + 1, 1] = v1
+            v_out[s, k + 1, 2] = v2
+            r_out[s, k + 1, 0] = r0
+            r_out[s, k + 1, 1] = r1
+            r_out[s, k + 1, 2] = r2
+            # attitude: C ← E C exp([ω̃ dt×])
+            _rodrigues(w[s, k, 0] * dt, w[s, k, 1] * dt, w[s, k, 2] * dt, D)
+            for i in range(3):
+                for j in range(3):
+                    T[i, j] = C[i, 0] * D[0, j] + C[i, 1] * D[1, j] + C[i, 2] * D[2, j]
+            for i in range(3):
+                for j in range(3):
+                    C[i, j] = E[i, 0] * T[0, j] + E[i, 1] * T[1, j] + E[i, 2] * T[2, j]
+
+
+def mechanise(f: np.ndarray, w: np.ndarray, phi0: np.ndarray, omega_ie: np.ndarray, dt: float):
+    """Navigate IMU samples f̃, ω̃ (S,N,3; m/s^2, rad/s) from attitude error φ0 (S,3; rad).
+
+    Returns ``v, r`` (S,N+1,3; m/s, m, at t_0 … t_N) and the computed specific force
+    ``f_l = Ĉ_k f̃_k`` (S,N,3; m/s^2) per interval.
+    """
+    f = np.ascontiguousarray(f, dtype=np.float64)
+    w = np.ascontiguousarray(np.broadcast_to(w, f.shape), dtype=np.float64)
+    phi0 = np.ascontiguousarray(np.broadcast_to(phi0, (f.shape[0], 3)), dtype=np.float64)
+    S, N = f.shape[:2]
+    v = np.empty((S, N + 1, 3))
+    r = np.empty((S, N + 1, 3))
+    fl = np.empty((S, N, 3))
+    _mechanise(f, w, phi0, np.asarray(omega_ie, dtype=np.float64), G, float(dt), v, r, fl)
+    return v, r, fl

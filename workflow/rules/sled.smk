@@ -1,0 +1,92 @@
+# Rig 3, the rocket-sled one-dimensional motion constraint (docs/rocket-sled.md; issue 11).
+# Reads its config from config["rigs"]["sled"]; defines SLED_TARGETS (results/sled/..., ending
+# with results/sled/report.md), or an empty list when the key is absent.
+# One job per study case (6- vs 7-state, realtime vs post, misalignment 0, paper tuning), one
+# for the rank table, one for the summary (Table-1 analogue, checks, figures, report.md).
+from pathlib import Path as _SledPath
+
+from snakemake.exceptions import WorkflowError as _SledWorkflowError
+
+from platcal.errors import InputError as _SledInputError
+from platcal.io import read_yaml as _sled_read_yaml
+from platcal.rigs.sled.config import load_config as _sled_load_config
+from platcal.rigs.sled.study import code_hash as _sled_code_hash
+
+SLED_TARGETS = []
+_SLED_CFG_PATH = config.get("rigs", {}).get("sled")
+if _SLED_CFG_PATH:
+    try:
+        SLED_RAW = _sled_read_yaml(_SledPath(_SLED_CFG_PATH).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise _SledWorkflowError(f"invalid configuration: rigs.sled: cannot read {_SLED_CFG_PATH} ({exc})")
+    try:
+        _SLED_STUDY = _sled_load_config(SLED_RAW).study
+    except _SledInputError as exc:
+        raise _SledWorkflowError(f"invalid configuration: {_SLED_CFG_PATH}: {exc.field}: {exc.message}")
+    SLED_CASES = list(_SLED_STUDY["cases"])
+    SLED_CODE = _sled_code_hash()
+    SLED_TARGETS = [
+        "results/sled/table1.md",
+        "results/sled/checks.md",
+        "results/sled/rank_table.md",
+        "results/sled/figures/yz_before_after.png",
+        "results/sled/figures/x_error.png",
+        "results/sled/figures/attitude.png",
+        "results/sled/report.md",
+    ]
+
+    rule sled_case:
+        output:
+            metrics="results/sled/cases/{case}/metrics.csv",
+            series="results/sled/cases/{case}/series.csv",
+        params:
+            raw=SLED_RAW,
+            seeds=_SLED_STUDY["seeds"],
+            code=SLED_CODE,
+        wildcard_constraints:
+            case="|".join(SLED_CASES),
+        threads: 1
+        conda:
+            "../envs/platcal.yaml"
+        log:
+            "results/logs/sled/case_{case}.log",
+        script:
+            "../scripts/sled_case.py"
+
+    rule sled_observability:
+        output:
+            "results/sled/rank_table.csv",
+            "results/sled/rank_table.md",
+            "results/sled/rank_table.html",
+        params:
+            raw=SLED_RAW,
+            code=SLED_CODE,
+        conda:
+            "../envs/platcal.yaml"
+        log:
+            "results/logs/sled/observability.log",
+        script:
+            "../scripts/sled_observability.py"
+
+    rule sled_summary:
+        input:
+            metrics=expand("results/sled/cases/{case}/metrics.csv", case=SLED_CASES),
+            series=expand("results/sled/cases/{case}/series.csv", case=SLED_CASES),
+            ranks="results/sled/rank_table.csv",
+        output:
+            "results/sled/table1.md",
+            "results/sled/checks.md",
+            "results/sled/figures/yz_before_after.png",
+            "results/sled/figures/x_error.png",
+            "results/sled/figures/attitude.png",
+            report="results/sled/report.md",
+        params:
+            raw=SLED_RAW,
+            cases=SLED_CASES,
+            code=SLED_CODE,
+        conda:
+            "../envs/platcal.yaml"
+        log:
+            "results/logs/sled/summary.log",
+        script:
+            "../scripts/sled_summary.py"

@@ -1,0 +1,12 @@
+"""Snakemake wrapper: sled Table-1 analogue, §11 checks, figures and report.md (study.summarise)."""
+from pathlib import Path
+
+from platcal.log import job_logger
+from platcal.rigs.sled.study import summarise
+
+sm = snakemake  # noqa: F821
+log = job_logger(sm.log[0], "platcal.sled")
+cases = list(sm.params.cases)
+summarise(dict(zip(cases, sm.input.metrics)), dict(zip(cases, sm.input.series)), sm.input.ranks,
+          Path(sm.output.report).parent, dict(sm.params.raw))
+log.info(f"sled summary of {len(cases)} cases -> {sm.output.report}")

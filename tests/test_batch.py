@@ -5,16 +5,22 @@ dwell time."""
 import numpy as np
 import pytest
 
-from platcal import kalman, platform
-from platcal.centrifuge import Centrifuge, specific_force
-from platcal.ekf import FilterSettings, run_ekf
-from platcal.instruments import full_truth
+from platcal.estimation import kalman
+from platcal.model import attitude as platform
+from platcal.rigs.centrifuge.base import Centrifuge, specific_force
+from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
+from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.parallel import get_threads, max_threads, set_threads, threads
-from platcal.scheme import TABLE1_POSITIONS, check_scheme
-from platcal.simulate import Noise, simulate
+from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS, check_scheme
+from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 CEN = Centrifuge()
 RTOL = 1e-10
+
+
+def _fr3(t, h, params):
+    """The base specific force at an RK4 step's start, middle and end (m/s^2)."""
+    return np.stack([specific_force(t + c * h, params) for c in (0.0, 0.5, 1.0)])
 
 
 def _scheme(dwell=2.0, positions=TABLE1_POSITIONS):
@@ -136,7 +142,7 @@ def test_scalar_model_kernels_equal_reference(seed):
     coef = full_truth() * rng.uniform(0.5, 2, 48)
     coef[45:] = rng.uniform(-0.1, 0.1, 3)
     t, h = rng.uniform(0, 60), 0.02
-    out, pa, pc = platform.rk4(ang, coef, t, h, params)
+    out, pa, pc = platform.rk4(ang, coef, _fr3(t, h, params), h, params)
     fr3 = np.stack([specific_force(t + c * h, params) for c in (0.0, 0.5, 1.0)])
     o2, pa2, pg2 = np.empty(3), np.empty((3, 3)), np.empty((3, platform.N_GYRO))
     platform.rk4_jac_sc(ang, coef, fr3, h, params, o2, pa2, pg2, platform.make_sc_rk4_scratch())
@@ -148,7 +154,7 @@ def test_scalar_model_kernels_equal_reference(seed):
     o3 = np.empty(3)
     platform.rk4_scalar(ang, coef, fr3, h, params, o3)
     np.testing.assert_allclose(o3, out, rtol=0, atol=1e-15)
-    A, hc, ha = platform.measure(ang, coef, t, params)
+    A, hc, ha = platform.measure(ang, coef, specific_force(t, params), params)
     for r in range(3):
         cols = platform.MEAS_COLS[r][platform.MEAS_COLS[r] >= 0]
         assert set(np.flatnonzero(hc[r])) == set(cols)
@@ -238,7 +244,7 @@ def _dense_ekf(z, t, cmd_rad, params, settings):
             if m > 0:
                 h = t[k][m] - t[k][m - 1]
                 coef[idx] = x[:nc]
-                ang, pa, pc = platform.rk4(x[nc:], coef, t[k][m - 1], h, params[k])
+                ang, pa, pc = platform.rk4(x[nc:], coef, _fr3(t[k][m - 1], h, params[k]), h, params[k])
                 F = np.eye(n)
                 F[nc:, :nc] = pc[:, idx]
                 F[nc:, nc:] = pa
@@ -246,7 +252,7 @@ def _dense_ekf(z, t, cmd_rad, params, settings):
                 P = F @ P @ F.T
                 P[nc:, nc:] += np.eye(3) * q * h
             coef[idx] = x[:nc]
-            A, hc, ha = platform.measure(x[nc:], coef, t[k][m], params[k])
+            A, hc, ha = platform.measure(x[nc:], coef, specific_force(t[k][m], params[k]), params[k])
             H = np.hstack([hc[:, idx], ha])
             S = H @ P @ H.T + R
             K = P @ H.T @ np.linalg.inv(S)
@@ -262,7 +268,7 @@ def test_sparse_batched_ekf_equals_dense_ekf(estimate_doo):
     scheme = _scheme(0.4, positions)
     truth = full_truth({"DOO_x": 0.05}) if estimate_doo else full_truth()
     sim = _sim(scheme, range(2), truth)
-    from platcal.ekf import default_p0_sigma
+    from platcal.rigs.centrifuge.ekf import default_p0_sigma
     s = FilterSettings(estimate_doo=estimate_doo, p0_sigma=default_p0_sigma(estimate_doo))
     est = _ekf(scheme, sim, s)
     params = CEN.scheme_params(scheme)

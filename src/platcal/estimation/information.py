@@ -4,7 +4,7 @@ Correlations and the paper's correlation sum J (docs/centrifuge-model.md §10, e
 A-, D- and maxrel design criteria, the posterior covariance and Cramer-Rao bound from a Fisher
 information in normalised units (coefficient / its prior sigma), and the numerical rank of a
 Gram matrix. Every function takes arrays only: a rig supplies the covariance or the information
-of its own test (the centrifuge: :mod:`platcal.rigs.centrifuge.observability`).
+of its own test (e.g. from a covariance-only run of its filter).
 """
 
 from __future__ import annotations

@@ -6,11 +6,11 @@ One source for every rig and every kernel: the scalar helpers (:func:`gyro_axis_
 :func:`accel_slopes`) hold the error terms; the array kernels (:func:`gyro_drift_into`,
 :func:`accel_output_into`) and the fast scalar kernels of :mod:`platcal.model.attitude` call them.
 
-The *full coefficient vector* has 48 entries: the 45 identified coefficients in Table 2's
-order (``DF_x`` ... ``theta_oz``), then ``DOO_x, DOO_y, DOO_z`` which the truth may carry but
-the paper's filter does not identify (eqs. 19-22). Units are those of Table 2: gyro terms in
-deg/h, deg/h/g, deg/h/g^2; accelerometer terms in ug, ug/g, ug/g^2, ug/g^3; misalignments in
-arcsec. Specific force arguments ``f`` are in g.
+The *full coefficient vector* has 48 entries: the 45 identified coefficients in the order of
+the paper's results table (``DF_x`` ... ``theta_oz``), then ``DOO_x, DOO_y, DOO_z`` which the
+truth may carry but the paper's filter does not identify (eqs. 19-22). Units are those of the
+paper's results table: gyro terms in deg/h, deg/h/g, deg/h/g^2; accelerometer terms in ug,
+ug/g, ug/g^2, ug/g^3; misalignments in arcsec. Specific force arguments ``f`` are in g.
 """
 
 from __future__ import annotations
@@ -59,9 +59,9 @@ def _names() -> tuple[str, ...]:
 
 
 FULL_NAMES: tuple[str, ...] = _names()
-"""The 48 coefficient names: Table 2's 45, then DOO_x, DOO_y, DOO_z."""
+"""The 48 coefficient names: the 45 identified ones, then DOO_x, DOO_y, DOO_z."""
 NAMES: tuple[str, ...] = FULL_NAMES[:N_IDENTIFIED]
-"""The 45 identified coefficients in Table 2's order."""
+"""The 45 identified coefficients (DF_x ... theta_oz), in the paper's order."""
 INDEX = {n: i for i, n in enumerate(FULL_NAMES)}
 
 

@@ -263,8 +263,9 @@ def compute_code_hash(rig: Rig) -> str:
     """Code hash of what a rig's Monte Carlo cells compute: the import closure of its hooks'
     module and of this runner, and the rig's package data (config schema, tables). Edits to its
     figures, reports or design code leave the cells alone."""
-    mods = module_closure([type(rig.montecarlo).__module__, __name__])
-    pkg = _module_file(f"platcal.rigs.{rig.name}").parent
+    hooks_module = type(rig.montecarlo).__module__
+    mods = module_closure([hooks_module, __name__])
+    pkg = _module_file(hooks_module.rpartition(".")[0]).parent
     data = [p.relative_to(_package_root()).as_posix() for p in sorted((pkg / "data").glob("*"))
             if p.suffix in (".csv", ".yaml")]
     return code_hash(mods, data)

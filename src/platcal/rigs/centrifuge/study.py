@@ -237,6 +237,39 @@ class CentrifugeMonteCarlo:
 
 
 # ---------------------------------------------------------------------------------------------
+# what the workflow's centrifuge rules depend on (their params) and build
+
+
+DESIGN_KEYS = MODEL_KEYS + ("schemes", "design")
+"""Config sections every design number depends on (model, filter, truth, schemes, design)."""
+
+NO_DESIGN = {"study": {"criteria": [], "n_criteria": [], "n_positions": []}, "positions": 6}
+"""The design section's shape when the centrifuge is not in the study (no design rules run)."""
+
+
+def single_params(cfg: dict) -> dict:
+    """What the single run's numbers depend on: the model, the single-run settings, the
+    estimators and its scheme."""
+    p = {k: cfg[k] for k in MODEL_KEYS}
+    p["single"] = cfg["study"]["single"]
+    p["estimators"] = cfg["study"]["estimators"]
+    p["scheme"] = builtin_scheme(cfg, cfg["study"]["single"]["scheme"]).as_dict()
+    return p
+
+
+def design_targets(cases: list[str], dcfg: dict) -> list[str]:
+    """The design outputs (under ``results/centrifuge/``) the default target builds: the full
+    design report, or the criteria comparison alone, when the sweep uses a GA scheme."""
+    if not any(is_generated(c, {}) for c in cases):
+        return []
+    if dcfg["study"]["report"]:
+        return ["design/report.md"]
+    if dcfg["study"]["compare"]:
+        return [f"design/compare/{f}" for f in ("schemes.csv", "spearman.csv", "criteria_vs_accuracy.png")]
+    return []
+
+
+# ---------------------------------------------------------------------------------------------
 # the single run behind Table 2 and the convergence figure
 
 

@@ -223,6 +223,64 @@ def test_joseph_update_sparse_equals_dense_joseph():
     assert nu @ nu == pytest.approx(nis_ref, rel=1e-12)
 
 
+@pytest.mark.parametrize("m", [1, 2, 4])
+def test_joseph_update_sparse_any_measurement_size(m):
+    """The update is dimension-agnostic: m = 1, 2, 4 against the dense Joseph form."""
+    rng = np.random.default_rng(60 + m)
+    n = 10
+    P = _spd(n, rng)
+    x = rng.normal(size=n)
+    w = 3
+    hcols = np.stack([rng.choice(n, size=w, replace=False) for _ in range(m)])
+    hnnz = rng.integers(1, w + 1, size=m)
+    hval = rng.normal(size=(m, w))
+    H = np.zeros((m, n))
+    for r in range(m):
+        H[r, hcols[r, :hnnz[r]]] = hval[r, :hnnz[r]]
+    R = np.diag(rng.uniform(0.2, 0.6, m))
+    innov = rng.normal(size=m)
+    S = H @ P @ H.T + R
+    K = P @ H.T @ np.linalg.inv(S)
+    IKH = np.eye(n) - K @ H
+    P_ref = IKH @ P @ IKH.T + K @ R @ K.T
+    x_ref = x + K @ innov
+    nu = np.empty(m)
+    ok = kalman.joseph_update_sparse(x, P, hcols, hnnz, hval, innov, np.diag(R).copy(), np.empty((m, n)),
+                                     np.empty((m, n)), np.empty((m, n)), np.empty((m, m)), np.empty((m, m)), nu, True)
+    assert ok
+    np.testing.assert_allclose(P, P_ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(x, x_ref, rtol=1e-12, atol=1e-12)
+    assert np.array_equal(P, P.T)
+    assert nu @ nu == pytest.approx(innov @ np.linalg.solve(S, innov), rel=1e-12)
+
+
+def test_written_out_update_equals_the_general_loops_for_m3():
+    """The m = 3 fast path gives the general path's numbers bit for bit."""
+    rng = np.random.default_rng(9)
+    n, m = 12, 3
+    U = rng.normal(size=(m, n))
+    S = _spd(m, rng)
+    Sinv = np.linalg.inv(S)
+    innov = rng.normal(size=m)
+    P0 = _spd(n, rng)
+    x0 = rng.normal(size=n)
+    out = []
+    for fn in (kalman._correct, kalman._correct3):
+        x, P, K, D = x0.copy(), P0.copy(), np.empty((m, n)), np.empty((m, n))
+        fn(x, P, innov, U, K, D, S, Sinv, True)
+        out.append((x, P, K, D))
+    for a, b in zip(*out):
+        assert np.array_equal(a, b)
+
+
+def test_cholesky_inverse_refuses_an_indefinite_s():
+    F, nu = np.empty((2, 2)), np.empty(2)
+    assert not kalman.cholesky_inverse(np.array([[1.0, 2.0], [2.0, 1.0]]), F, nu, np.zeros(2))
+    S = np.array([[4.0, 1.0], [1.0, 3.0]])
+    assert kalman.cholesky_inverse(S, F, nu, np.array([1.0, 2.0]))
+    np.testing.assert_allclose(F, np.linalg.inv(S), rtol=1e-14)
+
+
 def _dense_ekf(z, t, cmd_rad, params, settings):
     """Plain dense EKF (numpy, full Phi and H from the reference helpers, Joseph form): what the
     sparse batched kernel must reproduce."""

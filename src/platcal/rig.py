@@ -13,8 +13,10 @@ Where do I add a rig?
 2. Its name in :data:`RIG_MODULES`.
 3. ``docs/<spec>.md`` (its spec), ``config/<name>.yaml``, ``tests/<name>/``,
    ``benchmarks/bench_<name>.py``, ``workflow/rules/<name>.smk`` (its study; results under
-   ``results/<name>/``, ending in ``results/<name>/report.md``), and its entry in the
-   ``rigs:`` list of ``config/config.yaml``.
+   ``results/<name>/``, ending in ``results/<name>/report.md``; it reads its config with
+   :func:`rig_config` from ``config["rigs"]["<name>"]`` and defines ``<NAME>_TARGETS``, empty
+   when the rig is not in the index), its ``include:`` and targets in the ``Snakefile``, and its
+   entry in the ``rigs:`` index of ``config/config.yaml``.
 
 What a rig must provide (the fields of :class:`Rig`)
 ----------------------------------------------------
@@ -56,7 +58,8 @@ by giving ``montecarlo``, an object with (see :class:`MonteCarloHooks`):
   ``platcal.study.montecarlo.replicate_seed``), bit-identical whatever the batch size.
 
 The runner turns the batches into the tidy tables (one row per run x quantity, one row per run)
-that :mod:`platcal.study.stats` and :mod:`platcal.study.plots` work on.
+that :mod:`platcal.study.stats` and :mod:`platcal.study.plots` work on. The centrifuge's hooks
+(:class:`platcal.rigs.centrifuge.study.CentrifugeMonteCarlo`) are the worked example.
 """
 
 from __future__ import annotations
@@ -108,15 +111,13 @@ class RunSettings:
 class ReplicateBatch:
     """Estimates of B replicates of one cell, as a rig's ``run_batch`` returns them.
 
-    ``names``, ``groups``, ``units``, ``truth`` (n,) describe the n identified quantities;
-    ``estimate``, ``sigma`` (B, n) in their units; ``nees`` (B,) of the n errors (``nees_dof``
-    = n), ``mean_nis`` (B,), ``failed_updates`` (B,) and the number of filter ``passes``.
+    ``quantities``: the n identified quantities, one row each with ``name``, ``group``, ``unit``
+    and ``truth`` (as in ``Rig.catalogue()``); ``estimate`` and ``sigma`` (B, n) in their units;
+    ``nees`` (B,) of the n errors (``nees_dof`` = n), ``mean_nis`` (B,), ``failed_updates``
+    (B,) and the number of filter ``passes``.
     """
 
-    names: tuple[str, ...]
-    groups: tuple[str, ...]
-    units: tuple[str, ...]
-    truth: np.ndarray
+    quantities: pd.DataFrame
     estimate: np.ndarray
     sigma: np.ndarray
     nees: np.ndarray

@@ -38,10 +38,7 @@ def propagate_sparse(P, dyn, cols, phi, q, W, blk):
     n = P.shape[0]
     d = dyn.shape[0]
     m = cols.shape[0]
-    for r in range(d):
-        wr = W[r]
-        for j in range(n):
-            wr[j] = 0.0
+    W[:, :] = 0.0
     # rows of P are columns of P (symmetric): W[r] = sum_k phi[r, k] P[cols[k]] as axpys,
     # contiguous and vectorisable; with three dynamic states (attitude) one pass over each row
     # of P feeds all three
@@ -159,10 +156,9 @@ def joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv
     """
     n = P.shape[0]
     m = hnnz.shape[0]
+    U[:, :] = 0.0
     for r in range(m):
         ur = U[r]
-        for j in range(n):
-            ur[j] = 0.0
         for t in range(hnnz[r]):
             c = hval[r, t]
             prow = P[hcols[r, t]]
@@ -186,26 +182,29 @@ def joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv
 
 
 @njit(cache=True)
+def _small_times(M, A, out):
+    """``out = M A`` for a small (m, m) ``M`` and (m, n) ``A``, row by row (contiguous, vectorisable)."""
+    m = M.shape[0]
+    n = A.shape[1]
+    for c in range(m):
+        oc = out[c]
+        for j in range(n):
+            oc[j] = M[c, 0] * A[0, j]
+        for i in range(1, m):
+            for j in range(n):
+                oc[j] += M[c, i] * A[i, j]
+
+
+@njit(cache=True)
 def _correct(x, P, innov, U, K, D, S, Sinv, update_x):
     """``K = U S^-1``, ``D = U - K S``, ``x += K innov``, ``P -= K U^T + D K^T`` (lower, mirrored)."""
     n = P.shape[0]
     m = S.shape[0]
+    _small_times(Sinv, U, K)
+    _small_times(S, K, D)
     for c in range(m):
-        kc = K[c]
         for j in range(n):
-            kc[j] = Sinv[c, 0] * U[0, j]
-        for i in range(1, m):
-            for j in range(n):
-                kc[j] += Sinv[c, i] * U[i, j]
-    for c in range(m):
-        dc = D[c]
-        for j in range(n):
-            dc[j] = S[c, 0] * K[0, j]
-        for i in range(1, m):
-            for j in range(n):
-                dc[j] += S[c, i] * K[i, j]
-        for j in range(n):
-            dc[j] = U[c, j] - dc[j]
+            D[c, j] = U[c, j] - D[c, j]
     if update_x:
         for j in range(n):
             v = K[0, j] * innov[0]

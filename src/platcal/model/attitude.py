@@ -226,6 +226,22 @@ the only nonzero coefficient columns of the measurement Jacobian."""
 
 
 @njit(cache=True)
+def c_rp_sc(sa, ca, sb, cb, sg, cg):
+    """``C_r^p = Mz(gamma) My(beta) Mx(alpha)`` (row-major 9-tuple) from the sines and cosines of
+    alpha, beta, gamma (docs/centrifuge-model.md §3): the scalar kernels' one copy of it."""
+    return (cg * cb, cg * sb * sa + sg * ca, -cg * sb * ca + sg * sa,
+            -sg * cb, -sg * sb * sa + cg * ca, sg * sb * ca + cg * sa,
+            sb, -cb * sa, cb * ca)
+
+
+@njit(cache=True)
+def _force_p(c00, c01, c02, c10, c11, c12, c20, c21, c22, fr0, fr1, fr2, g):
+    """The platform specific force ``f_p = C_r^p f_r / g`` (g) from the base's (m/s^2)."""
+    return ((c00 * fr0 + c01 * fr1 + c02 * fr2) / g, (c10 * fr0 + c11 * fr1 + c12 * fr2) / g,
+            (c20 * fr0 + c21 * fr1 + c22 * fr2) / g)
+
+
+@njit(cache=True)
 def _drift(coef, j, f0, f1, f2):
     """Drift of gyro j (deg/h) at the platform specific force (g), eqs. 11-12."""
     aI, aO, aS = gyro_axis_components(j, f0, f1, f2)
@@ -252,18 +268,8 @@ def _shift(s, c, d):
 def rate_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu):
     """Eq. 18 without Jacobians on scalars: (alpha', beta', gamma') in rad/s from the sines and
     cosines of the angles and the base specific force (m/s^2). Same model as :func:`attitude_rate_into`."""
-    c00 = cg * cb
-    c01 = cg * sb * sa + sg * ca
-    c02 = -cg * sb * ca + sg * sa
-    c10 = -sg * cb
-    c11 = -sg * sb * sa + cg * ca
-    c12 = sg * sb * ca + cg * sa
-    c20 = sb
-    c21 = -cb * sa
-    c22 = cb * ca
-    f0 = (c00 * fr0 + c01 * fr1 + c02 * fr2) / g
-    f1 = (c10 * fr0 + c11 * fr1 + c12 * fr2) / g
-    f2 = (c20 * fr0 + c21 * fr1 + c22 * fr2) / g
+    c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_rp_sc(sa, ca, sb, cb, sg, cg)
+    f0, f1, f2 = _force_p(c00, c01, c02, c10, c11, c12, c20, c21, c22, fr0, fr1, fr2, g)
     u0 = _drift(coef, 0, f0, f1, f2) * DEG_PER_HOUR + c01 * wn + c02 * wu
     u1 = _drift(coef, 1, f0, f1, f2) * DEG_PER_HOUR + c11 * wn + c12 * wu
     u2 = _drift(coef, 2, f0, f1, f2) * DEG_PER_HOUR + c21 * wn + c22 * wu
@@ -313,15 +319,7 @@ def rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu, v):
     Same model and closed forms as :func:`attitude_rate_into`; the coefficient Jacobian follows from T
     and the gyro axis components: ``d rate_r / d coef[3 m + j] = -T[r, j] deg/h reg_jm``.
     """
-    c00 = cg * cb
-    c01 = cg * sb * sa + sg * ca
-    c02 = -cg * sb * ca + sg * sa
-    c10 = -sg * cb
-    c11 = -sg * sb * sa + cg * ca
-    c12 = sg * sb * ca + cg * sa
-    c20 = sb
-    c21 = -cb * sa
-    c22 = cb * ca
+    c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_rp_sc(sa, ca, sb, cb, sg, cg)
     # d C / d beta
     b00 = -cg * sb
     b01 = cg * cb * sa
@@ -332,9 +330,7 @@ def rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu, v):
     b20 = cb
     b21 = sb * sa
     b22 = -sb * ca
-    f0 = (c00 * fr0 + c01 * fr1 + c02 * fr2) / g
-    f1 = (c10 * fr0 + c11 * fr1 + c12 * fr2) / g
-    f2 = (c20 * fr0 + c21 * fr1 + c22 * fr2) / g
+    f0, f1, f2 = _force_p(c00, c01, c02, c10, c11, c12, c20, c21, c22, fr0, fr1, fr2, g)
     # d f / d angle: alpha turns columns 1, 2 of C; gamma rotates rows 0, 1
     fa0 = (-c02 * fr1 + c01 * fr2) / g
     fa1 = (-c12 * fr1 + c11 * fr2) / g
@@ -482,18 +478,8 @@ def make_sc_rk4_scratch():
 def measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g):
     """Accelerometer outputs x, y, z (g), no Jacobians, from the sines and cosines of the
     angles and the base specific force (m/s^2): the simulator's measurement (eq. 13)."""
-    c00 = cg * cb
-    c01 = cg * sb * sa + sg * ca
-    c02 = -cg * sb * ca + sg * sa
-    c10 = -sg * cb
-    c11 = -sg * sb * sa + cg * ca
-    c12 = sg * sb * ca + cg * sa
-    c20 = sb
-    c21 = -cb * sa
-    c22 = cb * ca
-    f0 = (c00 * fr0 + c01 * fr1 + c02 * fr2) / g
-    f1 = (c10 * fr0 + c11 * fr1 + c12 * fr2) / g
-    f2 = (c20 * fr0 + c21 * fr1 + c22 * fr2) / g
+    c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_rp_sc(sa, ca, sb, cb, sg, cg)
+    f0, f1, f2 = _force_p(c00, c01, c02, c10, c11, c12, c20, c21, c22, fr0, fr1, fr2, g)
     aI0, aP0 = accel_axes(coef, 0, f0, f1, f2)
     aI1, aP1 = accel_axes(coef, 1, f0, f1, f2)
     aI2, aP2 = accel_axes(coef, 2, f0, f1, f2)
@@ -534,18 +520,8 @@ def measure_jac_sc(ang, coef, fr0, fr1, fr2, g, out, hm, ha):
     sa, ca = np.sin(ang[0]), np.cos(ang[0])
     sb, cb = np.sin(ang[1]), np.cos(ang[1])
     sg, cg = np.sin(ang[2]), np.cos(ang[2])
-    c00 = cg * cb
-    c01 = cg * sb * sa + sg * ca
-    c02 = -cg * sb * ca + sg * sa
-    c10 = -sg * cb
-    c11 = -sg * sb * sa + cg * ca
-    c12 = sg * sb * ca + cg * sa
-    c20 = sb
-    c21 = -cb * sa
-    c22 = cb * ca
-    f0 = (c00 * fr0 + c01 * fr1 + c02 * fr2) / g
-    f1 = (c10 * fr0 + c11 * fr1 + c12 * fr2) / g
-    f2 = (c20 * fr0 + c21 * fr1 + c22 * fr2) / g
+    c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_rp_sc(sa, ca, sb, cb, sg, cg)
+    f0, f1, f2 = _force_p(c00, c01, c02, c10, c11, c12, c20, c21, c22, fr0, fr1, fr2, g)
     # d f / d alpha, d f / d beta; d f / d gamma = (f1, -f0, 0)
     fa0 = (-c02 * fr1 + c01 * fr2) / g
     fa1 = (-c12 * fr1 + c11 * fr2) / g

@@ -1,4 +1,4 @@
-"""Frames, elementary rotations and Euler kinematics (spec section 3; paper eqs. 7, 14, 15).
+"""Frames, elementary rotations and Euler kinematics (docs/centrifuge-model.md §3; paper eqs. 7, 14, 15).
 
 All angles are in radians. Rotations are *passive* (frame) rotations: ``v_new = M v_old``.
 The platform attitude is ``C_r^p = Mz(gamma) My(beta) Mx(alpha)`` (the z-y-x order the spec
@@ -44,7 +44,7 @@ def rot_z(g):
 def c_rp_into(alpha, beta, gamma, C, dC):
     """Fill ``C = C_r^p(alpha, beta, gamma)`` and its partials ``dC[i] = dC/d(angle_i)``.
 
-    Closed form of ``Mz(gamma) My(beta) Mx(alpha)`` (spec section 3). ``C`` is (3, 3),
+    Closed form of ``Mz(gamma) My(beta) Mx(alpha)`` (docs/centrifuge-model.md §3). ``C`` is (3, 3),
     ``dC`` is (3, 3, 3) with the angle index first (alpha, beta, gamma). Angles in rad.
     """
     sa, ca = np.sin(alpha), np.cos(alpha)
@@ -93,7 +93,7 @@ def c_rp_into(alpha, beta, gamma, C, dC):
 
 @njit(cache=True)
 def c_rp(alpha, beta, gamma):
-    """``C_r^p = Mz(gamma) My(beta) Mx(alpha)`` (3, 3); angles in rad (spec section 3)."""
+    """``C_r^p = Mz(gamma) My(beta) Mx(alpha)`` (3, 3); angles in rad (docs/centrifuge-model.md §3)."""
     C = np.empty((3, 3))
     dC = np.empty((3, 3, 3))
     c_rp_into(alpha, beta, gamma, C, dC)

@@ -41,7 +41,7 @@ _UNITS = {
     "k0": "ug", "k1": "ug/g", "k2": "ug/g^2", "k3": "ug/g^3", "kIP": "ug/g^2",
 }
 
-# Gyro input (I), output (O) and spin (S) axes in p, one 3x3 matrix per gyro (spec section 4,
+# Gyro input (I), output (O) and spin (S) axes in p, one 3x3 matrix per gyro (docs/centrifuge-model.md §4,
 # eqs. 4-6 with the gyro misalignments zero).
 GYRO_AXES = np.array(
     [
@@ -151,7 +151,7 @@ def accel_slopes(coef, j, aI, aP):
 
 @njit(cache=True)
 def gyro_drift_into(coef, f, eps, deps_df, reg):
-    """Drift of the three gyros, eqs. 11-12 (spec section 4).
+    """Drift of the three gyros, eqs. 11-12 (docs/centrifuge-model.md §4).
 
     Parameters
     ----------
@@ -190,7 +190,7 @@ def gyro_drift(coef, f):
 
 @njit(cache=True)
 def accel_output_into(coef, f, out, h_coef, dA_df):
-    """Accelerometer outputs, eqs. 1-3 and 13 (spec section 5).
+    """Accelerometer outputs, eqs. 1-3 and 13 (docs/centrifuge-model.md §5).
 
     Parameters
     ----------

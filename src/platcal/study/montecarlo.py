@@ -71,13 +71,14 @@ def chunks(n: int, size: int) -> list[list[int]]:
 
 def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The tidy ``coef`` and ``runs`` rows of a :class:`~platcal.rig.ReplicateBatch`."""
-    n = len(batch.names)
+    q = batch.quantities
+    n = len(q)
     B = len(replicates)
     reps = np.asarray(replicates, dtype=np.int64)
     coef = pd.DataFrame({
         "scheme": case, "noise": float(level), "estimator": estimator,
-        "replicate": np.repeat(reps, n), "name": list(batch.names) * B, "group": list(batch.groups) * B,
-        "unit": list(batch.units) * B, "truth": np.tile(batch.truth, B),
+        "replicate": np.repeat(reps, n), "name": list(q["name"]) * B, "group": list(q["group"]) * B,
+        "unit": list(q["unit"]) * B, "truth": np.tile(q["truth"].to_numpy(float), B),
         "estimate": np.asarray(batch.estimate).ravel(), "sigma": np.asarray(batch.sigma).ravel(),
     })
     coef["error"] = coef["estimate"] - coef["truth"]

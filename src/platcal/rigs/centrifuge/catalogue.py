@@ -13,7 +13,7 @@ from importlib import resources
 import numpy as np
 import pandas as pd
 
-from ...model.instruments import INDEX, N_FULL, N_IDENTIFIED, NAMES, group_of
+from ...model.instruments import INDEX, NAMES, N_FULL, N_IDENTIFIED, group_of
 
 
 @dataclass(frozen=True)

@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .base import Centrifuge
-from .ekf import FilterSettings, default_p0_sigma
 from ...errors import InputError
-from ...schema import load_schema, validate
 from ...io import read_yaml
 from ...model.instruments import INDEX, term_of
+from ...schema import load_schema, validate
+from .base import Centrifuge
 from .catalogue import full_truth
+from .ekf import FilterSettings, default_p0_sigma
 from .scheme import Scheme, check_scheme, whole_periods
 from .simulate import Noise
 
@@ -92,7 +92,7 @@ def filter_settings(fcfg: dict, noise: Noise) -> FilterSettings:
         return fallback if fcfg.get(key) is None else float(fcfg[key])
 
     p0 = dict(fcfg["p0"])
-    # P0 of the attitude states is the reset sigma (spec section 11: "angles sigma_set")
+    # P0 of the attitude states is the reset sigma (docs/centrifuge-model.md §11: "angles sigma_set")
     angle_sigma = [p0.pop(k) for k in ANGLE_KEYS if k in p0]
     reset = fcfg.get("sigma_set_arcsec")
     if reset is None and angle_sigma:

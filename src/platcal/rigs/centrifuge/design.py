@@ -1,11 +1,11 @@
-"""Genetic-algorithm design of a test scheme (paper section 2.3; spec section 10).
+"""Genetic-algorithm design of a test scheme (paper section 2.3; docs/centrifuge-model.md §10).
 
 Decision variables: ``alpha_k, gamma_k`` in whole degrees [0, 359] (``beta_k`` fixed, 0 by
 default), k = 1..N, and with ``g_levels`` one integer per position choosing its g-level. The
 search is pymoo's single-objective GA (integer random sampling, tournament selection, SBX
 crossover and polynomial mutation, both rounded to integers; duplicates eliminated).
 
-Fitness is a covariance-only run of the scheme (spec section 10) evaluated for the whole
+Fitness is a covariance-only run of the scheme (docs/centrifuge-model.md §10) evaluated for the whole
 population at once through the exact position decomposition of
 :mod:`platcal.observability`: the information of every position not seen before is computed
 in one batched covariance-only EKF run, and each scheme's covariance is then

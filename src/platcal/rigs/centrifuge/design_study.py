@@ -237,7 +237,7 @@ def compare_job(config: dict, scheme_files: list, out_dir, log_path=None) -> Non
     schemes += random_schemes(st["random_seed"], st["random_count"], 6, dwell)
     schemes += [_load(f) for f in scheme_files]
     summary, per = compare_schemes(study, schemes, st["replicates"], log=log)
-    # the same with the 2-pass filter (consistent, no linearisation floor; spec section 11)
+    # the same with the 2-pass filter (consistent, no linearisation floor; docs/centrifuge-model.md §11)
     two, per2 = compare_schemes(study, schemes, st["replicates"], passes=2, log=log)
     summary["mc2_rms_rel_pct"] = two["mc_rms_rel_pct"].to_numpy()
     summary["mc2_median_max_abs_rel_pct"] = two["mc_median_max_abs_rel_pct"].to_numpy()

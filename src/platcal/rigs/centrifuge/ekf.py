@@ -1,4 +1,4 @@
-"""The identifying EKF of the centrifuge test (spec section 9; paper eqs. 23-25), batched.
+"""The identifying EKF of the centrifuge test (docs/centrifuge-model.md §9; paper eqs. 23-25), batched.
 
 State (n = 48 by default), in Table 2's order and engineering units::
 
@@ -6,7 +6,7 @@ State (n = 48 by default), in Table 2's order and engineering units::
     alpha beta gamma (rad)
 
 With ``estimate_doo`` the three DOO terms join after theta_oz (n = 51): the two-g-level
-extension of spec section 4. Every array carries a leading batch axis B (replicates, or
+extension of docs/centrifuge-model.md §4. Every array carries a leading batch axis B (replicates, or
 candidate schemes for the covariance-only run); a batch of one is one run. Replicates are
 independent, so a batch gives bit-identical numbers to B runs of one.
 
@@ -28,17 +28,16 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from .base import broadcast_params
-from ...model.frames import ARCSEC, DEG
-from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED
-from .base import specific_force_into
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse
-from ...model.attitude import P_G
-from ...model.attitude import GYRO_COLS, MEAS_COLS, N_GYRO, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
+from ...model.attitude import (GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc,
+                               rk4_jac_sc)
+from ...model.frames import ARCSEC, DEG
+from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of
+from .base import broadcast_params, specific_force_into
 
 ANGLE_NAMES = ("alpha", "beta", "gamma")
 
-# P0 defaults (1 sigma), spec section 11, by error term.
+# P0 defaults (1 sigma), docs/centrifuge-model.md §11, by error term.
 P0_DEFAULTS = {
     "DF": 10.0, "DI": 2.0, "DO": 2.0, "DS": 2.0,
     "DII": 0.2, "DSS": 0.2, "DIO": 0.2, "DIS": 0.2, "DOS": 0.2, "DOO": 0.2,
@@ -48,7 +47,7 @@ P0_DEFAULTS = {
 
 @dataclass(frozen=True)
 class FilterSettings:
-    """Settings of the identifying EKF (spec sections 9 and 11).
+    """Settings of the identifying EKF (docs/centrifuge-model.md §9 and §11).
 
     Attributes
     ----------
@@ -94,8 +93,6 @@ def default_p0_sigma(estimate_doo: bool, overrides: dict[str, float] | None = No
     ``overrides`` maps an error term (``'DF'``, ``'k0'``, ``'theta'`` ...) or a coefficient name
     (``'DF_x'``) to a sigma in the coefficient's unit; names win over terms.
     """
-    from ...model.instruments import term_of
-
     overrides = overrides or {}
     out = []
     for i in estimated_index(estimate_doo):
@@ -348,7 +345,7 @@ def run_ekf(
         (``Centrifuge.params()``; per position for multi-g-level schemes).
     settings : the filter settings.
     linearise_about : (B, 48) full coefficient vectors. If given, the run is covariance-only
-        (spec section 10): no measurement is used, the state follows the noise-free trajectory
+        (docs/centrifuge-model.md §10): no measurement is used, the state follows the noise-free trajectory
         of these coefficients, and only P evolves.
 
     Returns

@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .config import Study
 from ...estimation.consistency import nees
-from .ekf import Estimate, FilterSettings, run_ekf
 from ...io import atomic_to_csv, atomic_write_text
+from .config import Study
+from .ekf import Estimate, FilterSettings, run_ekf
 from .record import TRUTH_COLUMNS, filter_input
 from .scheme import Scheme
 from .simulate import simulate

@@ -1,6 +1,6 @@
 """Observability of a test scheme: covariance-only EKF, correlation objective and design criteria.
 
-Spec section 10 (paper eqs. 26-27) judges a scheme by the correlation coefficients of the
+docs/centrifuge-model.md §10 (paper eqs. 26-27) judges a scheme by the correlation coefficients of the
 filter covariance at the end of a covariance-only run, linearised about the true trajectory::
 
     rho_ij = P_ij / sqrt(P_ii P_jj),        J = sum_{i<j} |rho_ij|   (45 coefficients)
@@ -45,18 +45,18 @@ import numpy as np
 import pandas as pd
 from numba import njit, prange
 
-from .base import broadcast_params, specific_force_into
-from .ekf import FilterSettings, run_ekf
-from .identify import simulate_identify
-from .scheme import whole_periods
 from ...errors import InputError
-from ...model.frames import ARCSEC, DEG
-from ...model.instruments import FULL_NAMES, N_FULL, N_IDENTIFIED, group_of, unit_of
 from ...estimation import information
-from ...estimation.information import (CRITERIA, correlation, criteria, crb_sigma, gram_singular_values,
+from ...estimation.information import (CRITERIA, correlation, crb_sigma, criteria, gram_singular_values,
                                        j_objective, numerical_rank, posterior_covariance, relative_scale)
 from ...io import atomic_to_csv, atomic_write_text
 from ...model.attitude import make_rk4_scratch, make_work, measure_into, rk4_step_jac
+from ...model.frames import ARCSEC, DEG
+from ...model.instruments import FULL_NAMES, N_FULL, N_IDENTIFIED, group_of, unit_of
+from .base import broadcast_params, specific_force_into
+from .ekf import FilterSettings, default_p0_sigma, run_ekf
+from .identify import simulate_identify
+from .scheme import whole_periods
 
 CRITERION_HELP = {
     "J": "sum_{i<j} |rho_ij| over the 45 coefficients (paper eq. 27)",
@@ -109,7 +109,7 @@ def direct_covariance(setup: Setup, angles_deg: np.ndarray, g_levels=None) -> np
     """Coefficient covariance at the end of a covariance-only run of whole schemes (batched).
 
     ``angles_deg`` (B, K, 3) or (K, 3); ``g_levels`` None, (K,) or (B, K). Returns (B, nc, nc).
-    This is the plain multi-position EKF run of spec section 10 (reference for the tests).
+    This is the plain multi-position EKF run of docs/centrifuge-model.md §10 (reference for the tests).
     """
     ang = np.asarray(angles_deg, float)
     if ang.ndim == 2:
@@ -390,7 +390,6 @@ def evaluate_scheme(study, scheme, *, arw_deg_rth: float | None = None, estimate
     if arw_deg_rth is not None:
         over["arw_deg_rth"] = float(arw_deg_rth)
     if estimate_doo is not None and estimate_doo != study.filter.estimate_doo:
-        from .ekf import default_p0_sigma
         over["estimate_doo"] = bool(estimate_doo)
         over["p0_sigma"] = default_p0_sigma(bool(estimate_doo), study.config["filter"]["p0"])
     setup = setup_from_study(study, scheme.dwell_s, **over)
@@ -474,8 +473,7 @@ def write_observability(out_dir, study, scheme, replicates: int = 0, **kw) -> di
     if replicates > 0:
         fs = replace(study.filter, history_every_s=None)
         if "estimate_doo" in kw and kw["estimate_doo"] is not None and kw["estimate_doo"] != fs.estimate_doo:
-            from .ekf import default_p0_sigma
-            fs = replace(fs, estimate_doo=kw["estimate_doo"],
+                fs = replace(fs, estimate_doo=kw["estimate_doo"],
                          p0_sigma=default_p0_sigma(kw["estimate_doo"], study.config["filter"]["p0"]))
         if kw.get("arw_deg_rth") is not None or kw.get("rate_deg_s") is not None:
             raise InputError("--replicates", "a Monte Carlo comparison runs at the config's own noise "

@@ -1,4 +1,4 @@
-"""Test records: one table format for simulated and recorded centrifuge runs (spec section 13).
+"""Test records: one table format for simulated and recorded centrifuge runs (docs/centrifuge-model.md §13).
 
 Columns: ``position`` (1-based), ``t`` (s since the position's start), ``alpha_cmd,
 beta_cmd, gamma_cmd`` (deg), ``Ax, Ay, Az`` (g) and, for simulated runs only, the true
@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
-from ...model.frames import DEG
 from ...io import atomic_to_csv, atomic_to_parquet
+from ...model.frames import DEG
 from .scheme import Scheme
 
 LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay", "Az")

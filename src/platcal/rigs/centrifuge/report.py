@@ -21,8 +21,8 @@ from ...estimation.consistency import nees_band
 from ...io import atomic_to_csv, atomic_write_text
 from ...log import job_logger
 from ...model.instruments import NAMES, unit_of
-from ...study.plots import (boxplot_rel_err, convergence, correlation_heatmap, nees_histogram, plt, rms_vs_noise,
-                            save)
+from ...study.plots import (boxplot_rel_err, convergence, correlation_heatmap, nees_histogram, plt,
+                            rms_vs_noise, save)
 from ...study.stats import per_coefficient, select_cell, summary, with_timing
 from ...study.tables import frame_html, frame_markdown, write_table
 from .catalogue import load_catalogue

@@ -1,4 +1,4 @@
-"""Test schemes: ordered platform positions and a dwell time (spec section 7).
+"""Test schemes: ordered platform positions and a dwell time (docs/centrifuge-model.md §7).
 
 A scheme file is YAML in the config's scheme format::
 

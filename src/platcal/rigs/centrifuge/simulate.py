@@ -1,4 +1,4 @@
-"""Truth simulation of a centrifuge test (spec section 8), batched over replicates.
+"""Truth simulation of a centrifuge test (docs/centrifuge-model.md §8), batched over replicates.
 
 At the start of each position the platform is set to the commanded angles plus a white
 setting error (sigma_set per angle); the attitude ODE (eq. 18) is integrated with RK4 at the
@@ -24,11 +24,10 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from ...model.attitude import P_G
-from .base import broadcast_params
+from ...model.attitude import P_G, measure_scalar, rk4_scalar_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import N_FULL
-from ...model.attitude import measure_scalar, rk4_scalar_sc
+from .base import broadcast_params
 from .scheme import Scheme, whole_periods
 
 

@@ -57,7 +57,7 @@ def classical_scheme(dwell_s: float):
 
 
 def random_schemes(seed: int, count: int, n_positions: int, dwell_s: float) -> list:
-    """``count`` random schemes: alpha, gamma whole degrees in [0, 359], beta = 0 (spec 10).
+    """``count`` random schemes: alpha, gamma whole degrees in [0, 359], beta = 0 (docs/centrifuge-model.md §10).
 
     Scheme i (1-based) is drawn from ``SeedSequence(seed, spawn_key=(stable_key('random'), i))``,
     so scheme ``random_2`` is the same whatever ``count`` is.
@@ -170,9 +170,10 @@ def replicate_batch(study, est) -> ReplicateBatch:
     nc = est.n_coef
     names = tuple(est.names[:nc])
     truth = study.truth[study.filter.coef_index]
+    quantities = pd.DataFrame({"name": names, "group": [group_of(n) for n in names],
+                               "unit": [unit_of(n) for n in names], "truth": truth})
     return ReplicateBatch(
-        names=names, groups=tuple(group_of(n) for n in names), units=tuple(unit_of(n) for n in names),
-        truth=truth, estimate=est.coef, sigma=est.coef_sigma,
+        quantities=quantities, estimate=est.coef, sigma=est.coef_sigma,
         nees=nees(est.coef, est.P[:, :nc, :nc], truth[None]), nees_dof=nc, mean_nis=est.mean_nis,
         failed_updates=est.failed_updates, passes=int(study.filter.passes))
 

@@ -9,15 +9,8 @@ import numpy as np
 import pandas as pd
 
 from ...model.instruments import FULL_NAMES, unit_of
+from ...study.stats import rel_err_pct
 from .catalogue import load_catalogue
-
-
-def rel_err_pct(estimate, truth):
-    """Relative error of eq. 28 in percent (NaN where the truth is zero)."""
-    estimate = np.asarray(estimate, float)
-    truth = np.asarray(truth, float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(truth != 0, (estimate - truth) / truth * 100.0, np.nan)
 
 
 def estimates_frame(names, estimate, sigma, truth_full=None) -> pd.DataFrame:

@@ -6,7 +6,7 @@ default noise and filter settings), this script times:
 * platcal ``simulate`` and ``run_ekf`` for batches of B = 1, 8, 64 replicates (per replicate,
   amortised over the batch; numba threads as set by ``--threads``);
 * a baseline: FilterPy's ``ExtendedKalmanFilter`` driven step by step in Python with the same
-  model functions (``platcal.platform.rk4`` and ``platcal.platform.measure``), on replicate 0;
+  model functions (``platcal.model.attitude.rk4`` and ``platcal.model.attitude.measure``), on replicate 0;
 * the covariance-only run (observability / GA objective) over a population of random schemes;
 
 checks that platcal's estimate of replicate 0 agrees with FilterPy's, and reports the achieved
@@ -32,14 +32,15 @@ import time
 
 import numpy as np
 
-from platcal import platform
-from platcal.centrifuge import Centrifuge
-from platcal.ekf import FilterSettings, _structure, run_ekf
-from platcal.frames import ARCSEC, DEG
-from platcal.instruments import N_FULL, N_IDENTIFIED, full_truth
+from platcal.model import attitude as platform
+from platcal.model.frames import ARCSEC, DEG
+from platcal.model.instruments import N_FULL, N_IDENTIFIED
 from platcal.parallel import get_threads, set_threads
-from platcal.scheme import TABLE1_POSITIONS, check_scheme
-from platcal.simulate import Noise, simulate
+from platcal.rigs.centrifuge.base import Centrifuge, specific_force
+from platcal.rigs.centrifuge.catalogue import full_truth
+from platcal.rigs.centrifuge.ekf import FilterSettings, _structure, run_ekf
+from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS, check_scheme
+from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 
 def best_time(fn, repeat: int) -> tuple[float, object]:
@@ -114,7 +115,7 @@ def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):
 
     def h_jac(x, tm, pk):
         coef[:nc] = x[:nc, 0]
-        out, hc, ha = platform.measure(x[nc:, 0], coef, tm, pk)
+        out, hc, ha = platform.measure(x[nc:, 0], coef, specific_force(tm, pk), pk)
         H = np.zeros((3, n))
         H[:, :nc] = hc[:, :nc]
         H[:, nc:] = ha
@@ -137,7 +138,8 @@ def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):
             if m > 0:
                 h = t[k][m] - t[k][m - 1]
                 coef[:nc] = ekf.x[:nc, 0]
-                ang, pa, pc = platform.rk4(ekf.x[nc:, 0], coef, t[k][m - 1], h, pk)
+                fr3 = np.stack([specific_force(t[k][m - 1] + c * h, pk) for c in (0.0, 0.5, 1.0)])
+                ang, pa, pc = platform.rk4(ekf.x[nc:, 0], coef, fr3, h, pk)
                 F = np.eye(n)
                 F[nc:, :nc] = pc[:, :nc]
                 F[nc:, nc:] = pa

@@ -5,16 +5,22 @@ dwell time."""
 import numpy as np
 import pytest
 
-from platcal import kalman, platform
-from platcal.centrifuge import Centrifuge, specific_force
-from platcal.ekf import FilterSettings, run_ekf
-from platcal.instruments import full_truth
+from platcal.estimation import kalman
+from platcal.model import attitude as platform
+from platcal.rigs.centrifuge.base import Centrifuge, specific_force
+from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
+from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.parallel import get_threads, max_threads, set_threads, threads
-from platcal.scheme import TABLE1_POSITIONS, check_scheme
-from platcal.simulate import Noise, simulate
+from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS, check_scheme
+from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 CEN = Centrifuge()
 RTOL = 1e-10
+
+
+def _fr3(t, h, params):
+    """The base specific force at an RK4 step's start, middle and end (m/s^2)."""
+    return np.stack([specific_force(t + c * h, params) for c in (0.0, 0.5, 1.0)])
 
 
 def _scheme(dwell=2.0, positions=TABLE1_POSITIONS):
@@ -136,7 +142,7 @@ def test_scalar_model_kernels_equal_reference(seed):
     coef = full_truth() * rng.uniform(0.5, 2, 48)
     coef[45:] = rng.uniform(-0.1, 0.1, 3)
     t, h = rng.uniform(0, 60), 0.02
-    out, pa, pc = platform.rk4(ang, coef, t, h, params)
+    out, pa, pc = platform.rk4(ang, coef, _fr3(t, h, params), h, params)
     fr3 = np.stack([specific_force(t + c * h, params) for c in (0.0, 0.5, 1.0)])
     o2, pa2, pg2 = np.empty(3), np.empty((3, 3)), np.empty((3, platform.N_GYRO))
     platform.rk4_jac_sc(ang, coef, fr3, h, params, o2, pa2, pg2, platform.make_sc_rk4_scratch())
@@ -148,7 +154,7 @@ def test_scalar_model_kernels_equal_reference(seed):
     o3 = np.empty(3)
     platform.rk4_scalar(ang, coef, fr3, h, params, o3)
     np.testing.assert_allclose(o3, out, rtol=0, atol=1e-15)
-    A, hc, ha = platform.measure(ang, coef, t, params)
+    A, hc, ha = platform.measure(ang, coef, specific_force(t, params), params)
     for r in range(3):
         cols = platform.MEAS_COLS[r][platform.MEAS_COLS[r] >= 0]
         assert set(np.flatnonzero(hc[r])) == set(cols)
@@ -217,6 +223,64 @@ def test_joseph_update_sparse_equals_dense_joseph():
     assert nu @ nu == pytest.approx(nis_ref, rel=1e-12)
 
 
+@pytest.mark.parametrize("m", [1, 2, 4])
+def test_joseph_update_sparse_any_measurement_size(m):
+    """The update is dimension-agnostic: m = 1, 2, 4 against the dense Joseph form."""
+    rng = np.random.default_rng(60 + m)
+    n = 10
+    P = _spd(n, rng)
+    x = rng.normal(size=n)
+    w = 3
+    hcols = np.stack([rng.choice(n, size=w, replace=False) for _ in range(m)])
+    hnnz = rng.integers(1, w + 1, size=m)
+    hval = rng.normal(size=(m, w))
+    H = np.zeros((m, n))
+    for r in range(m):
+        H[r, hcols[r, :hnnz[r]]] = hval[r, :hnnz[r]]
+    R = np.diag(rng.uniform(0.2, 0.6, m))
+    innov = rng.normal(size=m)
+    S = H @ P @ H.T + R
+    K = P @ H.T @ np.linalg.inv(S)
+    IKH = np.eye(n) - K @ H
+    P_ref = IKH @ P @ IKH.T + K @ R @ K.T
+    x_ref = x + K @ innov
+    nu = np.empty(m)
+    ok = kalman.joseph_update_sparse(x, P, hcols, hnnz, hval, innov, np.diag(R).copy(), np.empty((m, n)),
+                                     np.empty((m, n)), np.empty((m, n)), np.empty((m, m)), np.empty((m, m)), nu, True)
+    assert ok
+    np.testing.assert_allclose(P, P_ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(x, x_ref, rtol=1e-12, atol=1e-12)
+    assert np.array_equal(P, P.T)
+    assert nu @ nu == pytest.approx(innov @ np.linalg.solve(S, innov), rel=1e-12)
+
+
+def test_written_out_update_equals_the_general_loops_for_m3():
+    """The m = 3 fast path gives the general path's numbers bit for bit."""
+    rng = np.random.default_rng(9)
+    n, m = 12, 3
+    U = rng.normal(size=(m, n))
+    S = _spd(m, rng)
+    Sinv = np.linalg.inv(S)
+    innov = rng.normal(size=m)
+    P0 = _spd(n, rng)
+    x0 = rng.normal(size=n)
+    out = []
+    for fn in (kalman._correct, kalman._correct3):
+        x, P, K, D = x0.copy(), P0.copy(), np.empty((m, n)), np.empty((m, n))
+        fn(x, P, innov, U, K, D, S, Sinv, True)
+        out.append((x, P, K, D))
+    for a, b in zip(*out):
+        assert np.array_equal(a, b)
+
+
+def test_cholesky_inverse_refuses_an_indefinite_s():
+    F, nu = np.empty((2, 2)), np.empty(2)
+    assert not kalman.cholesky_inverse(np.array([[1.0, 2.0], [2.0, 1.0]]), F, nu, np.zeros(2))
+    S = np.array([[4.0, 1.0], [1.0, 3.0]])
+    assert kalman.cholesky_inverse(S, F, nu, np.array([1.0, 2.0]))
+    np.testing.assert_allclose(F, np.linalg.inv(S), rtol=1e-14)
+
+
 def _dense_ekf(z, t, cmd_rad, params, settings):
     """Plain dense EKF (numpy, full Phi and H from the reference helpers, Joseph form): what the
     sparse batched kernel must reproduce."""
@@ -238,7 +302,7 @@ def _dense_ekf(z, t, cmd_rad, params, settings):
             if m > 0:
                 h = t[k][m] - t[k][m - 1]
                 coef[idx] = x[:nc]
-                ang, pa, pc = platform.rk4(x[nc:], coef, t[k][m - 1], h, params[k])
+                ang, pa, pc = platform.rk4(x[nc:], coef, _fr3(t[k][m - 1], h, params[k]), h, params[k])
                 F = np.eye(n)
                 F[nc:, :nc] = pc[:, idx]
                 F[nc:, nc:] = pa
@@ -246,7 +310,7 @@ def _dense_ekf(z, t, cmd_rad, params, settings):
                 P = F @ P @ F.T
                 P[nc:, nc:] += np.eye(3) * q * h
             coef[idx] = x[:nc]
-            A, hc, ha = platform.measure(x[nc:], coef, t[k][m], params[k])
+            A, hc, ha = platform.measure(x[nc:], coef, specific_force(t[k][m], params[k]), params[k])
             H = np.hstack([hc[:, idx], ha])
             S = H @ P @ H.T + R
             K = P @ H.T @ np.linalg.inv(S)
@@ -262,7 +326,7 @@ def test_sparse_batched_ekf_equals_dense_ekf(estimate_doo):
     scheme = _scheme(0.4, positions)
     truth = full_truth({"DOO_x": 0.05}) if estimate_doo else full_truth()
     sim = _sim(scheme, range(2), truth)
-    from platcal.ekf import default_p0_sigma
+    from platcal.rigs.centrifuge.ekf import default_p0_sigma
     s = FilterSettings(estimate_doo=estimate_doo, p0_sigma=default_p0_sigma(estimate_doo))
     est = _ekf(scheme, sim, s)
     params = CEN.scheme_params(scheme)

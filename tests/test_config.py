@@ -5,17 +5,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from platcal.config import load_config, study_from_config, validate_config
+from platcal.rigs.centrifuge.config import load_config, study_from_config, validate_config
 from platcal.errors import InputError
-from platcal.instruments import INDEX, load_catalogue
-from platcal.scheme import TABLE1_POSITIONS
+from platcal.model.instruments import INDEX
+from platcal.rigs.centrifuge.catalogue import load_catalogue
+from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
 
 ROOT = Path(__file__).resolve().parents[1]
 ONE = {"schemes": {"s": {"dwell_s": 1, "positions": [[0, 0, 0]]}}}
 
 
 def test_default_config_is_the_papers_setting():
-    st = load_config(ROOT / "config" / "config.yaml")
+    st = load_config(ROOT / "config" / "centrifuge.yaml")
     sch = st.schemes["table1"]
     assert sch.positions == tuple(tuple(float(a) for a in p) for p in TABLE1_POSITIONS)
     assert sch.dwell_s == 60

@@ -8,12 +8,12 @@ import pytest
 import yaml
 
 from platcal.cli import main
-from platcal.config import load_config
-from platcal.design import decode, design_config, output_paths, run_design, write_design
+from platcal.rigs.centrifuge.config import load_config
+from platcal.rigs.centrifuge.design import decode, design_config, output_paths, run_design, write_design
 from platcal.errors import InputError
-from platcal.scheme import load_scheme_file
+from platcal.rigs.centrifuge.scheme import load_scheme_file
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "config.yaml"
+CONFIG = Path(__file__).resolve().parents[1] / "config" / "centrifuge.yaml"
 SMALL = {"dwell_s": 2, "positions": 4, "population": 8, "generations": 3}
 
 
@@ -60,7 +60,7 @@ def test_scheme_file_round_trip(study, tmp_path):
     cfg = dict(study.config)
     cfg = yaml.safe_load(yaml.safe_dump({k: v for k, v in cfg.items()}))
     cfg["schemes"] = yaml.safe_load(paths["scheme"].read_text())["schemes"]
-    from platcal.config import study_from_config
+    from platcal.rigs.centrifuge.config import study_from_config
     assert study_from_config(cfg).schemes["ga_two"] == res.scheme
 
 
@@ -81,7 +81,7 @@ def test_design_config_errors_name_the_field(study, tmp_path, capsys):
 
 
 def test_presets_of_the_workflow(study):
-    from platcal.design import preset
+    from platcal.rigs.centrifuge.design import preset
 
     st, d = preset(study, "ga_A_n4")
     assert (d["criterion"], d["positions"], d["name"]) == ("A", 4, "ga_A_n4")

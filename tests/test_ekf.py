@@ -6,13 +6,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from platcal.config import load_config
-from platcal.ekf import nees, run_ekf
-from platcal.instruments import INDEX, NAMES, full_truth, load_catalogue
-from platcal.kalman import joseph_update, propagate_rows
-from platcal.simulate import simulate
+from platcal.rigs.centrifuge.config import load_config
+from platcal.estimation.consistency import nees
+from platcal.rigs.centrifuge.ekf import run_ekf
+from platcal.model.instruments import INDEX, NAMES
+from platcal.rigs.centrifuge.catalogue import full_truth, load_catalogue
+from kalman_oracles import joseph_update, propagate_rows
+from platcal.rigs.centrifuge.simulate import simulate
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "config.yaml"
+CONFIG = Path(__file__).resolve().parents[1] / "config" / "centrifuge.yaml"
 CHI2_99_45 = 69.957  # 99 % point of chi-square with 45 degrees of freedom
 
 

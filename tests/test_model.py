@@ -3,14 +3,19 @@
 import numpy as np
 import pytest
 
-from platcal import frames
-from platcal.centrifuge import Centrifuge, specific_force
-from platcal.instruments import (FULL_NAMES, INDEX, NAMES, accel_output, full_truth, gyro_drift,
-                                 load_catalogue, unit_of)
-from platcal.platform import attitude_rate, measure, rk4
+from platcal.model import frames
+from platcal.rigs.centrifuge.base import Centrifuge, specific_force
+from platcal.model.instruments import FULL_NAMES, INDEX, NAMES, accel_output, gyro_drift, unit_of
+from platcal.rigs.centrifuge.catalogue import full_truth, load_catalogue
+from platcal.model.attitude import attitude_rate, measure, rk4
 
 rng = np.random.default_rng(12345)
 PARAMS = Centrifuge().params()
+
+
+def _fr3(t, h, params):
+    """The base specific force at an RK4 step's start, middle and end (m/s^2)."""
+    return np.stack([specific_force(t + c * h, params) for c in (0.0, 0.5, 1.0)])
 
 
 def random_angles(n=20):
@@ -72,7 +77,7 @@ def test_outputs_with_zero_coefficients_equal_fp_over_g():
     for ang in random_angles(5):
         t = rng.uniform(0, 60)
         fp = frames.c_rp(*ang) @ specific_force(t, PARAMS) / PARAMS[2]
-        A, _, _ = measure(ang, zero, t, PARAMS)
+        A, _, _ = measure(ang, zero, specific_force(t, PARAMS), PARAMS)
         np.testing.assert_allclose(A, fp, rtol=0, atol=1e-15)
         assert np.all(gyro_drift(zero, fp) == 0)
 
@@ -129,9 +134,9 @@ def test_attitude_rate_jacobians_match_finite_differences(seed):
     coef[45:] = r.uniform(-0.1, 0.1, 3)  # DOO too
     ang = random_angles(1)[0]
     t = r.uniform(0, 60)
-    _, ja, jc = attitude_rate(ang, coef, t, PARAMS)
-    fd_a = _fd(lambda a: attitude_rate(a, coef, t, PARAMS)[0], ang, 1e-6)
-    fd_c = _fd(lambda c: attitude_rate(ang, c, t, PARAMS)[0], coef, 1e-3)
+    _, ja, jc = attitude_rate(ang, coef, specific_force(t, PARAMS), PARAMS)
+    fd_a = _fd(lambda a: attitude_rate(a, coef, specific_force(t, PARAMS), PARAMS)[0], ang, 1e-6)
+    fd_c = _fd(lambda c: attitude_rate(ang, c, specific_force(t, PARAMS), PARAMS)[0], coef, 1e-3)
     np.testing.assert_allclose(ja, fd_a, rtol=1e-6, atol=1e-12)
     np.testing.assert_allclose(jc, fd_c, rtol=1e-6, atol=1e-14)
 
@@ -142,10 +147,10 @@ def test_rk4_map_jacobian_matches_finite_differences(seed):
     coef = full_truth() * r.uniform(0.5, 1.5, 48)
     ang = random_angles(1)[0]
     t, h = r.uniform(0, 60), 0.02
-    _, pa, pc = rk4(ang, coef, t, h, PARAMS)
+    _, pa, pc = rk4(ang, coef, _fr3(t, h, PARAMS), h, PARAMS)
     # difference the increment (out - ang), not out, so the identity does not swamp the FD
-    fd_a = _fd(lambda a: rk4(a, coef, t, h, PARAMS)[0] - a, ang, 1e-4)
-    fd_c = _fd(lambda c: rk4(ang, c, t, h, PARAMS)[0] - ang, coef, 1.0)
+    fd_a = _fd(lambda a: rk4(a, coef, _fr3(t, h, PARAMS), h, PARAMS)[0] - a, ang, 1e-4)
+    fd_c = _fd(lambda c: rk4(ang, c, _fr3(t, h, PARAMS), h, PARAMS)[0] - ang, coef, 1.0)
     np.testing.assert_allclose(pa - np.eye(3), fd_a, rtol=1e-5, atol=1e-13)
     np.testing.assert_allclose(pc, fd_c, rtol=1e-5, atol=1e-15)
     # the coefficient columns of the accelerometer terms do not enter the dynamics
@@ -158,9 +163,9 @@ def test_measurement_jacobians_match_finite_differences(seed):
     coef = full_truth() * r.uniform(0.5, 1.5, 48)
     ang = random_angles(1)[0]
     t = r.uniform(0, 60)
-    _, hc, ha = measure(ang, coef, t, PARAMS)
-    fd_a = _fd(lambda a: measure(a, coef, t, PARAMS)[0], ang, 1e-7)
-    fd_c = _fd(lambda c: measure(ang, c, t, PARAMS)[0], coef, 1.0)
+    _, hc, ha = measure(ang, coef, specific_force(t, PARAMS), PARAMS)
+    fd_a = _fd(lambda a: measure(a, coef, specific_force(t, PARAMS), PARAMS)[0], ang, 1e-7)
+    fd_c = _fd(lambda c: measure(ang, c, specific_force(t, PARAMS), PARAMS)[0], coef, 1.0)
     np.testing.assert_allclose(ha, fd_a, rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(hc, fd_c, rtol=1e-6, atol=1e-16)
     assert np.all(hc[:, :27] == 0) and np.all(hc[:, 45:] == 0)

@@ -7,11 +7,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from platcal import montecarlo as mc
-from platcal import stats
 from platcal.errors import InputError
-from platcal.frames import DEG, c_rp
-from platcal.io import read_yaml
+from platcal.estimation.consistency import nees_band
+from platcal.rigs.centrifuge import RIG
+from platcal.rigs.centrifuge import report
+from platcal.rigs.centrifuge import study as mc
+from platcal.seeding import stable_key
+from platcal.study import montecarlo as smc
+from platcal.study import plots, stats
+from platcal.study.tables import frame_markdown
+from platcal.model.frames import DEG, c_rp
+from platcal.io import normalise_numbers, read_yaml
 
 BASE = {
     "seed": 7,
@@ -29,16 +35,16 @@ def cfg(**study):
 
 
 def test_stable_key_is_sha256_not_python_hash():
-    assert mc.stable_key("table1") == int.from_bytes(hashlib.sha256(b"table1").digest()[:4], "big")
-    assert mc.noise_key(10) == 10000 and mc.noise_key(2.5) == 2500
+    assert stable_key("table1") == int.from_bytes(hashlib.sha256(b"table1").digest()[:4], "big")
+    assert smc.noise_key(10) == 10000 and smc.noise_key(2.5) == 2500
 
 
 def test_replicate_seeds_distinct_and_keyed_by_level_not_index():
-    s = {tuple(mc.replicate_seed(1, sc, sa, r).generate_state(2))
+    s = {tuple(smc.replicate_seed(1, sc, sa, r).generate_state(2))
          for sc in ("table1", "classical") for sa in (5, 10) for r in range(3)}
     assert len(s) == 12
-    a = mc.replicate_seed(1, "table1", 10, 2)
-    assert a.spawn_key == (mc.stable_key("table1"), 10000, 2) and a.entropy == 1
+    a = smc.replicate_seed(1, "table1", 10, 2)
+    assert a.spawn_key == (stable_key("table1"), 10000, 2) and a.entropy == 1
 
 
 def test_classical_scheme_puts_each_axis_up_and_down():
@@ -82,27 +88,27 @@ def test_bad_study_names_the_field(study, field):
 
 def test_normalise_numbers_reads_yaml11_floats():
     d = {"a": "1.0e4", "b": ["2e3", "x1e3"], "c": {"d": "table1"}}
-    assert mc.normalise_numbers(d) == {"a": 1e4, "b": [2e3, "x1e3"], "c": {"d": "table1"}}
+    assert normalise_numbers(d) == {"a": 1e4, "b": [2e3, "x1e3"], "c": {"d": "table1"}}
 
 
 def test_code_hash_covers_the_compute_closure_only():
-    mods = mc.module_closure()
-    assert {"montecarlo", "simulate", "ekf", "kalman", "platform", "frames", "config", "scheme"} <= set(mods)
-    assert not {"plots", "report", "stats", "design", "cli"} & set(mods)
-    assert mc.code_hash() != mc.compute_code_hash() and len(mc.compute_code_hash()) == 16
-    assert mc.code_hash(("plots",)) != mc.code_hash()
+    mods = {m.rsplit(".", 1)[-1] for m in smc.module_closure([type(RIG.montecarlo).__module__, smc.__name__])}
+    assert {"montecarlo", "study", "simulate", "ekf", "kalman", "attitude", "frames", "config", "scheme"} <= mods
+    assert not {"plots", "report", "design", "cli"} & mods
+    assert smc.code_hash() != smc.compute_code_hash(RIG) and len(smc.compute_code_hash(RIG)) == 16
+    assert smc.code_hash(["platcal.study.plots"]) != smc.code_hash()
 
 
 @pytest.fixture(scope="module")
 def small_cell():
     c = cfg(replicates=4, batch=4)
     sch = mc.builtin_scheme(c, "table1")
-    return c, sch, mc.run_cell(c, sch, 20, "ekf1", threads=1)
+    return c, sch, smc.run_cell(RIG, c, sch, 20, "ekf1", threads=1)
 
 
 def test_cell_tidy_frames(small_cell):
     c, sch, (coef, runs, timing) = small_cell
-    assert list(coef.columns) == mc.COEF_COLUMNS and list(runs.columns) == mc.RUN_COLUMNS
+    assert list(coef.columns) == smc.COEF_COLUMNS and list(runs.columns) == smc.RUN_COLUMNS
     assert len(coef) == 4 * 45 and len(runs) == 4
     assert coef["replicate"].tolist() == sorted(coef["replicate"])
     np.testing.assert_allclose(coef["error"], coef["estimate"] - coef["truth"])
@@ -113,7 +119,7 @@ def test_cell_tidy_frames(small_cell):
 def test_cell_does_not_depend_on_batch_threads_or_backend(small_cell):
     c, sch, (coef, runs, _) = small_cell
     for kw in ({"batch": 1, "threads": 2}, {"batch": 3, "threads": 2, "backend": "joblib"}):
-        coef2, runs2, _ = mc.run_cell(c, sch, 20, "ekf1", **kw)
+        coef2, runs2, _ = smc.run_cell(RIG, c, sch, 20, "ekf1", **kw)
         pd.testing.assert_frame_equal(coef, coef2, check_exact=True)
         pd.testing.assert_frame_equal(runs, runs2, check_exact=True)
 
@@ -134,7 +140,8 @@ def test_estimators_share_the_data_and_pass_one_is_the_paper_filter(small_cell):
 
 
 def synthetic(n_rep=20, seed=0):
-    from platcal.instruments import NAMES, group_of, load_catalogue
+    from platcal.model.instruments import NAMES, group_of
+    from platcal.rigs.centrifuge.catalogue import load_catalogue
 
     rng = np.random.default_rng(seed)
     truth = load_catalogue().truth
@@ -144,17 +151,17 @@ def synthetic(n_rep=20, seed=0):
             rel = rng.normal(0, 1, 45)
             for i, n in enumerate(NAMES):
                 e = truth[i] * (1 + rel[i] / 100)
-                rows.append(dict(scheme="table1", sigma_a_ug=10.0, estimator=est, replicate=r, name=n,
+                rows.append(dict(scheme="table1", noise=10.0, estimator=est, replicate=r, name=n,
                                  group=group_of(n), unit="u", truth=truth[i], estimate=e, sigma=abs(truth[i]) / 100,
                                  error=e - truth[i], rel_err_pct=rel[i]))
-            runs.append(dict(scheme="table1", sigma_a_ug=10.0, estimator=est, replicate=r, passes=1,
+            runs.append(dict(scheme="table1", noise=10.0, estimator=est, replicate=r, passes=1,
                              nees=float(rng.chisquare(45)), nees_dof=45, mean_nis=3.0, failed_updates=0))
     return pd.DataFrame(rows), pd.DataFrame(runs)
 
 
 def test_stats_tables():
     coef, runs = synthetic()
-    t = stats.table2_montecarlo(coef, "table1", 10, "ekf1")
+    t = report.table2_montecarlo(coef, "table1", 10, "ekf1")
     assert len(t) == 45 and t["coefficient"].iloc[0] == "DF_x" and t["coefficient"].iloc[-1] == "theta_oz"
     assert (t["n"] == 20).all()
     np.testing.assert_allclose(t["mean_rel_sigma_pct"], 1.0)
@@ -162,18 +169,16 @@ def test_stats_tables():
     np.testing.assert_allclose(t["paper_z"], (t["paper_rel_err_pct"] - t["mean_rel_err_pct"]) / t["std_rel_err_pct"])
     s = stats.summary(coef, runs)
     assert len(s) == 2 and {"max_rms_rel_err_pct_gyro", "share_in_band", "mean_nees"} <= set(s.columns)
-    lo, hi = stats.nees_band(45)
+    lo, hi = nees_band(45)
     assert lo == pytest.approx(28.366, abs=1e-3) and hi == pytest.approx(65.410, abs=1e-3)
-    assert stats.frame_markdown(s.head(1)).count("\n") == 3
+    assert frame_markdown(s.head(1)).count("\n") == 3
 
 
 def test_figures_are_byte_stable(tmp_path):
-    from platcal import plots
-
     coef, runs = synthetic(5)
     for k in (1, 2):
         plots.nees_histogram(runs, tmp_path / f"n{k}.png")
-        plots.rms_vs_noise(coef, tmp_path / f"r{k}.png")
+        plots.rms_vs_noise(coef, tmp_path / f"r{k}.png", report.GROUP_TITLES, RIG.montecarlo.noise.label)
     assert (tmp_path / "n1.png").read_bytes() == (tmp_path / "n2.png").read_bytes()
     assert (tmp_path / "r1.png").read_bytes() == (tmp_path / "r2.png").read_bytes()
 
@@ -181,7 +186,7 @@ def test_figures_are_byte_stable(tmp_path):
 def test_default_config_study_validates():
     from pathlib import Path
 
-    raw = read_yaml((Path(__file__).parents[1] / "config" / "config.yaml").read_text())
+    raw = read_yaml((Path(__file__).parents[1] / "config" / "centrifuge.yaml").read_text())
     c = mc.check_study(raw)
     names = mc.scheme_names(c)
     assert names[:2] == ["table1", "classical"] and "random_1" in names

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 import yaml
 
-from platcal import observability as ob
+from platcal.rigs.centrifuge import observability as ob
 from platcal.cli import main
-from platcal.config import load_config, study_from_config
+from platcal.rigs.centrifuge.config import load_config, study_from_config
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "config.yaml"
+CONFIG = Path(__file__).resolve().parents[1] / "config" / "centrifuge.yaml"
 SHORT = [[45, 0, 167], [350, 0, 325], [209, 0, 182]]
 
 

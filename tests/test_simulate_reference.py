@@ -11,10 +11,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from platcal.centrifuge import Centrifuge
-from platcal.instruments import FULL_NAMES, full_truth
-from platcal.scheme import check_scheme
-from platcal.simulate import Noise, simulate
+from platcal.rigs.centrifuge.base import Centrifuge
+from platcal.model.instruments import FULL_NAMES
+from platcal.rigs.centrifuge.catalogue import full_truth
+from platcal.rigs.centrifuge.scheme import check_scheme
+from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 G = 9.80665
 OMEGA = 7.2921151467e-5

@@ -9,6 +9,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pandas as pd
@@ -70,8 +71,9 @@ def test_lint_is_clean():
 ])
 def test_bad_config_stops_before_any_job(tmp_path, study, field):
     d = workdir(tmp_path)
-    (d / "config" / "bad.yaml").write_text((d / "config" / "test.yaml").read_text().split("study:")[0]
-                                           + "study:\n" + study)
+    # the tiny study's centrifuge entry (inline in config/test.yaml) with a bad study section
+    (d / "config" / "bad.yaml").write_text((d / "config" / "test.yaml").read_text().split("    study:")[0]
+                                           + "    study:\n" + textwrap.indent(study, "    "))
     r = smk(d, "--cores", "1", "--configfile", "config/bad.yaml", timeout=120)
     assert r.returncode != 0
     assert f"invalid configuration: {field}" in r.stderr + r.stdout
@@ -83,7 +85,8 @@ def test_tiny_study_end_to_end(tmp_path):
     d = workdir(tmp_path)
     r = smk(d, "--cores", "2", "--configfile", "config/test.yaml")
     assert r.returncode == 0, r.stderr[-3000:]
-    res = d / "results"
+    assert "centrifuge/report.md" in (d / "results" / "report.md").read_text()  # the index links the rig
+    res = d / "results" / "centrifuge"
     for f in ["report.md", "montecarlo/coef.parquet", "montecarlo/runs.parquet", "tables/table2_single.html",
               "tables/table2_montecarlo.csv", "tables/summary.csv", "figures/convergence.png",
               "figures/nees_hist.png", "single/history.parquet"]:
@@ -93,7 +96,7 @@ def test_tiny_study_end_to_end(tmp_path):
     assert "## Reading" in (res / "report.md").read_text()
     # the single run is replicate 0 of its cell
     one = pd.read_csv(res / "single/estimates.csv")
-    cell = coef[(coef.scheme == "table1") & (coef.sigma_a_ug == 10) & (coef.estimator == "ekf1") & (coef.replicate == 0)]
+    cell = coef[(coef.scheme == "table1") & (coef.noise == 10) & (coef.estimator == "ekf1") & (coef.replicate == 0)]
     assert one["estimate"].tolist() == cell["estimate"].tolist()
     before = outputs(d)
 
@@ -122,14 +125,15 @@ def test_tiny_study_end_to_end(tmp_path):
     counts = {ln.split()[0]: int(ln.split()[1]) for ln in text.splitlines()
               if len(ln.split()) == 2 and ln.split()[1].isdigit()}
     assert counts.get("montecarlo_cell") == 2 * 2  # 2 schemes x 2 estimators at the new level
-    assert "single_run" not in counts
+    assert "centrifuge_single_run" not in counts
 
     # --cores 1 in a fresh copy gives the same bytes for a cell
     d1 = workdir(tmp_path / "one")
-    target = "results/runs/table1/sa50/ekf2/coef.parquet"
-    r = smk(d1, target, "results/runs/table1/sa50/ekf2/runs.parquet", "--cores", "1", "--configfile", "config/test.yaml")
+    target = "results/centrifuge/runs/table1/noise50/ekf2/coef.parquet"
+    r = smk(d1, target, "results/centrifuge/runs/table1/noise50/ekf2/runs.parquet", "--cores", "1",
+            "--configfile", "config/test.yaml")
     assert r.returncode == 0, r.stderr[-2000:]
-    assert (d1 / target).read_bytes() == before["runs/table1/sa50/ekf2/coef.parquet"]
+    assert (d1 / target).read_bytes() == before["centrifuge/runs/table1/noise50/ekf2/coef.parquet"]
 
 
 @pytest.mark.slow
@@ -150,4 +154,4 @@ def test_cluster_generic_executor_runs_jobs_locally(tmp_path):
     assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
     assert "external jobid 'local-" in r.stdout + r.stderr
     assert (d / "results/report.md").exists()
-    assert len(pd.read_parquet(d / "results/montecarlo/runs.parquet")) == 2 * 2  # estimators x replicates
+    assert len(pd.read_parquet(d / "results/centrifuge/montecarlo/runs.parquet")) == 2 * 2  # estimators x replicates

@@ -65,3 +65,18 @@ _Loader.add_implicit_resolver(
 def read_yaml(text: str):
     """Parse YAML text, with floats such as ``1e4`` read as numbers."""
     return yaml.load(text, Loader=_Loader)
+
+
+_FLOAT_RE = re.compile(r"^[-+]?(?:(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?|(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+))$")
+
+
+def normalise_numbers(obj):
+    """Read YAML 1.1 leftovers such as ``'1.0e4'`` (a string to PyYAML's and Snakemake's
+    loaders) as floats, in place, as :func:`platcal.io.read_yaml` does; returns ``obj``."""
+    items = obj.items() if isinstance(obj, dict) else enumerate(obj) if isinstance(obj, list) else ()
+    for k, v in list(items):
+        if isinstance(v, str) and _FLOAT_RE.match(v):
+            obj[k] = float(v.replace("_", ""))
+        elif isinstance(v, (dict, list)):
+            normalise_numbers(v)
+    return obj

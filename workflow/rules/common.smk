@@ -1,89 +1,69 @@
-# Configuration: validated (with field names) before any job runs; sweep axes; rule params.
-from pathlib import Path
-
+# The study index, each rig's validated config (field named before any job runs), code hashes,
+# and the input and param functions of the rules (pypsa-eur's config_provider pattern: each
+# rule's params hold exactly the config it depends on).
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
 from platcal.errors import InputError
-from platcal.montecarlo import (
-    builtin_scheme,
-    check_study,
-    code_hash,
-    compute_code_hash,
-    is_generated,
-    noise_label,
-    normalise_numbers,
-    scheme_names,
-)
-from platcal.report import FIGURES, TABLES
+from platcal.rig import get_rig, rig_config
+from platcal.study.montecarlo import code_hash, compute_code_hash, noise_label
 
-# Snakemake's YAML 1.1 loader reads 1.0e4 as a string; platcal reads it as a number
-normalise_numbers(config)
-# 1. platcal's validation: names the field (study.sigma_a_ug[0], study.schemes[2], ...)
-try:
-    check_study(config)
-except InputError as exc:
-    raise WorkflowError(f"invalid configuration: {exc.field}: {exc.message}")
-# 2. Snakemake's own, against the same schema: fills the defaults into `config`
+# config/config.yaml is the index: rigs: {name: config path or inline mapping}
 validate(config, "../schemas/config.schema.yaml")
-
-RESULTS = "results"  # also used by design.smk
-STUDY = config["study"]
-SCHEMES = scheme_names(config)
-NOISE = {noise_label(v): float(v) for v in STUDY["sigma_a_ug"]}
-ESTIMATORS = list(STUDY["estimators"])
-# package code as a param: an edit under src/ reruns the jobs whose outputs it can change
-CODE_COMPUTE = compute_code_hash()
-CODE_ALL = code_hash()
-
-CELLS = expand(
-    "results/runs/{scheme}/sa{sigma}/{estimator}",
-    scheme=SCHEMES,
-    sigma=list(NOISE),
-    estimator=ESTIMATORS,
-)
-REPORT_MD = "results/report.md"
-ALL_TABLES = expand(
-    "results/tables/{table}.{ext}", table=TABLES, ext=["csv", "md", "html"]
-)
-ALL_FIGURES = expand("results/figures/{name}", name=list(FIGURES.values()))
+RIGS = list(config["rigs"])
+CODE_ALL = code_hash()  # the whole package: the aggregate rules' param
 
 
-wildcard_constraints:
-    scheme=r"[A-Za-z0-9_.-]+",
-    sigma=r"[0-9][0-9.e+-]*",
-    estimator=r"[A-Za-z0-9_-]+",
+def checked(rig, fn, raw=None):
+    """``fn(raw)`` for the rig's config; an InputError stops the run here, naming the field."""
+    try:
+        return fn(rig_config(config, rig) if raw is None else raw)
+    except InputError as exc:
+        raise WorkflowError(f"invalid configuration: {exc.field}: {exc.message} (rigs.{rig})")
 
 
-def scheme_input(wildcards):
-    """A generated scheme's file (the design rule writes it); none for the config's schemes."""
-    if is_generated(wildcards.scheme, STUDY):
-        return f"results/design/{wildcards.scheme}.yaml"
-    return []
+# ---- the rigs with Monte Carlo hooks: their checked configs, noise labels and code hashes
+MC_HOOKS = {r: get_rig(r).montecarlo for r in RIGS if get_rig(r).montecarlo is not None}
+MC_CONFIG = {r: checked(r, h.check) for r, h in MC_HOOKS.items()}
+MC_LEVELS = {r: {noise_label(v): v for v in MC_HOOKS[r].noise_levels(c)} for r, c in MC_CONFIG.items()}
+# what a rig's cells compute: an edit elsewhere in the package leaves them alone
+CODE_COMPUTE = {r: compute_code_hash(get_rig(r)) for r in MC_CONFIG}
 
 
-def _model_params():
-    """The config sections that every run's numbers depend on (not batch, backend, threads)."""
-    return {
-        k: config[k]
-        for k in ("site", "centrifuge", "sampling", "truth", "noise", "filter", "seed")
-    }
+def config_provider(rig, *keys):
+    """A params function: the rig's config sections ``keys`` (what the rule depends on)."""
+    return lambda w: {k: MC_CONFIG[rig].get(k) for k in keys}
 
 
-def cell_params(wildcards):
-    """Everything a cell's numbers depend on: a change reruns that cell only."""
-    p = _model_params()
-    p["sigma_a_ug"] = NOISE[wildcards.sigma]
-    p["estimator"] = STUDY["estimators"][wildcards.estimator]
-    p["replicates"] = STUDY["replicates"]
-    if not is_generated(wildcards.scheme, STUDY):
-        p["scheme"] = builtin_scheme(config, wildcards.scheme).as_dict()
-    return p
+def mc_cells(rig):
+    """The cell folders of a rig's sweep: cases x noise levels x estimators."""
+    h, c = MC_HOOKS[rig], MC_CONFIG[rig]
+    return expand(
+        "results/{rig}/runs/{scheme}/noise{noise}/{estimator}",
+        rig=rig,
+        scheme=h.cases(c),
+        noise=list(MC_LEVELS[rig]),
+        estimator=h.estimators(c),
+    )
 
 
-def single_params(wildcards):
-    p = _model_params()
-    p["single"] = STUDY["single"]
-    p["estimators"] = STUDY["estimators"]
-    p["scheme"] = builtin_scheme(config, STUDY["single"]["scheme"]).as_dict()
-    return p
+def mc_cell_files(name):
+    """An input function: file ``name`` of every cell of the rule's rig."""
+    return lambda w: [f"{c}/{name}" for c in mc_cells(w.rig)]
+
+
+def mc_case_input(w):
+    """A case generated by one of the rig's own rules (e.g. a GA scheme); none otherwise."""
+    f = MC_HOOKS[w.rig].case_file(MC_CONFIG[w.rig], w.scheme)
+    return f"results/{w.rig}/{f}" if f else []
+
+
+def mc_cell_params(w):
+    """Exactly what the cell's numbers depend on (the rig says): a change reruns that cell only."""
+    return MC_HOOKS[w.rig].cell_params(
+        MC_CONFIG[w.rig], w.scheme, MC_LEVELS[w.rig][w.noise], w.estimator
+    )
+
+
+def mc_threads(w):
+    return MC_HOOKS[w.rig].settings(MC_CONFIG[w.rig]).threads

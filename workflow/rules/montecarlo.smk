@@ -1,39 +1,51 @@
-# One job per (scheme, noise level, estimator) cell: simulate + identify every replicate.
+# The generic Monte Carlo stage of every rig with Monte Carlo hooks (platcal.rig.MonteCarloHooks):
+# one job per (case, noise level, estimator) cell, then the rig's tidy tables.
+#   results/<rig>/runs/<case>/noise<level>/<estimator>/{coef,runs}.parquet, timing.json
+#   results/<rig>/montecarlo/{coef,runs}.parquet, timing.csv
+
+
+
+wildcard_constraints:
+    rig="|".join(MC_CONFIG) or "(?!)",
+    scheme=r"[A-Za-z0-9_.-]+",
+    noise=r"[0-9][0-9.e+-]*",
+    estimator=r"[A-Za-z0-9_-]+",
 
 
 rule montecarlo_cell:
     input:
-        scheme=scheme_input,
+        case=mc_case_input,
     output:
-        coef="results/runs/{scheme}/sa{sigma}/{estimator}/coef.parquet",
-        runs="results/runs/{scheme}/sa{sigma}/{estimator}/runs.parquet",
-        timing="results/runs/{scheme}/sa{sigma}/{estimator}/timing.json",
+        coef="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/coef.parquet",
+        runs="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/runs.parquet",
+        timing="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/timing.json",
     params:
-        cell=cell_params,
-        code=CODE_COMPUTE,
-    threads: STUDY["threads"]
+        cell=mc_cell_params,
+        level=lambda w: MC_LEVELS[w.rig][w.noise],
+        code=lambda w: CODE_COMPUTE[w.rig],
+    threads: mc_threads
     conda:
         "../envs/platcal.yaml"
     log:
-        "results/logs/montecarlo/{scheme}_sa{sigma}_{estimator}.log",
+        "results/{rig}/logs/montecarlo/{scheme}_noise{noise}_{estimator}.log",
     script:
         "../scripts/montecarlo_cell.py"
 
 
-rule single_run:
+rule collect:
+    input:
+        coef=mc_cell_files("coef.parquet"),
+        runs=mc_cell_files("runs.parquet"),
+        timing=mc_cell_files("timing.json"),
     output:
-        estimates="results/single/estimates.csv",
-        covariance="results/single/covariance.csv",
-        history="results/single/history.parquet",
-        info="results/single/run.json",
-        timing="results/single/timing.json",
+        coef="results/{rig}/montecarlo/coef.parquet",
+        runs="results/{rig}/montecarlo/runs.parquet",
+        timing="results/{rig}/montecarlo/timing.csv",
     params:
-        single=single_params,
-        code=CODE_COMPUTE,
-    threads: 1
+        code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
     log:
-        "results/logs/single_run.log",
+        "results/{rig}/logs/collect.log",
     script:
-        "../scripts/single_run.py"
+        "../scripts/collect.py"

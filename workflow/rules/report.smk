@@ -1,19 +1,20 @@
-# results/report.md: tables inline, figures linked, a short reading of the numbers.
+# results/report.md: the index of the study, one section per rig linking its report.
 
 
-rule report_md:
+INDEX_REPORT = "results/report.md"
+
+
+rule report_index:
     input:
-        tables=rules.tables.output,
-        figures=rules.figures.output,
-        timing=rules.collect.output.timing,
+        [f"results/{r}/report.md" for r in RIGS],
     output:
-        REPORT_MD,
+        report(INDEX_REPORT, caption="../report/index.rst", category="Study"),
     params:
-        study=STUDY,
+        rigs=RIGS,
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
     log:
-        "results/logs/report_md.log",
+        "results/logs/report_index.log",
     script:
-        "../scripts/report_md.py"
+        "../scripts/report_index.py"

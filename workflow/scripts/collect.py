@@ -1,10 +1,11 @@
-"""Snakemake wrapper: concatenate the cells into study-wide tidy tables."""
+"""Snakemake wrapper: concatenate a rig's cells into its study-wide tidy tables."""
 from platcal.io import atomic_to_csv, atomic_to_parquet
-from platcal.montecarlo import collect, job_logger
+from platcal.log import job_logger
+from platcal.study.montecarlo import collect
 
 sm = snakemake  # noqa: F821
 log = job_logger(sm.log[0])
-log.info("collecting %d cells", len(sm.input.coef))
+log.info("collecting %d cells of %s", len(sm.input.coef), sm.wildcards.rig)
 coef, runs, timing = collect(sm.input.coef, sm.input.runs, sm.input.timing)
 atomic_to_parquet(coef, sm.output.coef)
 atomic_to_parquet(runs, sm.output.runs)

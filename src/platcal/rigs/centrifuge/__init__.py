@@ -1,13 +1,20 @@
-"""The precision centrifuge, 48-state EKF (``docs/centrifuge-model.md``, seed 000).
+"""The precision centrifuge: 45 platform error coefficients by a 48-state EKF
+(``docs/centrifuge-model.md``, seed 000; Xu & Zhang 2017).
 
-Its code still lives in the top-level modules; the CLI runs it through their commands until it
-moves here (issue 8).
+Modules: :mod:`.base` (the centrifuge's specific force), :mod:`.catalogue` (Table 2),
+:mod:`.config` (schema and typed study), :mod:`.scheme`, :mod:`.record`, :mod:`.simulate`,
+:mod:`.ekf`, :mod:`.identify` (the one simulate -> identify path), :mod:`.observability`
+(covariance-only kernel), :mod:`.design` (GA), :mod:`.design_study`, :mod:`.study` (its Monte
+Carlo hooks), :mod:`.tables` and :mod:`.report` (Table 2, figures, report section),
+:mod:`.commands` (its ``platcal`` sub-commands).
 """
 
-from ...config import load_config as _load  # noqa: F401  (kept for the registry's shape)
-from ...instruments import load_catalogue
 from ...rig import Rig
+from .catalogue import load_catalogue
+from .commands import COMMANDS
+from .config import study_from_config
+from .study import CentrifugeMonteCarlo
 
 RIG = Rig(name="centrifuge", title="precision centrifuge, 48-state EKF", spec="centrifuge-model.md",
-          load_config=lambda raw: raw, commands={}, catalogue=lambda: load_catalogue().frame(),
-          estimators=("ekf",))
+          load_config=study_from_config, commands=COMMANDS, catalogue=lambda: load_catalogue().frame(),
+          estimators=("ekf",), montecarlo=CentrifugeMonteCarlo())

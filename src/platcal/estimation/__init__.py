@@ -1,0 +1,4 @@
+"""Estimation shared by the rigs: Kalman primitives for any small measurement dimension
+(:mod:`.kalman`), filter consistency (:mod:`.consistency`: NEES, NIS bands) and covariance-only
+analysis (:mod:`.information`: correlation, the design criteria J, A, D, maxrel, Fisher
+information, Cramer-Rao bound, rank and singular values). Nothing here names a rig."""

@@ -1,0 +1,256 @@
+"""Rig-agnostic Kalman-filter primitives for one replicate, compiled with numba.
+
+The covariance ``P`` is (n, n) and symmetric. The kernels exploit the structure of the
+identification problems of every rig: constant coefficients (only a few "dynamic" states have a
+non-identity row in the transition matrix) and a small measurement of any dimension m (the
+centrifuge's accelerometer triad has m = 3), so every step costs O(n^2) rather than O(n^3).
+
+The update factors the innovation covariance ``S = L L^T`` (Cholesky): ``L^-1 innov`` is the
+standardised innovation (NIS = its squared norm) and ``S^-1 = L^-T L^-1`` gives the gain. For
+m = 3 (one O(n^2) pass over P feeding all three rows) and d = 3 the loops are written out, which
+is worth a third of the filter's time; the general loops give the same numbers to rounding
+(``tests/test_batch.py``). The dense textbook forms these kernels are checked against live in
+``tests/kalman_oracles.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def propagate_sparse(P, dyn, cols, phi, q, W, blk):
+    """``P <- Phi P Phi^T + Q`` where Phi is the identity except for the rows ``dyn``, and those
+    rows are nonzero only in the columns ``cols``.
+
+    Parameters
+    ----------
+    P : (n, n) symmetric covariance, updated in place (kept exactly symmetric).
+    dyn : (d,) int, indices of the dynamic states.
+    cols : (m,) int, the columns where the dynamic rows of Phi may be nonzero (``dyn`` among them).
+    phi : (d, m) the values of those rows at ``cols``.
+    q : (d, d) process-noise covariance of the dynamic states.
+    W : (d, n) scratch; receives ``Phi[dyn] P``. blk : (d, d) scratch.
+
+    Cost O(d m n): with m ~ 30 nonzero columns of a 48-state filter, well under one n^3.
+    """
+    n = P.shape[0]
+    d = dyn.shape[0]
+    m = cols.shape[0]
+    W[:, :] = 0.0
+    # rows of P are columns of P (symmetric): W[r] = sum_k phi[r, k] P[cols[k]] as axpys,
+    # contiguous and vectorisable; with three dynamic states (attitude) one pass over each row
+    # of P feeds all three
+    if d == 3:
+        w0, w1, w2 = W[0], W[1], W[2]
+        for k in range(m):
+            prow = P[cols[k]]
+            c0, c1, c2 = phi[0, k], phi[1, k], phi[2, k]
+            for j in range(n):
+                p = prow[j]
+                w0[j] += c0 * p
+                w1[j] += c1 * p
+                w2[j] += c2 * p
+    else:
+        for k in range(m):
+            prow = P[cols[k]]
+            for r in range(d):
+                c = phi[r, k]
+                wr = W[r]
+                for j in range(n):
+                    wr[j] += c * prow[j]
+    # the dyn-dyn block, Phi P Phi^T restricted to dyn, before P's rows are overwritten
+    for r in range(d):
+        for c in range(r + 1):
+            s = 0.0
+            for k in range(m):
+                s += W[r, cols[k]] * phi[c, k]
+            v = s + 0.5 * (q[r, c] + q[c, r])
+            blk[r, c] = v
+            blk[c, r] = v
+    for r in range(d):
+        dr = dyn[r]
+        wr = W[r]
+        prow = P[dr]
+        for j in range(n):
+            prow[j] = wr[j]
+            P[j, dr] = wr[j]
+    for r in range(d):
+        for c in range(d):
+            P[dyn[r], dyn[c]] = blk[r, c]
+
+
+@njit(cache=True)
+def cholesky_inverse(S, F, nu, innov):
+    """Cholesky factor ``L`` of the symmetric (m, m) ``S``, the standardised innovation
+    ``nu = L^-1 innov`` and ``S^-1``, all in place in ``F`` (m, m) without allocation.
+
+    Returns False (``F`` and ``nu`` undefined) if ``S`` is not positive definite.
+    """
+    m = S.shape[0]
+    for i in range(m):  # L into the lower triangle of F
+        for j in range(i + 1):
+            v = S[i, j]
+            for k in range(j):
+                v -= F[i, k] * F[j, k]
+            if i == j:
+                if not v > 0.0:
+                    return False
+                F[i, i] = np.sqrt(v)
+            else:
+                F[i, j] = v / F[j, j]
+    for i in range(m):  # nu = L^-1 innov
+        v = innov[i]
+        for k in range(i):
+            v -= F[i, k] * nu[k]
+        nu[i] = v / F[i, i]
+    for i in range(m):  # L^-1 in place, row by row (columns ascending only read L[i, k >= j])
+        dii = 1.0 / F[i, i]
+        for j in range(i):
+            v = F[i, j] * F[j, j]
+            for k in range(j + 1, i):
+                v += F[i, k] * F[k, j]
+            F[i, j] = -v * dii
+        F[i, i] = dii
+    for r in range(m):  # S^-1 = L^-T L^-1: upper triangle, each diagonal last (it is still read)
+        for c in range(r + 1, m):
+            v = F[c, r] * F[c, c]
+            for k in range(c + 1, m):
+                v += F[k, r] * F[k, c]
+            F[r, c] = v
+        v = F[r, r] * F[r, r]
+        for k in range(r + 1, m):
+            v += F[k, r] * F[k, r]
+        F[r, r] = v
+    for r in range(m):
+        for c in range(r + 1, m):
+            F[c, r] = F[r, c]
+    return True
+
+
+@njit(cache=True)
+def joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu, update_x):
+    """Kalman update with an m-dimensional measurement whose Jacobian rows are sparse, in Joseph
+    form, O(m n^2) with a small constant.
+
+    Row r of H is nonzero only at the states ``hcols[r, :hnnz[r]]`` with values
+    ``hval[r, :hnnz[r]]``. With ``U = P H^T`` (n x m), ``S = H U + R``, ``K = U S^-1`` and
+    ``D = U - K S`` the Joseph form ``(I - K H) P (I - K H)^T + K R K^T`` equals
+    ``P - K U^T - D K^T`` exactly, for any gain K. Only the lower triangle is computed and it
+    is mirrored, so P stays exactly symmetric.
+
+    Parameters
+    ----------
+    x : (n,) state, updated in place when ``update_x``.
+    P : (n, n) symmetric covariance, updated in place.
+    hcols, hval : (m, w) int and float; hnnz : (m,) int. The sparse rows of H.
+    innov : (m,) innovation ``z - h(x)`` (unused unless ``update_x``).
+    r_var : (m,) measurement-noise variances (R diagonal).
+    U, K, D : (m, n) scratch (stored transposed for contiguous rows); S, Sinv : (m, m) scratch.
+    nu : (m,) out, the standardised innovation ``L^-1 innov`` (for NIS).
+
+    Returns
+    -------
+    bool : False if ``S`` was not positive definite (the update is skipped).
+    """
+    n = P.shape[0]
+    m = hnnz.shape[0]
+    U[:, :] = 0.0
+    for r in range(m):
+        ur = U[r]
+        for t in range(hnnz[r]):
+            c = hval[r, t]
+            prow = P[hcols[r, t]]
+            for j in range(n):
+                ur[j] += c * prow[j]
+    for r in range(m):
+        for c in range(r + 1):
+            s = 0.0
+            for t in range(hnnz[c]):
+                s += U[r, hcols[c, t]] * hval[c, t]
+            S[r, c] = s
+            S[c, r] = s
+        S[r, r] += r_var[r]
+    if not cholesky_inverse(S, Sinv, nu, innov):
+        return False
+    if m == 3:
+        _correct3(x, P, innov, U, K, D, S, Sinv, update_x)
+    else:
+        _correct(x, P, innov, U, K, D, S, Sinv, update_x)
+    return True
+
+
+@njit(cache=True)
+def _small_times(M, A, out):
+    """``out = M A`` for a small (m, m) ``M`` and (m, n) ``A``, row by row (contiguous, vectorisable)."""
+    m = M.shape[0]
+    n = A.shape[1]
+    for c in range(m):
+        oc = out[c]
+        for j in range(n):
+            oc[j] = M[c, 0] * A[0, j]
+        for i in range(1, m):
+            for j in range(n):
+                oc[j] += M[c, i] * A[i, j]
+
+
+@njit(cache=True)
+def _correct(x, P, innov, U, K, D, S, Sinv, update_x):
+    """``K = U S^-1``, ``D = U - K S``, ``x += K innov``, ``P -= K U^T + D K^T`` (lower, mirrored)."""
+    n = P.shape[0]
+    m = S.shape[0]
+    _small_times(Sinv, U, K)
+    _small_times(S, K, D)
+    for c in range(m):
+        for j in range(n):
+            D[c, j] = U[c, j] - D[c, j]
+    if update_x:
+        for j in range(n):
+            v = K[0, j] * innov[0]
+            for i in range(1, m):
+                v += K[i, j] * innov[i]
+            x[j] += v
+    for i in range(n):
+        prow = P[i]
+        for j in range(i + 1):
+            a = K[0, i] * U[0, j]
+            b = D[0, i] * K[0, j]
+            for c in range(1, m):
+                a += K[c, i] * U[c, j]
+                b += D[c, i] * K[c, j]
+            prow[j] -= a + b
+    for i in range(n):
+        for j in range(i):
+            P[j, i] = P[i, j]
+
+
+@njit(cache=True)
+def _correct3(x, P, innov, U, K, D, S, Sinv, update_x):
+    """:func:`_correct` for m = 3, the loops over the measurement written out (same numbers)."""
+    n = P.shape[0]
+    for c in range(3):
+        kc = K[c]
+        s0, s1, s2 = Sinv[c, 0], Sinv[c, 1], Sinv[c, 2]
+        for j in range(n):
+            kc[j] = s0 * U[0, j] + s1 * U[1, j] + s2 * U[2, j]
+    for c in range(3):
+        dc = D[c]
+        s0, s1, s2 = S[c, 0], S[c, 1], S[c, 2]
+        for j in range(n):
+            dc[j] = U[c, j] - (s0 * K[0, j] + s1 * K[1, j] + s2 * K[2, j])
+    if update_x:
+        i0, i1, i2 = innov[0], innov[1], innov[2]
+        for j in range(n):
+            x[j] += K[0, j] * i0 + K[1, j] * i1 + K[2, j] * i2
+    u0, u1, u2 = U[0], U[1], U[2]
+    k0, k1, k2 = K[0], K[1], K[2]
+    for i in range(n):
+        a0, a1, a2 = K[0, i], K[1, i], K[2, i]
+        b0, b1, b2 = D[0, i], D[1, i], D[2, i]
+        prow = P[i]
+        for j in range(i + 1):
+            prow[j] -= (a0 * u0[j] + a1 * u1[j] + a2 * u2[j]) + (b0 * k0[j] + b1 * k1[j] + b2 * k2[j])
+    for i in range(n):
+        for j in range(i):
+            P[j, i] = P[i, j]

@@ -1,0 +1,134 @@
+"""The centrifuge's ``platcal`` sub-commands: ``fn(study, args) -> int`` for ``RIG.commands``.
+
+``study`` is the validated :class:`~platcal.rigs.centrifuge.config.Study` of ``--config``;
+``args`` the namespace of :func:`platcal.cli.build_parser`. Every command checks the options it
+needs and refuses, naming the option, those the centrifuge has no use for.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from ...errors import InputError
+from ...study.montecarlo import cell_job
+from .config import Study
+from .design import design_config, preset, run_design, write_design
+from .identify import identify_record, timed, truth_known, write_identification
+from .observability import write_observability
+from .record import read_record, sim_to_frame, write_record
+from .report import report_from_results
+from .scheme import resolve_scheme
+from .simulate import simulate
+
+UNUSED = {"simulate": ("platform", "run"), "identify": ("estimator", "method")}
+"""Options of the shared parser that the centrifuge does not use (refused when given)."""
+
+
+def _refuse_unused(args: argparse.Namespace) -> None:
+    for opt in UNUSED.get(args.command, ()):
+        if getattr(args, opt, None) not in (None, False):
+            raise InputError(f"--{opt}", f"rig centrifuge has no use for --{opt}; drop it")
+
+
+def _scheme(study: Study, args: argparse.Namespace):
+    _refuse_unused(args)
+    if not args.scheme:
+        raise InputError("--scheme", "required for rig centrifuge: a scheme name of the config or a scheme YAML file")
+    return resolve_scheme(args.scheme, study.schemes)
+
+
+def simulate_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal simulate``: one test record (docs/centrifuge-model.md §13)."""
+    scheme = _scheme(study, args)
+    if args.seed is not None and args.seed < 0:
+        raise InputError("--seed", "must be a whole number >= 0")
+    seeds = None if args.noise_free else [np.random.SeedSequence(study.seed if args.seed is None else args.seed)]
+    t0 = time.perf_counter()
+    sim = simulate(study.truth, scheme, study.centrifuge.scheme_params(scheme), study.noise, seeds,
+                   sample_s=study.sample_s)
+    write_record(sim_to_frame(sim, scheme), args.out)
+    print(f"platcal simulate: scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s, "
+          f"{'noise-free' if seeds is None else 'seed ' + str(args.seed if args.seed is not None else study.seed)}"
+          f" -> {args.out} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
+    return 0
+
+
+def identify_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal identify``: the EKF over a test record."""
+    scheme = _scheme(study, args)
+    df = read_record(args.data)
+    est, seconds = timed(identify_record, study, scheme, df)
+    summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds)
+    msg = f"platcal identify: {len(est.names)}-state EKF, {study.filter.passes} pass(es), {seconds:.2f} s -> {args.out}"
+    if "nees" in summary:
+        msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
+                f"{summary['max_abs_rel_err_pct_accel']:.3f} %, NEES {summary['nees']:.1f} (dof {summary['nees_dof']})")
+    print(msg, file=sys.stderr)
+    return 0
+
+
+def observability_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal observability``: covariance-only analysis of a scheme."""
+    scheme = _scheme(study, args)
+    if args.replicates < 0:
+        raise InputError("--replicates", "must be a whole number >= 0")
+    if args.arw is not None and args.arw < 0:
+        raise InputError("--arw", "must be >= 0 (deg/sqrt(h))")
+    if args.rate is not None and args.rate < 0:
+        raise InputError("--rate", "must be >= 0 (deg/s; 0 = centrifuge off, static 1 g)")
+    t0 = time.perf_counter()
+    res = write_observability(args.out, study, scheme, replicates=args.replicates, arw_deg_rth=args.arw,
+                              estimate_doo=True if args.doo else None, rate_deg_s=args.rate)
+    om = res["observability_matrix"]
+    msg = (f"platcal observability: scheme {scheme.name!r}: J = {res['J']:.2f} over {res['n_pairs']} pairs "
+           f"(ARW {res['settings']['arw_deg_rth']:g}), A = {res['criteria']['A']:.3g}, "
+           f"max rel sigma {res['criteria']['maxrel']:.3g} %, observability rank {om['rank']}/{om['n_cols']}")
+    if "monte_carlo" in res:
+        msg += f"; MC RMS rel err {res['monte_carlo']['rms_rel_err_pct_45']:.3f} % ({args.replicates} runs)"
+    print(msg + f" -> {args.out} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
+    return 0
+
+
+def design_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal design``: the genetic-algorithm scheme search."""
+    if not str(args.out).endswith((".yaml", ".yml")):
+        raise InputError("--out", "must be a scheme file name ending in .yaml")
+    over = dict(criterion=args.criterion, positions=args.positions, population=args.population,
+                generations=args.generations, seed=args.seed, name=args.name)
+    if args.preset:
+        study, dcfg = preset(study, args.preset)
+        dcfg = design_config({**study.config, "design": dcfg}, **over)
+    else:
+        dcfg = design_config(study.config, **over)
+    log = (lambda m: print(m, file=sys.stderr)) if args.verbose else None
+    res = run_design(study, dcfg, log=log)
+    write_design(res, args.out)
+    print(f"platcal design: {res.scheme.name}: {dcfg['criterion']} = {res.value:.4g} "
+          f"(J {res.criteria['J']:.2f}, max rel sigma {res.criteria['maxrel']:.3g} %), "
+          f"{dcfg['population']} x {dcfg['generations']} generations, {res.position_runs} position runs, "
+          f"{res.seconds:.0f} s -> {args.out}", file=sys.stderr)
+    return 0
+
+
+def montecarlo_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal montecarlo``: one (scheme, sigma_a, estimator) cell of the sweep."""
+    if args.noise is None:
+        raise InputError("--noise", "required for rig centrifuge: the accelerometer noise sigma_a, ug per sample")
+    cell_job("centrifuge", study.config, args.scheme, args.noise, args.estimator, args.out, threads=args.threads,
+             case_file=args.scheme_file)
+    return 0
+
+
+def report_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal report``: rewrite ``report.md`` from a results folder's tables."""
+    out = report_from_results(study.config, args.results)
+    print(f"platcal report: -> {out}")
+    return 0
+
+
+COMMANDS = {"simulate": simulate_command, "identify": identify_command, "observability": observability_command,
+            "design": design_command, "montecarlo": montecarlo_command, "report": report_command}

@@ -1,0 +1,445 @@
+"""The identifying EKF of the centrifuge test (docs/centrifuge-model.md §9; paper eqs. 23-25), batched.
+
+State (n = 48 by default), in Table 2's order and engineering units::
+
+    DF(x,y,z) DI DO DS DII DSS DIO DIS DOS  k0 k1 k2 k3 kIP  theta_py theta_pz theta_oz
+    alpha beta gamma (rad)
+
+With ``estimate_doo`` the three DOO terms join after theta_oz (n = 51): the two-g-level
+extension of docs/centrifuge-model.md §4. Every array carries a leading batch axis B (replicates, or
+candidate schemes for the covariance-only run); a batch of one is one run. Replicates are
+independent, so a batch gives bit-identical numbers to B runs of one.
+
+Speed (issue 5): each step costs O(n^2), not O(n^3). The coefficients are constant, so only the
+3 attitude rows of the transition matrix differ from the identity, and they are nonzero only in
+the gyro-coefficient and angle columns; each accelerometer row of H has 8-10 nonzeros. The
+propagation touches 3 rows and columns of P (:func:`platcal.estimation.kalman.propagate_sparse`); the
+update is the Joseph form as a rank-6 correction of the lower triangle, mirrored
+(:func:`platcal.estimation.kalman.joseph_update_sparse`). Replicates run in parallel numba threads
+(:mod:`platcal.parallel`); the history is decimated (``history_every_s``), so the memory is
+O(B n^2) plus O(B n) per kept instant, whatever the dwell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from ...estimation.kalman import joseph_update_sparse, propagate_sparse
+from ...model.attitude import (GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc,
+                               rk4_jac_sc)
+from ...model.frames import ARCSEC, DEG
+from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of
+from .base import broadcast_params, specific_force_into
+
+ANGLE_NAMES = ("alpha", "beta", "gamma")
+
+# P0 defaults (1 sigma), docs/centrifuge-model.md §11, by error term.
+P0_DEFAULTS = {
+    "DF": 10.0, "DI": 2.0, "DO": 2.0, "DS": 2.0,
+    "DII": 0.2, "DSS": 0.2, "DIO": 0.2, "DIS": 0.2, "DOS": 0.2, "DOO": 0.2,
+    "k0": 1e4, "k1": 2e3, "k2": 50.0, "k3": 10.0, "kIP": 20.0, "theta": 600.0,
+}
+
+
+@dataclass(frozen=True)
+class FilterSettings:
+    """Settings of the identifying EKF (docs/centrifuge-model.md §9 and §11).
+
+    Attributes
+    ----------
+    period_s : filter period, s (20 ms in the paper); a multiple of the sample period.
+    passes : 1 = the paper's EKF; each further pass restarts from the previous estimate with
+        ``P0 = 100 x`` its coefficient covariance.
+    sigma_a_ug : accelerometer noise assumed by the filter, ug per sample (R).
+    arw_deg_rth : gyro angle random walk assumed by the filter, deg/sqrt(h) (Q).
+    sigma_set_arcsec : attitude variance at each position reset, arcsec (1 sigma).
+    p0_sigma : (n_coef,) initial 1-sigma of the coefficient states, engineering units.
+    estimate_doo : identify DOO_x/y/z too (51 states).
+    history_every_s : decimation of the returned history, s (None: no history).
+    """
+
+    period_s: float = 0.02
+    passes: int = 1
+    sigma_a_ug: float = 10.0
+    arw_deg_rth: float = 0.001
+    sigma_set_arcsec: float = 10.0
+    p0_sigma: np.ndarray = field(default_factory=lambda: default_p0_sigma(False))
+    estimate_doo: bool = False
+    history_every_s: float | None = 1.0
+
+    @property
+    def coef_index(self) -> np.ndarray:
+        """Indices into the full 48-vector of the estimated coefficients, in state order."""
+        return estimated_index(self.estimate_doo)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return tuple(FULL_NAMES[i] for i in self.coef_index) + ANGLE_NAMES
+
+
+def estimated_index(estimate_doo: bool) -> np.ndarray:
+    """Full-vector indices of the coefficient states (45, or 48 with DOO)."""
+    n = N_FULL if estimate_doo else N_IDENTIFIED
+    return np.arange(n, dtype=np.int64)
+
+
+def default_p0_sigma(estimate_doo: bool, overrides: dict[str, float] | None = None) -> np.ndarray:
+    """P0 (1 sigma) per coefficient state from the per-term defaults and ``overrides``.
+
+    ``overrides`` maps an error term (``'DF'``, ``'k0'``, ``'theta'`` ...) or a coefficient name
+    (``'DF_x'``) to a sigma in the coefficient's unit; names win over terms.
+    """
+    overrides = overrides or {}
+    out = []
+    for i in estimated_index(estimate_doo):
+        name = FULL_NAMES[i]
+        term = term_of(name)
+        out.append(float(overrides.get(name, overrides.get(term, P0_DEFAULTS[term]))))
+    return np.array(out)
+
+
+@dataclass
+class Estimate:
+    """Result of the EKF for a batch of B runs.
+
+    Attributes
+    ----------
+    names : state names (coefficients, then alpha, beta, gamma).
+    x : (B, n) final state: coefficients in engineering units, angles in rad.
+    P : (B, n, n) final covariance in the same units.
+    history_t : (H,) time of each history sample, s from the start of the first pass.
+    history_x, history_sigma : (B, H, n) estimate and 1-sigma at those times.
+    pass_x, pass_P : per-pass final coefficient estimate (passes, B, n_coef) and covariance.
+    mean_nis : (B,) mean normalised innovation squared of the last pass (3 expected).
+    failed_updates : (B,) updates skipped because S was not positive definite.
+    """
+
+    names: tuple[str, ...]
+    x: np.ndarray
+    P: np.ndarray
+    history_t: np.ndarray
+    history_x: np.ndarray
+    history_sigma: np.ndarray
+    pass_x: np.ndarray
+    pass_P: np.ndarray
+    mean_nis: np.ndarray
+    failed_updates: np.ndarray
+
+    @property
+    def n_coef(self) -> int:
+        return len(self.names) - 3
+
+    @property
+    def coef(self) -> np.ndarray:
+        """(B, n_coef) coefficient estimates."""
+        return self.x[:, : self.n_coef]
+
+    @property
+    def coef_sigma(self) -> np.ndarray:
+        """(B, n_coef) 1-sigma of the coefficient estimates."""
+        d = np.diagonal(self.P, axis1=1, axis2=2)[:, : self.n_coef]
+        return np.sqrt(d)
+
+
+@njit(parallel=True, cache=True)
+def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz):
+    """Filter every replicate of the batch through every position of one pass.
+
+    Position k's instants are ``t[offs[k]:offs[k + 1]]`` (s since the position's start) with
+    outputs ``z[:, offs[k]:offs[k + 1]]`` (B, M, 3) g (``z`` is (B, 0, 3) for a covariance-only
+    run); ``cmd`` (B, K, 3) rad; ``params`` (B, K, 5) packed centrifuge parameters;
+    ``hist_idx`` the history slot of each instant (-1: none). ``q_rate`` is the attitude
+    process-noise density, rad^2/s per axis.
+
+    Sparsity (from :func:`_structure`): the attitude rows of Phi are nonzero only at the states
+    ``pcols`` (gyro coefficients, then the angles); for a coefficient column ``pg`` gives its
+    column of the RK4 map's compact gyro Jacobian. Row r of H is nonzero only at the states
+    ``hcols[r, :hnnz[r]]``; ``hsrc`` says where each value comes from (a column of
+    ``MEAS_COLS[r]``, or ``-1 - i`` for angle i).
+
+    Each replicate runs the same sequential kernel (:func:`_filter_one`) in its own iteration, so
+    the numbers do not depend on the batch size or on the number of threads. One parallel region
+    per pass (not per position) keeps thread start-up and joins rare.
+    """
+    B = x.shape[0]
+    for b in prange(B):
+        _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                          q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
+                          hcols, hsrc, hnnz)
+
+
+@njit(cache=True)
+def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                     q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
+                     hsrc, hnnz):
+    """:func:`_run_pass` without threads, for a batch of one or a single thread: the same
+    per-replicate kernel, minus the parallel region's start-up and join (milliseconds on a
+    busy machine)."""
+    for b in range(x.shape[0]):
+        _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                          q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
+                          hcols, hsrc, hnnz)
+
+
+@njit(cache=True)
+def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                      q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
+                      hsrc, hnnz):
+    """Replicate b through every position of one pass (see :func:`_run_pass`)."""
+    for k in range(offs.shape[0] - 1):
+        o0, o1 = offs[k], offs[k + 1]
+        zb = z[b, o0:o1] if update_x else z[b]
+        stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx,
+                            coef_fixed[b], params[b, k], r_var, q_rate, update_x,
+                            hist_idx[o0:o1], hist_x[b], hist_s[b], pcols, pg, hcols, hsrc, hnnz)
+        nis_sum[b] += stats[0]
+        n_bad[b] += int(stats[1])
+
+
+@njit(cache=True)
+def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate,
+                update_x, hist_idx, hist_x, hist_s, pcols, pg, hcols, hsrc, hnnz):
+    """One replicate through one position; returns (sum of NIS, number of skipped updates)."""
+    n = xb.shape[0]
+    nc = n - 3
+    M = t.shape[0]
+    npc = pcols.shape[0]
+    mh = hcols.shape[1]
+    dyn = np.arange(nc, n)
+    scratch = make_sc_rk4_scratch()
+    hm = np.zeros((3, MEAS_COLS.shape[1]))
+    g = pb[P_G]
+    coef = coef_fixed.copy()
+    ang_new = np.empty(3)
+    pa = np.empty((3, 3))
+    pgyro = np.empty((3, N_GYRO))
+    phi = np.empty((3, npc))
+    q = np.zeros((3, 3))
+    blk = np.empty((3, 3))
+    Wd = np.empty((3, n))
+    U = np.empty((3, n))
+    K = np.empty((3, n))
+    D = np.empty((3, n))
+    S = np.empty((3, 3))
+    Sinv = np.empty((3, 3))
+    nu = np.empty(3)
+    out = np.empty(3)
+    ha = np.empty((3, 3))
+    hval = np.zeros((3, mh))
+    innov = np.zeros(3)
+    fr3 = np.empty((3, 3))
+    fr_now = np.empty(3)
+    ang = xb[nc:]
+    nis = 0.0
+    bad = 0
+    # attitude reset: commanded angles, variance sigma_set^2, no cross-covariance
+    for r in range(3):
+        xb[nc + r] = cmd[r]
+        for i in range(n):
+            Pb[nc + r, i] = 0.0
+            Pb[i, nc + r] = 0.0
+        Pb[nc + r, nc + r] = reset_var
+    if M > 0:
+        specific_force_into(t[0], pb, fr_now)
+    for m in range(M):
+        for k in range(nc):
+            coef[est_idx[k]] = xb[k]
+        if m > 0:
+            h = t[m] - t[m - 1]
+            # the end-of-step force is the one measured at t[m]: computed once, used twice
+            for r in range(3):
+                fr3[0, r] = fr_now[r]
+            specific_force_into(t[m - 1] + 0.5 * h, pb, fr3[1])
+            specific_force_into(t[m], pb, fr_now)
+            for r in range(3):
+                fr3[2, r] = fr_now[r]
+            rk4_jac_sc(ang, coef, fr3, h, pb, ang_new, pa, pgyro, scratch)
+            for r in range(3):
+                for k in range(npc - 3):
+                    phi[r, k] = pgyro[r, pg[k]]
+                for i in range(3):
+                    phi[r, npc - 3 + i] = pa[r, i]
+                q[r, r] = q_rate * h
+            for r in range(3):
+                ang[r] = ang_new[r]
+            propagate_sparse(Pb, dyn, pcols, phi, q, Wd, blk)
+        measure_jac_sc(ang, coef, fr_now[0], fr_now[1], fr_now[2], g, out, hm, ha)
+        for r in range(3):
+            for k in range(hnnz[r]):
+                src = hsrc[r, k]
+                hval[r, k] = hm[r, src] if src >= 0 else ha[r, -1 - src]
+            if update_x:
+                innov[r] = zb[m, r] - out[r]
+        if joseph_update_sparse(xb, Pb, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu,
+                                update_x):
+            nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+        else:
+            bad += 1
+        hi = hist_idx[m]
+        if hi >= 0:
+            for i in range(n):
+                hist_x[hi, i] = xb[i]
+                hist_s[hi, i] = np.sqrt(Pb[i, i]) if Pb[i, i] > 0.0 else -1.0
+    return nis, bad
+
+
+def _structure(est_idx: np.ndarray):
+    """Sparsity of Phi's attitude rows and of H for the estimated coefficients ``est_idx``.
+
+    Returns ``pcols, pg, hcols, hsrc, hnnz`` as :func:`_filter_one` takes them.
+    """
+    nc = est_idx.size
+    state_of = {int(f): k for k, f in enumerate(est_idx)}
+    gyro_pos = {int(f): q for q, f in enumerate(GYRO_COLS)}
+    coef_cols = [(state_of[f], gyro_pos[f]) for f in GYRO_COLS if int(f) in state_of]
+    pcols = np.array([s for s, _ in coef_cols] + [nc, nc + 1, nc + 2], dtype=np.int64)
+    pg = np.array([q for _, q in coef_cols], dtype=np.int64)
+    width = MEAS_COLS.shape[1] + 3
+    hcols = np.zeros((3, width), dtype=np.int64)
+    hsrc = np.zeros((3, width), dtype=np.int64)
+    hnnz = np.zeros(3, dtype=np.int64)
+    for r in range(3):
+        entries = [(state_of[int(f)], m) for m, f in enumerate(MEAS_COLS[r])
+                   if f >= 0 and int(f) in state_of]
+        entries += [(nc + i, -1 - i) for i in range(3)]
+        hnnz[r] = len(entries)
+        for k, (s, src) in enumerate(entries):
+            hcols[r, k] = s
+            hsrc[r, k] = src
+    return pcols, pg, hcols, hsrc, hnnz
+
+
+def _history_index(t: np.ndarray, every_s: float | None, start: int) -> tuple[np.ndarray, int]:
+    """History slot of each filter instant (-1: not kept) and the number of slots used."""
+    idx = np.full(t.shape[0], -1, dtype=np.int64)
+    if every_s is None:
+        return idx, 0
+    k = np.round(t / every_s)
+    keep = np.abs(t - k * every_s) < 1e-9
+    idx[keep] = start + np.arange(int(keep.sum()))
+    return idx, int(keep.sum())
+
+
+def run_ekf(
+    z: list[np.ndarray],
+    t: list[np.ndarray],
+    cmd_deg: np.ndarray,
+    centrifuge_params: np.ndarray,
+    settings: FilterSettings,
+    *,
+    linearise_about: np.ndarray | None = None,
+) -> Estimate:
+    """Run the EKF over every position of a scheme, for a batch of B runs.
+
+    Parameters
+    ----------
+    z : K arrays (B, M_k, 3), accelerometer outputs (g) at the filter instants.
+    t : K arrays (M_k,), those instants in s since each position's start (increasing).
+    cmd_deg : (B, K, 3) or (K, 3) commanded alpha, beta, gamma per position, deg.
+    centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters
+        (``Centrifuge.params()``; per position for multi-g-level schemes).
+    settings : the filter settings.
+    linearise_about : (B, 48) full coefficient vectors. If given, the run is covariance-only
+        (docs/centrifuge-model.md §10): no measurement is used, the state follows the noise-free trajectory
+        of these coefficients, and only P evolves.
+
+    Returns
+    -------
+    Estimate
+    """
+    K = len(t)
+    cov_only = linearise_about is not None
+    cmd = np.asarray(cmd_deg, float)
+    B = z[0].shape[0] if not cov_only else np.asarray(linearise_about).shape[0]
+    if cmd.ndim == 2:
+        cmd = np.broadcast_to(cmd, (B,) + cmd.shape)
+    cmd_rad = np.ascontiguousarray(cmd * DEG)
+    est_idx = settings.coef_index
+    nc = est_idx.size
+    n = nc + 3
+    p0 = np.asarray(settings.p0_sigma, float)
+    if p0.shape != (nc,):
+        raise ValueError(f"p0_sigma has {p0.shape} entries, the filter has {nc} coefficients")
+    x = np.zeros((B, n))
+    # coefficients the filter does not estimate keep these values (DOO = 0 in the paper's
+    # filter); a covariance-only run follows the true trajectory, true DOO included
+    coef_fixed = np.zeros((B, N_FULL))
+    if cov_only:
+        coef_fixed = np.ascontiguousarray(linearise_about, float)
+        x[:, :nc] = coef_fixed[:, est_idx]
+    P = np.zeros((B, n, n))
+    P[:, np.arange(nc), np.arange(nc)] = p0**2
+    reset_var = (settings.sigma_set_arcsec * ARCSEC) ** 2
+    r_var = np.full(3, (settings.sigma_a_ug * 1e-6) ** 2)
+    q_rate = (settings.arw_deg_rth * DEG / 60.0) ** 2  # (rad/sqrt(s))^2
+    params = broadcast_params(centrifuge_params, B, K)
+
+    passes = 1 if cov_only else settings.passes
+    structure = _structure(est_idx)
+    kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
+    hist_slots = []
+    total = 0
+    for k in range(K):
+        idx, used = _history_index(np.asarray(t[k], float), settings.history_every_s, total)
+        hist_slots.append(idx)
+        total += used
+    # a position lasts to its last filter instant plus one filter period (the dwell)
+    durations = [float(tk[-1]) + settings.period_s if len(tk) else 0.0 for tk in t]
+    H = total * passes
+    hist_x = np.zeros((B, H, n))
+    hist_s = np.zeros((B, H, n))
+    hist_t = np.zeros(H)
+    pass_x = np.zeros((passes, B, nc))
+    pass_P = np.zeros((passes, B, nc, nc))
+    nis = np.zeros(B)
+    n_bad = np.zeros(B, dtype=np.int64)
+    # every position's instants and outputs end to end, so one kernel call runs a whole pass
+    sizes = [len(tk) for tk in t]
+    offs = np.zeros(K + 1, dtype=np.int64)
+    offs[1:] = np.cumsum(sizes)
+    t_all = np.ascontiguousarray(np.concatenate([np.asarray(tk, float) for tk in t]))
+    if cov_only:
+        z_all = np.zeros((B, 0, 3))
+    else:
+        z_all = np.ascontiguousarray(np.concatenate([np.asarray(zk, float) for zk in z], axis=1))
+    m_total = int(offs[-1])
+    for p in range(passes):
+        if p > 0:
+            Pcc = P[:, :nc, :nc] * 100.0
+            P = np.zeros((B, n, n))
+            P[:, :nc, :nc] = Pcc
+            nis[:] = 0.0
+        hidx_all = []
+        offset = 0.0
+        for k in range(K):
+            tk = np.asarray(t[k], float)
+            hidx = hist_slots[k] + (p * total if settings.history_every_s is not None else 0)
+            hidx[hist_slots[k] < 0] = -1
+            sel = hidx >= 0
+            hist_t[hidx[sel]] = p * sum(durations) + offset + tk[sel]
+            hidx_all.append(hidx)
+            offset += durations[k]
+        hidx_all = np.ascontiguousarray(np.concatenate(hidx_all), dtype=np.int64)
+        # replicates handed out one at a time: a thread slowed by other processes takes fewer
+        with numba.parallel_chunksize(1):
+            kernel(x, P, z_all, t_all, offs, cmd_rad, reset_var, est_idx, coef_fixed, params,
+                   r_var, q_rate, not cov_only, hidx_all, hist_x, hist_s, nis, n_bad, *structure)
+        pass_x[p] = x[:, :nc]
+        pass_P[p] = P[:, :nc, :nc]
+    return Estimate(
+        names=settings.state_names,
+        x=x,
+        P=P,
+        history_t=hist_t,
+        history_x=hist_x,
+        history_sigma=hist_s,
+        pass_x=pass_x,
+        pass_P=pass_P,
+        mean_nis=nis / max(m_total, 1),
+        failed_updates=n_bad,
+    )

@@ -1,0 +1,223 @@
+"""Truth simulation of a centrifuge test (docs/centrifuge-model.md §8), batched over replicates.
+
+At the start of each position the platform is set to the commanded angles plus a white
+setting error (sigma_set per angle); the attitude ODE (eq. 18) is integrated with RK4 at the
+sample period (5 ms); accelerometer outputs (eq. 13) are sampled at ``t = 0, dt, ...,
+dwell - dt`` with white noise sigma_a; the gyro rate noise enters as an angle random walk.
+
+Randomness: each replicate has its own ``SeedSequence``, spawned into three independent
+streams (setting errors, accelerometer noise, gyro noise) that are drawn position by
+position, so a replicate's numbers do not depend on the batch it runs in.
+
+Speed: replicates run in parallel numba threads (:mod:`platcal.parallel`), each with the same
+sequential kernel; the centrifuge's specific force is tabulated once per position for all
+replicates that share it; one set of sin/cos per sample serves the measurement and the RK4
+step (the stages move the angles by ~1e-9 rad, handled by exact-to-rounding Taylor shifts).
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from ...model.attitude import P_G, measure_scalar, rk4_scalar_sc
+from ...model.frames import ARCSEC, DEG
+from ...model.instruments import N_FULL
+from .base import broadcast_params
+from .scheme import Scheme, whole_periods
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Truth noise levels: sigma_a (ug per sample), ARW (deg/sqrt(h)), sigma_set (arcsec)."""
+
+    sigma_a_ug: float = 10.0
+    arw_deg_rth: float = 0.001
+    sigma_set_arcsec: float = 10.0
+
+    @property
+    def is_zero(self) -> bool:
+        return self.sigma_a_ug == 0 and self.arw_deg_rth == 0 and self.sigma_set_arcsec == 0
+
+
+@dataclass
+class SimResult:
+    """Simulated test data for B replicates of one scheme.
+
+    ``A`` and ``angles`` are (B, K, N, 3): outputs in g and true angles in rad at the kept
+    sample times ``t`` (N,) s; ``set_error`` (B, K, 3) is the setting error in rad.
+    """
+
+    A: np.ndarray
+    angles: np.ndarray
+    t: np.ndarray
+    set_error: np.ndarray
+
+
+@njit(parallel=True, cache=True)
+def _simulate_position(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, arw, keep, out_a,
+                       out_ang):
+    """Integrate every replicate of the batch through one position (see :func:`_simulate_one`).
+
+    ``fr_tab`` (U, n, 3, 3) tabulates the base specific force per distinct parameter row;
+    replicate b uses ``fr_tab[tab_of[b]]``.
+    """
+    B = theta0.shape[0]
+    for b in prange(B):
+        _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, arw, b,
+                      keep, out_a[b], out_ang[b])
+
+
+@njit(cache=True)
+def _simulate_position_serial(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, arw, keep,
+                              out_a, out_ang):
+    """:func:`_simulate_position` without threads (a batch of one, or one thread): same kernel,
+    no parallel region to start and join."""
+    for b in range(theta0.shape[0]):
+        _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, arw, b,
+                      keep, out_a[b], out_ang[b])
+
+
+@njit(cache=True)
+def _simulate_one(theta0, coef, n, dt, params, fr_tab, acc_noise, arw, b, keep, out_a, out_ang):
+    """One replicate: RK4 of eq. 18 over ``n`` samples of ``dt`` s from ``theta0`` (rad), keeping
+    one output in ``keep``. ``fr_tab[i, s]`` is the base specific force (m/s^2) at sample i's
+    start, middle and end (s = 0, 1, 2). Noise arrays are (B, n, 3) or (B, 0, 3) for none."""
+    g = params[P_G]
+    ang = theta0.copy()
+    new = np.empty(3)
+    noisy_a = acc_noise.shape[1] > 0
+    noisy_g = arw.shape[1] > 0
+    for i in range(n):
+        # one set of sin/cos per sample serves the measurement and the RK4 step
+        sa, ca = np.sin(ang[0]), np.cos(ang[0])
+        sb, cb = np.sin(ang[1]), np.cos(ang[1])
+        sg, cg = np.sin(ang[2]), np.cos(ang[2])
+        if i % keep == 0:
+            j = i // keep
+            fr = fr_tab[i, 0]
+            m0, m1, m2 = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
+            out_a[j, 0] = m0 + (acc_noise[b, i, 0] if noisy_a else 0.0)
+            out_a[j, 1] = m1 + (acc_noise[b, i, 1] if noisy_a else 0.0)
+            out_a[j, 2] = m2 + (acc_noise[b, i, 2] if noisy_a else 0.0)
+            for r in range(3):
+                out_ang[j, r] = ang[r]
+        if i < n - 1:
+            rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr_tab[i], dt, params, new)
+            for r in range(3):
+                ang[r] = new[r] + (arw[b, i, r] if noisy_g else 0.0)
+
+
+def _force_tables(params: np.ndarray, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Base specific force (eq. 10, m/s^2) at each sample's start, middle and end, per distinct
+    row of ``params`` (B, 5): ``(tables (U, n, 3, 3), index (B,) of each replicate's table)``.
+
+    Replicates normally share the centrifuge, so this is computed once, not B times; the times
+    are formed exactly as the step's stage times ``t, t + dt/2, t + dt`` with ``t = i dt``.
+    """
+    uniq, tab_of = np.unique(params, axis=0, return_inverse=True)
+    t0 = np.arange(n) * dt
+    times = np.stack([t0, t0 + 0.5 * dt, t0 + dt], axis=1)  # (n, 3)
+    out = np.empty((uniq.shape[0], n, 3, 3))
+    for u, p in enumerate(uniq):
+        wc, ro, g, wn, wu = p
+        amp = wc * wc * ro + 2.0 * wc * ro * wu
+        ph = wc * times
+        c, s = np.cos(ph), np.sin(ph)
+        out[u, :, :, 0] = -amp * c
+        out[u, :, :, 1] = -amp * s
+        out[u, :, :, 2] = 2.0 * wc * ro * wn * s + g
+    return out, np.ascontiguousarray(tab_of.reshape(-1), dtype=np.int64)
+
+
+def replicate_streams(seeds: list[np.random.SeedSequence]) -> list[tuple[np.random.Generator, ...]]:
+    """Three generators (setting error, accelerometer noise, gyro noise) per replicate."""
+    return [tuple(np.random.default_rng(s) for s in ss.spawn(3)) for ss in seeds]
+
+
+def simulate(
+    truth: np.ndarray,
+    scheme: Scheme,
+    centrifuge_params: np.ndarray,
+    noise: Noise,
+    seeds: list[np.random.SeedSequence] | None,
+    *,
+    sample_s: float = 0.005,
+    keep_every: int = 1,
+) -> SimResult:
+    """Simulate B replicates of a scheme.
+
+    Parameters
+    ----------
+    truth : (B, 48) or (48,) true full coefficient vectors (engineering units).
+    scheme : the positions and dwell.
+    centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters
+        (``Centrifuge.params()``, or ``Centrifuge.scheme_params`` for a multi-g-level scheme).
+    noise : truth noise levels; ignored when ``seeds`` is None (noise-free run).
+    seeds : one SeedSequence per replicate, or None for a noise-free run.
+    sample_s : sample period, s (5 ms).
+    keep_every : keep one sample in this many (the filter's period / sample period);
+        the noise streams are the same whatever this is.
+    """
+    truth = np.atleast_2d(np.asarray(truth, float))
+    B = truth.shape[0] if seeds is None else len(seeds)
+    if truth.shape[0] == 1 and B > 1:
+        truth = np.repeat(truth, B, axis=0)
+    if truth.shape != (B, N_FULL):
+        raise ValueError(f"truth must be (B, {N_FULL}), got {truth.shape}")
+    K = scheme.n_positions
+    n = whole_periods(scheme.dwell_s, sample_s, f"schemes.{scheme.name}.dwell_s")
+    nk = (n + keep_every - 1) // keep_every
+    cmd = scheme.angles_deg * DEG
+    params = broadcast_params(centrifuge_params, B, K)
+    streams = replicate_streams(seeds) if seeds is not None else None
+    set_err = np.zeros((B, K, 3))
+    if streams is not None and noise.sigma_set_arcsec > 0:
+        for b, (g_set, _, _) in enumerate(streams):
+            set_err[b] = g_set.standard_normal((K, 3)) * noise.sigma_set_arcsec * ARCSEC
+    A = np.empty((B, K, nk, 3))
+    ang = np.empty((B, K, nk, 3))
+    arw_step = noise.arw_deg_rth * DEG / 60.0 * np.sqrt(sample_s)  # rad per step
+    kernel = _simulate_position_serial if B == 1 or numba.get_num_threads() == 1 else _simulate_position
+    # noise buffers reused position after position, filled in place by each replicate's stream
+    use_acc = streams is not None and noise.sigma_a_ug > 0
+    use_arw = streams is not None and arw_step > 0
+    acc = np.empty((B, n if use_acc else 0, 3))
+    arw = np.empty((B, n if use_arw else 0, 3))
+    n_workers = min(B, numba.get_num_threads())
+    pool = ThreadPoolExecutor(n_workers) if n_workers > 1 and (use_acc or use_arw) else None
+
+    def draw(b: int) -> None:
+        # numpy releases the GIL while filling, so replicates draw in parallel threads; each
+        # replicate has its own generators, so the numbers do not depend on the threading
+        if use_acc:
+            streams[b][1].standard_normal(out=acc[b])
+        if use_arw:
+            streams[b][2].standard_normal(out=arw[b])
+
+    for k in range(K):
+        if use_acc or use_arw:
+            if pool is None:
+                for b in range(B):
+                    draw(b)
+            else:
+                list(pool.map(draw, range(B)))
+        if use_acc:
+            acc *= noise.sigma_a_ug
+            acc *= 1e-6
+        if use_arw:
+            arw *= arw_step
+        theta0 = np.ascontiguousarray(cmd[k][None, :] + set_err[:, k])
+        pk = np.ascontiguousarray(params[:, k])
+        fr_tab, tab_of = _force_tables(pk, n, sample_s)
+        with numba.parallel_chunksize(1):  # dynamic: balances threads slowed by other load
+            kernel(theta0, truth, n, sample_s, pk, fr_tab, tab_of, acc, arw, keep_every,
+                   A[:, k], ang[:, k])
+    if pool is not None:
+        pool.shutdown()
+    t = np.arange(0, n, keep_every) * sample_s
+    return SimResult(A=A, angles=ang, t=t, set_error=set_err)

@@ -1,0 +1,272 @@
+"""The generic Monte Carlo runner: cases x noise levels x estimators x replicates of any rig.
+
+A rig plugs in through its :class:`~platcal.rig.MonteCarloHooks` (``Rig.montecarlo``); this
+module only derives the seeds, batches the replicates, runs them (numba threads or joblib
+workers) and turns the rig's :class:`~platcal.rig.ReplicateBatch` into the tidy tables.
+
+Seeding
+-------
+Replicate r of case C at noise level v draws from ``SeedSequence(seed, spawn_key=(stable_key(C),
+noise_key(v), r))`` (:func:`replicate_seed`): ``stable_key`` is the first 4 bytes of the name's
+SHA-256, never Python's salted ``hash``; ``noise_key`` is the level in thousandths of its unit
+(``round(1000 v)``), so the key belongs to the level itself, not to its position in the list.
+The estimators are not part of the key: every estimator of a cell sees the same data (common
+random numbers). A replicate's numbers do not depend on the batch it runs in, the number of
+threads or joblib workers, or the job order.
+
+Tidy tables
+-----------
+``coef``: one row per run x identified quantity, columns :data:`COEF_COLUMNS`; ``runs``: one
+row per run, :data:`RUN_COLUMNS`. The case column is called ``scheme`` and the noise column
+``noise`` (in the rig's ``NoiseAxis.unit``) whatever the rig.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import json
+import os
+import time
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from joblib import Parallel, delayed, parallel_config
+
+from ..io import atomic_to_parquet, atomic_write_text
+from ..log import eta_line, job_logger
+from ..parallel import set_threads
+from ..rig import Rig, get_rig
+from ..seeding import seed_sequence
+from .stats import rel_err_pct
+
+CELL = ["scheme", "noise", "estimator"]
+"""Columns that name a cell of the sweep."""
+COEF_COLUMNS = CELL + ["replicate", "name", "group", "unit", "truth", "estimate", "sigma", "error",
+                       "rel_err_pct"]
+RUN_COLUMNS = CELL + ["replicate", "passes", "nees", "nees_dof", "mean_nis", "failed_updates"]
+
+
+def noise_key(level: float) -> int:
+    """Key of a noise level: the level in thousandths of its unit, rounded (5 -> 5000)."""
+    return int(round(float(level) * 1000.0))
+
+
+def noise_label(level: float) -> str:
+    """File-name label of a noise level (``10`` -> ``'10'``, ``2.5`` -> ``'2.5'``)."""
+    return f"{float(level):g}"
+
+
+def replicate_seed(seed: int, case: str, level: float, replicate: int) -> np.random.SeedSequence:
+    """The SeedSequence of one replicate of one (case, noise level) cell."""
+    return seed_sequence(seed, case, noise_key(level), int(replicate))
+
+
+def chunks(n: int, size: int) -> list[list[int]]:
+    """Replicate indices 0..n-1 in chunks of at most ``size``."""
+    return [list(range(a, min(a + size, n))) for a in range(0, n, size)]
+
+
+def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The tidy ``coef`` and ``runs`` rows of a :class:`~platcal.rig.ReplicateBatch`."""
+    q = batch.quantities
+    n = len(q)
+    B = len(replicates)
+    reps = np.asarray(replicates, dtype=np.int64)
+    coef = pd.DataFrame({
+        "scheme": case, "noise": float(level), "estimator": estimator,
+        "replicate": np.repeat(reps, n), "name": list(q["name"]) * B, "group": list(q["group"]) * B,
+        "unit": list(q["unit"]) * B, "truth": np.tile(q["truth"].to_numpy(float), B),
+        "estimate": np.asarray(batch.estimate).ravel(), "sigma": np.asarray(batch.sigma).ravel(),
+    })
+    coef["error"] = coef["estimate"] - coef["truth"]
+    coef["rel_err_pct"] = rel_err_pct(coef["estimate"], coef["truth"])
+    runs = pd.DataFrame({
+        "scheme": case, "noise": float(level), "estimator": estimator, "replicate": reps,
+        "passes": int(batch.passes), "nees": batch.nees, "nees_dof": int(batch.nees_dof),
+        "mean_nis": batch.mean_nis, "failed_updates": np.asarray(batch.failed_updates).astype(np.int64),
+    })
+    return coef, runs
+
+
+def _run_chunk(rig_name: str, cfg: dict, case, level: float, estimator: str, replicates, numba_threads: int):
+    """One chunk of replicates (a joblib task or an in-process batch); the rig is looked up by
+    name so that a joblib worker can rebuild it."""
+    set_threads(numba_threads)
+    hooks = get_rig(rig_name).montecarlo
+    seed = hooks.settings(cfg).seed
+    t0 = time.perf_counter()
+    batch = hooks.run_batch(cfg, case, level, estimator, [replicate_seed(seed, case.name, level, r)
+                                                          for r in replicates])
+    coef, runs = tidy_frames(batch, case.name, level, estimator, replicates)
+    return coef, runs, time.perf_counter() - t0
+
+
+def run_cell(rig: Rig, cfg: dict, case, level: float, estimator: str, *, replicates: int | None = None,
+             threads: int = 1, backend: str | None = None, batch: int | None = None,
+             progress=None) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+    """Run every replicate of one (case, noise level, estimator) cell of ``rig``.
+
+    ``cfg`` is the rig's checked config (``rig.montecarlo.check``); ``case`` its case object
+    (``name`` keys the seeds). ``threads``: numba threads for ``backend='numba'``, joblib
+    workers (each with one numba and one BLAS thread) for ``'joblib'``. ``replicates``,
+    ``backend``, ``batch`` default to the rig's settings; ``progress(done, total, seconds)`` is
+    called after each chunk.
+
+    Returns ``(coef, runs, timing)``: the tidy tables and wall-time information (s), which is
+    the only output that depends on the machine.
+    """
+    st = rig.montecarlo.settings(cfg)
+    R = int(st.replicates if replicates is None else replicates)
+    backend = backend or st.backend
+    batch = int(batch or st.batch)
+    threads = max(1, int(threads))
+    parts = chunks(R, batch)
+    t0 = time.perf_counter()
+    if backend == "joblib" and threads > 1 and len(parts) > 1:
+        # one numba thread and one BLAS thread per worker: threads workers use threads cores
+        with parallel_config(backend="loky", inner_max_num_threads=1):
+            results = _collect_progress(Parallel(n_jobs=threads, return_as="generator")(
+                delayed(_run_chunk)(rig.name, cfg, case, level, estimator, p, 1) for p in parts), R, t0, progress)
+    else:
+        results = _collect_progress((_run_chunk(rig.name, cfg, case, level, estimator, p, threads) for p in parts),
+                                    R, t0, progress)
+    wall = time.perf_counter() - t0
+    coef = pd.concat([r[0] for r in results], ignore_index=True).sort_values(
+        ["replicate"], kind="stable").reset_index(drop=True)
+    runs = pd.concat([r[1] for r in results], ignore_index=True).sort_values("replicate").reset_index(drop=True)
+    timing = {"scheme": case.name, "noise": float(level), "estimator": estimator,
+              "replicates": R, "threads": threads, "backend": backend, "batch": batch,
+              "wall_s": wall, "wall_s_per_run": wall / max(R, 1),
+              "compute_s": float(sum(r[2] for r in results))}
+    return coef[COEF_COLUMNS], runs[RUN_COLUMNS], timing
+
+
+def _collect_progress(gen, total: int, t0: float, progress) -> list:
+    results, done = [], 0
+    for res in gen:
+        results.append(res)
+        done += len(res[1])
+        if progress:
+            progress(done, total, time.perf_counter() - t0)
+    return results
+
+
+def write_cell(out_dir: str | os.PathLike, coef: pd.DataFrame, runs: pd.DataFrame, timing: dict) -> None:
+    """``coef.parquet``, ``runs.parquet`` and ``timing.json`` of a cell, each written atomically.
+
+    ``timing.json`` is written last: the Snakemake rule lists all three, and a job killed before
+    the end leaves no complete set.
+    """
+    out = Path(out_dir)
+    atomic_to_parquet(coef, out / "coef.parquet")
+    atomic_to_parquet(runs, out / "runs.parquet")
+    atomic_write_text(out / "timing.json", json.dumps(timing, indent=2, sort_keys=True) + "\n")
+
+
+def collect(coef_files, runs_files, timing_files):
+    """Concatenate the cells' files into sorted study-wide tables (order-independent)."""
+    keys = CELL + ["replicate"]
+    coef = pd.concat([pd.read_parquet(f) for f in coef_files], ignore_index=True)
+    coef["_i"] = coef.groupby(keys, sort=False).cumcount()  # keeps the rig's quantity order
+    coef = coef.sort_values(keys + ["_i"], kind="stable").drop(columns="_i").reset_index(drop=True)
+    runs = pd.concat([pd.read_parquet(f) for f in runs_files], ignore_index=True)
+    runs = runs.sort_values(keys, kind="stable").reset_index(drop=True)
+    timing = pd.DataFrame([json.loads(Path(f).read_text()) for f in timing_files])
+    timing = timing.sort_values(CELL, kind="stable").reset_index(drop=True)
+    return coef, runs, timing
+
+
+def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimator: str, out_dir,
+             threads: int = 1, log_path=None, case_file=None) -> None:
+    """Run a cell and write its files, logging what runs and how far it is (a rule's body)."""
+    lg = job_logger(log_path)
+    rig = get_rig(rig_name)
+    hooks = rig.montecarlo
+    cfg = hooks.check(cfg)
+    case = hooks.case(cfg, case_name, case_file)
+    st = hooks.settings(cfg)
+    lg.info("%s cell %s, %s = %g %s, estimator %s: %d replicates, %d thread(s), backend %s, batch %d",
+            rig.name, case.name, hooks.noise.name, level, hooks.noise.unit, estimator, st.replicates, threads,
+            st.backend, st.batch)
+
+    def progress(done, total, seconds):
+        lg.info("  replicates %s", eta_line(done, total, seconds))
+
+    coef, runs, timing = run_cell(rig, cfg, case, level, estimator, threads=threads, progress=progress)
+    write_cell(out_dir, coef, runs, timing)
+    lg.info("done: mean NEES %.1f (dof %d), %.2f s per run -> %s", runs["nees"].mean(),
+            int(runs["nees_dof"].iloc[0]), timing["wall_s_per_run"], out_dir)
+
+
+# ---------------------------------------------------------------------------------------------
+# code version: a rule param, so that an edit under src/ reruns what it can change
+
+
+def _package_root() -> Path:
+    return Path(str(resources.files("platcal")))
+
+
+def _module_file(module: str) -> Path | None:
+    """The source file of a dotted ``platcal`` module name (None when it is not a module)."""
+    path = _package_root().parent.joinpath(*module.split("."))
+    for f in (path.with_suffix(".py"), path / "__init__.py"):
+        if f.is_file():
+            return f
+    return None
+
+
+def module_closure(roots) -> list[str]:
+    """Dotted platcal modules imported (anywhere in the file) by ``roots``, recursively: a static
+    reading of the import statements, relative ones resolved."""
+    seen: set[str] = set()
+    todo = list(roots)
+    while todo:
+        mod = todo.pop()
+        path = _module_file(mod) if mod not in seen else None
+        if path is None:
+            continue
+        seen.add(mod)
+        pkg = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    parts = pkg.split(".")
+                    target = ".".join(parts[:len(parts) - node.level + 1] + ([node.module] if node.module else []))
+                else:
+                    target = node.module or ""
+                if target.split(".")[0] == "platcal":
+                    todo.append(target)
+                    todo.extend(f"{target}.{a.name}" for a in node.names)  # submodules imported by name
+            elif isinstance(node, ast.Import):
+                todo.extend(a.name for a in node.names if a.name.split(".")[0] == "platcal")
+    return sorted(seen)
+
+
+def code_hash(modules=None, data=()) -> str:
+    """SHA-256 (16 hex digits) of source and data files of the package: of every ``.py``,
+    ``.csv`` and ``.yaml`` file by default, else of the dotted ``modules`` and the package-relative
+    ``data`` files."""
+    root = _package_root()
+    if modules is None:
+        files = [p for p in root.rglob("*") if p.suffix in (".py", ".csv", ".yaml") and p.is_file()]
+    else:
+        files = [_module_file(m) for m in modules] + [root / d for d in data]
+    h = hashlib.sha256()
+    for p in sorted(set(files), key=lambda p: p.relative_to(root).as_posix()):
+        h.update(p.relative_to(root).as_posix().encode() + b"\0" + p.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def compute_code_hash(rig: Rig) -> str:
+    """Code hash of what a rig's Monte Carlo cells compute: the import closure of its hooks'
+    module and of this runner, and the rig's package data (config schema, tables). Edits to its
+    figures, reports or design code leave the cells alone."""
+    hooks_module = type(rig.montecarlo).__module__
+    mods = module_closure([hooks_module, __name__])
+    pkg = _module_file(hooks_module.rpartition(".")[0]).parent
+    data = [p.relative_to(_package_root()).as_posix() for p in sorted((pkg / "data").glob("*"))
+            if p.suffix in (".csv", ".yaml")]
+    return code_hash(mods, data)

@@ -1,0 +1,46 @@
+"""The study's index report: one section per rig, linking the rig's own report.
+
+Each rig writes ``results/<rig>/report.md`` (its tables inline, figures linked); the index
+``results/report.md`` lists the rigs with their titles and the sections of their reports, so a
+reader starts there whatever rigs the study holds.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from ..io import atomic_write_text
+from ..rig import get_rig
+
+
+def _sections(md: Path) -> tuple[str, list[str]]:
+    """The title (first ``# `` line) and the ``## `` section titles of a Markdown report."""
+    title, sections = "", []
+    for line in md.read_text().splitlines():
+        if line.startswith("# ") and not title:
+            title = line[2:].strip()
+        elif line.startswith("## "):
+            sections.append(line[3:].strip())
+    return title, sections
+
+
+def _anchor(heading: str) -> str:
+    """The GitHub-style anchor of a Markdown heading."""
+    keep = "".join(c for c in heading.lower() if c.isalnum() or c in " -_")
+    return keep.replace(" ", "-")
+
+
+def write_index(rigs: list[str], reports: list, out_path) -> None:
+    """``results/report.md``: for each rig, its title, spec and a link to each section of its report."""
+    out = Path(out_path)
+    lines = ["# platcal: identification studies, one section per test rig", "",
+             "Written by the Snakemake workflow (`snakemake --cores 2`). Each rig's report holds its "
+             "tables inline and links its figures; every number comes from this run's result files.", ""]
+    for name, md in zip(rigs, reports):
+        rig = get_rig(name)
+        rel = os.path.relpath(md, out.parent)
+        title, sections = _sections(Path(md))
+        lines += [f"## {name}: {rig.title}", "", f"Spec: `docs/{rig.spec}`. Report: [{title or rel}]({rel})", ""]
+        lines += [f"- [{s}]({rel}#{_anchor(s)})" for s in sections] + [""]
+    atomic_write_text(out, "\n".join(lines))

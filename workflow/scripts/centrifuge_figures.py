@@ -1,0 +1,9 @@
+"""Snakemake wrapper: every figure of the centrifuge's study."""
+from pathlib import Path
+
+from platcal.rig import rig_config
+from platcal.rigs.centrifuge.report import FIGURES, figures_job
+
+sm = snakemake  # noqa: F821
+figures_job(rig_config(sm.config, "centrifuge"), sm.input.coef, sm.input.runs, sm.input.t2mc,
+            Path(sm.input.single[0]).parent, {k: getattr(sm.output, k) for k in FIGURES}, log_path=sm.log[0])

@@ -1,8 +1,0 @@
-"""Snakemake wrapper: every figure of the study."""
-from pathlib import Path
-
-from platcal.report import FIGURES, figures_job
-
-sm = snakemake  # noqa: F821
-figures_job(sm.config, sm.input.coef, sm.input.runs, sm.input.t2mc, Path(sm.input.single[0]).parent,
-            {k: getattr(sm.output, k) for k in FIGURES}, log_path=sm.log[0])

@@ -1,8 +1,0 @@
-"""Snakemake wrapper: Table 2 (one run and Monte Carlo) and the summary."""
-from pathlib import Path
-
-from platcal.report import tables_job
-
-sm = snakemake  # noqa: F821
-tables_job(sm.config, sm.input.coef, sm.input.runs, sm.input.timing, Path(sm.input.single[0]).parent,
-           Path(sm.output.table2_single).parent, log_path=sm.log[0])

@@ -196,11 +196,12 @@ def dynamic_cols(ext: int) -> np.ndarray:
     return np.array([0, 1, 2] + sorted(gy), dtype=np.int64)
 
 
-def run_ekf(cfg, scheme, t, Z, passes: int | None = None, ext: int = 0, threads: int | None = None,
-            sigma_a_ug: float | None = None):
+def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
+            threads: int | None = None, sigma_a_ug: float | None = None):
     """Identify the coefficients from outputs ``Z`` (R, K, n, 6) (ug, arcsec) at times ``t``.
 
-    ``t`` is (n,) shared by all positions, or (K, n). Returns ``(coef (R, nc), cov (R, nc, nc),
+    ``positions_deg`` (K, 3) commanded angles; ``t`` is (n,) shared by all positions, or (K, n)
+    with ``nk`` (K,) samples used per position (records of unequal length). Returns ``(coef (R, nc), cov (R, nc, nc),
     mean NIS per measurement (R,))``. Filter R uses the config's noise (``sigma_a_ug`` overrides).
     """
     import numba
@@ -208,7 +209,7 @@ def run_ekf(cfg, scheme, t, Z, passes: int | None = None, ext: int = 0, threads:
     Z = np.ascontiguousarray(Z, dtype=float)
     R, K, ns, _ = Z.shape
     tk = np.broadcast_to(np.asarray(t, float), (K, ns)).copy()
-    nk = np.full(K, ns, dtype=np.int64)
+    nk = np.full(K, ns, dtype=np.int64) if nk is None else np.asarray(nk, dtype=np.int64)
     p0 = cfg.p0(ext)
     nc = p0.size
     n = nc + 3
@@ -222,7 +223,7 @@ def run_ekf(cfg, scheme, t, Z, passes: int | None = None, ext: int = 0, threads:
     lay = layout_index(ext)
     wn, wu = cfg.site.params()
     cols = dynamic_cols(ext)
-    phi0s = scheme.angles_deg * DEG
+    phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
     nis = np.empty(R)
     if threads:
         numba.set_num_threads(int(threads))

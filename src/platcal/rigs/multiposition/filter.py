@@ -61,6 +61,12 @@ def _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, phi_init, wnoise, out_phi,
             out_z[k, s] = z
 
 
+@njit(cache=True, parallel=True)
+def _simulate_batch(phi0s, coef, lay, wn, wu, h, n_sub, init, w, phi, z):
+    for r in prange(phi.shape[0]):
+        _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, init[r], w[r], phi[r], z[r])
+
+
 def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=None):
     """Simulate replicates of ``scheme`` (§12). ``seeds``: list of ints (rng 1000 + seed).
 
@@ -81,17 +87,17 @@ def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=N
     phi = np.empty((R, K, ns, 3))
     z = np.empty((R, K, ns, 6))
     sig = np.array([cfg.sigma_a_ug] * 3 + [cfg.sigma_an_arcsec] * 3)
-    for r, sd in enumerate(seeds):
-        if noise_free:
-            init = np.zeros((K, 3))
-            w = np.zeros((K, ns - 1, 3))
-        else:
+    init = np.zeros((R, K, 3))
+    w = np.zeros((R, K, ns - 1, 3))
+    v = np.zeros((R, K, ns, 6))
+    if not noise_free:
+        for r, sd in enumerate(seeds):
             rng = np.random.default_rng(1000 + int(sd))
-            init = rng.standard_normal((K, 3)) * cfg.sigma_set_rad
-            w = rng.standard_normal((K, ns - 1, 3)) * (cfg.arw_rad / math.sqrt(ts))
-        _simulate_one(phi0s, coef, lay, wn, wu, ts, cfg.n_sub, init, w, phi[r], z[r])
-        if not noise_free:
-            z[r] += rng.standard_normal((K, ns, 6)) * sig
+            init[r] = rng.standard_normal((K, 3)) * cfg.sigma_set_rad
+            w[r] = rng.standard_normal((K, ns - 1, 3)) * (cfg.arw_rad / math.sqrt(ts))
+            v[r] = rng.standard_normal((K, ns, 6)) * sig
+    _simulate_batch(phi0s, coef, lay, wn, wu, ts, cfg.n_sub, init, w, phi, z)
+    z += v
     beta = np.abs(phi0s[None, :, None, 1] + phi[..., 1]) / DEG
     lim = cfg.beta_max_deg + cfg.beta_margin_deg
     if np.any(beta > lim):

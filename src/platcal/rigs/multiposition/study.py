@@ -146,7 +146,8 @@ def fig_montecarlo(coef: pd.DataFrame, path) -> None:
     keys = list(per.groupby(["scheme", "sigma_a_ug", "passes"], sort=False).groups)
     fig, ax = plt.subplots(figsize=(max(8, 0.6 * len(keys)), 4.5))
     data = [per[(per.scheme == s) & (per.sigma_a_ug == a) & (per.passes == p)]["a"] for s, a, p in keys]
-    ax.boxplot(data, labels=[f"{s}\n{a:g} ug\n{p}p" for s, a, p in keys])
+    ax.boxplot(data)
+    ax.set_xticks(range(1, len(keys) + 1), [f"{s}\n{a:g} ug\n{p}p" for s, a, p in keys])
     ax.axhline(1.5, color="grey", ls="--", lw=0.8, label="spec: S8 median <= 1.5 % (5 ug, 1 pass)")
     ax.set_ylabel("largest gyro |relative error| per seed (%)")
     ax.set_xlabel("scheme / sigma_a / EKF passes")

@@ -17,6 +17,8 @@ number of singular values above ``rtol`` times the largest.
 from __future__ import annotations
 
 import hashlib
+import inspect
+import math
 import os
 from functools import lru_cache
 from pathlib import Path
@@ -25,7 +27,7 @@ import numpy as np
 
 from ...frames import ARCSEC, DEG, DEG_PER_HOUR
 from ...instruments import GYRO_AXES
-from .model import ACCEL_AXES, coef_terms, ext_terms, state_names
+from .model import ACCEL_AXES, ext_terms, state_names
 
 _GYRO_REG = {"DF": lambda I, O, S: 1, "DI": lambda I, O, S: I, "DS": lambda I, O, S: S,
              "DO": lambda I, O, S: O, "DII": lambda I, O, S: I * I, "DSS": lambda I, O, S: S * S,
@@ -85,7 +87,6 @@ def _build_source(ext: int, order: int) -> str:
         rows.append(L)
     M = sp.Matrix.vstack(*rows).jacobian(x)
     fn = sp.lambdify([x, p], M, modules="numpy", cse=True)
-    import inspect
     return inspect.getsource(fn)
 
 
@@ -118,7 +119,6 @@ def observability_function(ext: int = 0, order: int = 2):
             os.replace(tmp, path)
         except OSError:
             pass  # a read-only cache only costs the rebuild
-    import math
 
     ns = {"numpy": np, "math": math, **{k: getattr(np, k) for k in ("sin", "cos", "tan", "sqrt", "array")}}
     ns.update({"ImmutableDenseMatrix": np.array, "MutableDenseMatrix": np.array})

@@ -30,6 +30,7 @@ def _tree(tmp_path: Path) -> Path:
     (d / "workflow/scripts").mkdir(parents=True)
     (d / "config").mkdir()
     shutil.copy(ROOT / "workflow/rules/multiposition.smk", d / "workflow/rules")
+    shutil.copytree(ROOT / "workflow/envs", d / "workflow/envs")
     for p in (ROOT / "workflow/scripts").glob("multiposition_*.py"):
         shutil.copy(p, d / "workflow/scripts")
     (d / "Snakefile").write_text(SNAKEFILE)
@@ -66,3 +67,6 @@ def test_no_rig_key_defines_no_targets(tmp_path):
     r = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "1", "-n"], cwd=d,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
+    lint = subprocess.run([sys.executable, "-m", "snakemake", "--lint"], cwd=d, capture_output=True, text=True,
+                          timeout=300)
+    assert "Congratulations" in lint.stdout + lint.stderr, (lint.stdout + lint.stderr)[-2000:]

@@ -256,3 +256,68 @@ def save_tables(outdir: Path, rf, summ, design, ext_ranks, ef) -> None:
 
 def save_parquet(df: pd.DataFrame, path) -> None:
     atomic_to_parquet(df, path)
+
+
+# ------------------------------------------------------------------ workflow set-up
+
+def code_hash() -> str:
+    """Hash of this subpackage's sources (a rule param: a code edit reruns the jobs)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    root = Path(__file__).parent
+    for p in sorted(root.rglob("*")):
+        if p.suffix in (".py", ".yaml"):
+            h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+class WorkflowSetup:
+    """What ``workflow/rules/multiposition.smk`` needs, from the top-level config's ``rigs:`` index.
+
+    Validates the rig config (InputError naming the field) before any job runs. ``active`` is
+    False when ``config["rigs"]["multiposition"]`` is absent (then no targets).
+    """
+
+    R = "results/multiposition/"
+
+    def __init__(self, config: dict):
+        rigs = config.get("rigs", {}) or {}
+        self.config = rigs.get("multiposition")
+        self.centrifuge = rigs.get("centrifuge")
+        self.active = bool(self.config)
+        self.code = code_hash() if self.active else ""
+        if not self.active:
+            self.cfg, self.study = None, {"schemes": [], "rank_schemes": [], "sigma_a_ug": []}
+            self.design_k = []
+            return
+        self.cfg = load(self.config)
+        self.study = self.cfg.raw["study"]
+        self.design_k = list(self.cfg.raw["design"]["positions"])
+
+    @property
+    def sigmas(self) -> list[str]:
+        return [f"{float(s):g}" for s in self.study["sigma_a_ug"]]
+
+    def design_input(self, scheme: str) -> list[str]:
+        """A GA scheme comes from the design rule; the config's schemes need no input."""
+        if self.active and scheme not in self.cfg.schemes:
+            return [f"{self.R}design/{scheme}.yaml"]
+        return []
+
+    def cells(self) -> list[str]:
+        return [f"{self.R}runs/{s}/sa{g}.parquet" for s in self.study["schemes"] for g in self.sigmas]
+
+    def observability(self) -> list[str]:
+        return [f"{self.R}observability/{s}/observability.json" for s in self.study["rank_schemes"]]
+
+    def centrifuge_json(self) -> list[str]:
+        return [f"{self.R}centrifuge_table1/observability.json"] if self.active and self.centrifuge else []
+
+    def targets(self) -> list[str]:
+        if not self.active:
+            return []
+        r = self.R
+        return [f"{r}tables/ranks.csv", f"{r}tables/montecarlo_summary.csv", f"{r}tables/design.csv",
+                f"{r}tables/extension_sigma.csv", f"{r}figures/ranks.png", f"{r}figures/montecarlo.png",
+                f"{r}figures/extension.png", f"{r}montecarlo/coef.parquet", f"{r}report.md"]

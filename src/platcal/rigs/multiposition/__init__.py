@@ -10,6 +10,7 @@ import pandas as pd
 from ...rig import Rig
 from .commands import COMMANDS, ESTIMATORS
 from .config import load_config
+from .filter import position_information
 from .model import coef_names, group_of, truth_vector, unit_of
 
 
@@ -22,4 +23,4 @@ def catalogue() -> pd.DataFrame:
 
 RIG = Rig(name="multiposition", title="1 g multi-position self-test, 27-state EKF with gimbal angle sensors",
           spec="multiposition-1g.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
-          estimators=ESTIMATORS, extras={"information": "platcal.rigs.multiposition.filter:position_information"})
+          estimators=ESTIMATORS, extras={"information": position_information})

@@ -26,7 +26,7 @@ def main() -> None:
     t, _, z = simulate(cfg, warm, [0])
     run_ekf(cfg, warm.angles_deg, t[:5], z[:, :, :5], threads=a.threads)
     t0 = time.perf_counter()
-    t, _, z = simulate(cfg, s8, list(range(a.seeds)))
+    t, _, z = simulate(cfg, s8, list(range(a.seeds)), threads=a.threads)
     t1 = time.perf_counter()
     c, P, _ = run_ekf(cfg, s8.angles_deg, t, z, passes=1, threads=a.threads)
     t2 = time.perf_counter()

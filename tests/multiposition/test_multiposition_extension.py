@@ -14,6 +14,7 @@ def ranks(cfg):
     return pd.DataFrame(ex.rank_table(cfg))
 
 
+@pytest.mark.slow
 def test_ranks_with_and_without_doo(ranks):
     r = ranks.set_index(["set", "model"])
     assert r.loc[("random24", "without DOO"), "static_rank"] == 51

@@ -7,8 +7,5 @@ cfg = load(snakemake.params.config)  # noqa: F821
 st = cfg.raw["study"]
 w = snakemake.wildcards  # noqa: F821
 scheme = scheme_of(cfg, w.scheme, snakemake.input[0] if len(snakemake.input) else None)  # noqa: F821
-import numba  # noqa: E402
-
-numba.set_num_threads(int(st["threads"]))
-df = mc_cell(cfg, scheme, float(w.sigma), int(st["seeds"]), st["passes"], log=log.info)
+df = mc_cell(cfg, scheme, float(w.sigma), int(st["seeds"]), st["passes"], log=log.info, threads=int(st["threads"]))
 save_parquet(df, snakemake.output[0])  # noqa: F821

@@ -15,7 +15,7 @@ innovation at the prior), then the angle sensors, whose measurement is linear, w
 recomputed from the updated state (wrapped to +-180 deg). With R diagonal this equals the one
 6-D update exactly. At each position phi is reset to 0 with variance sigma_set^2 and no cross
 covariance; ``passes`` restart from the previous estimate with P0 = 100 x its coefficient
-covariance. Replicates run in a numba ``prange`` (one compiled loop over the batch).
+covariance. Replicates run in ``nogil`` compiled loops on a thread pool (see :func:`_threaded`).
 
 **Covariance-only** (§8, §14): the same kernel with ``update_x = False`` started at the truth:
 the state then follows the noise-free truth trajectory and F, H are evaluated on it.
@@ -24,9 +24,11 @@ the state then follows the noise-free truth trajectory and F, H are evaluated on
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ...frames import ARCSEC, DEG
 from ...kalman import joseph_update_sparse, propagate_sparse
@@ -61,13 +63,28 @@ def _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, phi_init, wnoise, out_phi,
             out_z[k, s] = z
 
 
-@njit(cache=True, parallel=True)
-def _simulate_batch(phi0s, coef, lay, wn, wu, h, n_sub, init, w, phi, z):
-    for r in prange(phi.shape[0]):
+@njit(cache=True, nogil=True)
+def _simulate_range(lo, hi, phi0s, coef, lay, wn, wu, h, n_sub, init, w, phi, z):
+    for r in range(lo, hi):
         _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, init[r], w[r], phi[r], z[r])
 
 
-def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=None):
+def _threaded(fn, n: int, threads: int | None, *args) -> None:
+    """Run ``fn(lo, hi, *args)`` over [0, n) split into ``threads`` contiguous chunks.
+
+    The kernels are compiled ``nogil`` and replicates are independent, so the numbers do not
+    depend on the thread count (numba's ``parallel=True`` would cost a much longer compile).
+    """
+    threads = max(1, min(int(threads or os.cpu_count() or 1), n))
+    if threads == 1:
+        fn(0, n, *args)
+        return
+    bounds = np.linspace(0, n, threads + 1).astype(np.int64)
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(lambda i: fn(int(bounds[i]), int(bounds[i + 1]), *args), range(threads)))
+
+
+def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=None, threads: int | None = None):
     """Simulate replicates of ``scheme`` (§12). ``seeds``: list of ints (rng 1000 + seed).
 
     Returns ``(t (n,), phi (R, K, n, 3) rad, z (R, K, n, 6) ug / arcsec)``; z includes noise.
@@ -96,7 +113,7 @@ def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=N
             init[r] = rng.standard_normal((K, 3)) * cfg.sigma_set_rad
             w[r] = rng.standard_normal((K, ns - 1, 3)) * (cfg.arw_rad / math.sqrt(ts))
             v[r] = rng.standard_normal((K, ns, 6)) * sig
-    _simulate_batch(phi0s, coef, lay, wn, wu, ts, cfg.n_sub, init, w, phi, z)
+    _threaded(_simulate_range, R, threads, phi0s, coef, lay, wn, wu, ts, cfg.n_sub, init, w, phi, z)
     z += v
     beta = np.abs(phi0s[None, :, None, 1] + phi[..., 1]) / DEG
     lim = cfg.beta_max_deg + cfg.beta_margin_deg
@@ -188,9 +205,9 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     return nis, nup
 
 
-@njit(cache=True, parallel=True)
-def _ekf_batch(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, nis):
-    for b in prange(X.shape[0]):
+@njit(cache=True, nogil=True)
+def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, nis):
+    for b in range(lo, hi):
         s, u = _ekf_one(X[b], Ps[b], phi0s, tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x)
         nis[b] = s / max(u, 1) / 6.0
 
@@ -210,8 +227,6 @@ def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: i
     with ``nk`` (K,) samples used per position (records of unequal length). Returns ``(coef (R, nc), cov (R, nc, nc),
     mean NIS per measurement (R,))``. Filter R uses the config's noise (``sigma_a_ug`` overrides).
     """
-    import numba
-
     Z = np.ascontiguousarray(Z, dtype=float)
     R, K, ns, _ = Z.shape
     tk = np.broadcast_to(np.asarray(t, float), (K, ns)).copy()
@@ -231,20 +246,19 @@ def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: i
     cols = dynamic_cols(ext)
     phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
     nis = np.empty(R)
-    if threads:
-        numba.set_num_threads(int(threads))
     for p in range(passes or cfg.passes):
         if p > 0:
             C = Ps[:, 3:, 3:].copy()
             Ps[:] = 0.0
             Ps[:, 3:, 3:] = 100.0 * C
-        _ekf_batch(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, cols,
-                   True, nis)
+        _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, cfg.arw_rad**2,
+                  cfg.sigma_set_rad**2, cols, True, nis)
     return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis
 
 
 def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: float | None = None,
-                    truth=None, omega_on: bool = True, sequential: bool = True) -> np.ndarray:
+                    truth=None, omega_on: bool = True, sequential: bool = True,
+                    threads: int | None = None) -> np.ndarray:
     """Coefficient covariance of a covariance-only run (§8, §14): no data, Jacobians on the truth.
 
     Step ``step_s`` (default ``observability.cov_step_s`` = 0.1 s) with the sensor variances
@@ -272,7 +286,7 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
     if sequential:
         X, Ps = x0[None].copy(), Pinit[None].copy()
         Zd = np.zeros((1, K, ns, 6))
-        _ekf_batch(X, Ps, phi0s, tk, Zd, nk, lay, wn, wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, cols,
+        _ekf_range(0, 1, X, Ps, phi0s, tk, Zd, nk, lay, wn, wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, cols,
                    False, np.empty(1))
         return Ps[0, 3:, 3:]
     X = np.repeat(x0[None], K, axis=0)
@@ -280,16 +294,16 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
     out = np.empty((K, nc, nc))
     Zd = np.zeros((K, 1, ns, 6))
     nis = np.empty(K)
-    _ekf_pos_batch(X, Ps, phi0s, tk[:1], Zd, nk[:1], lay, wn, wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2,
-                   cols, nis)
+    _threaded(_ekf_pos_range, K, threads, X, Ps, phi0s, tk[:1], Zd, nk[:1], lay, wn, wu, r_var, cfg.arw_rad**2,
+              cfg.sigma_set_rad**2, cols, nis)
     out[:] = Ps[:, 3:, 3:]
     return out
 
 
-@njit(cache=True, parallel=True)
-def _ekf_pos_batch(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, nis):
+@njit(cache=True, nogil=True)
+def _ekf_pos_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, nis):
     """One covariance-only position per batch entry (position b from ``phi0s[b]``)."""
-    for b in prange(X.shape[0]):
+    for b in range(lo, hi):
         s, u = _ekf_one(X[b], Ps[b], phi0s[b:b + 1], tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, False)
         nis[b] = s
 

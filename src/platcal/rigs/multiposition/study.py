@@ -45,16 +45,16 @@ def scheme_of(cfg, name: str, design_file: str | None = None) -> Scheme:
     return cfg.scheme(name)
 
 
-def mc_cell(cfg, scheme: Scheme, sigma_a: float, seeds: int, passes_list, log=None) -> pd.DataFrame:
+def mc_cell(cfg, scheme: Scheme, sigma_a: float, seeds: int, passes_list, log=None, threads: int = 1) -> pd.DataFrame:
     """Tidy results of one cell: one row per (passes, replicate, coefficient)."""
     c = cfg.with_noise(sigma_a_ug=float(sigma_a))
     t0 = time.perf_counter()
-    t, _, z = simulate(c, scheme, list(range(seeds)))
+    t, _, z = simulate(c, scheme, list(range(seeds)), threads=threads)
     truth = c.truth()
     names = coef_names()
     rows = []
     for i, p in enumerate(passes_list):
-        est, P, nis = run_ekf(c, scheme.angles_deg, t, z, passes=int(p))
+        est, P, nis = run_ekf(c, scheme.angles_deg, t, z, passes=int(p), threads=threads)
         ne = nees(est, P, truth)
         sig = np.sqrt(np.diagonal(P, axis1=1, axis2=2))
         R = est.shape[0]

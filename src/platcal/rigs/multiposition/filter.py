@@ -1,0 +1,336 @@
+"""Truth simulator and the 27-state EKF, batched over replicates (docs/multiposition-1g.md §9, §12).
+
+**Simulator** (§12): per position phi(0) ~ N(0, sigma_set^2) per angle; RK4 of §4 at ts
+(``n_sub`` substeps) with the gyro white rate held constant over each sample step
+(N(0, ARW^2/ts)); ``z = h(x) + v`` at t = 0, ts, ..., dwell. Replicate r draws from
+``numpy.random.default_rng(1000 + seed_r)`` (§14): all setting errors, then all ARW, then all
+sensor noise, so a replicate's numbers do not depend on the batch it runs in.
+
+**EKF** (§9): state propagated by RK4 of §4 over each sample interval, ``Phi = I + F dt +
+F^2 dt^2/2`` with F analytic (:func:`model.rate_k`; the spec allows central differences for the
+angle columns, analytic ones are exact and checked against differences in the tests),
+``Q = T T^T ARW^2 dt`` on phi. The 6-D update is done as two 3-D Joseph updates with the
+centrifuge's :func:`platcal.kalman.joseph_update_sparse`: first the accelerometers (H and the
+innovation at the prior), then the angle sensors, whose measurement is linear, with the innovation
+recomputed from the updated state (wrapped to +-180 deg). With R diagonal this equals the one
+6-D update exactly. At each position phi is reset to 0 with variance sigma_set^2 and no cross
+covariance; ``passes`` restart from the previous estimate with P0 = 100 x its coefficient
+covariance. Replicates run in ``nogil`` compiled loops on a thread pool (see :func:`_threaded`).
+
+**Covariance-only** (§8, §14): the same kernel with ``update_x = False`` started at the truth:
+the state then follows the noise-free truth trajectory and F, H are evaluated on it.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from numba import njit
+
+from ...frames import ARCSEC, DEG
+from ...kalman import joseph_update_sparse, propagate_sparse
+from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
+
+
+# ------------------------------------------------------------------ simulator
+
+@njit(cache=True)
+def _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, phi_init, wnoise, out_phi, out_z):
+    K = phi0s.shape[0]
+    ns = out_phi.shape[1]
+    n = 3 + coef.shape[0]
+    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    x = np.empty(n)
+    x[3:] = coef
+    nxt = np.empty(3)
+    z = np.empty(6)
+    Hs = np.empty((3, 10))
+    hc = np.empty((3, 10), dtype=np.int64)
+    nn = np.empty(3, dtype=np.int64)
+    for k in range(K):
+        x[:3] = phi_init[k]
+        for s in range(ns):
+            if s > 0:
+                for _ in range(n_sub):
+                    rk4_k(phi0s[k], x, lay, wn, wu, wnoise[k, s - 1], h / n_sub, nxt, k4, xs,
+                          C, dC, T, dT, f, eps, deps, greg, Fd)
+                    x[:3] = nxt
+            out_phi[k, s] = x[:3]
+            meas_k(phi0s[k], x, lay, z, Hs, hc, nn, C, dC)
+            out_z[k, s] = z
+
+
+@njit(cache=True, nogil=True)
+def _simulate_range(lo, hi, phi0s, coef, lay, wn, wu, h, n_sub, init, w, phi, z):
+    for r in range(lo, hi):
+        _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, init[r], w[r], phi[r], z[r])
+
+
+def _threaded(fn, n: int, threads: int | None, *args) -> None:
+    """Run ``fn(lo, hi, *args)`` over [0, n) split into ``threads`` contiguous chunks.
+
+    The kernels are compiled ``nogil`` and replicates are independent, so the numbers do not
+    depend on the thread count (numba's ``parallel=True`` would cost a much longer compile).
+    """
+    threads = max(1, min(int(threads or os.cpu_count() or 1), n))
+    if threads == 1:
+        fn(0, n, *args)
+        return
+    bounds = np.linspace(0, n, threads + 1).astype(np.int64)
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(lambda i: fn(int(bounds[i]), int(bounds[i + 1]), *args), range(threads)))
+
+
+def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=None, threads: int | None = None):
+    """Simulate replicates of ``scheme`` (§12). ``seeds``: list of ints (rng 1000 + seed).
+
+    Returns ``(t (n,), phi (R, K, n, 3) rad, z (R, K, n, 6) ug / arcsec)``; z includes noise.
+    Raises InputError if beta leaves the gimbal range (+ margin) during a dwell (§3).
+    """
+    from ...errors import InputError
+
+    ts = cfg.ts
+    ns = int(round(scheme.dwell_s / ts)) + 1
+    t = np.arange(ns) * ts
+    phi0s = scheme.angles_deg * DEG
+    K = phi0s.shape[0]
+    coef = cfg.truth(ext) if truth is None else np.asarray(truth, float)
+    lay = layout_index(ext)
+    wn, wu = cfg.site.params()
+    R = len(seeds)
+    phi = np.empty((R, K, ns, 3))
+    z = np.empty((R, K, ns, 6))
+    sig = np.array([cfg.sigma_a_ug] * 3 + [cfg.sigma_an_arcsec] * 3)
+    init = np.zeros((R, K, 3))
+    w = np.zeros((R, K, ns - 1, 3))
+    v = np.zeros((R, K, ns, 6))
+    if not noise_free:
+        for r, sd in enumerate(seeds):
+            rng = np.random.default_rng(1000 + int(sd))
+            init[r] = rng.standard_normal((K, 3)) * cfg.sigma_set_rad
+            w[r] = rng.standard_normal((K, ns - 1, 3)) * (cfg.arw_rad / math.sqrt(ts))
+            v[r] = rng.standard_normal((K, ns, 6)) * sig
+    _threaded(_simulate_range, R, threads, phi0s, coef, lay, wn, wu, ts, cfg.n_sub, init, w, phi, z)
+    z += v
+    beta = np.abs(phi0s[None, :, None, 1] + phi[..., 1]) / DEG
+    lim = cfg.beta_max_deg + cfg.beta_margin_deg
+    if np.any(beta > lim):
+        k = int(np.argwhere(beta > lim)[0][1]) + 1
+        raise InputError(f"schemes.{scheme.name}.positions[{k}]",
+                         f"beta leaves the gimbal range {lim:g} deg during the dwell (§3)")
+    return t, phi, z
+
+
+# ------------------------------------------------------------------ EKF kernel
+
+@njit(cache=True)
+def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x):
+    """One pass over K positions for one replicate; x (n,), P (n, n) updated in place.
+
+    ``tk`` (K, m) sample times, ``zk`` (K, m, 6) outputs (ug, arcsec), ``nk`` (K,) samples used.
+    Returns the sum of squared standardised innovations (NIS) and the number of updates.
+    """
+    n = x.shape[0]
+    K = phi0s.shape[0]
+    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    F = np.zeros((3, n))
+    nxt = np.empty(3)
+    dyn = np.arange(3)
+    m = cols.shape[0]
+    phi = np.empty((3, m))
+    q = np.empty((3, 3))
+    W = np.empty((3, n))
+    blk = np.empty((3, 3))
+    zp = np.empty(6)
+    Hs = np.empty((3, 10))
+    hc = np.empty((3, 10), dtype=np.int64)
+    nn = np.empty(3, dtype=np.int64)
+    ha = np.empty((3, 1))
+    hca = np.empty((3, 1), dtype=np.int64)
+    nna = np.ones(3, dtype=np.int64)
+    for i in range(3):
+        hca[i, 0] = i
+        ha[i, 0] = 1.0 / ARCSEC
+    U = np.empty((3, n))
+    Kg = np.empty((3, n))
+    D = np.empty((3, n))
+    S = np.empty((3, 3))
+    Sinv = np.empty((3, 3))
+    nu = np.empty(3)
+    innov = np.empty(3)
+    ra = r_var[:3].copy()
+    rn = r_var[3:].copy()
+    zero3 = np.zeros(3)
+    nis = 0.0
+    nup = 0
+    for k in range(K):
+        x[:3] = 0.0
+        for i in range(3):
+            for j in range(n):
+                P[i, j] = 0.0
+                P[j, i] = 0.0
+            P[i, i] = set_var
+        for s in range(nk[k]):
+            if s > 0:
+                dt = tk[k, s] - tk[k, s - 1]
+                rate_k(phi0s[k], x, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
+                for r in range(3):
+                    for c in range(m):
+                        v = F[r, cols[c]] * dt
+                        v += 0.5 * dt * dt * (F[r, 0] * F[0, cols[c]] + F[r, 1] * F[1, cols[c]]
+                                              + F[r, 2] * F[2, cols[c]])
+                        if cols[c] == r:
+                            v += 1.0
+                        phi[r, c] = v
+                for r in range(3):
+                    for c in range(3):
+                        q[r, c] = arw2 * dt * (T[r, 0] * T[c, 0] + T[r, 1] * T[c, 1] + T[r, 2] * T[c, 2])
+                propagate_sparse(P, dyn, cols, phi, q, W, blk)
+                rk4_k(phi0s[k], x, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd)
+                x[:3] = nxt
+            meas_k(phi0s[k], x, lay, zp, Hs, hc, nn, C, dC)
+            for i in range(3):
+                innov[i] = zk[k, s, i] - zp[i]
+            if joseph_update_sparse(x, P, hc, nn, Hs, innov, ra, U, Kg, D, S, Sinv, nu, update_x):
+                nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+                nup += 1
+            for i in range(3):
+                d = zk[k, s, 3 + i] - (phi0s[k, i] + x[i]) / ARCSEC
+                innov[i] = (d + 648000.0) % 1296000.0 - 648000.0
+            if joseph_update_sparse(x, P, hca, nna, ha, innov, rn, U, Kg, D, S, Sinv, nu, update_x):
+                nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+    return nis, nup
+
+
+@njit(cache=True, nogil=True)
+def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, nis):
+    for b in range(lo, hi):
+        s, u = _ekf_one(X[b], Ps[b], phi0s, tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x)
+        nis[b] = s / max(u, 1) / 6.0
+
+
+def dynamic_cols(ext: int) -> np.ndarray:
+    """State columns where the phi rows of Phi can be nonzero: phi and the gyro coefficients."""
+    lay = layout_index(ext)
+    gy = [3 + lay[m] + j for m in range(10) if lay[m] >= 0 for j in range(3)]
+    return np.array([0, 1, 2] + sorted(gy), dtype=np.int64)
+
+
+def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
+            threads: int | None = None, sigma_a_ug: float | None = None):
+    """Identify the coefficients from outputs ``Z`` (R, K, n, 6) (ug, arcsec) at times ``t``.
+
+    ``positions_deg`` (K, 3) commanded angles; ``t`` is (n,) shared by all positions, or (K, n)
+    with ``nk`` (K,) samples used per position (records of unequal length). Returns ``(coef (R, nc), cov (R, nc, nc),
+    mean NIS per measurement (R,))``. Filter R uses the config's noise (``sigma_a_ug`` overrides).
+    """
+    Z = np.ascontiguousarray(Z, dtype=float)
+    R, K, ns, _ = Z.shape
+    tk = np.broadcast_to(np.asarray(t, float), (K, ns)).copy()
+    nk = np.full(K, ns, dtype=np.int64) if nk is None else np.asarray(nk, dtype=np.int64)
+    p0 = cfg.p0(ext)
+    nc = p0.size
+    n = nc + 3
+    sa = cfg.sigma_a_ug if sigma_a_ug is None else sigma_a_ug
+    r_var = np.array([sa**2] * 3 + [cfg.sigma_an_arcsec**2] * 3)
+    if sa <= 0:
+        r_var[:3] = 1e-6  # a noise-free record still needs R > 0: 0.001 ug, far below any signal
+    X = np.zeros((R, n))
+    Ps = np.zeros((R, n, n))
+    Ps[:, 3:, 3:] = np.diag(p0**2)
+    lay = layout_index(ext)
+    wn, wu = cfg.site.params()
+    cols = dynamic_cols(ext)
+    phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
+    nis = np.empty(R)
+    for p in range(passes or cfg.passes):
+        if p > 0:
+            C = Ps[:, 3:, 3:].copy()
+            Ps[:] = 0.0
+            Ps[:, 3:, 3:] = 100.0 * C
+        _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, cfg.arw_rad**2,
+                  cfg.sigma_set_rad**2, cols, True, nis)
+    return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis
+
+
+def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: float | None = None,
+                    truth=None, omega_on: bool = True, sequential: bool = True,
+                    threads: int | None = None) -> np.ndarray:
+    """Coefficient covariance of a covariance-only run (§8, §14): no data, Jacobians on the truth.
+
+    Step ``step_s`` (default ``observability.cov_step_s`` = 0.1 s) with the sensor variances
+    scaled by ``ts/step`` (same noise densities as the filter). ``positions_deg`` (K, 3).
+    ``sequential``: one run through all positions (P (nc, nc)); otherwise one run per position
+    from P0, returning (K, nc, nc) (the per-position posteriors, for the information sums).
+    """
+    step = cfg.cov_step_s if step_s is None else float(step_s)
+    ns = int(round(dwell_s / step)) + 1
+    phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
+    K = phi0s.shape[0]
+    p0 = cfg.p0(ext)
+    nc = p0.size
+    coef = cfg.truth(ext) if truth is None else np.asarray(truth, float)
+    scale = cfg.ts / step
+    r_var = np.array([cfg.sigma_a_ug**2 * scale] * 3 + [cfg.sigma_an_arcsec**2 * scale] * 3)
+    lay = layout_index(ext)
+    wn, wu = cfg.site.params(omega_on)
+    cols = dynamic_cols(ext)
+    tk = np.tile(np.arange(ns) * step, (K, 1))
+    nk = np.full(K, ns, dtype=np.int64)
+    x0 = np.concatenate([np.zeros(3), coef])
+    Pinit = np.zeros((nc + 3, nc + 3))
+    Pinit[3:, 3:] = np.diag(p0**2)
+    if sequential:
+        X, Ps = x0[None].copy(), Pinit[None].copy()
+        Zd = np.zeros((1, K, ns, 6))
+        _ekf_range(0, 1, X, Ps, phi0s, tk, Zd, nk, lay, wn, wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, cols,
+                   False, np.empty(1))
+        return Ps[0, 3:, 3:]
+    X = np.repeat(x0[None], K, axis=0)
+    Ps = np.repeat(Pinit[None], K, axis=0)
+    out = np.empty((K, nc, nc))
+    Zd = np.zeros((K, 1, ns, 6))
+    nis = np.empty(K)
+    _threaded(_ekf_pos_range, K, threads, X, Ps, phi0s, tk[:1], Zd, nk[:1], lay, wn, wu, r_var, cfg.arw_rad**2,
+              cfg.sigma_set_rad**2, cols, nis)
+    out[:] = Ps[:, 3:, 3:]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _ekf_pos_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, nis):
+    """One covariance-only position per batch entry (position b from ``phi0s[b]``)."""
+    for b in range(lo, hi):
+        s, u = _ekf_one(X[b], Ps[b], phi0s[b:b + 1], tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, False)
+        nis[b] = s
+
+
+def position_information(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: float | None = None,
+                         omega_on: bool = True) -> np.ndarray:
+    """Per-position Fisher information ``I_k = P_k^-1 - P0^-1`` (K, nc, nc), normalised by P0.
+
+    Exact for the linearised model: the phi reset at each position makes the positions'
+    information independent and additive (as the centrifuge's :mod:`platcal.observability`
+    argues), so a scheme's covariance is ``(P0^-1 + sum_k I_k)^-1``.
+    """
+    p0 = cfg.p0(ext)
+    Pk = covariance_only(cfg, positions_deg, dwell_s, ext, step_s, omega_on=omega_on, sequential=False)
+    Pn = Pk / np.outer(p0, p0)
+    return np.linalg.inv(Pn) - np.eye(p0.size)
+
+
+def scheme_covariance_from_info(cfg, info: np.ndarray, ext: int = 0) -> np.ndarray:
+    """Coefficient covariance (engineering units) from summed normalised information."""
+    p0 = cfg.p0(ext)
+    Pn = np.linalg.inv(np.eye(p0.size) + info)
+    Pn = 0.5 * (Pn + Pn.T)
+    return Pn * np.outer(p0, p0)
+
+
+def nees(est: np.ndarray, cov: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """``e^T P^-1 e`` over the coefficients (§14), per replicate."""
+    e = est - truth
+    return np.einsum("ri,ri->r", e, np.linalg.solve(cov, e[..., None])[..., 0])

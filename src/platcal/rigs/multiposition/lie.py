@@ -1,0 +1,173 @@
+"""Exact Lie-derivative observability rank (docs/multiposition-1g.md §8, patent step 3).
+
+The model of §4-7 is written once more, symbolically with sympy (commanded angles, Earth-rate
+components and every state as symbols); ``h``, ``L_f h``, ``L_f^2 h`` and their Jacobian
+``M = d/dx [h; L_f h; ...]`` (6 (order+1) x n) are built once per (layout, order), lambdified
+with common-subexpression elimination and cached: in-process, and as generated source on disk
+under the user cache dir (``$XDG_CACHE_HOME/platcal`` or ``~/.cache/platcal``; keyed by the hash
+of this file and :mod:`.model`), so the sympy build (tens of seconds) happens once per machine.
+Being an independent writing of the model, the symbolic ``h`` and ``f`` are also checked against
+the numba kernels in the tests.
+
+Evaluation is float64 with the §8 scaling: the rows of ``L_f^k h`` of output i times
+``dwell^k / sigma_i``, the column of state j times its P0 sigma (sigma_set for phi); rank = the
+number of singular values above ``rtol`` times the largest.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import math
+import os
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from ...frames import ARCSEC, DEG, DEG_PER_HOUR
+from ...instruments import GYRO_AXES
+from .model import ACCEL_AXES, ext_terms, state_names
+
+_GYRO_REG = {"DF": lambda I, O, S: 1, "DI": lambda I, O, S: I, "DS": lambda I, O, S: S,
+             "DO": lambda I, O, S: O, "DII": lambda I, O, S: I * I, "DSS": lambda I, O, S: S * S,
+             "DIO": lambda I, O, S: I * O, "DIS": lambda I, O, S: I * S, "DOS": lambda I, O, S: O * S,
+             "DOO": lambda I, O, S: O * O}
+
+
+def symbolic_model(ext: int = 0):
+    """``(x, p, f, h)``: state symbols, parameters (alpha0, beta0, gamma0, Omega_N, Omega_U),
+    the phi rows of the drift field (3, rad/s) and the output (6: ug, arcsec), §4-7."""
+    import sympy as sp
+
+    names = state_names(ext)
+    x = sp.symbols(" ".join(n.replace("theta_", "th_") for n in names), real=True)
+    a0, b0, g0, wn, wu = sp.symbols("alpha0 beta0 gamma0 Omega_N Omega_U", real=True)
+    a, b, g = a0 + x[0], b0 + x[1], g0 + x[2]
+    Mx = sp.Matrix([[1, 0, 0], [0, sp.cos(a), sp.sin(a)], [0, -sp.sin(a), sp.cos(a)]])
+    My = sp.Matrix([[sp.cos(b), 0, -sp.sin(b)], [0, 1, 0], [sp.sin(b), 0, sp.cos(b)]])
+    Mz = sp.Matrix([[sp.cos(g), sp.sin(g), 0], [-sp.sin(g), sp.cos(g), 0], [0, 0, 1]])
+    C = Mz * My * Mx
+    fp = C[:, 2]
+    c = dict(zip(names[3:], x[3:]))
+    gyro, accel = ext_terms(ext)
+
+    def coef(term, j):
+        return c[f"{term}{'xyz'[j]}" if term.startswith("theta") else f"{term}_{'xyz'[j]}"]
+
+    eps = []
+    for j in range(3):
+        I, O, S = (sum(GYRO_AXES[j, r, k] * fp[k] for k in range(3)) for r in range(3))
+        eps.append(sum(coef(t, j) * _GYRO_REG[t](I, O, S) for t in gyro))
+    u = sp.Matrix([eps[j] * DEG_PER_HOUR + C[j, 1] * wn + C[j, 2] * wu for j in range(3)])
+    T = sp.Matrix([[sp.cos(g) / sp.cos(b), -sp.sin(g) / sp.cos(b), 0], [sp.sin(g), sp.cos(g), 0],
+                   [-sp.tan(b) * sp.cos(g), sp.tan(b) * sp.sin(g), 1]])
+    f = -T * u
+    h = []
+    for j in range(3):
+        fI, fP, fO = (sum(ACCEL_AXES[j, r, k] * fp[k] for k in range(3)) for r in range(3))
+        aI = fI + coef("theta_o", j) * ARCSEC * fP - coef("theta_p", j) * ARCSEC * fO
+        A = coef("k0", j) + (10**6 + coef("k1", j)) * aI
+        if "k2" in accel:
+            A += coef("k2", j) * aI**2 + coef("k3", j) * aI**3 + coef("kIP", j) * aI * fP
+        h.append(A)
+    h += [(a0 + x[0]) / ARCSEC, (b0 + x[1]) / ARCSEC, (g0 + x[2]) / ARCSEC]
+    return x, (a0, b0, g0, wn, wu), list(f), h
+
+
+def _build_source(ext: int, order: int) -> str:
+    import sympy as sp
+
+    x, p, f, h = symbolic_model(ext)
+    rows = [sp.Matrix(h)]
+    L = sp.Matrix(h)
+    fv = sp.Matrix(f)
+    for _ in range(order):
+        L = L.jacobian(x[:3]) * fv  # f is zero outside the phi rows
+        rows.append(L)
+    M = sp.Matrix.vstack(*rows).jacobian(x)
+    fn = sp.lambdify([x, p], M, modules="numpy", cse=True)
+    return inspect.getsource(fn)
+
+
+def _cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "platcal"
+
+
+def _code_key(ext: int, order: int) -> str:
+    here = Path(__file__).parent
+    h = hashlib.sha256()
+    for name in ("lie.py", "model.py"):
+        h.update((here / name).read_bytes())
+    return f"lie_{h.hexdigest()[:16]}_ext{ext}_order{order}"
+
+
+@lru_cache(maxsize=None)
+def observability_function(ext: int = 0, order: int = 2):
+    """``M(x, params) -> (6 (order+1), n)``: the Jacobian of the stacked Lie derivatives."""
+    path = _cache_dir() / (_code_key(ext, order) + ".py")
+    src = None
+    if path.exists():
+        src = path.read_text()
+    if src is None:
+        src = _build_source(ext, order)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(f".{os.getpid()}.part")
+            tmp.write_text(src)
+            os.replace(tmp, path)
+        except OSError:
+            pass  # a read-only cache only costs the rebuild
+
+    ns = {"numpy": np, "math": math, **{k: getattr(np, k) for k in ("sin", "cos", "tan", "sqrt", "array")}}
+    ns.update({"ImmutableDenseMatrix": np.array, "MutableDenseMatrix": np.array})
+    exec(compile(src, str(path), "exec"), ns)
+    fname = src.split("def ", 1)[1].split("(", 1)[0]
+    fn = ns[fname]
+
+    def call(xv, params):
+        return np.array(fn(np.asarray(xv, float), np.asarray(params, float)), dtype=float)
+    return call
+
+
+def stacked_matrix(cfg, positions_deg, dwell_s: float, x=None, ext: int = 0, order: int | None = None,
+                   omega_on: bool = True) -> np.ndarray:
+    """The scaled ``P = [M_1; ...; M_K]`` of §8 at state ``x`` (default 0)."""
+    order = cfg.lie_order if order is None else order
+    fn = observability_function(ext, order)
+    n = 3 + cfg.p0(ext).size
+    xv = np.zeros(n) if x is None else np.asarray(x, float)
+    wn, wu = cfg.site.params(omega_on)
+    sig_out = np.array([cfg.sigma_a_ug] * 3 + [cfg.sigma_an_arcsec] * 3)
+    sig_out = np.where(sig_out > 0, sig_out, 1.0)
+    row_scale = np.concatenate([dwell_s**k / sig_out for k in range(order + 1)])
+    col_scale = np.concatenate([[cfg.sigma_set_rad] * 3, cfg.p0(ext)])
+    blocks = []
+    for pos in np.asarray(positions_deg, float).reshape(-1, 3):
+        M = fn(xv, [*(pos * DEG), wn, wu])
+        blocks.append(M * row_scale[:, None] * col_scale[None, :])
+    return np.vstack(blocks)
+
+
+def rank_analysis(cfg, positions_deg, dwell_s: float, x=None, ext: int = 0, order: int | None = None,
+                  omega_on: bool = True) -> dict:
+    """Rank, relative singular values and the null-space directions by state name (§8)."""
+    P = stacked_matrix(cfg, positions_deg, dwell_s, x, ext, order, omega_on)
+    _, s, Vt = np.linalg.svd(P, full_matrices=True)
+    n = P.shape[1]
+    sv = np.zeros(n)
+    sv[: s.size] = s
+    rel = sv / sv.max()
+    rank = int(np.sum(rel > cfg.rank_rtol))
+    names = state_names(ext)
+    null = Vt[rank:]
+    weight = np.sum(null**2, axis=0) if rank < n else np.zeros(n)
+    vectors = []
+    for v in null:
+        v = v / v[np.argmax(np.abs(v))]
+        vectors.append({names[i]: round(float(v[i]), 6) for i in np.argsort(-np.abs(v)) if abs(v[i]) > 1e-3})
+    return {"rank": rank, "n_states": n, "rel_singular_values": rel.tolist(),
+            "weakest_rel_singular_value": float(rel[rank - 1]) if rank else 0.0,
+            "null_space": [names[i] for i in range(n) if weight[i] > 0.5],
+            "null_vectors": vectors}

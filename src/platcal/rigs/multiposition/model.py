@@ -1,0 +1,403 @@
+"""The 1 g multi-position model: layout, error-angle dynamics and 6-D measurement.
+
+docs/multiposition-1g.md §2-7 (and §13 for the extended layout). The base is fixed to the
+Earth: ``f^n = [0, 0, g]`` (ENU, up), ``w_ie^n = [0, Omega cos L, Omega sin L]``;
+``C_n^p = Mz(gamma) My(beta) Mx(alpha)`` and ``T = E^-1`` come from :mod:`platcal.frames`
+(the centrifuge's rotations, docs/centrifuge-model.md §3), the gyro I/O/S axes from
+:mod:`platcal.instruments` (CM §4).
+
+State ``x = [phi (3, rad); c (nc)]``: the platform error angles (gimbal angles minus the
+command ``phi0``), then the coefficients in engineering units, in the order of
+:func:`coef_names` (§15): ``DF, DI, DS, DO, k0, k1, theta_p, theta_o`` each x, y, z (24); the
+§13 extension appends ``DII, DSS, DIO, DIS, DOS, [DOO], k2, k3, kIP`` (51 or 54 states).
+
+Units: drift deg/h (deg/h/g, deg/h/g^2); accelerometer outputs in ug in the model (the record
+stores g); k0 ug, k1 ug/g, k2 ug/g^2, k3 ug/g^3, kIP ug/g^2, theta arcsec; angle-sensor outputs
+in arcsec; phi in rad, phi' in rad/s.
+
+Kernels are numba-compiled scalar code on one replicate (the batched simulator and EKF call
+them in loops over replicates); every kernel also returns its analytic Jacobian.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ...frames import ARCSEC, DEG_PER_HOUR, c_rp_into, euler_t_into
+from ...instruments import GYRO_AXES
+
+AXES = ("x", "y", "z")
+BASE_GYRO = ("DF", "DI", "DS", "DO")
+BASE_ACCEL = ("k0", "k1", "theta_p", "theta_o")
+EXT_GYRO = ("DII", "DSS", "DIO", "DIS", "DOS")
+EXT_ACCEL = ("k2", "k3", "kIP")
+ANGLE_NAMES = ("phi_x", "phi_y", "phi_z")
+UG_PER_G = 1e6
+
+UNITS = {"DF": "deg/h", "DI": "deg/h/g", "DS": "deg/h/g", "DO": "deg/h/g", "DII": "deg/h/g^2",
+         "DSS": "deg/h/g^2", "DIO": "deg/h/g^2", "DIS": "deg/h/g^2", "DOS": "deg/h/g^2",
+         "DOO": "deg/h/g^2", "k0": "ug", "k1": "ug/g", "k2": "ug/g^2", "k3": "ug/g^3",
+         "kIP": "ug/g^2", "theta_p": "arcsec", "theta_o": "arcsec"}
+
+# Nominal accelerometer axes in p, rows I0, P0, O0 (docs/multiposition-1g.md §6).
+ACCEL_AXES = np.array([
+    [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+    [[0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [-1.0, 0.0, 0.0]],
+    [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]],
+])
+
+# Truth (§10), deg/h, deg/h/g, ug, ug/g, arcsec; extension from CM Table 2 (DOO = 0).
+BASE_TRUTH = {
+    "DF": (7.370, 7.821, 1.654), "DI": (1.083, 1.023, 0.933), "DS": (1.083, 1.023, 0.933),
+    "DO": (1.083, 1.023, 0.933), "k0": (3500.0, 4250.0, 6310.0), "k1": (160.0, 100.0, 1100.0),
+    "theta_p": (120.0, 305.0, 305.0), "theta_o": (-180.0, 210.0, 260.0),
+}
+P0_BASE = {"DF": 10.0, "DI": 2.0, "DS": 2.0, "DO": 2.0, "k0": 1e4, "k1": 2e3, "theta_p": 600.0,
+           "theta_o": 600.0}
+P0_EXT = {"DII": 0.2, "DSS": 0.2, "DIO": 0.2, "DIS": 0.2, "DOS": 0.2, "DOO": 0.2, "k2": 50.0,
+          "k3": 10.0, "kIP": 20.0}
+"""Prior sigmas (§9 and CM §11); the config may override them."""
+
+
+def ext_terms(ext: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Gyro and accelerometer terms of layout ``ext`` (0: §9's 24, 1: §13 without DOO, 2: with)."""
+    if ext == 0:
+        return BASE_GYRO, BASE_ACCEL
+    gyro = BASE_GYRO + EXT_GYRO + (("DOO",) if ext == 2 else ())
+    return gyro, BASE_ACCEL + EXT_ACCEL
+
+
+def coef_terms(ext: int = 0) -> tuple[str, ...]:
+    """Coefficient terms in state order (§15): base 24 first, then the §13 terms."""
+    if ext == 0:
+        return BASE_GYRO + BASE_ACCEL
+    return BASE_GYRO + BASE_ACCEL + EXT_GYRO + (("DOO",) if ext == 2 else ()) + EXT_ACCEL
+
+
+def name_of(term: str, axis: str) -> str:
+    """``theta_p`` + ``x`` -> ``theta_px``; ``DI`` + ``y`` -> ``DI_y`` (§15 names)."""
+    return f"{term}{axis}" if term.startswith("theta") else f"{term}_{axis}"
+
+
+def coef_names(ext: int = 0) -> tuple[str, ...]:
+    """The coefficient names in state order (24, 48 or 51)."""
+    return tuple(name_of(t, a) for t in coef_terms(ext) for a in AXES)
+
+
+def state_names(ext: int = 0) -> tuple[str, ...]:
+    return ANGLE_NAMES + coef_names(ext)
+
+
+def term_of(name: str) -> str:
+    return name[:-1] if name.startswith("theta") else name.rsplit("_", 1)[0]
+
+
+def unit_of(name: str) -> str:
+    return UNITS[term_of(name)]
+
+
+def group_of(name: str) -> str:
+    return "gyro" if name.startswith("D") else "accel"
+
+
+def layout_index(ext: int) -> np.ndarray:
+    """(16,) int column of each term slot in the coefficient vector (-1: absent), axis x.
+
+    Slots: 0-9 gyro [DF, DI, DS, DO, DII, DSS, DIO, DIS, DOS, DOO]; 10-16 accel
+    [k0, k1, theta_p, theta_o, k2, k3, kIP]. Axis j adds j.
+    """
+    slots = ("DF", "DI", "DS", "DO", "DII", "DSS", "DIO", "DIS", "DOS", "DOO",
+             "k0", "k1", "theta_p", "theta_o", "k2", "k3", "kIP")
+    terms = coef_terms(ext)
+    return np.array([3 * terms.index(s) if s in terms else -1 for s in slots], dtype=np.int64)
+
+
+def truth_vector(ext: int = 0, overrides: dict | None = None) -> np.ndarray:
+    """True coefficients (§10; §13 extension from CM Table 2, DOO = 0), then ``overrides``."""
+    from ...instruments import INDEX, load_catalogue
+
+    cat = load_catalogue()
+    vals = {}
+    for t, v in BASE_TRUTH.items():
+        for a, x in zip(AXES, v):
+            vals[name_of(t, a)] = x
+    for t in EXT_GYRO + EXT_ACCEL:
+        for a in AXES:
+            vals[name_of(t, a)] = float(cat.truth[INDEX[f"{t}_{a}"]])
+    for a in AXES:
+        vals[f"DOO_{a}"] = 0.0
+    names = coef_names(ext)
+    for k, v in (overrides or {}).items():
+        vals[k] = float(v)
+    return np.array([vals[n] for n in names])
+
+
+def p0_vector(ext: int = 0, overrides: dict | None = None) -> np.ndarray:
+    """Prior sigma of each coefficient (§9), by term; ``overrides`` by term name."""
+    p0 = {**P0_BASE, **P0_EXT, **(overrides or {})}
+    return np.array([p0[term_of(n)] for n in coef_names(ext)])
+
+
+@dataclass(frozen=True)
+class Site:
+    """Constants of §2: latitude (deg), g (m/s^2, only a unit here) and Earth rate (rad/s)."""
+
+    latitude_deg: float = 28.2
+    earth_rate: float = 7.2921151467e-5
+
+    def params(self, omega_on: bool = True) -> np.ndarray:
+        """Packed ``[Omega_N, Omega_U]`` (rad/s); zeros for the static (Omega = 0) variant."""
+        lat = np.radians(self.latitude_deg)
+        w = self.earth_rate if omega_on else 0.0
+        return np.array([w * np.cos(lat), w * np.sin(lat)])
+
+
+# ------------------------------------------------------------------ numba kernels
+
+@njit(cache=True)
+def gyro_drift_k(c, lay, f, eps, deps, greg):
+    """Drift of gyros x, y, z (deg/h) at ``f`` (g, in p), §5 (+ §13 terms when in ``lay``).
+
+    ``deps[j, k] = d eps_j / d f_k``; ``greg[j, m]`` the regressor of slot m (see
+    :func:`layout_index`) so that ``d eps_j / d c[lay[m] + j] = greg[j, m]``.
+    """
+    for j in range(3):
+        aI = GYRO_AXES[j, 0, 0] * f[0] + GYRO_AXES[j, 0, 1] * f[1] + GYRO_AXES[j, 0, 2] * f[2]
+        aO = GYRO_AXES[j, 1, 0] * f[0] + GYRO_AXES[j, 1, 1] * f[1] + GYRO_AXES[j, 1, 2] * f[2]
+        aS = GYRO_AXES[j, 2, 0] * f[0] + GYRO_AXES[j, 2, 1] * f[1] + GYRO_AXES[j, 2, 2] * f[2]
+        greg[j, 0] = 1.0
+        greg[j, 1] = aI
+        greg[j, 2] = aS
+        greg[j, 3] = aO
+        greg[j, 4] = aI * aI
+        greg[j, 5] = aS * aS
+        greg[j, 6] = aI * aO
+        greg[j, 7] = aI * aS
+        greg[j, 8] = aO * aS
+        greg[j, 9] = aO * aO
+        e = 0.0
+        gI = 0.0
+        gO = 0.0
+        gS = 0.0
+        for m in range(10):
+            if lay[m] >= 0:
+                k = c[lay[m] + j]
+                e += k * greg[j, m]
+                if m == 1:
+                    gI += k
+                elif m == 2:
+                    gS += k
+                elif m == 3:
+                    gO += k
+                elif m == 4:
+                    gI += 2.0 * k * aI
+                elif m == 5:
+                    gS += 2.0 * k * aS
+                elif m == 6:
+                    gI += k * aO
+                    gO += k * aI
+                elif m == 7:
+                    gI += k * aS
+                    gS += k * aI
+                elif m == 8:
+                    gO += k * aS
+                    gS += k * aO
+                elif m == 9:
+                    gO += 2.0 * k * aO
+        eps[j] = e
+        for k in range(3):
+            deps[j, k] = gI * GYRO_AXES[j, 0, k] + gO * GYRO_AXES[j, 1, k] + gS * GYRO_AXES[j, 2, k]
+
+
+@njit(cache=True)
+def rate_k(phi0, x, lay, wn, wu, w, rate, F, want_jac, C, dC, T, dT, f, eps, deps, greg):
+    """Error-angle rate of §4, rad/s: ``phi' = -T [eps DPH + C_n^p w_ie^n + w]``.
+
+    ``phi0`` (3,) commanded angles (rad); ``x`` state (rad, engineering units); ``w`` (3,) gyro
+    white rate noise (rad/s). With ``want_jac``, ``F`` (3, n) receives ``d phi' / d x``
+    (analytic; the caller zeroes its columns once: only the angle and gyro ones are written).
+    The other arguments are scratch.
+    """
+    a0 = phi0[0] + x[0]
+    a1 = phi0[1] + x[1]
+    a2 = phi0[2] + x[2]
+    c_rp_into(a0, a1, a2, C, dC)
+    euler_t_into(a1, a2, T, dT)
+    for r in range(3):
+        f[r] = C[r, 2]
+    gyro_drift_k(x[3:], lay, f, eps, deps, greg)
+    u0 = eps[0] * DEG_PER_HOUR + C[0, 1] * wn + C[0, 2] * wu + w[0]
+    u1 = eps[1] * DEG_PER_HOUR + C[1, 1] * wn + C[1, 2] * wu + w[1]
+    u2 = eps[2] * DEG_PER_HOUR + C[2, 1] * wn + C[2, 2] * wu + w[2]
+    for r in range(3):
+        rate[r] = -(T[r, 0] * u0 + T[r, 1] * u1 + T[r, 2] * u2)
+    if not want_jac:
+        return
+    for i in range(3):
+        # du/d ang_i = DPH deps (dC_i[:, 2]) + dC_i[:, 1] wn + dC_i[:, 2] wu
+        d0 = dC[i, 0, 2]
+        d1 = dC[i, 1, 2]
+        d2 = dC[i, 2, 2]
+        du0 = DEG_PER_HOUR * (deps[0, 0] * d0 + deps[0, 1] * d1 + deps[0, 2] * d2) \
+            + dC[i, 0, 1] * wn + dC[i, 0, 2] * wu
+        du1 = DEG_PER_HOUR * (deps[1, 0] * d0 + deps[1, 1] * d1 + deps[1, 2] * d2) \
+            + dC[i, 1, 1] * wn + dC[i, 1, 2] * wu
+        du2 = DEG_PER_HOUR * (deps[2, 0] * d0 + deps[2, 1] * d1 + deps[2, 2] * d2) \
+            + dC[i, 2, 1] * wn + dC[i, 2, 2] * wu
+        for r in range(3):
+            F[r, i] = -(dT[i, r, 0] * u0 + dT[i, r, 1] * u1 + dT[i, r, 2] * u2
+                        + T[r, 0] * du0 + T[r, 1] * du1 + T[r, 2] * du2)
+    for m in range(10):
+        if lay[m] < 0:
+            continue
+        for j in range(3):
+            col = 3 + lay[m] + j
+            g = DEG_PER_HOUR * greg[j, m]
+            for r in range(3):
+                F[r, col] = -T[r, j] * g
+
+
+@njit(cache=True)
+def meas_k(phi0, x, lay, z, H, hcols, hnnz, C, dC):
+    """The 6-D measurement of §7 without noise and its Jacobian.
+
+    ``z[0:3]`` accelerometer outputs in ug (§6), ``z[3:6]`` angle sensors ``phi0 + phi`` in
+    arcsec. ``H`` (3, 10), ``hcols`` (3, 10), ``hnnz`` (3,): the sparse accelerometer rows
+    (state columns and values); the angle-sensor rows are ``1/ARCSEC`` on phi (implicit).
+    """
+    c = x[3:]
+    a0 = phi0[0] + x[0]
+    a1 = phi0[1] + x[1]
+    a2 = phi0[2] + x[2]
+    c_rp_into(a0, a1, a2, C, dC)
+    for j in range(3):
+        tp = c[lay[12] + j] * ARCSEC
+        to = c[lay[13] + j] * ARCSEC
+        k1 = c[lay[11] + j]
+        fI = 0.0
+        fP = 0.0
+        fO = 0.0
+        for k in range(3):
+            fI += ACCEL_AXES[j, 0, k] * C[k, 2]
+            fP += ACCEL_AXES[j, 1, k] * C[k, 2]
+            fO += ACCEL_AXES[j, 2, k] * C[k, 2]
+        aI = fI + to * fP - tp * fO
+        gain = UG_PER_G + k1
+        A = c[lay[10] + j] + gain * aI
+        n = 0
+        if lay[14] >= 0:
+            k2 = c[lay[14] + j]
+            k3 = c[lay[15] + j]
+            kip = c[lay[16] + j]
+            A += k2 * aI * aI + k3 * aI * aI * aI + kip * aI * fP
+            gain += 2.0 * k2 * aI + 3.0 * k3 * aI * aI + kip * fP
+            hcols[j, 0] = 3 + lay[14] + j
+            H[j, 0] = aI * aI
+            hcols[j, 1] = 3 + lay[15] + j
+            H[j, 1] = aI * aI * aI
+            hcols[j, 2] = 3 + lay[16] + j
+            H[j, 2] = aI * fP
+            n = 3
+        z[j] = A
+        # angle columns: d aI / d ang_i through f = C[:, 2], plus kIP aI dfP
+        for i in range(3):
+            dI = 0.0
+            dP = 0.0
+            dO = 0.0
+            for k in range(3):
+                dI += ACCEL_AXES[j, 0, k] * dC[i, k, 2]
+                dP += ACCEL_AXES[j, 1, k] * dC[i, k, 2]
+                dO += ACCEL_AXES[j, 2, k] * dC[i, k, 2]
+            v = gain * (dI + to * dP - tp * dO)
+            if lay[14] >= 0:
+                v += c[lay[16] + j] * aI * dP
+            hcols[j, n] = i
+            H[j, n] = v
+            n += 1
+        hcols[j, n] = 3 + lay[10] + j
+        H[j, n] = 1.0
+        hcols[j, n + 1] = 3 + lay[11] + j
+        H[j, n + 1] = aI
+        hcols[j, n + 2] = 3 + lay[12] + j
+        H[j, n + 2] = -gain * fO * ARCSEC
+        hcols[j, n + 3] = 3 + lay[13] + j
+        H[j, n + 3] = gain * fP * ARCSEC
+        hnnz[j] = n + 4
+    for i in range(3):
+        z[3 + i] = (phi0[i] + x[i]) / ARCSEC
+
+
+@njit(cache=True)
+def rk4_k(phi0, x, lay, wn, wu, w, h, out, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd):
+    """One RK4 step of §4 over ``h`` s with the white rate ``w`` held constant (§12); angles
+    only (coefficients are constant). ``out`` (3,) the new phi. Others are scratch."""
+    n = x.shape[0]
+    for i in range(n):
+        xs[i] = x[i]
+    for s in range(4):
+        if s > 0:
+            step = 0.5 * h if s < 3 else h
+            for r in range(3):
+                xs[r] = x[r] + step * k4[s - 1, r]
+        rate_k(phi0, xs, lay, wn, wu, w, k4[s], Fd, False, C, dC, T, dT, f, eps, deps, greg)
+    for r in range(3):
+        out[r] = x[r] + h / 6.0 * (k4[0, r] + 2.0 * k4[1, r] + 2.0 * k4[2, r] + k4[3, r])
+
+
+@njit(cache=True)
+def make_scratch(n):
+    """Scratch tuple for the kernels: (C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd)."""
+    return (np.empty((3, 3)), np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3, 3)),
+            np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 10)), np.empty((4, 3)),
+            np.empty(n), np.zeros((3, n)))
+
+
+# ------------------------------------------------------------------ Python helpers
+
+def rate(phi0_rad, x, site: Site = Site(), ext: int = 0, omega_on: bool = True):
+    """``(phi' (3,) rad/s, F (3, n))`` at one point (for tests and small calls)."""
+    x = np.asarray(x, float)
+    lay = layout_index(ext)
+    wn, wu = site.params(omega_on)
+    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(x.size)
+    out = np.empty(3)
+    F = np.zeros((3, x.size))
+    rate_k(np.asarray(phi0_rad, float), x, lay, wn, wu, np.zeros(3), out, F, True,
+           C, dC, T, dT, f, eps, deps, greg)
+    return out, F
+
+
+def drift(x, phi0_rad, ext: int = 0) -> np.ndarray:
+    """Gyro drift eps (deg/h) at phi0 + phi (§5)."""
+    x = np.asarray(x, float)
+    C, dC, T, dT, f, eps, deps, greg, *_ = make_scratch(x.size)
+    ang = np.asarray(phi0_rad, float) + x[:3]
+    c_rp_into(ang[0], ang[1], ang[2], C, dC)
+    gyro_drift_k(x[3:], layout_index(ext), C[:, 2].copy(), eps, deps, greg)
+    return eps.copy()
+
+
+def measure(phi0_rad, x, ext: int = 0):
+    """``(z (6,), H (6, n))``: the §7 measurement (ug, arcsec) and its dense Jacobian."""
+    x = np.asarray(x, float)
+    n = x.size
+    z = np.empty(6)
+    Hs = np.empty((3, 10))
+    hc = np.zeros((3, 10), dtype=np.int64)
+    nn = np.zeros(3, dtype=np.int64)
+    C, dC = np.empty((3, 3)), np.empty((3, 3, 3))
+    meas_k(np.asarray(phi0_rad, float), x, layout_index(ext), z, Hs, hc, nn, C, dC)
+    H = np.zeros((6, n))
+    for j in range(3):
+        for t in range(nn[j]):
+            H[j, hc[j, t]] += Hs[j, t]
+        H[3 + j, j] = 1.0 / ARCSEC
+    return z, H
+
+
+def wrap_arcsec(d):
+    """Angle residuals wrapped to +-180 deg (§7), in arcsec."""
+    return (np.asarray(d) + 648000.0) % 1296000.0 - 648000.0

@@ -1,0 +1,140 @@
+# Rig 2, the 1 g multi-position self-test (docs/multiposition-1g.md): scheme check of every named
+# scheme, GA design, Monte Carlo over seeds x schemes x noise x EKF passes, the section 13
+# comparison with the centrifuge's Table 1; tables, figures and report under results/multiposition/.
+# The rig's config is config["rigs"]["multiposition"] (the centrifuge's config["rigs"]["centrifuge"]);
+# without it MULTIPOSITION_TARGETS is empty. Set-up: platcal.rigs.multiposition.study.WorkflowSetup.
+from platcal.errors import InputError as _MPInputError
+from platcal.rigs.multiposition.study import WorkflowSetup as _MPSetup
+from snakemake.exceptions import WorkflowError as _MPWorkflowError
+
+try:  # the rig config is validated (field named) before any job runs
+    MP_SETUP = _MPSetup(config)
+except _MPInputError as exc:
+    raise _MPWorkflowError(f"invalid multiposition config: {exc.field}: {exc.message}")
+MULTIPOSITION_TARGETS = MP_SETUP.targets()
+
+
+rule multiposition_lie_cache:
+    output:
+        "results/multiposition/lie_cache.json",
+    params:
+        config=MP_SETUP.config,
+        code=MP_SETUP.code,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/multiposition/logs/lie_cache.log",
+    script:
+        "../scripts/multiposition_lie_cache.py"
+
+
+rule multiposition_observability:
+    input:
+        "results/multiposition/lie_cache.json",
+    output:
+        "results/multiposition/observability/{scheme}/observability.json",
+    params:
+        config=MP_SETUP.config,
+        code=MP_SETUP.code,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/multiposition/logs/observability_{scheme}.log",
+    shell:
+        "platcal observability --config {params.config} --scheme {wildcards.scheme} "
+        "--out results/multiposition/observability/{wildcards.scheme} > {log} 2>&1"
+
+
+rule multiposition_design:
+    output:
+        expand("results/multiposition/design/GA{k}.yaml", k=MP_SETUP.design_k),
+        ga="results/multiposition/design/GA.yaml",
+        compare="results/multiposition/design/compare.csv",
+    params:
+        config=MP_SETUP.config,
+        code=MP_SETUP.code,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/multiposition/logs/design.log",
+    script:
+        "../scripts/multiposition_design.py"
+
+
+rule multiposition_montecarlo:
+    input:
+        lambda w: MP_SETUP.design_input(w.scheme),
+    output:
+        "results/multiposition/runs/{scheme}/sa{sigma}.parquet",
+    wildcard_constraints:
+        scheme=r"[A-Za-z0-9_.-]+",
+        sigma=r"[0-9][0-9.e+-]*",
+    params:
+        config=MP_SETUP.config,
+        code=MP_SETUP.code,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/multiposition/logs/montecarlo_{scheme}_sa{sigma}.log",
+    script:
+        "../scripts/multiposition_montecarlo.py"
+
+
+rule multiposition_extension:
+    input:
+        "results/multiposition/lie_cache.json",
+    output:
+        ranks="results/multiposition/extension/ranks.json",
+        sigma="results/multiposition/extension/sigma.csv",
+    params:
+        config=MP_SETUP.config,
+        code=MP_SETUP.code,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/multiposition/logs/extension.log",
+    script:
+        "../scripts/multiposition_extension.py"
+
+
+rule multiposition_centrifuge_table1:
+    output:
+        "results/multiposition/centrifuge_table1/observability.json",
+    params:
+        config=MP_SETUP.centrifuge,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/multiposition/logs/centrifuge_table1.log",
+    shell:
+        "platcal observability --config {params.config} --scheme table1 "
+        "--out results/multiposition/centrifuge_table1 > {log} 2>&1"
+
+
+rule multiposition_report:
+    input:
+        obs=MP_SETUP.observability(),
+        cells=MP_SETUP.cells(),
+        design="results/multiposition/design/compare.csv",
+        ext_ranks="results/multiposition/extension/ranks.json",
+        ext_sigma="results/multiposition/extension/sigma.csv",
+        centrifuge=MP_SETUP.centrifuge_json(),
+    output:
+        tables=expand(
+            "results/multiposition/tables/{table}.{ext}",
+            table=["ranks", "montecarlo_summary", "design", "extension_ranks", "extension_sigma"],
+            ext=["csv", "md", "html"],
+        ),
+        figures=expand(
+            "results/multiposition/figures/{fig}.png", fig=["ranks", "montecarlo", "extension"]
+        ),
+        coef="results/multiposition/montecarlo/coef.parquet",
+        report="results/multiposition/report.md",
+    params:
+        code=MP_SETUP.code,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/multiposition/logs/report.log",
+    script:
+        "../scripts/multiposition_report.py"

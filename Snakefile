@@ -20,6 +20,9 @@ report: "workflow/report/workflow.rst"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/montecarlo.smk"
 include: "workflow/rules/centrifuge.smk"
+include: "workflow/rules/multiposition.smk"
+include: "workflow/rules/sled.smk"
+include: "workflow/rules/lowprec_centrifuge.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -27,4 +30,7 @@ rule all:
     default_target: True
     input:
         CENTRIFUGE_TARGETS,
+        MULTIPOSITION_TARGETS,
+        SLED_TARGETS,
+        LOWPREC_CENTRIFUGE_TARGETS,
         INDEX_REPORT,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from platcal.frames import ARCSEC
+from platcal.model.frames import ARCSEC
 from platcal.rigs.multiposition import model as m
 
 GOLDEN = [  # (alpha, beta, gamma) deg; A (ug); eps (deg/h); phi' (arcsec/s)  -- §15 item 1

@@ -10,7 +10,7 @@ from platcal.study.montecarlo import code_hash, compute_code_hash, noise_label
 
 # config/config.yaml is the index: rigs: {name: config path or inline mapping}
 validate(config, "../schemas/config.schema.yaml")
-RIGS = list(config["rigs"])
+RIGS = [r for r, c in config["rigs"].items() if c]  # null: left out of this study
 CODE_ALL = code_hash()  # the whole package: the aggregate rules' param
 
 

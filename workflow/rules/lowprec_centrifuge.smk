@@ -6,7 +6,7 @@ import re as _lp_re
 from pathlib import Path as _LpPath
 
 LOWPREC_CENTRIFUGE_TARGETS = []
-if "lowprec_centrifuge" in config.get("rigs", {}):
+if config.get("rigs", {}).get("lowprec_centrifuge"):
     import platcal.rigs.lowprec_centrifuge as _lp_pkg
     from platcal.errors import InputError as _LpInputError
     from platcal.io import read_yaml as _lp_read_yaml

@@ -14,7 +14,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...schema import load_schema, validate
-from ...scheme import TABLE1_POSITIONS, Scheme
+from ..centrifuge.scheme import TABLE1_POSITIONS, Scheme
 from .model import Site, coef_names, p0_vector, truth_vector
 
 ROLL = lambda step: tuple((float(a), 0.0, 0.0) for a in range(0, 360, step))  # noqa: E731

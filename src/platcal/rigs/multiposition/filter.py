@@ -30,8 +30,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from numba import njit
 
-from ...frames import ARCSEC, DEG
-from ...kalman import joseph_update_sparse, propagate_sparse
+from ...model.frames import ARCSEC, DEG
+from ...estimation.kalman import joseph_update_sparse, propagate_sparse
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
 
 

@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ...frames import ARCSEC, DEG, DEG_PER_HOUR
-from ...instruments import GYRO_AXES
+from ...model.frames import ARCSEC, DEG, DEG_PER_HOUR
+from ...model.instruments import GYRO_AXES
 from .model import ACCEL_AXES, ext_terms, state_names
 
 _GYRO_REG = {"DF": lambda I, O, S: 1, "DI": lambda I, O, S: I, "DS": lambda I, O, S: S,

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ...frames import ARCSEC, DEG_PER_HOUR, c_rp_into, euler_t_into
-from ...instruments import GYRO_AXES
+from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into, euler_t_into
+from ...model.instruments import GYRO_AXES
 
 AXES = ("x", "y", "z")
 BASE_GYRO = ("DF", "DI", "DS", "DO")
@@ -117,7 +117,8 @@ def layout_index(ext: int) -> np.ndarray:
 
 def truth_vector(ext: int = 0, overrides: dict | None = None) -> np.ndarray:
     """True coefficients (§10; §13 extension from CM Table 2, DOO = 0), then ``overrides``."""
-    from ...instruments import INDEX, load_catalogue
+    from ...model.instruments import INDEX
+    from ..centrifuge.catalogue import load_catalogue
 
     cat = load_catalogue()
     vals = {}

@@ -16,9 +16,9 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
-from ...frames import DEG
-from ...record import LOG_COLUMNS, TRUTH_COLUMNS, write_record  # noqa: F401  (re-exported)
-from ...scheme import Scheme
+from ...model.frames import DEG
+from ..centrifuge.record import LOG_COLUMNS, TRUTH_COLUMNS, write_record  # noqa: F401  (re-exported)
+from ..centrifuge.scheme import Scheme
 
 ANGLE_COLUMNS = ("alpha_m", "beta_m", "gamma_m")
 COLUMNS = LOG_COLUMNS + ANGLE_COLUMNS

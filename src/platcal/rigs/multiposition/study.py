@@ -18,7 +18,7 @@ import pandas as pd
 
 from ...io import atomic_to_parquet, atomic_write_text, read_yaml
 from ...log import eta_line
-from ...scheme import Scheme
+from ..centrifuge.scheme import Scheme
 from ...study.tables import frame_markdown, write_table
 from .config import load_config
 from .filter import nees, run_ekf, simulate

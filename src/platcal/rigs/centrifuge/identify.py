@@ -2,20 +2,18 @@
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ...estimation.consistency import nees
-from ...io import atomic_to_csv, atomic_write_text
+from ...io import atomic_files, json_text
 from .config import Study
 from .ekf import Estimate, FilterSettings, run_ekf
-from .record import TRUTH_COLUMNS, filter_input
+from .record import TRUTH_COLUMNS, FilterInput, check_record, filter_input
 from .scheme import Scheme
 from .simulate import simulate
 from .tables import covariance_frame, estimates_frame, table2_markdown
@@ -36,27 +34,63 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
     return run_ekf([sim.A[:, k] for k in range(K)], [sim.t] * K, scheme.angles_deg, params, fs)
 
 
-def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:
-    """Run the study's EKF over a validated test record (one run: a batch of one)."""
-    fin = filter_input(df, scheme, study.filter.period_s)
+def record_input(study: Study, scheme: Scheme, df: pd.DataFrame) -> FilterInput:
+    """Check a read test record against the scheme and sampling (InputError before any work) and
+    select the samples the filter uses."""
+    check_record(df, scheme, study.sample_s, float(study.config["record"]["max_gap_s"]))
+    return filter_input(df, scheme, study.filter.period_s)
+
+
+def identify_input(study: Study, scheme: Scheme, fin: FilterInput) -> Estimate:
+    """Run the study's EKF over the selected samples of a record (one run: a batch of one)."""
     params = study.centrifuge.scheme_params(scheme)[np.array(fin.positions) - 1]
     return run_ekf(fin.z, fin.t, fin.cmd_deg, params, study.filter)
 
 
+def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:
+    """Run the study's EKF over a validated test record (one run: a batch of one)."""
+    return identify_input(study, scheme, record_input(study, scheme, df))
+
+
+def run_problems(est: Estimate, replicate: int = 0) -> list[str]:
+    """Why a filter run cannot be trusted (empty if it can): updates skipped because S was not
+    positive definite, non-finite estimates or covariance, a final covariance that is not
+    positive definite. Messages use plain numbers."""
+    out = []
+    bad = int(est.failed_updates[replicate])
+    if bad:
+        out.append(f"{bad} measurement update(s) failed (innovation covariance S not positive definite)")
+    x, P = est.x[replicate], est.P[replicate]
+    if not np.all(np.isfinite(x)):
+        names = [est.names[i] for i in np.flatnonzero(~np.isfinite(x))]
+        out.append(f"{len(names)} non-finite estimate(s) ({', '.join(names[:5])}{' ...' if len(names) > 5 else ''})")
+    if not np.all(np.isfinite(P)):
+        out.append("the covariance has non-finite entries")
+    else:
+        try:
+            np.linalg.cholesky(0.5 * (P + P.T))
+        except np.linalg.LinAlgError:
+            out.append("the final covariance is not positive definite")
+    return out
+
+
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
-                         seconds: float | None = None) -> dict:
+                         seconds: float | None = None, samples_used: dict[int, int] | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
     first pass), each state's estimate and its 1-sigma (``<name>_sigma``), angles in rad.
+    The five files land together or not at all (:func:`platcal.io.atomic_files`), ``summary.json``
+    last; it is strict JSON (``null`` for a number that is not finite). ``samples_used`` (position
+    -> number of samples the filter used) goes into the summary as ``samples_used_per_position``.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     nc = est.n_coef
     truth = study.truth if truth_known else None
     df = estimates_frame(est.names[:nc], est.coef[0], est.coef_sigma[0], truth)
     summary = {"n_states": len(est.names), "passes": study.filter.passes,
                "mean_nis": float(est.mean_nis[0]), "failed_updates": int(est.failed_updates[0])}
+    if samples_used is not None:
+        summary["samples_used_per_position"] = {str(k): int(v) for k, v in samples_used.items()}
     if seconds is not None:
         summary["seconds"] = seconds
     if truth is not None:
@@ -67,11 +101,12 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         gyro = df["name"].str.startswith("D")
         summary["max_abs_rel_err_pct_gyro"] = float(rel[gyro].max())
         summary["max_abs_rel_err_pct_accel"] = float(rel[~gyro].max())
-    atomic_to_csv(df, out / "estimates.csv")
-    atomic_to_csv(covariance_frame(est.names, est.P[0]), out / "covariance.csv", index=True)
-    atomic_to_csv(history_frame(est), out / "history.csv")
-    atomic_write_text(out / "table2.md", table2_markdown(df))
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    with atomic_files(out_dir) as tmp:
+        df.to_csv(tmp("estimates.csv"), index=False)
+        covariance_frame(est.names, est.P[0]).to_csv(tmp("covariance.csv"), index=True)
+        history_frame(est).to_csv(tmp("history.csv"), index=False)
+        tmp("table2.md").write_text(table2_markdown(df))
+        tmp("summary.json").write_text(json_text(summary))
     return summary
 
 

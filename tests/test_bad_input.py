@@ -37,7 +37,8 @@ def record(n: int = 800) -> pd.DataFrame:
         "t": np.tile(np.arange(n) * SAMPLE_S, K),
         "alpha_cmd": np.repeat(cmd[:, 0], n), "beta_cmd": np.repeat(cmd[:, 1], n),
         "gamma_cmd": np.repeat(cmd[:, 2], n),
-        "Ax": rng.normal(0, 1, K * n), "Ay": rng.normal(0, 1, K * n), "Az": rng.normal(0, 1, K * n),
+        # about the 10 g centripetal + 1 g gravity a position measures (the magnitude is checked)
+        "Ax": 10 + rng.normal(0, 0.1, K * n), "Ay": rng.normal(0, 0.1, K * n), "Az": 1 + rng.normal(0, 0.1, K * n),
     })
 
 
@@ -206,7 +207,17 @@ def _nan_cmd(df):
     df.loc[30, "beta_cmd"] = np.nan
 
 
+def _m_s2(df):
+    df[["Ax", "Ay", "Az"]] *= 9.80665
+
+
+def _mg(df):
+    df.loc[_rows(df, 2), ["Ax", "Ay", "Az"]] *= 1000.0
+
+
 RECORDS = {
+    "accelerations in m/s^2": (_m_s2, "columns Ax, Ay, Az, position 1", "csv"),
+    "accelerations in mg": (_mg, "columns Ax, Ay, Az, position 2", "csv"),
     "t in ms": (_t_ms, "column t, position 1", "csv"),
     "t not increasing": (_t_back, "column t, position 1", "csv"),
     "10 s gap": (_gap, "column t, position 2", "csv"),
@@ -390,3 +401,46 @@ def test_bad_output_or_option(case, tmp_path, capsys):
 
 def test_sweep_has_at_least_40_cases():
     assert len(CONFIGS) + len(RECORDS) + len(FILES) + len(OUTPUTS) >= 40
+
+
+# ---- failures are failures ---------------------------------------------------------------------
+def test_failed_filter_run_exits_1_and_writes_nothing(tmp_path, capsys):
+    """P0 of 1e200 deg/h overflows the covariance: every update fails; no result folder appears."""
+    cfg = tmp_path / "config.yaml"
+    cfg.write_text(with_section("filter: {period_ms: 20, passes: 1, p0: {DF: 1.0e200}}"))
+    data = tmp_path / "run.csv"
+    record().to_csv(data, index=False)
+    before = snapshot(tmp_path)
+    with pytest.warns(RuntimeWarning):
+        code = main(["identify", "--config", str(cfg), "--scheme", "short", "--data", str(data),
+                     "--out", str(tmp_path / "id")])
+    assert code == 1
+    err = capsys.readouterr().err
+    assert "failed" in err and "measurement update(s) failed" in err and "np." not in err
+    assert snapshot(tmp_path) == before
+
+
+def test_run_problems_names_each_kind_of_failure():
+    from platcal.rigs.centrifuge.ekf import Estimate
+    from platcal.rigs.centrifuge.identify import run_problems
+
+    n = 4
+    names = ("DF_x", "DF_y", "alpha", "beta", "gamma")[:n]
+
+    def est(x, P, bad):
+        z = np.zeros((1, 0, n))
+        return Estimate(names=names, x=x[None], P=P[None], history_t=np.zeros(0), history_x=z, history_sigma=z,
+                        pass_x=x[None, None], pass_P=P[None, None], mean_nis=np.array([3.0]),
+                        failed_updates=np.array([bad], dtype=np.int64))
+
+    good = est(np.ones(n), np.eye(n), 0)
+    assert run_problems(good) == []
+    assert "2 measurement update(s) failed" in run_problems(est(np.ones(n), np.eye(n), 2))[0]
+    x = np.ones(n)
+    x[1] = np.nan
+    assert "non-finite estimate(s) (DF_y)" in run_problems(est(x, np.eye(n), 0))[0]
+    P = np.eye(n)
+    P[0, 0] = -1.0
+    assert run_problems(est(np.ones(n), P, 0)) == ["the final covariance is not positive definite"]
+    P[0, 0] = np.inf
+    assert run_problems(est(np.ones(n), P, 0)) == ["the covariance has non-finite entries"]

@@ -37,8 +37,19 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
 def record_input(study: Study, scheme: Scheme, df: pd.DataFrame) -> FilterInput:
     """Check a read test record against the scheme and sampling (InputError before any work) and
     select the samples the filter uses."""
-    check_record(df, scheme, study.sample_s, float(study.config["record"]["max_gap_s"]))
+    check_record(df, scheme, study.sample_s, float(study.config["record"]["max_gap_s"]),
+                 expected_g=expected_g(study, scheme))
     return filter_input(df, scheme, study.filter.period_s)
+
+
+def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
+    """(K,) magnitude of the specific force at each position, g: centripetal level and gravity
+    at right angles (docs/centrifuge-model.md §2, eq. 10; 1 g when the centrifuge is off)."""
+    cen = study.centrifuge
+    levels = np.array(scheme.g_levels if scheme.g_levels else [cen.g_level] * scheme.n_positions, float)
+    if cen.rate_deg_s == 0:
+        levels = np.zeros_like(levels)
+    return np.hypot(levels, 1.0)
 
 
 def identify_input(study: Study, scheme: Scheme, fin: FilterInput) -> Estimate:

@@ -25,6 +25,9 @@ LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay"
 TRUTH_COLUMNS = ("alpha", "beta", "gamma")
 TIME_TOL = 1e-6
 """Tolerance (s) when matching sample times to filter instants."""
+UNIT_FACTOR_G = 3.0
+"""A record whose median specific-force magnitude is this many times larger or smaller than the
+centrifuge's is refused: its accelerations are in another unit (m/s^2 gives 9.8, mg 1000)."""
 PARQUET_MAGIC = b"PAR1"
 """The first (and last) four bytes of every Parquet file."""
 UNIT_FACTOR = 10.0
@@ -122,7 +125,8 @@ def read_record(path: str | os.PathLike) -> pd.DataFrame:
     return df
 
 
-def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: float) -> None:
+def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: float,
+                 expected_g: np.ndarray | None = None) -> None:
     """Refuse a record that does not fit the scheme or the sampling, before any filtering.
 
     Checks, per position, with messages that say what was found and what was expected: the set
@@ -130,7 +134,10 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
     :data:`UNIT_FACTOR` of ``sample_s`` (so ``t`` is in seconds); no gap between samples, and
     none between the position's start (t = 0) or end (t = dwell) and its first or last sample,
     exceeds ``max_gap_s`` (config ``record.max_gap_s``); the samples therefore span the scheme's
-    dwell. Raises InputError naming the column and position.
+    dwell. With ``expected_g`` (K,), the magnitude of the specific force each position should
+    measure (g), the median of ``|(Ax, Ay, Az)|`` must be within a factor :data:`UNIT_FACTOR_G`
+    of it (so the accelerations are in g, not mg or m/s^2). Raises InputError naming the column
+    and position.
     """
     K = scheme.n_positions
     pos = df["position"].to_numpy(float)
@@ -170,6 +177,14 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
             raise InputError(field, f"gap of {step[i]:g} s between t = {_num(t[i])} and {_num(t[i + 1])} s, "
                              f"more than record.max_gap_s = {max_gap_s:g} s (raise it in the config if the "
                              "gap is harmless)")
+        if expected_g is not None:
+            a = df[["Ax", "Ay", "Az"]].to_numpy(float)[pos == k]
+            size = float(np.median(np.linalg.norm(a, axis=1)))
+            want = float(expected_g[k - 1])
+            if not (want / UNIT_FACTOR_G <= size <= want * UNIT_FACTOR_G):
+                raise InputError(f"--data columns Ax, Ay, Az, position {k}",
+                                 f"median |A| = {size:.4g}, expected about {want:.4g} g at this position "
+                                 "(centrifuge g_level and gravity); the accelerations must be in g")
         span = float(t[-1] - t[0] + med)
         if abs(span - scheme.dwell_s) > max_gap_s:
             raise InputError(field, f"position {k} spans {span:g} s (t = {_num(t[0])} .. {_num(t[-1])} s), "

@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed, parallel_config
 
-from ..io import atomic_to_parquet, atomic_write_text
+from ..io import atomic_files, json_safe
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
 from ..rig import Rig, get_rig
@@ -160,10 +160,10 @@ def write_cell(out_dir: str | os.PathLike, coef: pd.DataFrame, runs: pd.DataFram
     ``timing.json`` is written last: the Snakemake rule lists all three, and a job killed before
     the end leaves no complete set.
     """
-    out = Path(out_dir)
-    atomic_to_parquet(coef, out / "coef.parquet")
-    atomic_to_parquet(runs, out / "runs.parquet")
-    atomic_write_text(out / "timing.json", json.dumps(timing, indent=2, sort_keys=True) + "\n")
+    with atomic_files(out_dir) as tmp:  # the three land together or not at all
+        coef.to_parquet(tmp("coef.parquet"), index=False)
+        runs.to_parquet(tmp("runs.parquet"), index=False)
+        tmp("timing.json").write_text(json.dumps(json_safe(timing), indent=2, sort_keys=True, allow_nan=False) + "\n")
 
 
 def collect(coef_files, runs_files, timing_files):

@@ -143,8 +143,8 @@ def _small_gap_too_big(df):
     return df.drop(r[300:330])  # 0.155 s without samples > 0.1 s
 
 
-def _offset(df):
-    df.loc[_rows(df, 1), "t"] += 0.5
+def _late_start(df):
+    return df.drop(_rows(df, 1)[:100])  # the first 0.5 s of position 1 missing
 
 
 def _short_dwell(df):
@@ -222,7 +222,7 @@ RECORDS = {
     "t not increasing": (_t_back, "column t, position 1", "csv"),
     "10 s gap": (_gap, "column t, position 2", "csv"),
     "gap over the limit": (_small_gap_too_big, "column t, position 3", "csv"),
-    "t starts at 0.5 s": (_offset, "column t, position 1", "csv"),
+    "first 0.5 s missing": (_late_start, "column t, position 1", "csv"),
     "dwell 2 s of 4": (_short_dwell, "column t, position 1", "csv"),
     "dwell 6 s of 4": (_long_dwell, "column t, position 1", "csv"),
     "one sample per position": (_one_sample, "column t, position 1", "csv"),

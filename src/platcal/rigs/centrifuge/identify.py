@@ -39,7 +39,7 @@ def record_input(study: Study, scheme: Scheme, df: pd.DataFrame) -> FilterInput:
     select the samples the filter uses."""
     check_record(df, scheme, study.sample_s, float(study.config["record"]["max_gap_s"]),
                  expected_g=expected_g(study, scheme))
-    return filter_input(df, scheme, study.filter.period_s)
+    return filter_input(df, scheme, study.filter.period_s, float(study.config["record"]["max_gap_s"]))
 
 
 def expected_g(study: Study, scheme: Scheme) -> np.ndarray:

@@ -134,7 +134,7 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
     :data:`UNIT_FACTOR` of ``sample_s`` (so ``t`` is in seconds); no gap between samples, and
     none between the position's start (t = 0) or end (t = dwell) and its first or last sample,
     exceeds ``max_gap_s`` (config ``record.max_gap_s``); the samples therefore span the scheme's
-    dwell. With ``expected_g`` (K,), the magnitude of the specific force each position should
+    dwell. A position's t may count from any origin (:func:`position_origin`). With ``expected_g`` (K,), the magnitude of the specific force each position should
     measure (g), the median of ``|(Ax, Ay, Az)|`` must be within a factor :data:`UNIT_FACTOR_G`
     of it (so the accelerations are in g, not mg or m/s^2). Raises InputError naming the column
     and position.
@@ -169,9 +169,7 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
             raise InputError(field, f"median time step {med:g} s, expected about sampling.sample_ms = "
                              f"{sample_s * 1e3:g} ms = {sample_s:g} s{hint}; t must be seconds since the "
                              "position's start")
-        if t[0] > max_gap_s or t[0] < -max_gap_s:
-            raise InputError(field, f"first sample at t = {_num(t[0])} s, expected within record.max_gap_s = "
-                             f"{max_gap_s:g} s of 0: t counts seconds from the position's start")
+        t = t - position_origin(t, med, max_gap_s)
         i = int(np.argmax(step))
         if step[i] > max_gap_s:
             raise InputError(field, f"gap of {step[i]:g} s between t = {_num(t[i])} and {_num(t[i + 1])} s, "
@@ -185,11 +183,32 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
                 raise InputError(f"--data columns Ax, Ay, Az, position {k}",
                                  f"median |A| = {size:.4g}, expected about {want:.4g} g at this position "
                                  "(centrifuge g_level and gravity); the accelerations must be in g")
-        span = float(t[-1] - t[0] + med)
+        if t[0] > max_gap_s:
+            raise InputError(field, f"first sample {_num(t[0])} s after the position's start, more than "
+                             f"record.max_gap_s = {max_gap_s:g} s")
+        span = float(t[-1] + med)
         if abs(span - scheme.dwell_s) > max_gap_s:
-            raise InputError(field, f"position {k} spans {span:g} s (t = {_num(t[0])} .. {_num(t[-1])} s), "
+            raise InputError(field, f"position {k} spans {span:g} s (t = {_num(t[0])} .. {_num(t[-1])} s "
+                             "from its start), "
                              f"but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s per position "
                              f"(record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
+
+
+def position_origin(t: np.ndarray, step: float, max_gap_s: float | None) -> float:
+    """The time (record's clock) at which a position starts; the filter uses ``t - origin``.
+
+    Convention (docs/centrifuge-model.md §13 says t counts from the position's start): a first
+    sample within ``max_gap_s`` of 0 means the clock restarted at the position's start, origin 0
+    (exactly, so clean records are used as they are). Otherwise the clock runs on (a constant
+    offset per position, e.g. a logger's time of day) and the position starts at its first
+    sample; that instant is taken from the whole sample grid (``step`` s apart) rather than from
+    the first sample alone, so timestamp jitter does not shift the origin. ``max_gap_s=None``:
+    origin 0.
+    """
+    if max_gap_s is None or abs(t[0]) <= max_gap_s:
+        return 0.0
+    d = t - t[0]
+    return float(t[0] + np.median(d - step * np.round(d / step)))
 
 
 def _num(v) -> int | float:
@@ -239,11 +258,16 @@ def _csv_text(path: Path) -> str:
     return text
 
 
-def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float) -> FilterInput:
-    """Select the samples at the filter instants (multiples of ``period_s``) per position.
+def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float, max_gap_s: float | None = None) -> FilterInput:
+    """Select, per position, the samples nearest the filter instants (multiples of ``period_s``
+    from the position's start, :func:`position_origin`), with their recorded times.
 
-    Checks that every position index is in the scheme, that the commanded angles match the
-    scheme's, and that time increases within each position.
+    Decimation is by time: for each filter instant the nearest sample is used if it lies within
+    half the position's median sample step of it, so jittered timestamps are used as recorded
+    (the EKF propagates over the actual interval between used samples) and a small gap only
+    drops the instants it covers. A clean record (samples on the grid) gives exactly the samples
+    at the instants. Checks that every position index is in the scheme, that the commanded
+    angles match the scheme's, and that time increases within each position.
     """
     K = scheme.n_positions
     pos = df["position"].to_numpy()
@@ -265,10 +289,25 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float) -> FilterInp
         if np.max(np.abs(rec_cmd - cmd[k - 1])) > 1e-6:
             raise InputError(f"--data position {k}", f"commanded angles {rec_cmd[0].tolist()} differ from "
                              f"scheme {scheme.name!r} position {k} {cmd[k - 1].tolist()}; pick the right --scheme")
-        m = np.round(t / period_s)
-        keep = np.abs(t - m * period_s) < TIME_TOL
-        if keep.sum() < 1:
+        step = float(np.median(np.diff(t))) if t.size > 1 else period_s
+        origin = position_origin(t, step, max_gap_s)
+        if origin != 0.0:
+            t = t - origin
+        keep = nearest_samples(t, period_s, 0.5 * step)
+        if keep.size < 1:
             raise InputError(f"--data column t, position {k}", f"no sample falls on a {period_s * 1e3:g} ms filter instant")
         ts.append(t[keep])
         zs.append(rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep][None])
     return FilterInput(positions=present, t=ts, z=zs, cmd_deg=cmd[np.array(present) - 1])
+
+
+def nearest_samples(t: np.ndarray, period_s: float, tol_s: float) -> np.ndarray:
+    """Indices of the samples nearest each multiple of ``period_s`` (within ``tol_s``), increasing
+    and without repeats. ``t`` increases."""
+    m = np.arange(np.ceil((t[0] - tol_s) / period_s), np.floor((t[-1] + tol_s) / period_s) + 1)
+    want = m * period_s
+    j = np.clip(np.searchsorted(t, want), 1, t.size - 1) if t.size > 1 else np.zeros(want.size, dtype=int)
+    if t.size > 1:
+        j = np.where(np.abs(t[j - 1] - want) <= np.abs(t[j] - want), j - 1, j)
+    ok = np.abs(t[j] - want) <= tol_s + TIME_TOL
+    return np.unique(j[ok])

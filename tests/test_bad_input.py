@@ -400,7 +400,7 @@ def test_bad_output_or_option(case, tmp_path, capsys):
 
 
 def test_sweep_has_at_least_40_cases():
-    assert len(CONFIGS) + len(RECORDS) + len(FILES) + len(OUTPUTS) >= 40
+    assert len(CONFIGS) + len(RECORDS) + len(FILES) + len(OUTPUTS) + len(PIPELINE) >= 40
 
 
 # ---- failures are failures ---------------------------------------------------------------------
@@ -444,3 +444,38 @@ def test_run_problems_names_each_kind_of_failure():
     assert run_problems(est(np.ones(n), P, 0)) == ["the final covariance is not positive definite"]
     P[0, 0] = np.inf
     assert run_problems(est(np.ones(n), P, 0)) == ["the covariance has non-finite entries"]
+
+
+# ---- the pipeline's checks: every cross-reference before any job ---------------------------------
+STUDY = ("study:\n  schemes: [short, classical]\n  sigma_a_ug: [10, 50]\n  paper: {scheme: short, estimator: ekf1}\n"
+         "  single: {scheme: short}\n")
+PIPELINE = {
+    "paper estimator unknown": (STUDY.replace("estimator: ekf1", "estimator: ekf9"), "study.paper.estimator"),
+    "paper scheme not swept": (STUDY.replace("paper: {scheme: short", "paper: {scheme: nope"), "study.paper.scheme"),
+    "paper noise not swept": (STUDY.replace("}\n", ", sigma_a_ug: 7}\n"), "study.paper.sigma_a_ug"),
+    "paper default noise not swept": (STUDY.replace("[10, 50]", "[20, 50]"), "study.paper.sigma_a_ug"),
+    "unknown generated scheme": (STUDY.replace("classical]", "classical, ga_nonexistent]"), "study.schemes[2]"),
+    "nan noise level": (STUDY.replace("[10, 50]", "[10, .nan]"), "study.sigma_a_ug[1]"),
+    "single estimator unknown": (STUDY.replace("{scheme: short}", "{scheme: short, estimator: ekf7}"),
+                                 "study.single.estimator"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(PIPELINE))
+def test_bad_study_section_refused_by_the_pipeline_check(case):
+    from platcal.errors import InputError
+    from platcal.io import read_yaml
+    from platcal.rigs.centrifuge.study import check_study
+
+    text, field = PIPELINE[case]
+    with pytest.raises(InputError) as e:
+        check_study(read_yaml(with_section(text)))
+    assert e.value.field == field, e.value
+
+
+def test_good_study_section_passes_the_pipeline_check():
+    from platcal.io import read_yaml
+    from platcal.rigs.centrifuge.study import check_study
+
+    cfg = check_study(read_yaml(with_section(STUDY.replace("classical]", "classical, ga_J_n8, ga_doo]"))))
+    assert cfg["study"]["paper"]["scheme"] == "short"

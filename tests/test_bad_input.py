@@ -479,3 +479,12 @@ def test_good_study_section_passes_the_pipeline_check():
 
     cfg = check_study(read_yaml(with_section(STUDY.replace("classical]", "classical, ga_J_n8, ga_doo]"))))
     assert cfg["study"]["paper"]["scheme"] == "short"
+
+
+def test_inconsistent_filter_is_reported():
+    from platcal.rigs.centrifuge.identify import consistency_warning
+
+    warning = consistency_warning({"nees": 5.0e5, "nees_dof": 45})
+    assert "NEES 5e+05 for 45 dof" in warning and "filter.passes: 2" in warning
+    assert consistency_warning({"nees": 40.0, "nees_dof": 45}) is None  # chi2(45) 99.9 %: 80.1
+    assert consistency_warning({"n_states": 48}) is None  # no truth: no NEES

@@ -18,7 +18,8 @@ from ...io import check_writable
 from ...study.montecarlo import cell_job
 from .config import Study
 from .design import design_config, preset, run_design, write_design
-from .identify import identify_input, record_input, run_problems, timed, truth_known, write_identification
+from .identify import (consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
+                       write_identification)
 from .observability import write_observability
 from .record import read_record, sim_to_frame, write_record
 from .report import report_from_results
@@ -81,6 +82,9 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.3f} %, NEES {summary['nees']:.1f} (dof {summary['nees_dof']})")
     print(msg, file=sys.stderr)
+    warning = consistency_warning(summary)
+    if warning:
+        print(f"platcal identify: warning: {warning}", file=sys.stderr)
     return 0
 
 

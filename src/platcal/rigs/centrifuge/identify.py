@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pandas as pd
+from scipy.stats import chi2
 
 from ...estimation.consistency import nees
 from ...io import atomic_files, json_text
@@ -83,6 +84,24 @@ def run_problems(est: Estimate, replicate: int = 0) -> list[str]:
         except np.linalg.LinAlgError:
             out.append("the final covariance is not positive definite")
     return out
+
+
+NEES_LEVEL = 0.999
+"""A NEES above this quantile of chi-square(dof) is reported as an inconsistent filter."""
+
+
+def consistency_warning(summary: dict) -> str | None:
+    """A warning when the run's NEES (truth known) is beyond the :data:`NEES_LEVEL` quantile of
+    chi-square with ``nees_dof`` degrees of freedom, i.e. the covariance is far too optimistic
+    for its errors (the one-pass EKF at low noise, docs/centrifuge-model.md §11); None otherwise."""
+    if summary.get("nees") is None:
+        return None
+    dof = int(summary["nees_dof"])
+    bound = float(chi2.ppf(NEES_LEVEL, dof))
+    if summary["nees"] <= bound:
+        return None
+    return (f"NEES {summary['nees']:.4g} for {dof} dof is above its {NEES_LEVEL:.1%} bound {bound:.4g}: the "
+            "filter's sigmas are too optimistic for its errors (filter.passes: 2 restores consistency)")
 
 
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,

@@ -134,8 +134,9 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
     :data:`UNIT_FACTOR` of ``sample_s`` (so ``t`` is in seconds); no gap between samples, and
     none between the position's start (t = 0) or end (t = dwell) and its first or last sample,
     exceeds ``max_gap_s`` (config ``record.max_gap_s``); the samples therefore span the scheme's
-    dwell. A position's t may count from any origin (:func:`position_origin`). With ``expected_g`` (K,), the magnitude of the specific force each position should
-    measure (g), the median of ``|(Ax, Ay, Az)|`` must be within a factor :data:`UNIT_FACTOR_G`
+    dwell. A position's t may count from any origin (:func:`position_origin`). With
+    ``expected_g`` (K,), the magnitude of the specific force each position should measure (g),
+    the median of ``|(Ax, Ay, Az)|`` must be within a factor :data:`UNIT_FACTOR_G`
     of it (so the accelerations are in g, not mg or m/s^2). Raises InputError naming the column
     and position.
     """
@@ -258,7 +259,8 @@ def _csv_text(path: Path) -> str:
     return text
 
 
-def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float, max_gap_s: float | None = None) -> FilterInput:
+def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
+                 max_gap_s: float | None = None) -> FilterInput:
     """Select, per position, the samples nearest the filter instants (multiples of ``period_s``
     from the position's start, :func:`position_origin`), with their recorded times.
 

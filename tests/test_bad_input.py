@@ -488,3 +488,19 @@ def test_inconsistent_filter_is_reported():
     assert "NEES 5e+05 for 45 dof" in warning and "filter.passes: 2" in warning
     assert consistency_warning({"nees": 40.0, "nees_dof": 45}) is None  # chi2(45) 99.9 %: 80.1
     assert consistency_warning({"n_states": 48}) is None  # no truth: no NEES
+
+
+def test_monte_carlo_flags_failed_runs_and_the_summary_counts_them():
+    from platcal.rig import ReplicateBatch
+    from platcal.study.montecarlo import tidy_frames
+    from platcal.study.stats import summary
+
+    q = pd.DataFrame({"name": ["a", "b"], "group": ["g1", "g1"], "unit": ["m", "s"], "truth": [1.0, 2.0]})
+    est = np.array([[1.1, 2.0], [np.nan, 2.0], [1.0, 2.1], [1.0, 2.0]])
+    batch = ReplicateBatch(quantities=q, estimate=est, sigma=np.ones((4, 2)),
+                           nees=np.array([1.0, np.nan, 2.0, 1.5]), nees_dof=2, mean_nis=np.ones(4),
+                           failed_updates=np.array([0, 0, 3, 0]), passes=1)
+    coef, runs = tidy_frames(batch, "case", 2.5, "kf", [0, 1, 2, 3])
+    assert runs["failed"].tolist() == [False, True, True, False]
+    summ = summary(coef, runs)
+    assert summ["failed_runs"].tolist() == [2] and summ["failed_updates"].tolist() == [3]

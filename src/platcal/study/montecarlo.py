@@ -46,7 +46,7 @@ CELL = ["scheme", "noise", "estimator"]
 """Columns that name a cell of the sweep."""
 COEF_COLUMNS = CELL + ["replicate", "name", "group", "unit", "truth", "estimate", "sigma", "error",
                        "rel_err_pct"]
-RUN_COLUMNS = CELL + ["replicate", "passes", "nees", "nees_dof", "mean_nis", "failed_updates"]
+RUN_COLUMNS = CELL + ["replicate", "passes", "nees", "nees_dof", "mean_nis", "failed_updates", "failed"]
 
 
 def noise_key(level: float) -> int:
@@ -88,7 +88,18 @@ def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> t
         "passes": int(batch.passes), "nees": batch.nees, "nees_dof": int(batch.nees_dof),
         "mean_nis": batch.mean_nis, "failed_updates": np.asarray(batch.failed_updates).astype(np.int64),
     })
+    runs["failed"] = failed_runs(batch)
     return coef, runs
+
+
+def failed_runs(batch) -> np.ndarray:
+    """(B,) bool: a run that cannot be trusted, with failed updates or a non-finite estimate, sigma,
+    NEES or mean NIS. Such runs stay in the tidy tables, flagged, and the summary counts them."""
+    est = np.asarray(batch.estimate, float).reshape(len(batch.nees), -1)
+    sig = np.asarray(batch.sigma, float).reshape(len(batch.nees), -1)
+    finite = (np.isfinite(est).all(axis=1) & np.isfinite(sig).all(axis=1)
+              & np.isfinite(np.asarray(batch.nees, float)) & np.isfinite(np.asarray(batch.mean_nis, float)))
+    return (np.asarray(batch.failed_updates) > 0) | ~finite
 
 
 def _run_chunk(rig_name: str, cfg: dict, case, level: float, estimator: str, replicates, numba_threads: int):

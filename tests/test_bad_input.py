@@ -360,6 +360,7 @@ OUTPUTS = {
     "simulate: out is a folder": ("simulate", _out_is_folder, "--out"),
     "simulate: read-only folder": ("simulate", _out_read_only, "--out"),
     "observability: parent is a file": ("observability", _out_under_file, "--out"),
+    "montecarlo: parent is a file": ("montecarlo", _out_under_file, "--out"),
     "identify: --estimator not used": ("identify", lambda tmp: str(tmp / "id"), "--estimator"),
     "simulate: --platform not used": ("simulate", lambda tmp: str(tmp / "x.csv"), "--platform"),
     "simulate: negative seed": ("simulate", lambda tmp: str(tmp / "x.csv"), "--seed"),
@@ -382,6 +383,8 @@ def test_bad_output_or_option(case, tmp_path, capsys):
             "--out", out]
     if command == "identify":
         argv += ["--data", str(data)]
+    if command == "montecarlo":
+        argv += ["--noise", "10", "--estimator", "ekf1"]
     if "--estimator" in case:
         argv += ["--estimator", "ekf2"]
     if "--platform" in case:

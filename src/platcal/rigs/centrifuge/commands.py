@@ -137,6 +137,7 @@ def montecarlo_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal montecarlo``: one (scheme, sigma_a, estimator) cell of the sweep."""
     if args.noise is None:
         raise InputError("--noise", "required for rig centrifuge: the accelerometer noise sigma_a, ug per sample")
+    check_writable(args.out, "--out", folder=True)
     cell_job("centrifuge", study.config, args.scheme, args.noise, args.estimator, args.out, threads=args.threads,
              case_file=args.scheme_file)
     return 0

@@ -89,6 +89,7 @@ CONFIGS = {
     "negative seed": (with_section("seed: -1"), "simulate", "seed"),
     "not a mapping": ("- 1\n- 2\n", "simulate", "(top level)"),
     "yaml syntax": ("schemes: {short: [\n", "simulate", "--config"),
+    "key given twice": (BASE + "seed: 1\nseed: 2\n", "simulate", "--config"),
     "binary config": (b"\xff\xfe\x00\x01rig: centrifuge\n\x89PNG", "simulate", "--config"),
     "parquet as config": (None, "simulate", "--config"),
     "missing config": ("", "simulate", "--config"),
@@ -215,7 +216,12 @@ def _mg(df):
     df.loc[_rows(df, 2), ["Ax", "Ay", "Az"]] *= 1000.0
 
 
+def _huge(df):
+    df["Ax"] = 1e300
+
+
 RECORDS = {
+    "accelerations 1e300": (_huge, "columns Ax, Ay, Az, position 1", "csv"),
     "accelerations in m/s^2": (_m_s2, "columns Ax, Ay, Az, position 1", "csv"),
     "accelerations in mg": (_mg, "columns Ax, Ay, Az, position 2", "csv"),
     "t in ms": (_t_ms, "column t, position 1", "csv"),
@@ -301,7 +307,12 @@ def _truncated_parquet(path):
     path.write_bytes(path.read_bytes()[:-100])
 
 
+def _semicolons(path):
+    path.write_text(record().to_csv(index=False, sep=";"))
+
+
 FILES = {
+    "semicolon-separated": (_semicolons, "run.csv", "not comma-separated"),
     "parquet named .csv": (_parquet_named_csv, "run.csv", "Parquet"),
     "csv named .parquet": (_csv_named_parquet, "run.parquet", "not a Parquet"),
     "binary named .csv": (_binary, "run.csv", "UTF-8"),
@@ -400,6 +411,23 @@ def test_bad_output_or_option(case, tmp_path, capsys):
         if (tmp_path / "ro").exists():
             os.chmod(tmp_path / "ro", 0o755)
             shutil.rmtree(tmp_path / "ro")
+
+
+def test_read_only_folder_refused_whoever_runs(tmp_path, monkeypatch, capsys):
+    """The writability probe's failure (as a read-only folder or file system gives it) becomes exit 2."""
+    import tempfile
+
+    def refuse(*args, **kw):
+        raise PermissionError(13, "Permission denied")
+
+    cfg = tmp_path / "config.yaml"
+    cfg.write_text(BASE)
+    before = snapshot(tmp_path)
+    monkeypatch.setattr(tempfile, "mkstemp", refuse)
+    code = main(["simulate", "--config", str(cfg), "--scheme", "short", "--out", str(tmp_path / "x.csv")])
+    assert code == 2
+    assert "error: --out: cannot write in" in capsys.readouterr().err
+    assert snapshot(tmp_path) == before
 
 
 def test_sweep_has_at_least_40_cases():

@@ -104,7 +104,8 @@ def read_config(path) -> dict:
     except (ValueError, yaml.YAMLError) as exc:
         where = getattr(exc, "problem_mark", None)
         at = f" at line {where.line + 1}, column {where.column + 1}" if where is not None else ""
-        raise InputError("--config", f"{path} is not valid YAML{at} ({exc.__class__.__name__}); "
+        problem = getattr(exc, "problem", None)
+        raise InputError("--config", f"{path} is not valid YAML{at} ({problem or exc.__class__.__name__}); "
                          "a config is a UTF-8 YAML file") from None
 
 

@@ -167,7 +167,19 @@ def atomic_to_parquet(df, path: str | os.PathLike) -> None:
 
 
 class _Loader(yaml.SafeLoader):
-    """SafeLoader that also reads ``1e4`` and ``1.0e4`` as floats (YAML 1.2 style)."""
+    """SafeLoader that also reads ``1e4`` and ``1.0e4`` as floats (YAML 1.2 style) and refuses a
+    key given twice in one mapping (plain PyYAML keeps the last silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, (str, int, float, bool)) or key is None:
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        "while reading a mapping", node.start_mark, f"found the key {key!r} twice", key_node.start_mark)
+                seen.add(key)
+        return super().construct_mapping(node, deep=deep)
 
 
 _Loader.add_implicit_resolver(

@@ -103,8 +103,11 @@ def read_record(path: str | os.PathLike) -> pd.DataFrame:
     cols = list(df.columns)
     missing = [c for c in LOG_COLUMNS if c not in cols]
     if missing:
+        hint = ""
+        if len(cols) == 1 and any(sep in str(cols[0]) for sep in ";\t|"):
+            hint = f"; the header {str(cols[0])[:60]!r} is not comma-separated: a CSV record uses ','"
         raise InputError(f"--data column {missing[0]}", f"missing; a test record has columns {list(LOG_COLUMNS)} "
-                         f"(and optionally {list(TRUTH_COLUMNS)})")
+                         f"(and optionally {list(TRUTH_COLUMNS)}){hint}")
     extra = [c for c in cols if c not in LOG_COLUMNS + TRUTH_COLUMNS]
     if extra:
         raise InputError(f"--data column {extra[0]}", f"unexpected column; allowed: {list(LOG_COLUMNS + TRUTH_COLUMNS)}")
@@ -178,7 +181,8 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
                              "gap is harmless)")
         if expected_g is not None:
             a = df[["Ax", "Ay", "Az"]].to_numpy(float)[pos == k]
-            size = float(np.median(np.linalg.norm(a, axis=1)))
+            with np.errstate(over="ignore"):  # 1e300 g is refused below, without a numpy warning
+                size = float(np.median(np.linalg.norm(a, axis=1)))
             want = float(expected_g[k - 1])
             if not (want / UNIT_FACTOR_G <= size <= want * UNIT_FACTOR_G):
                 raise InputError(f"--data columns Ax, Ay, Az, position {k}",

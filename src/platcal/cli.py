@@ -96,8 +96,17 @@ def read_config(path) -> dict:
         return read_yaml(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise InputError("--config", f"no such file: {path}") from None
-    except (UnicodeDecodeError, ValueError, yaml.YAMLError) as exc:
-        raise InputError("--config", f"not a UTF-8 YAML file ({exc.__class__.__name__})") from None
+    except IsADirectoryError:
+        raise InputError("--config", f"{path} is a folder; give a YAML config file") from None
+    except UnicodeDecodeError as exc:
+        raise InputError("--config", f"{path} is not UTF-8 text (byte {exc.start} cannot be decoded); "
+                         "a config is a UTF-8 YAML file") from None
+    except (ValueError, yaml.YAMLError) as exc:
+        where = getattr(exc, "problem_mark", None)
+        at = f" at line {where.line + 1}, column {where.column + 1}" if where is not None else ""
+        problem = getattr(exc, "problem", None)
+        raise InputError("--config", f"{path} is not valid YAML{at} ({problem or exc.__class__.__name__}); "
+                         "a config is a UTF-8 YAML file") from None
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,6 +5,8 @@ A failed or interrupted job therefore never leaves a half-written file under the
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import re
 import tempfile
@@ -13,20 +15,137 @@ from pathlib import Path
 
 import yaml
 
+from .errors import InputError
+
+
+def _umask() -> int:
+    """The process umask (read by setting and restoring it: there is no getter)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def remove_orphans(path: str | os.PathLike) -> list[Path]:
+    """Remove the temporary files (``.<name>.*.part``) that a killed writer of ``path`` left.
+
+    Only the temporaries of this one target are touched, so a rerun tidies what its own
+    earlier, interrupted run left beside the file it writes.
+    """
+    path = Path(path)
+    if not path.parent.is_dir():
+        return []
+    gone = []
+    for orphan in path.parent.glob(f".{glob_escape(path.name)}.*.part"):
+        try:
+            orphan.unlink()
+            gone.append(orphan)
+        except OSError:
+            pass
+    return gone
+
+
+def glob_escape(name: str) -> str:
+    """``name`` with the glob metacharacters quoted."""
+    return re.sub(r"([*?\[])", r"[\1]", name)
+
 
 @contextmanager
 def atomic_path(path: str | os.PathLike):
     """Yield a temporary path in the target's folder; rename it to ``path`` on success."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    remove_orphans(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     os.close(fd)
     try:
         yield Path(tmp)
+        # mkstemp makes 0600; the final file gets the mode open() would give it
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def atomic_files(folder: str | os.PathLike):
+    """Write several files of one result folder so that they land together or not at all.
+
+    Yields ``tmp(name) -> Path``: a temporary path in ``folder`` for the file ``name``. When the
+    block ends without error every temporary is renamed to its final name (in the order asked
+    for, so name the file that marks completion, e.g. ``summary.json``, last); on error every
+    temporary is removed and no final name is touched. Other files in ``folder`` are left alone.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    temps: list[tuple[Path, Path]] = []
+
+    def tmp(name: str) -> Path:
+        final = folder / name
+        remove_orphans(final)
+        fd, t = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=folder)
+        os.close(fd)
+        temps.append((Path(t), final))
+        return Path(t)
+
+    try:
+        yield tmp
+        mode = 0o666 & ~_umask()
+        for t, _ in temps:
+            os.chmod(t, mode)
+        for t, final in temps:
+            os.replace(t, final)
+    except BaseException:
+        for t, _ in temps:
+            t.unlink(missing_ok=True)
+        raise
+
+
+def check_writable(path: str | os.PathLike, field: str, folder: bool = False) -> None:
+    """Refuse (InputError naming ``field``) an output path that cannot be written, before any work.
+
+    ``path`` is a file to write (``folder=False``) or a folder to fill. The nearest existing
+    ancestor must be a folder in which a file can be created (probed with a temporary file that
+    is removed at once, so read-only folders and file systems are found whoever runs); an
+    existing ``path`` must be of the right kind. Nothing is left behind.
+    """
+    path = Path(path)
+    if path.exists():
+        if folder and not path.is_dir():
+            raise InputError(field, f"{path} exists and is not a folder; give a folder name")
+        if not folder and path.is_dir():
+            raise InputError(field, f"{path} is a folder; give a file name")
+    probe_dir = path if folder and path.is_dir() else path.parent
+    while not probe_dir.exists():
+        probe_dir = probe_dir.parent
+    if not probe_dir.is_dir():
+        raise InputError(field, f"{probe_dir} is a file, so {path} cannot be created under it")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".platcal-probe.", dir=probe_dir)
+    except OSError as exc:
+        raise InputError(field, f"cannot write in {probe_dir}: {exc.strerror}") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def json_safe(obj):
+    """``obj`` with NaN and infinities as ``None`` and numpy scalars as plain numbers (valid JSON)."""
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if hasattr(obj, "tolist") and getattr(obj, "ndim", 0) > 0:
+        return json_safe(obj.tolist())
+    if hasattr(obj, "item") and callable(obj.item) and getattr(obj, "ndim", 1) == 0:
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def json_text(obj) -> str:
+    """Strict JSON text of ``obj`` (NaN/inf written as ``null``), indented, with a final newline."""
+    return json.dumps(json_safe(obj), indent=2, allow_nan=False) + "\n"
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
@@ -48,7 +167,19 @@ def atomic_to_parquet(df, path: str | os.PathLike) -> None:
 
 
 class _Loader(yaml.SafeLoader):
-    """SafeLoader that also reads ``1e4`` and ``1.0e4`` as floats (YAML 1.2 style)."""
+    """SafeLoader that also reads ``1e4`` and ``1.0e4`` as floats (YAML 1.2 style) and refuses a
+    key given twice in one mapping (plain PyYAML keeps the last silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, (str, int, float, bool)) or key is None:
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        "while reading a mapping", node.start_mark, f"found the key {key!r} twice", key_node.start_mark)
+                seen.add(key)
+        return super().construct_mapping(node, deep=deep)
 
 
 _Loader.add_implicit_resolver(

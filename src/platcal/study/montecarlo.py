@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed, parallel_config
 
-from ..io import atomic_to_parquet, atomic_write_text
+from ..io import atomic_files, json_safe
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
 from ..rig import Rig, get_rig
@@ -46,7 +46,7 @@ CELL = ["scheme", "noise", "estimator"]
 """Columns that name a cell of the sweep."""
 COEF_COLUMNS = CELL + ["replicate", "name", "group", "unit", "truth", "estimate", "sigma", "error",
                        "rel_err_pct"]
-RUN_COLUMNS = CELL + ["replicate", "passes", "nees", "nees_dof", "mean_nis", "failed_updates"]
+RUN_COLUMNS = CELL + ["replicate", "passes", "nees", "nees_dof", "mean_nis", "failed_updates", "failed"]
 
 
 def noise_key(level: float) -> int:
@@ -88,7 +88,18 @@ def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> t
         "passes": int(batch.passes), "nees": batch.nees, "nees_dof": int(batch.nees_dof),
         "mean_nis": batch.mean_nis, "failed_updates": np.asarray(batch.failed_updates).astype(np.int64),
     })
+    runs["failed"] = failed_runs(batch)
     return coef, runs
+
+
+def failed_runs(batch) -> np.ndarray:
+    """(B,) bool: a run that cannot be trusted, with failed updates or a non-finite estimate, sigma,
+    NEES or mean NIS. Such runs stay in the tidy tables, flagged, and the summary counts them."""
+    est = np.asarray(batch.estimate, float).reshape(len(batch.nees), -1)
+    sig = np.asarray(batch.sigma, float).reshape(len(batch.nees), -1)
+    finite = (np.isfinite(est).all(axis=1) & np.isfinite(sig).all(axis=1)
+              & np.isfinite(np.asarray(batch.nees, float)) & np.isfinite(np.asarray(batch.mean_nis, float)))
+    return (np.asarray(batch.failed_updates) > 0) | ~finite
 
 
 def _run_chunk(rig_name: str, cfg: dict, case, level: float, estimator: str, replicates, numba_threads: int):
@@ -160,10 +171,10 @@ def write_cell(out_dir: str | os.PathLike, coef: pd.DataFrame, runs: pd.DataFram
     ``timing.json`` is written last: the Snakemake rule lists all three, and a job killed before
     the end leaves no complete set.
     """
-    out = Path(out_dir)
-    atomic_to_parquet(coef, out / "coef.parquet")
-    atomic_to_parquet(runs, out / "runs.parquet")
-    atomic_write_text(out / "timing.json", json.dumps(timing, indent=2, sort_keys=True) + "\n")
+    with atomic_files(out_dir) as tmp:  # the three land together or not at all
+        coef.to_parquet(tmp("coef.parquet"), index=False)
+        runs.to_parquet(tmp("runs.parquet"), index=False)
+        tmp("timing.json").write_text(json.dumps(json_safe(timing), indent=2, sort_keys=True, allow_nan=False) + "\n")
 
 
 def collect(coef_files, runs_files, timing_files):

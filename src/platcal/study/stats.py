@@ -72,13 +72,16 @@ def summary(coef: pd.DataFrame, runs: pd.DataFrame, level: float = 0.95) -> pd.D
             r[f"worst_{grp}"] = worst
         rows.append(r)
     out = pd.DataFrame(rows)
+    if "failed" not in runs:  # tables of cells written before runs were flagged
+        runs = runs.assign(failed=runs["failed_updates"] > 0)
     ru = runs.groupby(CELL, sort=False)
     dof = int(runs["nees_dof"].iloc[0])
     lo, hi = nees_band(dof, level)
     nees_stats = ru.agg(runs=("replicate", "size"), mean_nees=("nees", "mean"),
                         median_nees=("nees", "median"),
                         share_in_band=("nees", lambda x: float(np.mean((x >= lo) & (x <= hi)))),
-                        failed_updates=("failed_updates", "sum")).reset_index()
+                        failed_updates=("failed_updates", "sum"),
+                        failed_runs=("failed", "sum")).reset_index()
     out = out.merge(nees_stats, on=CELL, how="left")
     out["nees_dof"] = dof
     return out.sort_values(CELL, kind="stable").reset_index(drop=True)

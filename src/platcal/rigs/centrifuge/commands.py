@@ -14,10 +14,12 @@ import time
 import numpy as np
 
 from ...errors import InputError
+from ...io import check_writable
 from ...study.montecarlo import cell_job
 from .config import Study
 from .design import design_config, preset, run_design, write_design
-from .identify import identify_record, timed, truth_known, write_identification
+from .identify import (consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
+                       write_identification)
 from .observability import write_observability
 from .record import read_record, sim_to_frame, write_record
 from .report import report_from_results
@@ -46,6 +48,7 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
     scheme = _scheme(study, args)
     if args.seed is not None and args.seed < 0:
         raise InputError("--seed", "must be a whole number >= 0")
+    check_writable(args.out, "--out")
     seeds = None if args.noise_free else [np.random.SeedSequence(study.seed if args.seed is None else args.seed)]
     t0 = time.perf_counter()
     sim = simulate(study.truth, scheme, study.centrifuge.scheme_params(scheme), study.noise, seeds,
@@ -60,14 +63,28 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
 def identify_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal identify``: the EKF over a test record."""
     scheme = _scheme(study, args)
+    check_writable(args.out, "--out", folder=True)
     df = read_record(args.data)
-    est, seconds = timed(identify_record, study, scheme, df)
-    summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds)
-    msg = f"platcal identify: {len(est.names)}-state EKF, {study.filter.passes} pass(es), {seconds:.2f} s -> {args.out}"
+    fin = record_input(study, scheme, df)
+    est, seconds = timed(identify_input, study, scheme, fin)
+    problems = run_problems(est)
+    if problems:
+        print(f"platcal identify: error: the filter run over {args.data} failed: {'; '.join(problems)}. "
+              f"Nothing was written to {args.out}. Check the record's units (Ax, Ay, Az in g) and the "
+              "config's noise and filter settings.", file=sys.stderr)
+        return 1
+    used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
+    summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds,
+                                   samples_used=used)
+    msg = (f"platcal identify: {len(est.names)}-state EKF, {study.filter.passes} pass(es), "
+           f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if "nees" in summary:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.3f} %, NEES {summary['nees']:.1f} (dof {summary['nees_dof']})")
     print(msg, file=sys.stderr)
+    warning = consistency_warning(summary)
+    if warning:
+        print(f"platcal identify: warning: {warning}", file=sys.stderr)
     return 0
 
 
@@ -80,6 +97,7 @@ def observability_command(study: Study, args: argparse.Namespace) -> int:
         raise InputError("--arw", "must be >= 0 (deg/sqrt(h))")
     if args.rate is not None and args.rate < 0:
         raise InputError("--rate", "must be >= 0 (deg/s; 0 = centrifuge off, static 1 g)")
+    check_writable(args.out, "--out", folder=True)
     t0 = time.perf_counter()
     res = write_observability(args.out, study, scheme, replicates=args.replicates, arw_deg_rth=args.arw,
                               estimate_doo=True if args.doo else None, rate_deg_s=args.rate)
@@ -97,6 +115,7 @@ def design_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal design``: the genetic-algorithm scheme search."""
     if not str(args.out).endswith((".yaml", ".yml")):
         raise InputError("--out", "must be a scheme file name ending in .yaml")
+    check_writable(args.out, "--out")
     over = dict(criterion=args.criterion, positions=args.positions, population=args.population,
                 generations=args.generations, seed=args.seed, name=args.name)
     if args.preset:
@@ -118,6 +137,7 @@ def montecarlo_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal montecarlo``: one (scheme, sigma_a, estimator) cell of the sweep."""
     if args.noise is None:
         raise InputError("--noise", "required for rig centrifuge: the accelerometer noise sigma_a, ug per sample")
+    check_writable(args.out, "--out", folder=True)
     cell_job("centrifuge", study.config, args.scheme, args.noise, args.estimator, args.out, threads=args.threads,
              case_file=args.scheme_file)
     return 0

@@ -139,9 +139,11 @@ def load_config(path: str | os.PathLike) -> Study:
     """Read, validate and type a YAML configuration file."""
     path = Path(path)
     try:
-        raw = read_yaml(path.read_text())
+        raw = read_yaml(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise InputError(str(path), f"cannot read the config file: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise InputError(str(path), f"is not UTF-8 text (byte {exc.start}); a config is a UTF-8 YAML file") from None
     except yaml.YAMLError as exc:
         raise InputError(str(path), f"is not valid YAML: {exc}") from exc
     return study_from_config(raw)

@@ -2,20 +2,19 @@
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.stats import chi2
 
 from ...estimation.consistency import nees
-from ...io import atomic_to_csv, atomic_write_text
+from ...io import atomic_files, json_text
 from .config import Study
 from .ekf import Estimate, FilterSettings, run_ekf
-from .record import TRUTH_COLUMNS, filter_input
+from .record import TRUTH_COLUMNS, FilterInput, check_record, filter_input
 from .scheme import Scheme
 from .simulate import simulate
 from .tables import covariance_frame, estimates_frame, table2_markdown
@@ -36,27 +35,92 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
     return run_ekf([sim.A[:, k] for k in range(K)], [sim.t] * K, scheme.angles_deg, params, fs)
 
 
-def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:
-    """Run the study's EKF over a validated test record (one run: a batch of one)."""
-    fin = filter_input(df, scheme, study.filter.period_s)
+def record_input(study: Study, scheme: Scheme, df: pd.DataFrame) -> FilterInput:
+    """Check a read test record against the scheme and sampling (InputError before any work) and
+    select the samples the filter uses."""
+    check_record(df, scheme, study.sample_s, float(study.config["record"]["max_gap_s"]),
+                 expected_g=expected_g(study, scheme))
+    return filter_input(df, scheme, study.filter.period_s, float(study.config["record"]["max_gap_s"]))
+
+
+def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
+    """(K,) magnitude of the specific force at each position, g: centripetal level and gravity
+    at right angles (docs/centrifuge-model.md §2, eq. 10; 1 g when the centrifuge is off)."""
+    cen = study.centrifuge
+    levels = np.array(scheme.g_levels if scheme.g_levels else [cen.g_level] * scheme.n_positions, float)
+    if cen.rate_deg_s == 0:
+        levels = np.zeros_like(levels)
+    return np.hypot(levels, 1.0)
+
+
+def identify_input(study: Study, scheme: Scheme, fin: FilterInput) -> Estimate:
+    """Run the study's EKF over the selected samples of a record (one run: a batch of one)."""
     params = study.centrifuge.scheme_params(scheme)[np.array(fin.positions) - 1]
     return run_ekf(fin.z, fin.t, fin.cmd_deg, params, study.filter)
 
 
+def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:
+    """Run the study's EKF over a validated test record (one run: a batch of one)."""
+    return identify_input(study, scheme, record_input(study, scheme, df))
+
+
+def run_problems(est: Estimate, replicate: int = 0) -> list[str]:
+    """Why a filter run cannot be trusted (empty if it can): updates skipped because S was not
+    positive definite, non-finite estimates or covariance, a final covariance that is not
+    positive definite. Messages use plain numbers."""
+    out = []
+    bad = int(est.failed_updates[replicate])
+    if bad:
+        out.append(f"{bad} measurement update(s) failed (innovation covariance S not positive definite)")
+    x, P = est.x[replicate], est.P[replicate]
+    if not np.all(np.isfinite(x)):
+        names = [est.names[i] for i in np.flatnonzero(~np.isfinite(x))]
+        out.append(f"{len(names)} non-finite estimate(s) ({', '.join(names[:5])}{' ...' if len(names) > 5 else ''})")
+    if not np.all(np.isfinite(P)):
+        out.append("the covariance has non-finite entries")
+    else:
+        try:
+            np.linalg.cholesky(0.5 * (P + P.T))
+        except np.linalg.LinAlgError:
+            out.append("the final covariance is not positive definite")
+    return out
+
+
+NEES_LEVEL = 0.999
+"""A NEES above this quantile of chi-square(dof) is reported as an inconsistent filter."""
+
+
+def consistency_warning(summary: dict) -> str | None:
+    """A warning when the run's NEES (truth known) is beyond the :data:`NEES_LEVEL` quantile of
+    chi-square with ``nees_dof`` degrees of freedom, i.e. the covariance is far too optimistic
+    for its errors (the one-pass EKF at low noise, docs/centrifuge-model.md §11); None otherwise."""
+    if summary.get("nees") is None:
+        return None
+    dof = int(summary["nees_dof"])
+    bound = float(chi2.ppf(NEES_LEVEL, dof))
+    if summary["nees"] <= bound:
+        return None
+    return (f"NEES {summary['nees']:.4g} for {dof} dof is above its {NEES_LEVEL:.1%} bound {bound:.4g}: the "
+            "filter's sigmas are too optimistic for its errors (filter.passes: 2 restores consistency)")
+
+
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
-                         seconds: float | None = None) -> dict:
+                         seconds: float | None = None, samples_used: dict[int, int] | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
     first pass), each state's estimate and its 1-sigma (``<name>_sigma``), angles in rad.
+    The five files land together or not at all (:func:`platcal.io.atomic_files`), ``summary.json``
+    last; it is strict JSON (``null`` for a number that is not finite). ``samples_used`` (position
+    -> number of samples the filter used) goes into the summary as ``samples_used_per_position``.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     nc = est.n_coef
     truth = study.truth if truth_known else None
     df = estimates_frame(est.names[:nc], est.coef[0], est.coef_sigma[0], truth)
     summary = {"n_states": len(est.names), "passes": study.filter.passes,
                "mean_nis": float(est.mean_nis[0]), "failed_updates": int(est.failed_updates[0])}
+    if samples_used is not None:
+        summary["samples_used_per_position"] = {str(k): int(v) for k, v in samples_used.items()}
     if seconds is not None:
         summary["seconds"] = seconds
     if truth is not None:
@@ -67,11 +131,12 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         gyro = df["name"].str.startswith("D")
         summary["max_abs_rel_err_pct_gyro"] = float(rel[gyro].max())
         summary["max_abs_rel_err_pct_accel"] = float(rel[~gyro].max())
-    atomic_to_csv(df, out / "estimates.csv")
-    atomic_to_csv(covariance_frame(est.names, est.P[0]), out / "covariance.csv", index=True)
-    atomic_to_csv(history_frame(est), out / "history.csv")
-    atomic_write_text(out / "table2.md", table2_markdown(df))
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    with atomic_files(out_dir) as tmp:
+        df.to_csv(tmp("estimates.csv"), index=False)
+        covariance_frame(est.names, est.P[0]).to_csv(tmp("covariance.csv"), index=True)
+        history_frame(est).to_csv(tmp("history.csv"), index=False)
+        tmp("table2.md").write_text(table2_markdown(df))
+        tmp("summary.json").write_text(json_text(summary))
     return summary
 
 

@@ -34,7 +34,6 @@ the Gram matrix accumulated by a compiled kernel.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
@@ -49,7 +48,7 @@ from ...errors import InputError
 from ...estimation import information
 from ...estimation.information import (CRITERIA, correlation, crb_sigma, criteria, gram_singular_values,
                                        j_objective, numerical_rank, posterior_covariance, relative_scale)
-from ...io import atomic_to_csv, atomic_write_text
+from ...io import atomic_files, json_text
 from ...model.attitude import make_rk4_scratch, make_work, measure_into, rk4_step_jac
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, N_FULL, N_IDENTIFIED, group_of, unit_of
@@ -494,9 +493,11 @@ def write_observability(out_dir, study, scheme, replicates: int = 0, **kw) -> di
             row["mc_std"] = float(s)
             row["mc_rms"] = float(r)
     rho = correlation(P)
-    atomic_to_csv(pd.DataFrame(rho, index=names, columns=names), out / "correlation.csv", index=True)
-    atomic_to_csv(coef, out / "coefficients.csv")
-    atomic_write_text(out / "observability.json", json.dumps(result, indent=2) + "\n")
+    # the three files land together, observability.json (strict JSON: null for NaN) last
+    with atomic_files(out) as tmp:
+        pd.DataFrame(rho, index=names, columns=names).to_csv(tmp("correlation.csv"), index=True)
+        coef.to_csv(tmp("coefficients.csv"), index=False)
+        tmp("observability.json").write_text(json_text(result))
     return result
 
 

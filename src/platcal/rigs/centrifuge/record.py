@@ -8,6 +8,7 @@ written as well. Identification reads only the columns a real log has.
 
 from __future__ import annotations
 
+import io
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +25,14 @@ LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay"
 TRUTH_COLUMNS = ("alpha", "beta", "gamma")
 TIME_TOL = 1e-6
 """Tolerance (s) when matching sample times to filter instants."""
+UNIT_FACTOR_G = 3.0
+"""A record whose median specific-force magnitude is this many times larger or smaller than the
+centrifuge's is refused: its accelerations are in another unit (m/s^2 gives 9.8, mg 1000)."""
+PARQUET_MAGIC = b"PAR1"
+"""The first (and last) four bytes of every Parquet file."""
+UNIT_FACTOR = 10.0
+"""A record whose median time step is this many times larger or smaller than the configured
+sample period is refused: its ``t`` is in another unit (ms for s gives a factor of 1000)."""
 
 
 @dataclass
@@ -71,17 +80,34 @@ def read_record(path: str | os.PathLike) -> pd.DataFrame:
     NaN or infinite values.
     """
     path = Path(path)
+    if not path.exists():
+        raise InputError("--data", f"no such file: {path}")
+    if path.is_dir():
+        raise InputError("--data", f"{path} is a folder; give a test record file (.csv or .parquet)")
+    parquet = path.suffix == ".parquet"
     try:
-        df = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
-    except FileNotFoundError as exc:
-        raise InputError("--data", f"no such file: {path}") from exc
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+    except OSError as exc:
+        raise InputError("--data", f"cannot read {path}: {exc.strerror}") from None
+    if parquet and head != PARQUET_MAGIC:
+        raise InputError("--data", f"{path} is named .parquet but is not a Parquet file; a CSV record is named .csv")
+    if not parquet and head == PARQUET_MAGIC:
+        raise InputError("--data", f"{path} is a Parquet file named {path.suffix or 'without .parquet'}; "
+                         "rename it to .parquet")
+    text = None if parquet else _csv_text(path)
+    try:
+        df = pd.read_parquet(path) if parquet else pd.read_csv(io.StringIO(text))
     except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise InputError("--data", f"cannot read {path} as a test record: {exc}") from exc
+        raise InputError("--data", f"cannot read {path} as a test record: {exc}") from None
     cols = list(df.columns)
     missing = [c for c in LOG_COLUMNS if c not in cols]
     if missing:
+        hint = ""
+        if len(cols) == 1 and any(sep in str(cols[0]) for sep in ";\t|"):
+            hint = f"; the header {str(cols[0])[:60]!r} is not comma-separated: a CSV record uses ','"
         raise InputError(f"--data column {missing[0]}", f"missing; a test record has columns {list(LOG_COLUMNS)} "
-                         f"(and optionally {list(TRUTH_COLUMNS)})")
+                         f"(and optionally {list(TRUTH_COLUMNS)}){hint}")
     extra = [c for c in cols if c not in LOG_COLUMNS + TRUTH_COLUMNS]
     if extra:
         raise InputError(f"--data column {extra[0]}", f"unexpected column; allowed: {list(LOG_COLUMNS + TRUTH_COLUMNS)}")
@@ -97,22 +123,163 @@ def read_record(path: str | os.PathLike) -> pd.DataFrame:
         if bad.any():
             row = int(np.argmax(bad))
             raise InputError(f"--data column {c}, row {row + 2}",
-                             f"value {df[c].iloc[row]!r} is not a finite number (NaN, infinite or text)")
+                             f"value {_shown(df[c].iloc[row])} is not a finite number (NaN, infinite or text)")
         df[c] = values
     return df
 
 
-def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float) -> FilterInput:
-    """Select the samples at the filter instants (multiples of ``period_s``) per position.
+def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: float,
+                 expected_g: np.ndarray | None = None) -> None:
+    """Refuse a record that does not fit the scheme or the sampling, before any filtering.
 
-    Checks that every position index is in the scheme, that the commanded angles match the
-    scheme's, and that time increases within each position.
+    Checks, per position, with messages that say what was found and what was expected: the set
+    of positions is the scheme's 1..K; ``t`` increases; its median step is within a factor
+    :data:`UNIT_FACTOR` of ``sample_s`` (so ``t`` is in seconds); no gap between samples, and
+    none between the position's start (t = 0) or end (t = dwell) and its first or last sample,
+    exceeds ``max_gap_s`` (config ``record.max_gap_s``); the samples therefore span the scheme's
+    dwell. A position's t may count from any origin (:func:`position_origin`). With
+    ``expected_g`` (K,), the magnitude of the specific force each position should measure (g),
+    the median of ``|(Ax, Ay, Az)|`` must be within a factor :data:`UNIT_FACTOR_G`
+    of it (so the accelerations are in g, not mg or m/s^2). Raises InputError naming the column
+    and position.
+    """
+    K = scheme.n_positions
+    pos = df["position"].to_numpy(float)
+    off = (pos != np.round(pos)) | (pos < 1) | (pos > K)
+    if off.any():
+        raise InputError("--data column position", f"index {_num(pos[off][0])} is not a position of scheme "
+                         f"{scheme.name!r}, which has positions 1..{K}; pick the right --scheme")
+    found = sorted({int(p) for p in pos})
+    missing = [k for k in range(1, K + 1) if k not in found]
+    if missing:
+        raise InputError("--data column position", f"the record has positions {_ranges(found)} but scheme "
+                         f"{scheme.name!r} has {K} (1..{K}): missing {_ranges(missing)}; pick the right --scheme "
+                         "or record every position")
+    for k in found:
+        t = df["t"].to_numpy(float)[pos == k]
+        field = f"--data column t, position {k}"
+        if t.size < 2:
+            raise InputError(field, f"has {t.size} sample; a position of scheme {scheme.name!r} lasts "
+                             f"{scheme.dwell_s:g} s, about {round(scheme.dwell_s / sample_s)} samples")
+        step = np.diff(t)
+        if np.any(step <= 0):
+            i = int(np.argmax(step <= 0)) + 1
+            raise InputError(field, f"time does not increase at sample {i + 1} of the position "
+                             f"(t = {_num(t[i - 1])} then {_num(t[i])} s)")
+        med = float(np.median(step))
+        ratio = med / sample_s
+        if ratio > UNIT_FACTOR or ratio < 1 / UNIT_FACTOR:
+            hint = " (t looks like milliseconds)" if 300 < ratio < 3000 else ""
+            raise InputError(field, f"median time step {med:g} s, expected about sampling.sample_ms = "
+                             f"{sample_s * 1e3:g} ms = {sample_s:g} s{hint}; t must be seconds since the "
+                             "position's start")
+        t = t - position_origin(t, med, max_gap_s)
+        i = int(np.argmax(step))
+        if step[i] > max_gap_s:
+            raise InputError(field, f"gap of {step[i]:g} s between t = {_num(t[i])} and {_num(t[i + 1])} s, "
+                             f"more than record.max_gap_s = {max_gap_s:g} s (raise it in the config if the "
+                             "gap is harmless)")
+        if expected_g is not None:
+            a = df[["Ax", "Ay", "Az"]].to_numpy(float)[pos == k]
+            with np.errstate(over="ignore"):  # 1e300 g is refused below, without a numpy warning
+                size = float(np.median(np.linalg.norm(a, axis=1)))
+            want = float(expected_g[k - 1])
+            if not (want / UNIT_FACTOR_G <= size <= want * UNIT_FACTOR_G):
+                raise InputError(f"--data columns Ax, Ay, Az, position {k}",
+                                 f"median |A| = {size:.4g}, expected about {want:.4g} g at this position "
+                                 "(centrifuge g_level and gravity); the accelerations must be in g")
+        if t[0] > max_gap_s:
+            raise InputError(field, f"first sample {_num(t[0])} s after the position's start, more than "
+                             f"record.max_gap_s = {max_gap_s:g} s")
+        span = float(t[-1] + med)
+        if abs(span - scheme.dwell_s) > max_gap_s:
+            raise InputError(field, f"position {k} spans {span:g} s (t = {_num(t[0])} .. {_num(t[-1])} s "
+                             "from its start), "
+                             f"but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s per position "
+                             f"(record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
+
+
+def position_origin(t: np.ndarray, step: float, max_gap_s: float | None) -> float:
+    """The time (record's clock) at which a position starts; the filter uses ``t - origin``.
+
+    Convention (docs/centrifuge-model.md §13 says t counts from the position's start): a first
+    sample within ``max_gap_s`` of 0 means the clock restarted at the position's start, origin 0
+    (exactly, so clean records are used as they are). Otherwise the clock runs on (a constant
+    offset per position, e.g. a logger's time of day) and the position starts at its first
+    sample; that instant is taken from the whole sample grid (``step`` s apart) rather than from
+    the first sample alone, so timestamp jitter does not shift the origin. ``max_gap_s=None``:
+    origin 0.
+    """
+    if max_gap_s is None or abs(t[0]) <= max_gap_s:
+        return 0.0
+    d = t - t[0]
+    return float(t[0] + np.median(d - step * np.round(d / step)))
+
+
+def _num(v) -> int | float:
+    """A plain Python number for messages (no ``np.float64(...)``)."""
+    v = float(f"{float(v):.10g}")  # no float noise such as 1.6500000000000001
+    return int(v) if v.is_integer() else v
+
+
+def _shown(v) -> str:
+    """A record value for a message: text quoted, numbers plain."""
+    return repr(v) if isinstance(v, str) else str(_num(v))
+
+
+def _ranges(ks: list[int]) -> str:
+    """``[1, 2, 3, 5]`` as ``1..3, 5``."""
+    out, start = [], None
+    for i, k in enumerate(ks):
+        if start is None:
+            start = k
+        if i + 1 == len(ks) or ks[i + 1] != k + 1:
+            out.append(str(start) if start == k else f"{start}..{k}")
+            start = None
+    return ", ".join(out)
+
+
+def _csv_text(path: Path) -> str:
+    """The text of a CSV record: UTF-8 without NUL bytes, last line complete.
+
+    A last line with fewer fields than the header is reported as a truncated file (a log cut off
+    while being written), not as a bad number.
+    """
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError("--data", f"{path} is not a UTF-8 CSV file (byte {exc.start} cannot be decoded); "
+                         "a test record is CSV text or Parquet (.parquet)") from None
+    if "\x00" in text:
+        raise InputError("--data", f"{path} is not a CSV text file (it holds NUL bytes); a test record is CSV "
+                         "text or Parquet (.parquet)")
+    lines = text.rstrip("\r\n").splitlines()
+    if len(lines) >= 2:
+        n_head, n_last = lines[0].count(","), lines[-1].count(",")
+        if n_last < n_head:
+            raise InputError(f"--data line {len(lines)}", f"the last line is truncated: {n_last + 1} of "
+                             f"{n_head + 1} fields (was the file cut off while being written?)")
+    return text
+
+
+def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
+                 max_gap_s: float | None = None) -> FilterInput:
+    """Select, per position, the samples nearest the filter instants (multiples of ``period_s``
+    from the position's start, :func:`position_origin`), with their recorded times.
+
+    Decimation is by time: for each filter instant the nearest sample is used if it lies within
+    half the position's median sample step of it, so jittered timestamps are used as recorded
+    (the EKF propagates over the actual interval between used samples) and a small gap only
+    drops the instants it covers. A clean record (samples on the grid) gives exactly the samples
+    at the instants. Checks that every position index is in the scheme, that the commanded
+    angles match the scheme's, and that time increases within each position.
     """
     K = scheme.n_positions
     pos = df["position"].to_numpy()
     if not np.all(pos == np.round(pos)) or pos.min() < 1 or pos.max() > K:
         bad = pos[(pos != np.round(pos)) | (pos < 1) | (pos > K)][0]
-        raise InputError("--data column position", f"index {bad!r} is not a position of scheme "
+        raise InputError("--data column position", f"index {_num(bad)} is not a position of scheme "
                          f"{scheme.name!r} (1..{K})")
     present = sorted(set(pos.astype(int)))
     cmd = scheme.angles_deg
@@ -123,15 +290,30 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float) -> FilterInp
         if np.any(np.diff(t) <= 0):
             i = int(np.argmax(np.diff(t) <= 0)) + 1
             raise InputError(f"--data column t, position {k}",
-                             f"time does not increase at sample {i} (t = {t[i - 1]!r} then {t[i]!r})")
+                             f"time does not increase at sample {i} (t = {_num(t[i - 1])} then {_num(t[i])})")
         rec_cmd = rows[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
         if np.max(np.abs(rec_cmd - cmd[k - 1])) > 1e-6:
             raise InputError(f"--data position {k}", f"commanded angles {rec_cmd[0].tolist()} differ from "
                              f"scheme {scheme.name!r} position {k} {cmd[k - 1].tolist()}; pick the right --scheme")
-        m = np.round(t / period_s)
-        keep = np.abs(t - m * period_s) < TIME_TOL
-        if keep.sum() < 1:
+        step = float(np.median(np.diff(t))) if t.size > 1 else period_s
+        origin = position_origin(t, step, max_gap_s)
+        if origin != 0.0:
+            t = t - origin
+        keep = nearest_samples(t, period_s, 0.5 * step)
+        if keep.size < 1:
             raise InputError(f"--data column t, position {k}", f"no sample falls on a {period_s * 1e3:g} ms filter instant")
         ts.append(t[keep])
         zs.append(rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep][None])
     return FilterInput(positions=present, t=ts, z=zs, cmd_deg=cmd[np.array(present) - 1])
+
+
+def nearest_samples(t: np.ndarray, period_s: float, tol_s: float) -> np.ndarray:
+    """Indices of the samples nearest each multiple of ``period_s`` (within ``tol_s``), increasing
+    and without repeats. ``t`` increases."""
+    m = np.arange(np.ceil((t[0] - tol_s) / period_s), np.floor((t[-1] + tol_s) / period_s) + 1)
+    want = m * period_s
+    j = np.clip(np.searchsorted(t, want), 1, t.size - 1) if t.size > 1 else np.zeros(want.size, dtype=int)
+    if t.size > 1:
+        j = np.where(np.abs(t[j - 1] - want) <= np.abs(t[j] - want), j - 1, j)
+    ok = np.abs(t[j] - want) <= tol_s + TIME_TOL
+    return np.unique(j[ok])

@@ -54,7 +54,8 @@ T2MC_FMT = {"truth": "g", "mean_estimate": ".6g", "mean_rel_err_pct": ".3f", "st
 SUMMARY_FMT = {c: ".3f" for c in ("max_rms_rel_err_pct_gyro", "median_rms_rel_err_pct_gyro",
                                   "max_rms_rel_err_pct_accel", "median_rms_rel_err_pct_accel")}
 SUMMARY_FMT.update({"mean_nees": ".1f", "median_nees": ".1f", "share_in_band": ".2f", "wall_s_per_run": ".2f",
-                    "sigma_a_ug": "g", "runs": "d", "nees_dof": "d", "failed_updates": "d", "threads": "d"})
+                    "sigma_a_ug": "g", "runs": "d", "nees_dof": "d", "failed_updates": "d", "failed_runs": "d",
+                    "threads": "d"})
 
 
 def table2_montecarlo(coef: pd.DataFrame, scheme: str, sigma_a_ug: float, estimator: str) -> pd.DataFrame:

@@ -45,6 +45,8 @@ CLASSICAL_POSITIONS = ((0, 0, 0), (180, 0, 0), (90, 0, 90), (90, 0, 270), (90, 0
 (beta = 0; the up axis in p is column 3 of C_r^p = Mz(gamma) Mx(alpha))."""
 
 GENERATED_PREFIX = "ga_"
+GENERATED_RE = r"ga_(?:doo|(?:J|A|D|maxrel)(?:_n\d+)?)"
+"""The generated schemes the design rule can make (design.preset's names)."""
 """Scheme names with this prefix resolve to ``<results>/design/<name>.yaml`` (the GA design)."""
 
 # ---------------------------------------------------------------------------------------------
@@ -96,6 +98,9 @@ def scheme_names(cfg: dict) -> list[str]:
             raise InputError(field, f"unknown scheme {name!r}; use a scheme of the config's 'schemes' "
                              f"({sorted(cfg['schemes'])}), 'classical', 'random', 'random_1'..'random_{n_random}' "
                              f"or a generated '{GENERATED_PREFIX}*' scheme")
+        if name.startswith(GENERATED_PREFIX) and not re.fullmatch(GENERATED_RE, name):
+            raise InputError(field, f"unknown generated scheme {name!r}: the design rule makes "
+                             "ga_<criterion> and ga_<criterion>_n<N> (criterion J, A, D or maxrel) and ga_doo")
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
             raise InputError(field, f"scheme name {name!r} must be letters, digits, '_', '-' or '.' (it names files)")
         for n in new:
@@ -142,6 +147,18 @@ def check_study(raw: dict) -> dict:
                          f"defines {sorted(st['estimators'])}")
     if single["replicate"] >= st["replicates"]:
         raise InputError("study.single.replicate", f"must be < study.replicates = {st['replicates']}")
+    # the paper's cell must be a cell of the sweep, or its tables fail only after every job ran
+    paper = st["paper"]
+    names = scheme_names(cfg)
+    if paper["scheme"] not in names:
+        raise InputError("study.paper.scheme", f"scheme {paper['scheme']!r} is not in the sweep; use one of {names}")
+    if paper["estimator"] not in st["estimators"]:
+        raise InputError("study.paper.estimator", f"unknown estimator {paper['estimator']!r}; the study "
+                         f"defines {sorted(st['estimators'])}")
+    level = cfg["noise"]["sigma_a_ug"] if paper["sigma_a_ug"] is None else paper["sigma_a_ug"]
+    if noise_key(level) not in {noise_key(v) for v in st["sigma_a_ug"]}:
+        raise InputError("study.paper.sigma_a_ug", f"sigma_a = {level:g} ug is not a noise level of the sweep "
+                         f"(study.sigma_a_ug = {st['sigma_a_ug']}); null means noise.sigma_a_ug")
     labels = [noise_label(v) for v in st["sigma_a_ug"]]
     if len(set(labels)) != len(labels) or len({noise_key(v) for v in st["sigma_a_ug"]}) != len(labels):
         raise InputError("study.sigma_a_ug", f"noise levels must be distinct (to 0.001 ug), got {st['sigma_a_ug']}")

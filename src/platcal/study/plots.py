@@ -8,6 +8,7 @@ in as arguments.
 
 from __future__ import annotations
 
+import functools
 import os
 
 import matplotlib
@@ -23,7 +24,18 @@ from ..estimation.consistency import nees_band  # noqa: E402
 from ..io import atomic_path  # noqa: E402
 from .stats import per_coefficient  # noqa: E402
 
-plt.rcParams.update({"figure.dpi": 100, "savefig.dpi": 110, "font.size": 9})
+STYLE = {"figure.dpi": 100, "savefig.dpi": 110, "font.size": 9}
+"""The study figures' matplotlib settings, applied per figure (:func:`styled`), never globally:
+a module that imports this one keeps matplotlib's defaults for its own figures."""
+
+
+def styled(fn):
+    """Draw and save the figure of ``fn`` under :data:`STYLE`."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kw):
+        with plt.rc_context(STYLE):
+            return fn(*args, **kw)
+    return wrapper
 
 
 def save(fig, path: str | os.PathLike) -> None:
@@ -38,6 +50,7 @@ def _scheme_colors(schemes):
     return {s: cmap(i % 10) for i, s in enumerate(schemes)}
 
 
+@styled
 def boxplot_rel_err(coef: pd.DataFrame, noise: float, estimator: str, path, names_by_group: dict[str, list[str]],
                     group_titles: dict[str, str], title: str, reference: dict[str, float] | None = None,
                     reference_label: str = ""):
@@ -73,6 +86,7 @@ def boxplot_rel_err(coef: pd.DataFrame, noise: float, estimator: str, path, name
     save(fig, path)
 
 
+@styled
 def rms_vs_noise(coef: pd.DataFrame, path, group_titles: dict[str, str], noise_label: str):
     """Largest and median RMS relative error (%) against the noise level, per group, scheme and estimator."""
     pc = per_coefficient(coef)
@@ -109,6 +123,7 @@ def rms_vs_noise(coef: pd.DataFrame, path, group_titles: dict[str, str], noise_l
     save(fig, path)
 
 
+@styled
 def convergence(history: pd.DataFrame, truth: dict[str, float], units: dict[str, str], dwell_s: float,
                 n_positions: int, path, states, title: str = ""):
     """Estimates of selected quantities with +-3 sigma bands against time; position boundaries."""
@@ -144,6 +159,7 @@ def convergence(history: pd.DataFrame, truth: dict[str, float], units: dict[str,
     save(fig, path)
 
 
+@styled
 def correlation_heatmap(cov: pd.DataFrame, path, n_coef: int, title: str = ""):
     """|correlation| of the final covariance (rho_ij = P_ij / sqrt(P_ii P_jj)); the largest pair
     among the first ``n_coef`` states (the identified quantities) is named in the legend."""
@@ -170,6 +186,7 @@ def correlation_heatmap(cov: pd.DataFrame, path, n_coef: int, title: str = ""):
     save(fig, path)
 
 
+@styled
 def nees_histogram(runs: pd.DataFrame, path):
     """NEES histogram against the chi-square(dof) density, one panel per estimator."""
     estimators = list(dict.fromkeys(runs["estimator"]))

@@ -22,7 +22,7 @@ from ...io import atomic_to_csv, atomic_write_text
 from ...log import job_logger
 from ...model.instruments import NAMES, unit_of
 from ...study.plots import (boxplot_rel_err, convergence, correlation_heatmap, nees_histogram, plt,
-                            rms_vs_noise, save)
+                            rms_vs_noise, save, styled)
 from ...study.stats import per_coefficient, select_cell, summary, with_timing
 from ...study.tables import frame_html, frame_markdown, write_table
 from .catalogue import load_catalogue
@@ -265,6 +265,7 @@ def figures_job(cfg, coef_path, runs_path, t2mc_path, single_dir, out: dict, log
     lg.info("done")
 
 
+@styled
 def paper_vs_montecarlo(t2mc: pd.DataFrame, path, title: str = ""):
     """The paper's relative error against our Monte Carlo mean +- std, per coefficient."""
     fig, axes = plt.subplots(2, 1, figsize=(14, 8))

@@ -13,6 +13,7 @@ import time
 import numpy as np
 
 from ...errors import InputError
+from ...io import check_writable
 from .config import COEFFS, Study
 from .proposed import identify_proposed
 from .record import check_out_path, read_record, record_frame, truth_json, write_estimates, write_record
@@ -42,6 +43,7 @@ def simulate(study: Study, args) -> int:
     if args.seed is not None and args.seed < 0:
         raise InputError("--seed", "must be a whole number >= 0")
     check_out_path(args.out)
+    check_writable(args.out, "--out")
     seed = study.seed if args.seed is None else args.seed
     t0 = time.perf_counter()
     rb = simulate_batch(study, args.platform, args.run, [seed], keep_phi=True, noise_free=bool(args.noise_free))
@@ -57,6 +59,7 @@ def identify(study: Study, args) -> int:
     method = args.method or "proposed"
     if method not in METHODS:
         raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
+    check_writable(args.out, "--out", folder=True)
     rec = read_record(args.data, use_truth=not args.no_truth)
     t0 = time.perf_counter()
     arm = study.centrifuge.arm_m

@@ -6,7 +6,6 @@ work starts or any file is written; outputs are written atomically.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -15,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
-from ...io import atomic_to_csv, atomic_write_text
+from ...io import atomic_files, check_writable, json_text
 from .filter import nees, run_ekf, simulate
 from .model import coef_names, group_of, unit_of
 from .record import read_record, to_frame, write_record
@@ -37,6 +36,7 @@ def cmd_simulate(cfg, args) -> int:
     if args.seed is not None and args.seed < 0:
         raise InputError("--seed", "must be a whole number >= 0")
     seed = cfg.seed if args.seed is None else int(args.seed)
+    check_writable(args.out, "--out")
     t0 = time.perf_counter()
     t, phi, z = simulate(cfg, scheme, [seed], noise_free=bool(args.noise_free))
     write_record(to_frame(scheme, t, phi[0], z[0]), args.out)
@@ -58,6 +58,7 @@ def cmd_identify(cfg, args) -> int:
     if args.estimator not in (None, *ESTIMATORS):
         raise InputError("--estimator", f"unknown estimator {args.estimator!r}; rig multiposition has {list(ESTIMATORS)}")
     scheme = cfg.scheme(args.scheme) if args.scheme else None
+    check_writable(args.out, "--out", folder=True)
     rec, scheme = read_record(args.data, scheme)
     t0 = time.perf_counter()
     est, P, nis = identify(cfg, rec)
@@ -80,8 +81,9 @@ def cmd_identify(cfg, args) -> int:
                         "max_abs_rel_err_pct_gyro": float(df.loc[g, "rel_err_pct"].abs().max()),
                         "max_abs_rel_err_pct_accel": float(df.loc[~g, "rel_err_pct"].abs().max())})
     out = Path(args.out)
-    atomic_to_csv(df, out / "estimates.csv")
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    with atomic_files(out) as tmp:  # both files land together, summary.json last
+        df.to_csv(tmp("estimates.csv"), index=False)
+        tmp("summary.json").write_text(json_text(summary))
     msg = f"platcal identify: multiposition 27-state EKF, {cfg.passes} pass(es), {seconds:.2f} s -> {out}"
     if use_truth:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.3f} %, accel "
@@ -95,12 +97,14 @@ def cmd_observability(cfg, args) -> int:
 
     _refuse(args, ("arw", "rate", "doo", "replicates"))
     scheme = cfg.scheme(args.scheme)
+    check_writable(args.out, "--out", folder=True)
     t0 = time.perf_counter()
     res = evaluate(cfg, scheme)
     res["seconds"] = time.perf_counter() - t0
     out = Path(args.out)
-    atomic_to_csv(pd.DataFrame(res["coefficients"]), out / "coefficients.csv")
-    atomic_write_text(out / "observability.json", json.dumps(res, indent=2) + "\n")
+    with atomic_files(out) as tmp:
+        pd.DataFrame(res["coefficients"]).to_csv(tmp("coefficients.csv"), index=False)
+        tmp("observability.json").write_text(json_text(res))
     v = res["verdict"]
     print(f"platcal observability: multiposition scheme {scheme.name!r}: static rank {res['static_rank']}, "
           f"exact Lie rank {res['exact_rank_nominal']}/{res['exact_rank_truth']} of {res['n_states']}, max "

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -10,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
-from ...io import atomic_to_csv, atomic_write_text
+from ...io import atomic_files, check_writable, json_text
 from ...study.tables import write_table
 from .config import SledConfig
 from .identify import estimates, identify, metrics
@@ -35,6 +34,7 @@ def cmd_simulate(cfg: SledConfig, args) -> int:
     if seed < 0:
         raise InputError("--seed", "must be a whole number >= 0")
     out = check_out_path(args.out)
+    check_writable(out, "--out")
     t0 = time.perf_counter()
     sb = simulate(cfg, [seed], noise_free=bool(args.noise_free))
     write_record(sb, out)
@@ -47,6 +47,7 @@ def cmd_simulate(cfg: SledConfig, args) -> int:
 def cmd_identify(cfg: SledConfig, args) -> int:
     """INS, run and stop filters and X compensation of a record -> estimates.csv, metrics.json."""
     refuse(args, ("scheme", "estimator", "method"))
+    check_writable(args.out, "--out", folder=True)
     traj, df = read_record(args.data, cfg)
     truth = None if args.no_truth else record_truth(args.data, df)
     t0 = time.perf_counter()
@@ -59,8 +60,9 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     summary = {k: (None if not np.isfinite(v) else float(v)) for k, v in met.items()}
     summary.update({"states": cfg.states, "compensation": cfg.compensation, "tuning": cfg.tuning,
                     "truth_known": truth is not None, "seconds": round(seconds, 3)})
-    atomic_to_csv(est, out / "estimates.csv", float_format="%.6g")
-    atomic_write_text(out / "metrics.json", json.dumps(summary, indent=1) + "\n")
+    with atomic_files(out) as tmp:  # both files land together, metrics.json last
+        est.to_csv(tmp("estimates.csv"), index=False, float_format="%.6g")
+        tmp("metrics.json").write_text(json_text(summary))
     msg = (f"platcal identify: sled {cfg.states}-state run filter, {cfg.compensation} X compensation, "
            f"{seconds:.2f} s -> {out}; Y/Z run max {met['yz_before_max_run_cm']:.1f} cm before, "
            f"{max(met['y_after_a_max_run_cm'], met['z_after_a_max_run_cm']):.3f} cm after (A)")
@@ -73,6 +75,7 @@ def cmd_identify(cfg: SledConfig, args) -> int:
 def cmd_observability(cfg: SledConfig, args) -> int:
     """The rank table of §8/§11 -> OUT/rank_table.{csv,md,html}."""
     refuse(args, ("scheme", "arw", "rate", "doo", "replicates"))
+    check_writable(args.out, "--out", folder=True)
     tab = rank_table(cfg)
     write_table(tab, Path(args.out) / "rank_table", "Sled observability ranks (docs/rocket-sled.md §8)",
                 note="states scaled 1 m/s, 1 m, 1 mrad; rank = #(sigma_i/sigma_1 > 1e-9); f = [a_x, 0, g] per phase")

@@ -59,7 +59,10 @@ if config.get("rigs", {}).get("lowprec_centrifuge"):
             trace="results/lowprec_centrifuge/scenarios/default/trace.npz",
         output:
             report="results/lowprec_centrifuge/report.md",
-            files=LOWPREC_FILES,
+            files=[
+                report(f, category="Rig 4: lowprec_centrifuge") if f.endswith(".png") else f
+                for f in LOWPREC_FILES
+            ],
         params:
             config=LOWPREC_CFG,
             names=LOWPREC_SCENARIOS,

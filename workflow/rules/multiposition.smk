@@ -125,9 +125,13 @@ rule multiposition_report:
             table=["ranks", "montecarlo_summary", "design", "extension_ranks", "extension_sigma"],
             ext=["csv", "md", "html"],
         ),
-        figures=expand(
-            "results/multiposition/figures/{fig}.png", fig=["ranks", "montecarlo", "extension"]
-        ),
+        figures=[
+            report(f, category="Rig 2: multiposition")
+            for f in expand(
+                "results/multiposition/figures/{fig}.png",
+                fig=["ranks", "montecarlo", "extension"],
+            )
+        ],
         coef="results/multiposition/montecarlo/coef.parquet",
         report="results/multiposition/report.md",
     params:

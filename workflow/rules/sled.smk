@@ -76,9 +76,9 @@ if _SLED_CFG_PATH:
         output:
             "results/sled/table1.md",
             "results/sled/checks.md",
-            "results/sled/figures/yz_before_after.png",
-            "results/sled/figures/x_error.png",
-            "results/sled/figures/attitude.png",
+            report("results/sled/figures/yz_before_after.png", category="Rig 3: sled"),
+            report("results/sled/figures/x_error.png", category="Rig 3: sled"),
+            report("results/sled/figures/attitude.png", category="Rig 3: sled"),
             report="results/sled/report.md",
         params:
             raw=SLED_RAW,

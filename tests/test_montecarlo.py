@@ -190,3 +190,16 @@ def test_default_config_study_validates():
     c = mc.check_study(raw)
     names = mc.scheme_names(c)
     assert names[:2] == ["table1", "classical"] and "random_1" in names
+
+
+def test_package_code_hash_covers_a_rig_and_the_core_it_imports(monkeypatch):
+    h = {r: smc.package_code_hash(f"platcal.rigs.{r}") for r in ("sled", "lowprec_centrifuge", "multiposition")}
+    assert len(set(h.values())) == 3 and all(len(v) == 16 for v in h.values())
+    # a shared module the rig imports is part of its hash: changing its bytes changes the hash
+    seen = []
+    real = smc.code_hash
+    monkeypatch.setattr(smc, "code_hash", lambda mods, data=(): seen.append((list(mods), list(data))) or real(mods, data))
+    smc.package_code_hash("platcal.rigs.sled")
+    mods, data = seen[0]
+    assert "platcal.io" in mods and "platcal.rigs.sled.filters" in mods
+    assert data == ["rigs/sled/data/config.schema.yaml"]

@@ -1,17 +1,16 @@
 # Rig 4, low-precision centrifuge (docs/lowprec-centrifuge.md): the default scenario and the
 # centrifuge-imprecision sweep of section 2, one job per scenario, then tables, figures, report.
 # Reads its config from config["rigs"]["lowprec_centrifuge"]; without that key it defines no target.
-import hashlib as _lp_hashlib
 import re as _lp_re
 from pathlib import Path as _LpPath
 
 LOWPREC_CENTRIFUGE_TARGETS = []
 if config.get("rigs", {}).get("lowprec_centrifuge"):
-    import platcal.rigs.lowprec_centrifuge as _lp_pkg
     from platcal.errors import InputError as _LpInputError
     from platcal.io import read_yaml as _lp_read_yaml
     from platcal.rigs.lowprec_centrifuge.config import load_config as _lp_load
     from platcal.rigs.lowprec_centrifuge.study import scenarios as _lp_scenarios
+    from platcal.study.montecarlo import package_code_hash as _lp_code_hash
     from snakemake.exceptions import WorkflowError as _LpWorkflowError
 
     LOWPREC_CFG = config["rigs"]["lowprec_centrifuge"]
@@ -20,10 +19,7 @@ if config.get("rigs", {}).get("lowprec_centrifuge"):
     except _LpInputError as exc:
         raise _LpWorkflowError(f"invalid configuration {LOWPREC_CFG}: {exc.field}: {exc.message}")
     LOWPREC_SCENARIOS = list(_lp_scenarios(_LP_STUDY))
-    _lp_dir = _LpPath(_lp_pkg.__file__).parent
-    # the package's source as a param: a code edit reruns the jobs
-    LOWPREC_CODE = _lp_hashlib.sha256(b"".join(p.read_bytes() for p in sorted(_lp_dir.glob("*.py"))
-                                               + sorted(_lp_dir.glob("data/*.yaml")))).hexdigest()[:16]
+    LOWPREC_CODE = _lp_code_hash("platcal.rigs.lowprec_centrifuge")  # a code edit reruns the jobs
     LOWPREC_FILES = expand(
         "results/lowprec_centrifuge/tables/{t}.{ext}",
         t=["table1", "table1_y", "coefficients", "degradation", "acceptance", "cross_validation"],

@@ -10,7 +10,7 @@ from snakemake.exceptions import WorkflowError as _SledWorkflowError
 from platcal.errors import InputError as _SledInputError
 from platcal.io import read_yaml as _sled_read_yaml
 from platcal.rigs.sled.config import load_config as _sled_load_config
-from platcal.rigs.sled.study import code_hash as _sled_code_hash
+from platcal.study.montecarlo import package_code_hash as _sled_code_hash
 
 SLED_TARGETS = []
 _SLED_CFG_PATH = config.get("rigs", {}).get("sled")
@@ -24,7 +24,7 @@ if _SLED_CFG_PATH:
     except _SledInputError as exc:
         raise _SledWorkflowError(f"invalid configuration: {_SLED_CFG_PATH}: {exc.field}: {exc.message}")
     SLED_CASES = list(_SLED_STUDY["cases"])
-    SLED_CODE = _sled_code_hash()
+    SLED_CODE = _sled_code_hash("platcal.rigs.sled")
     SLED_TARGETS = [
         "results/sled/table1.md",
         "results/sled/checks.md",

@@ -271,13 +271,24 @@ def code_hash(modules=None, data=()) -> str:
     return h.hexdigest()[:16]
 
 
+def _package_data(package: str) -> list[str]:
+    """Package-relative paths of a subpackage's ``data/*.csv|yaml`` (config schema, tables)."""
+    pkg = _module_file(package).parent
+    return [p.relative_to(_package_root()).as_posix() for p in sorted((pkg / "data").glob("*"))
+            if p.suffix in (".csv", ".yaml")]
+
+
 def compute_code_hash(rig: Rig) -> str:
     """Code hash of what a rig's Monte Carlo cells compute: the import closure of its hooks'
     module and of this runner, and the rig's package data (config schema, tables). Edits to its
     figures, reports or design code leave the cells alone."""
     hooks_module = type(rig.montecarlo).__module__
-    mods = module_closure([hooks_module, __name__])
-    pkg = _module_file(hooks_module.rpartition(".")[0]).parent
-    data = [p.relative_to(_package_root()).as_posix() for p in sorted((pkg / "data").glob("*"))
-            if p.suffix in (".csv", ".yaml")]
-    return code_hash(mods, data)
+    return code_hash(module_closure([hooks_module, __name__]), _package_data(hooks_module.rpartition(".")[0]))
+
+
+def package_code_hash(package: str) -> str:
+    """Code hash of a whole subpackage (e.g. a rig's study): the import closure of all its
+    modules, shared core included, and its package data; the rule param of a rig's own rules."""
+    pkg = _module_file(package).parent
+    mods = module_closure([package] + [f"{package}.{p.stem}" for p in sorted(pkg.glob("*.py"))])
+    return code_hash(mods, _package_data(package))

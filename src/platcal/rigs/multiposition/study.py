@@ -19,6 +19,7 @@ import pandas as pd
 from ...io import atomic_to_parquet, atomic_write_text, read_yaml
 from ...log import eta_line
 from ..centrifuge.scheme import Scheme
+from ...study.montecarlo import package_code_hash
 from ...study.tables import frame_markdown, write_table
 from .config import load_config
 from .filter import nees, run_ekf, simulate
@@ -260,18 +261,6 @@ def save_parquet(df: pd.DataFrame, path) -> None:
 
 # ------------------------------------------------------------------ workflow set-up
 
-def code_hash() -> str:
-    """Hash of this subpackage's sources (a rule param: a code edit reruns the jobs)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    root = Path(__file__).parent
-    for p in sorted(root.rglob("*")):
-        if p.suffix in (".py", ".yaml"):
-            h.update(p.read_bytes())
-    return h.hexdigest()[:16]
-
-
 class WorkflowSetup:
     """What ``workflow/rules/multiposition.smk`` needs, from the top-level config's ``rigs:`` index.
 
@@ -286,7 +275,7 @@ class WorkflowSetup:
         self.config = rigs.get("multiposition")
         self.centrifuge = rigs.get("centrifuge")
         self.active = bool(self.config)
-        self.code = code_hash() if self.active else ""
+        self.code = package_code_hash(__package__) if self.active else ""
         if not self.active:
             self.cfg, self.study = None, {"schemes": [], "rank_schemes": [], "sigma_a_ug": []}
             self.design_k = []

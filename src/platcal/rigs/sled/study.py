@@ -8,7 +8,6 @@ The summary makes the Table-1 analogue, the §11 check table, the figures and re
 from __future__ import annotations
 
 import copy
-import hashlib
 import json
 import time
 from pathlib import Path
@@ -40,15 +39,6 @@ CASES = {
 
 CHUNK = 20
 """Seeds per batched call (memory; results do not depend on it)."""
-
-
-def code_hash() -> str:
-    """Hash of this subpackage's source (a Snakemake param: code edits rerun the study)."""
-    h = hashlib.sha256()
-    for p in sorted(Path(__file__).parent.rglob("*")):
-        if p.suffix in (".py", ".yaml") and "__pycache__" not in p.parts:
-            h.update(p.name.encode() + p.read_bytes())
-    return h.hexdigest()[:16]
 
 
 def merge(base: dict, over: dict) -> dict:

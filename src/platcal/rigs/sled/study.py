@@ -59,10 +59,10 @@ def case_config(raw: dict, case: str) -> SledConfig:
 
 def series(idn, truth, s: int = 0) -> pd.DataFrame:
     """Time series of seed slot ``s`` at the filter epochs (m, arcsec) for the figures."""
-    m, cfg = idn.cfg.kf_every, idn.cfg
+    cfg = idn.cfg
     J = idn.j_end
-    k = m * np.arange(J + 1)
-    t = k * cfg.dt
+    k = idn.epochs.k
+    t = idn.t[k]
     a = after_a(idn)
     b = after_b(idn)
     df = pd.DataFrame({"t": t, "r_y": idn.r[s, k, 1], "r_z": idn.r[s, k, 2]})
@@ -70,7 +70,7 @@ def series(idn, truth, s: int = 0) -> pd.DataFrame:
     ay = np.r_[a["y_run"][s], a["y_static"][s, 1:]]
     az = np.r_[a["z_run"][s], np.full(J - js, np.nan)]
     df["a_y"], df["a_z"] = ay, az
-    kb = k[k <= idn.traj.n_stop]
+    kb = k[k <= idn.n_stop]
     df["b_y"] = np.r_[b[s, kb, 0], np.full(J + 1 - len(kb), np.nan)]
     df["b_z"] = np.r_[b[s, kb, 1], np.full(J + 1 - len(kb), np.nan)]
     df["e_naive"] = idn.r[s, k, 0] - truth.x_true[s, k]

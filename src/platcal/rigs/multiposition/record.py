@@ -106,23 +106,26 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
         where = f"scheme {scheme.name!r} has positions 1..{scheme.n_positions}" if scheme else \
             "positions are whole numbers from 1"
         raise InputError("--data column position", f"index {num(pos[off][0])} is not a position: {where}")
-    present = sorted(set(pos.astype(int)))
-    if scheme is not None:
-        missing = [k for k in range(1, scheme.n_positions + 1) if k not in present]
-        if missing:
-            raise InputError("--data column position", f"the record has positions {present} but scheme "
-                             f"{scheme.name!r} has {scheme.n_positions}: missing {missing}; pick the right "
-                             "--scheme or record every position")
-    cmds, ts_used, zs = [], [], []
-    for k in present:
-        rows = df[pos == k]
-        c = rows[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
+    present = sorted({int(k) for k in pos})
+    cmds = []
+    for k in present:  # the commanded angles first: a wrong scheme shows there before anywhere else
+        c = df.loc[pos == k, ["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
         if np.ptp(c, axis=0).max() > 1e-9:
             raise InputError(f"--data position {k}", "commanded angles change within the position")
         if scheme is not None and np.max(np.abs(c[0] - scheme.angles_deg[k - 1])) > 1e-6:
             raise InputError(f"--data position {k}", f"commanded angles {c[0].tolist()} are not those of "
                              f"scheme {scheme.name!r} ({scheme.angles_deg[k - 1].tolist()}); pick the right "
                              "--scheme or leave it out")
+        cmds.append(c[0])
+    if scheme is not None:
+        missing = [k for k in range(1, scheme.n_positions + 1) if k not in present]
+        if missing:
+            raise InputError("--data column position", f"the record has positions {present} but scheme "
+                             f"{scheme.name!r} has {scheme.n_positions}: missing {missing}; pick the right "
+                             "--scheme or record every position")
+    ts_used, zs = [], []
+    for k in present:
+        rows = df[pos == k]
         field = f"--data column t, position {k}"
         t = rows["t"].to_numpy(float)
         med = check_times(t, ts, max_gap_s, field, f"sampling.ts_ms = {ts * 1e3:g} ms", where=" of the position")
@@ -139,7 +142,6 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
         z = np.empty((keep.size, 6))
         z[:, :3] = rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep] / UG
         z[:, 3:] = rows[list(ANGLE_COLUMNS)].to_numpy(float)[keep] * 3600.0
-        cmds.append(c[0])
         ts_used.append(t[keep])
         zs.append(z)
     cmd = np.array(cmds)

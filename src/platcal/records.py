@@ -158,12 +158,15 @@ def largest_gap(t: np.ndarray) -> tuple[int, float]:
     return i, float(step[i])
 
 
-def check_gap(t: np.ndarray, max_gap_s: float, field: str, key: str = "record.max_gap_s") -> None:
-    """Refuse a gap between consecutive samples longer than ``max_gap_s`` (config ``key``)."""
+def check_gap(t: np.ndarray, max_gap_s: float, field: str, key: str = "record.max_gap_s",
+              sample_s: float | None = None) -> None:
+    """Refuse a gap between consecutive samples longer than ``max_gap_s`` (config ``key``). With
+    the configured sample period ``sample_s`` a step of up to 1.5 periods is never a gap (so a
+    limit below the period, e.g. 0.05 s at 10 Hz, does not refuse every step)."""
     if t.size < 2:
         return
     i, step = largest_gap(t)
-    if step > max_gap_s:
+    if step > max_gap_s and (sample_s is None or step > 1.5 * sample_s):
         raise InputError(field, f"gap of {step:g} s between t = {num(t[i])} and {num(t[i + 1])} s, "
                          f"more than {key} = {max_gap_s:g} s (raise it in the config if the gap is harmless)")
 
@@ -175,7 +178,7 @@ def check_times(t: np.ndarray, sample_s: float, max_gap_s: float, field: str, ex
         raise InputError(field, f"has {t.size} sample{where}; a record needs samples every {sample_s:g} s")
     check_increasing(t, field, where)
     med = check_time_unit(t, sample_s, field, expected)
-    check_gap(t, max_gap_s, field, gap_key)
+    check_gap(t, max_gap_s, field, gap_key, sample_s)
     return med
 
 

@@ -10,6 +10,7 @@ from snakemake.exceptions import WorkflowError as _SledWorkflowError
 from platcal.errors import InputError as _SledInputError
 from platcal.io import read_yaml as _sled_read_yaml
 from platcal.rigs.sled.config import load_config as _sled_load_config
+from platcal.rigs.sled.study import case_config as _sled_case_config
 from platcal.study.montecarlo import package_code_hash as _sled_code_hash
 
 SLED_TARGETS = []
@@ -21,6 +22,8 @@ if _SLED_CFG_PATH:
         raise _SledWorkflowError(f"invalid configuration: rigs.sled: cannot read {_SLED_CFG_PATH} ({exc})")
     try:
         _SLED_STUDY = _sled_load_config(SLED_RAW).study
+        for _sled_case in _SLED_STUDY["cases"]:   # every case's config (base + overrides) before any job
+            _sled_case_config(SLED_RAW, _sled_case)
     except _SledInputError as exc:
         raise _SledWorkflowError(f"invalid configuration: {_SLED_CFG_PATH}: {exc.field}: {exc.message}")
     SLED_CASES = list(_SLED_STUDY["cases"])

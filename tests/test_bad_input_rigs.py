@@ -286,3 +286,50 @@ def test_bad_output_path(rig, where, records, tmp_path, capsys):
     assert main(["identify", "--config", str(cfg), "--data", str(data), *IDENTIFY[rig], "--out", str(out)]) == 2
     assert "error: --out" in capsys.readouterr().err
     assert snapshot(tmp_path) == before
+
+
+# ---- failures are failures: a filter run that breaks exits 1 and writes nothing ------------------
+FAILING = {
+    "multiposition": lambda d: _set(d, "Ax", 30, 1e200),     # an absurd sample: the EKF's state overflows
+    "sled": lambda d: _set(d, "fy", 30, 1e300),              # the navigation overflows
+    "lowprec_centrifuge": lambda d: _set(d, "fE", 300, 1e300),  # (f/g0)^2 overflows: the filter's F is not finite
+}
+
+
+@pytest.mark.parametrize("rig", sorted(FAILING))
+def test_failed_run_exits_1_and_writes_nothing(rig, records, tmp_path, capsys):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(CONFIGS[rig])
+    data = tmp_path / "rec.csv"
+    FAILING[rig](records[rig].copy()).to_csv(data, index=False)
+    before = snapshot(tmp_path)
+    with np.errstate(all="ignore"):
+        rc = main(["identify", "--config", str(cfg), "--data", str(data), *IDENTIFY[rig], "--out", str(tmp_path / "id")])
+    err = capsys.readouterr().err
+    assert rc == 1, err
+    assert "failed" in err and "Nothing was written" in err and "Traceback" not in err
+    assert snapshot(tmp_path) == before
+
+
+def test_studies_flag_and_count_failed_runs():
+    """Sled and lowprec studies: failed runs are flagged, counted and left out of the tables."""
+    from platcal.rigs.lowprec_centrifuge.study import drop_failed, failed_fits
+    from platcal.rigs.sled.study import split_failed, table1
+
+    x = np.array([[1.0, 2.0], [np.nan, 1.0], [1.0, 1.0]])
+    P = np.array([np.eye(2), np.eye(2), [[1.0, 2.0], [2.0, 1.0]]])   # the third is not positive definite
+    assert failed_fits(x, P).tolist() == [False, True, True]
+    assert failed_fits(x).tolist() == [False, True, False]
+    coeffs = pd.DataFrame({"seed": [0, 0, 1, 1], "platform": "P1", "method": "proposed", "run": "run1",
+                           "coefficient": ["kA_x", "k2_x"] * 2, "estimate": [1.0, 2.0, np.nan, 3.0],
+                           "failed": [False, False, True, True]})
+    cross = pd.DataFrame({"seed": [0, 1], "effect_pct": [90.0, np.nan], "failed": [False, True]})
+    c, k, n = drop_failed(cross, coeffs)
+    assert n == 1 and len(k) == 2 and c["effect_pct"].tolist() == [90.0]
+    from platcal.rigs.sled.study import TABLE1_COLUMNS
+
+    m = pd.DataFrame({"seed": [0, 1, 2], "failed": [False, True, False],
+                      **{k: [1.0, np.nan, 3.0] for k, _ in TABLE1_COLUMNS}})
+    ok, failed = split_failed({"default": m})
+    assert failed == {"default": 1} and ok["default"]["seed"].tolist() == [0, 2]
+    assert table1(ok, failed).loc[0, "failed runs"] == 1

@@ -57,10 +57,11 @@ class Identification:
 def record_epochs(t: np.ndarray, period_s: float) -> Epochs:
     """Epochs of a record with times ``t`` (s from its start, increasing): the samples nearest
     the multiples of ``period_s`` within half the median step (decimation by time; an instant in
-    a gap is skipped and the next prediction spans both periods); sample intervals
+    a gap is skipped and the next prediction spans both periods), the first sample always being
+    epoch 0 (the run filter's prior); sample intervals
     ``dts = diff(t)``, the last sample covering the median step."""
     step = float(np.median(np.diff(t)))
-    k = nearest_samples(t, period_s, 0.5 * step)
+    k = np.union1d(0, nearest_samples(t, period_s, 0.5 * step))   # epoch 0 (the prior) is the first sample
     dts = np.r_[np.diff(t), step]
     return Epochs(k=k, T=np.diff(t[k]), dts=dts)
 

@@ -95,9 +95,9 @@ def _bad_record(src, tmp_path, how):
 
 
 @pytest.mark.parametrize("how, field", [
-    ("nan", "column VE, row 1235"),
+    ("nan", "column VE, row 1236"),   # rows counted as the file's lines (header = 1), as every rig
     ("no-revolution", "heading_deg"),
-    ("text", "column pN, row 6"),
+    ("text", "column pN, row 7"),
     ("no-column", "column heading_deg"),
 ])
 def test_bad_record_exits_2_nothing_written(records, tmp_path, capsys, how, field):

@@ -99,7 +99,8 @@ def _record(tmp_path, cfgfile):
 
 
 def _gap(df):
-    return df.drop(index=[100, 101]).reset_index(drop=True)
+    """10 samples missing: a 0.055 s gap, above record.max_gap_s = 0.02 s (a shorter one is accepted)."""
+    return df.drop(index=range(100, 110)).reset_index(drop=True)
 
 
 def _nan(df):
@@ -111,8 +112,8 @@ BAD_RECORDS = [
     ("gap", _gap, "--data column t"),
     ("missing fy", lambda df: df.drop(columns=["fy"]), "--data column fy"),
     ("missing t", lambda df: df.drop(columns=["t"]), "--data column t"),
-    ("nan", _nan, "--data column wy"),
-    ("short", lambda df: df.iloc[:-40], "--data"),
+    ("nan", _nan, "--data column wy, row 9"),
+    ("short", lambda df: df.iloc[:-40], "--data column t"),
     ("wrong rate", lambda df: df.assign(t=df.t * 2), "--data column t"),
 ]
 

@@ -2,12 +2,11 @@
 # centrifuge-imprecision sweep of section 2, one job per scenario, then tables, figures, report.
 # Reads its config from config["rigs"]["lowprec_centrifuge"]; without that key it defines no target.
 import re as _lp_re
-from pathlib import Path as _LpPath
 
 LOWPREC_CENTRIFUGE_TARGETS = []
 if config.get("rigs", {}).get("lowprec_centrifuge"):
     from platcal.errors import InputError as _LpInputError
-    from platcal.io import read_yaml as _lp_read_yaml
+    from platcal.cli import read_config as _lp_read_config
     from platcal.rigs.lowprec_centrifuge.config import load_config as _lp_load
     from platcal.rigs.lowprec_centrifuge.study import scenarios as _lp_scenarios
     from platcal.study.montecarlo import package_code_hash as _lp_code_hash
@@ -15,7 +14,7 @@ if config.get("rigs", {}).get("lowprec_centrifuge"):
 
     LOWPREC_CFG = config["rigs"]["lowprec_centrifuge"]
     try:
-        _LP_STUDY = _lp_load(_lp_read_yaml(_LpPath(LOWPREC_CFG).read_text()))
+        _LP_STUDY = _lp_load(_lp_read_config(LOWPREC_CFG))   # UTF-8 YAML, else InputError
     except _LpInputError as exc:
         raise _LpWorkflowError(f"invalid configuration {LOWPREC_CFG}: {exc.field}: {exc.message}")
     LOWPREC_SCENARIOS = list(_lp_scenarios(_LP_STUDY))

@@ -3,24 +3,23 @@
 # with results/sled/report.md), or an empty list when the key is absent.
 # One job per study case (6- vs 7-state, realtime vs post, misalignment 0, paper tuning), one
 # for the rank table, one for the summary (Table-1 analogue, checks, figures, report.md).
-from pathlib import Path as _SledPath
 
 from snakemake.exceptions import WorkflowError as _SledWorkflowError
 
 from platcal.errors import InputError as _SledInputError
-from platcal.io import read_yaml as _sled_read_yaml
+from platcal.cli import read_config as _sled_read_config
 from platcal.rigs.sled.config import load_config as _sled_load_config
+from platcal.rigs.sled.study import case_config as _sled_case_config
 from platcal.study.montecarlo import package_code_hash as _sled_code_hash
 
 SLED_TARGETS = []
 _SLED_CFG_PATH = config.get("rigs", {}).get("sled")
 if _SLED_CFG_PATH:
     try:
-        SLED_RAW = _sled_read_yaml(_SledPath(_SLED_CFG_PATH).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise _SledWorkflowError(f"invalid configuration: rigs.sled: cannot read {_SLED_CFG_PATH} ({exc})")
-    try:
+        SLED_RAW = _sled_read_config(_SLED_CFG_PATH)   # UTF-8 YAML, else InputError naming the file
         _SLED_STUDY = _sled_load_config(SLED_RAW).study
+        for _sled_case in _SLED_STUDY["cases"]:   # every case's config (base + overrides) before any job
+            _sled_case_config(SLED_RAW, _sled_case)
     except _SledInputError as exc:
         raise _SledWorkflowError(f"invalid configuration: {_SLED_CFG_PATH}: {exc.field}: {exc.message}")
     SLED_CASES = list(_SLED_STUDY["cases"])

@@ -8,31 +8,25 @@ written as well. Identification reads only the columns a real log has.
 
 from __future__ import annotations
 
-import io
 import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ...errors import InputError
 from ...io import atomic_to_csv, atomic_to_parquet
+from ...records import (PARQUET_MAGIC, TIME_TOL, UNIT_FACTOR, check_gap, check_increasing,  # noqa: F401
+                        check_time_unit, grid_origin, nearest_samples, read_frame)
+from ...records import num as _num, shown as _shown  # noqa: F401
 from ...model.frames import DEG
 from .scheme import Scheme
 
 LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay", "Az")
 TRUTH_COLUMNS = ("alpha", "beta", "gamma")
-TIME_TOL = 1e-6
-"""Tolerance (s) when matching sample times to filter instants."""
 UNIT_FACTOR_G = 3.0
 """A record whose median specific-force magnitude is this many times larger or smaller than the
 centrifuge's is refused: its accelerations are in another unit (m/s^2 gives 9.8, mg 1000)."""
-PARQUET_MAGIC = b"PAR1"
-"""The first (and last) four bytes of every Parquet file."""
-UNIT_FACTOR = 10.0
-"""A record whose median time step is this many times larger or smaller than the configured
-sample period is refused: its ``t`` is in another unit (ms for s gives a factor of 1000)."""
 
 
 @dataclass
@@ -79,27 +73,7 @@ def read_record(path: str | os.PathLike) -> pd.DataFrame:
     Raises InputError naming the column (and row) on missing or extra columns, non-numeric,
     NaN or infinite values.
     """
-    path = Path(path)
-    if not path.exists():
-        raise InputError("--data", f"no such file: {path}")
-    if path.is_dir():
-        raise InputError("--data", f"{path} is a folder; give a test record file (.csv or .parquet)")
-    parquet = path.suffix == ".parquet"
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(4)
-    except OSError as exc:
-        raise InputError("--data", f"cannot read {path}: {exc.strerror}") from None
-    if parquet and head != PARQUET_MAGIC:
-        raise InputError("--data", f"{path} is named .parquet but is not a Parquet file; a CSV record is named .csv")
-    if not parquet and head == PARQUET_MAGIC:
-        raise InputError("--data", f"{path} is a Parquet file named {path.suffix or 'without .parquet'}; "
-                         "rename it to .parquet")
-    text = None if parquet else _csv_text(path)
-    try:
-        df = pd.read_parquet(path) if parquet else pd.read_csv(io.StringIO(text))
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise InputError("--data", f"cannot read {path} as a test record: {exc}") from None
+    df = read_frame(path, "--data", "a test record")
     cols = list(df.columns)
     missing = [c for c in LOG_COLUMNS if c not in cols]
     if missing:
@@ -161,24 +135,11 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
         if t.size < 2:
             raise InputError(field, f"has {t.size} sample; a position of scheme {scheme.name!r} lasts "
                              f"{scheme.dwell_s:g} s, about {round(scheme.dwell_s / sample_s)} samples")
-        step = np.diff(t)
-        if np.any(step <= 0):
-            i = int(np.argmax(step <= 0)) + 1
-            raise InputError(field, f"time does not increase at sample {i + 1} of the position "
-                             f"(t = {_num(t[i - 1])} then {_num(t[i])} s)")
-        med = float(np.median(step))
-        ratio = med / sample_s
-        if ratio > UNIT_FACTOR or ratio < 1 / UNIT_FACTOR:
-            hint = " (t looks like milliseconds)" if 300 < ratio < 3000 else ""
-            raise InputError(field, f"median time step {med:g} s, expected about sampling.sample_ms = "
-                             f"{sample_s * 1e3:g} ms = {sample_s:g} s{hint}; t must be seconds since the "
-                             "position's start")
+        check_increasing(t, field, " of the position")
+        med = check_time_unit(t, sample_s, field, f"sampling.sample_ms = {sample_s * 1e3:g} ms = {sample_s:g} s",
+                              " since the position's start")
         t = t - position_origin(t, med, max_gap_s)
-        i = int(np.argmax(step))
-        if step[i] > max_gap_s:
-            raise InputError(field, f"gap of {step[i]:g} s between t = {_num(t[i])} and {_num(t[i + 1])} s, "
-                             f"more than record.max_gap_s = {max_gap_s:g} s (raise it in the config if the "
-                             "gap is harmless)")
+        check_gap(t, max_gap_s, field)
         if expected_g is not None:
             a = df[["Ax", "Ay", "Az"]].to_numpy(float)[pos == k]
             with np.errstate(over="ignore"):  # 1e300 g is refused below, without a numpy warning
@@ -212,19 +173,7 @@ def position_origin(t: np.ndarray, step: float, max_gap_s: float | None) -> floa
     """
     if max_gap_s is None or abs(t[0]) <= max_gap_s:
         return 0.0
-    d = t - t[0]
-    return float(t[0] + np.median(d - step * np.round(d / step)))
-
-
-def _num(v) -> int | float:
-    """A plain Python number for messages (no ``np.float64(...)``)."""
-    v = float(f"{float(v):.10g}")  # no float noise such as 1.6500000000000001
-    return int(v) if v.is_integer() else v
-
-
-def _shown(v) -> str:
-    """A record value for a message: text quoted, numbers plain."""
-    return repr(v) if isinstance(v, str) else str(_num(v))
+    return grid_origin(t, step)
 
 
 def _ranges(ks: list[int]) -> str:
@@ -237,30 +186,6 @@ def _ranges(ks: list[int]) -> str:
             out.append(str(start) if start == k else f"{start}..{k}")
             start = None
     return ", ".join(out)
-
-
-def _csv_text(path: Path) -> str:
-    """The text of a CSV record: UTF-8 without NUL bytes, last line complete.
-
-    A last line with fewer fields than the header is reported as a truncated file (a log cut off
-    while being written), not as a bad number.
-    """
-    raw = path.read_bytes()
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError("--data", f"{path} is not a UTF-8 CSV file (byte {exc.start} cannot be decoded); "
-                         "a test record is CSV text or Parquet (.parquet)") from None
-    if "\x00" in text:
-        raise InputError("--data", f"{path} is not a CSV text file (it holds NUL bytes); a test record is CSV "
-                         "text or Parquet (.parquet)")
-    lines = text.rstrip("\r\n").splitlines()
-    if len(lines) >= 2:
-        n_head, n_last = lines[0].count(","), lines[-1].count(",")
-        if n_last < n_head:
-            raise InputError(f"--data line {len(lines)}", f"the last line is truncated: {n_last + 1} of "
-                             f"{n_head + 1} fields (was the file cut off while being written?)")
-    return text
 
 
 def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
@@ -305,15 +230,3 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
         ts.append(t[keep])
         zs.append(rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep][None])
     return FilterInput(positions=present, t=ts, z=zs, cmd_deg=cmd[np.array(present) - 1])
-
-
-def nearest_samples(t: np.ndarray, period_s: float, tol_s: float) -> np.ndarray:
-    """Indices of the samples nearest each multiple of ``period_s`` (within ``tol_s``), increasing
-    and without repeats. ``t`` increases."""
-    m = np.arange(np.ceil((t[0] - tol_s) / period_s), np.floor((t[-1] + tol_s) / period_s) + 1)
-    want = m * period_s
-    j = np.clip(np.searchsorted(t, want), 1, t.size - 1) if t.size > 1 else np.zeros(want.size, dtype=int)
-    if t.size > 1:
-        j = np.where(np.abs(t[j - 1] - want) <= np.abs(t[j] - want), j - 1, j)
-    ok = np.abs(t[j] - want) <= tol_s + TIME_TOL
-    return np.unique(j[ok])

@@ -13,10 +13,11 @@ import time
 import numpy as np
 
 from ...errors import InputError
-from ...io import check_writable
+from ...io import atomic_files, check_writable, json_text
 from .config import COEFFS, Study
 from .proposed import identify_proposed
-from .record import check_out_path, read_record, record_frame, truth_json, write_estimates, write_record
+from .record import (check_against_config, check_out_path, estimates_frame, read_record, record_frame, truth_json,
+                     write_record)
 from .traditional import identify_traditional
 from .truth import simulate_batch
 
@@ -60,7 +61,9 @@ def identify(study: Study, args) -> int:
     if method not in METHODS:
         raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
     check_writable(args.out, "--out", folder=True)
-    rec = read_record(args.data, use_truth=not args.no_truth)
+    max_gap = float(study.raw["record"]["max_gap_s"])
+    rec = read_record(args.data, use_truth=not args.no_truth, rate_hz=study.rate_hz, max_gap_s=max_gap)
+    found = check_against_config(rec, study, method, max_gap)
     t0 = time.perf_counter()
     arm = study.centrifuge.arm_m
     if method == "proposed":
@@ -68,13 +71,45 @@ def identify(study: Study, args) -> int:
                                 study.latitude_deg)
         est, sig = res.coeffs[0], res.sigmas[0]
         extra = f"{int(res.n_windows[0])} windows"
+        problems = run_problems(res.x[0], res.P[0])
+        found["windows"] = int(res.n_windows[0])
     else:
         est = identify_traditional(rec.t, rec.v[None], rec.psi[None], rec.schedule,
                                    study.traditional["levels_g"], arm)[0]
         sig = np.full(4, np.nan)   # eq. (2) gives no uncertainty
         extra = "eq. (2)"
+        problems = run_problems(est, None)
+    if problems:
+        print(f"platcal identify: error: the lowprec_centrifuge {method} identification over {args.data} failed: "
+              f"{'; '.join(problems)}. Nothing was written to {args.out}. Check the record's units (VE, VN in "
+              "m/s, heading_deg in deg) and its schedule.", file=sys.stderr)
+        return 1
+    seconds = time.perf_counter() - t0
     truth = rec.truth["coefficients"] if rec.truth and "coefficients" in rec.truth else None
-    path = write_estimates(args.out, COEFFS, est, sig, truth)
-    print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {time.perf_counter() - t0:.2f} s -> {path}; "
+    df = estimates_frame(COEFFS, est, sig, truth)
+    summary = {"rig": "lowprec_centrifuge", "method": method, "samples": int(rec.t.size), **found,
+               "coefficients": dict(zip(COEFFS, map(float, est))), "truth_known": truth is not None,
+               "seconds": round(seconds, 3)}
+    with atomic_files(args.out) as tmp:   # both files land together, summary.json last
+        df.to_csv(tmp("estimates.csv"), index=False)
+        tmp("summary.json").write_text(json_text(summary))
+    print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {seconds:.2f} s -> {args.out}; "
           + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est)), file=sys.stderr)
     return 0
+
+
+def run_problems(x: np.ndarray, P: np.ndarray | None) -> list[str]:
+    """Why an identification cannot be trusted (empty if it can): non-finite estimates, a
+    covariance (proposed filter) that is not finite or not positive definite."""
+    out = []
+    if not np.all(np.isfinite(x)):
+        out.append("non-finite estimate(s)")
+    if P is not None:
+        if not np.all(np.isfinite(P)):
+            out.append("the covariance has non-finite entries")
+        else:
+            try:
+                np.linalg.cholesky(0.5 * (P + P.T))
+            except np.linalg.LinAlgError:
+                out.append("the final covariance is not positive definite")
+    return out

@@ -108,7 +108,7 @@ def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray) -> Wind
             ts.append(a), te.append(b), spin.append(False)
         c = revolution_crossings(t, psi_u, ia, ib)
         edges = [t[ia], *c.tolist()]
-        if t[ib] - edges[-1] < 0.5 * (t[1] - t[0]):
+        if t[ib] - edges[-1] < 0.5 * float(np.median(np.diff(t[ia:ib + 1]))):  # half a sample (jitter-proof)
             edges[-1] = t[ib]
         else:
             edges.append(t[ib])

@@ -19,13 +19,17 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
-from ...io import atomic_path, atomic_to_csv, atomic_to_parquet, atomic_write_text
-from .config import COEFFS
-from .profile import SCHEDULE_NAMES
+from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
+from ...records import check_times, read_table
+from .config import COEFFS, G0
+from .profile import HOLD, SCHEDULE_NAMES, SPINNING, STATIC
 from .truth import RunBatch
 
 REQUIRED = ("t", "VE", "VN", "pE", "pN", "heading_deg", "schedule")
 NUMERIC = ("t", "VE", "VN", "pE", "pN", "heading_deg", "fE", "fN")
+TRUTH_COLUMNS = ("truth_dVE", "truth_dVN", "truth_dpE", "truth_dpN", "truth_theta_deg", "truth_phi_x",
+                 "truth_phi_y", "truth_phi_z")
+"""Simulation-only columns (never read by the identification)."""
 
 
 @dataclass(frozen=True)
@@ -91,43 +95,34 @@ def write_record(df: pd.DataFrame, meta: dict, path) -> None:
         atomic_to_csv(df, path)
 
 
-def read_record(path, use_truth: bool = True) -> Record:
-    """Read and check a record; InputError naming the column (and row) of the first problem."""
+def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s: float = 0.05) -> Record:
+    """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.read_table`);
+    InputError naming the column (and row) of the first problem.
+
+    Times as recorded (docs/lowprec-centrifuge.md §12, "Recorded times"): ``t`` must increase,
+    its median step be within a factor 10 of ``1 / rate_hz`` (``profile.rate_hz``: t in seconds),
+    and no gap exceed ``max_gap_s`` (``record.max_gap_s``); jitter and a constant offset are kept
+    (the windows, their integrals and the plateau spans all use the record's own times).
+    """
+    df = read_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
+                    text=("schedule",), what="a lowprec_centrifuge record", min_rows=3)
     p = Path(path)
-    if not p.is_file():
-        raise InputError("--data", f"no such record file: {path}")
-    try:
-        df = pd.read_parquet(p) if p.suffix == ".parquet" else pd.read_csv(p)
-    except Exception as exc:  # noqa: BLE001 - any reader failure is bad input
-        raise InputError("--data", f"cannot read {p.name} as a record ({exc.__class__.__name__})") from None
-    missing = [c for c in REQUIRED if c not in df.columns]
-    if missing:
-        raise InputError(f"{p.name}: column {missing[0]}", f"missing; a record has columns {list(REQUIRED)}")
-    if len(df) < 3:
-        raise InputError(f"{p.name}: rows", "a record needs at least 3 samples")
-    for c in NUMERIC:
-        if c not in df.columns:
-            continue
-        col = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(col))
-        if bad.size:
-            raise InputError(f"{p.name}: column {c}, row {int(bad[0]) + 1}",
-                             f"not a finite number ({df[c].iloc[bad[0]]!r}); NaN or text in a record is refused")
-        df[c] = col
-    t = df["t"].to_numpy()
-    if np.any(np.diff(t) <= 0):
-        raise InputError(f"{p.name}: column t, row {int(np.flatnonzero(np.diff(t) <= 0)[0]) + 2}",
-                         "time must increase strictly")
+    t = df["t"].to_numpy(float)
+    check_times(t, 1.0 / rate_hz, max_gap_s, "--data column t", f"profile.rate_hz = {rate_hz:g} Hz, a step of "
+                f"{1.0 / rate_hz:g} s")
     sched_s = df["schedule"].astype(str)
     bad = ~sched_s.isin(SCHEDULE_NAMES)
     if bad.any():
         i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise InputError(f"{p.name}: column schedule, row {i + 1}",
+        raise InputError(f"--data column schedule, row {i + 2}",
                          f"{sched_s.iloc[i]!r} is not one of {list(SCHEDULE_NAMES)}")
     schedule = np.array([SCHEDULE_NAMES.index(s) for s in sched_s], dtype=np.int8)
     v = df[["VE", "VN"]].to_numpy()
     if "fE" in df.columns and "fN" in df.columns:
         f = df[["fE", "fN"]].to_numpy()
+    elif "fE" in df.columns or "fN" in df.columns:
+        raise InputError(f"--data column {'fN' if 'fE' in df.columns else 'fE'}",
+                         "the specific force comes as both fE and fN or not at all")
     else:  # [D] no specific-force columns: differentiate the INS velocity (nav frame, Coriolis neglected)
         f = np.gradient(v, t, axis=0)
     truth = None
@@ -141,13 +136,76 @@ def read_record(path, use_truth: bool = True) -> Record:
                   schedule=schedule, truth=truth)
 
 
-def write_estimates(out_dir, names, est, sigma, truth: dict | None) -> Path:
-    """``estimates.csv`` (name, estimate, sigma, truth, error) in ``out_dir``, atomically."""
+LEVEL_TOL = 0.05
+"""Relative tolerance when the record's spin levels are compared with the config's (5 %: the rate
+error of a poor centrifuge, a few 1e-3, and the heading noise are far below it)."""
+
+
+def spin_levels(rec: Record, arm_m: float, kind: str = "spin") -> list[tuple[float, float, float, int]]:
+    """Per spin (``kind='spin'``: non-static stretches) or plateau (``'hold'``): ``(level g, start s,
+    end s, samples)``. The level comes from the heading rate over about 0.1 s (10 samples, so the
+    heading noise averages out): its peak for a spin, its median for a plateau; A = w^2 r_nom / g0."""
+    psi = np.unwrap(rec.psi)
+    h = 5
+    rate = np.zeros_like(psi)
+    rate[h:-h] = (psi[2 * h:] - psi[:-2 * h]) / (rec.t[2 * h:] - rec.t[:-2 * h])
+    mask = rec.schedule != STATIC if kind == "spin" else rec.schedule == HOLD
+    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
+    out = []
+    for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        w = np.abs(rate[a:b])
+        w = float(np.median(w) if kind == "hold" else np.max(w))
+        out.append((w * w * arm_m / G0, float(rec.t[a]), float(rec.t[b - 1]), int(b - a)))
+    return out
+
+
+def check_against_config(rec: Record, study, method: str, max_gap_s: float) -> dict:
+    """Refuse a record that is not a run of the config (InputError naming the column), before any
+    filtering; return what was found (levels, samples per phase) for the summary.
+
+    ``proposed``: the record's spins (schedule not static) must peak at the two levels of one of
+    the config's proposed runs (``runs``, any platform; :data:`LEVEL_TOL`). ``traditional``: it
+    must hold two plateaus at ``traditional.levels_g`` for ``traditional.hold_s`` each (within
+    ``max_gap_s`` plus a sample): the method's eq. (2) uses those config values, not the record's.
+    """
+    arm = study.centrifuge.arm_m
+    step = float(np.median(np.diff(rec.t)))
+    found = {"static": int(np.sum(rec.schedule == STATIC)), "spinning": int(np.sum(rec.schedule == SPINNING)),
+             "hold": int(np.sum(rec.schedule == HOLD))}
+    if method == "traditional":
+        holds = spin_levels(rec, arm, "hold")
+        want = list(study.traditional["levels_g"])
+        if len(holds) != len(want):
+            raise InputError("--data column schedule", f"the record has {len(holds)} 'hold' plateau(s); the "
+                             f"traditional method (traditional.levels_g = {want}) needs {len(want)}")
+        for i, ((lvl, a, b, _), w) in enumerate(zip(holds, want)):
+            if abs(lvl - w) > LEVEL_TOL * w:
+                raise InputError("--data column heading_deg", f"plateau {i + 1} (t = {a:g} .. {b:g} s) turns at "
+                                 f"{lvl:.4g} g by the heading rate, but traditional.levels_g[{i}] = {w:g} g: the "
+                                 "record is not this config's traditional run")
+            dur, hold = b - a + step, float(study.traditional["hold_s"])
+            if abs(dur - hold) > max_gap_s + step:
+                raise InputError("--data column schedule", f"plateau {i + 1} lasts {dur:g} s (t = {a:g} .. {b:g} s), "
+                                 f"but traditional.hold_s = {hold:g} s (record.max_gap_s = {max_gap_s:g} s)")
+        return {"levels_g": [round(h[0], 4) for h in holds], "samples_per_phase": found,
+                "samples_per_plateau": [h[3] for h in holds]}
+    spins = spin_levels(rec, arm, "spin")
+    got = [s[0] for s in spins]
+    runs = {f"{p}.{r}": lv for p, rr in study.runs.items() for r, lv in rr.items()}
+    match = [n for n, lv in runs.items() if len(lv) == len(got)
+             and all(abs(g - w) <= LEVEL_TOL * w for g, w in zip(got, lv))]
+    if not match:
+        raise InputError("--data column heading_deg", f"the record spins {len(got)} time(s) up to "
+                         f"{[round(g, 3) for g in got]} g (heading rate, arm_m = {arm:g} m), which matches no "
+                         f"proposed run of the config (runs: {runs}); add the run to the config or check arm_m")
+    return {"levels_g": [round(g, 4) for g in got], "matches_runs": match, "samples_per_phase": found,
+            "samples_per_spin": [s[3] for s in spins]}
+
+
+def estimates_frame(names, est, sigma, truth: dict | None) -> pd.DataFrame:
+    """``estimates.csv``'s table: name, estimate, sigma (and truth, error where known)."""
     df = pd.DataFrame({"name": list(names), "estimate": est, "sigma": sigma})
     if truth is not None:
         df["truth"] = [truth[n] for n in names]
         df["error"] = df["estimate"] - df["truth"]
-    path = Path(out_dir) / "estimates.csv"
-    with atomic_path(path) as tmp:
-        df.to_csv(tmp, index=False)
-    return path
+    return df

@@ -70,14 +70,41 @@ def study_seeds(study: Study) -> np.ndarray:
     return np.arange(s["first_seed"], s["first_seed"] + s["seeds"])
 
 
-def _coeff_rows(seeds, platform, method, run, est, sig, truth) -> pd.DataFrame:
+def _coeff_rows(seeds, platform, method, run, est, sig, truth, failed) -> pd.DataFrame:
     rows = []
     for i, s in enumerate(seeds):
         for j, name in enumerate(COEFFS):
             rows.append((int(s), platform, method, run, name, est[i, j], sig[i, j] if sig is not None else np.nan,
-                         truth[j]))
+                         truth[j], bool(failed[i])))
     return pd.DataFrame(rows, columns=["seed", "platform", "method", "run", "coefficient", "estimate", "sigma",
-                                       "truth"])
+                                       "truth", "failed"])
+
+
+def failed_fits(x: np.ndarray, P: np.ndarray | None = None) -> np.ndarray:
+    """(S,) True where a seed's identification failed: a non-finite estimate, or (proposed filter)
+    a covariance that is not finite or not positive definite. Such runs are flagged in the tidy
+    tables (column ``failed``) and counted in the report, never averaged in (:func:`drop_failed`)."""
+    bad = ~np.all(np.isfinite(x), axis=1)
+    if P is not None:
+        for i in range(P.shape[0]):
+            if bad[i] or not np.all(np.isfinite(P[i])):
+                bad[i] = True
+                continue
+            try:
+                np.linalg.cholesky(0.5 * (P[i] + P[i].T))
+            except np.linalg.LinAlgError:
+                bad[i] = True
+    return bad
+
+
+def drop_failed(cross: pd.DataFrame, coeffs: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, int]:
+    """The rows of runs that did not fail, and the number of failed identification runs
+    (seed x platform x method x run); tables written before this column existed pass through."""
+    if "failed" not in coeffs:
+        return cross, coeffs, 0
+    n = int(coeffs[coeffs["failed"]].groupby([c for c in ("scenario", "seed", "platform", "method", "run")
+                                              if c in coeffs]).ngroups)
+    return cross[~cross["failed"]], coeffs[~coeffs["failed"]], n
 
 
 def run_scenario(study: Study, seeds, log=None, trace: bool = False) -> dict:
@@ -95,20 +122,22 @@ def run_scenario(study: Study, seeds, log=None, trace: bool = False) -> dict:
     done = 0
     for p in study.platform_names():
         truth = np.array([study.platforms[p][c] for c in COEFFS], dtype=float)
-        finals, sens, est = {}, {}, {}
+        finals, sens, est, fail = {}, {}, {}, {}
         for r in study.run_names(p):
             rb = simulate_batch(study, p, r, seeds)
             if r == "traditional":
                 c = identify_traditional(rb.prof.t, rb.v_ind, rb.psi, rb.prof.schedule, rb.prof.levels,
                                          study.centrifuge.arm_m)
                 est["traditional"] = c
-                coeffs.append(_coeff_rows(seeds, p, "traditional", r, c, None, truth))
+                fail["traditional"] = failed_fits(c)
+                coeffs.append(_coeff_rows(seeds, p, "traditional", r, c, None, truth, fail["traditional"]))
             else:
                 fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
                                        study.centrifuge.arm_m, study.latitude_deg)
                 est[r] = fr.coeffs
+                fail[r] = failed_fits(fr.x, fr.P)
                 finals[r], sens[r] = rb.final.copy(), rb.sens_final.copy()
-                coeffs.append(_coeff_rows(seeds, p, "proposed", r, fr.coeffs, fr.sigmas, truth))
+                coeffs.append(_coeff_rows(seeds, p, "proposed", r, fr.coeffs, fr.sigmas, truth, fail[r]))
                 if trace and tr is None:
                     tr = _trace(rb, fr.coeffs[0], truth)
             done += 1
@@ -123,8 +152,10 @@ def run_scenario(study: Study, seeds, log=None, trace: bool = False) -> dict:
             cells = [("proposed", i, est[i]) for i in finals] + [("traditional", "traditional", est["traditional"]),
                                                                    ("truth", "truth", tcoef)]
             for method, i, c in cells:
-                cross.append(cross_rows(seeds, p, method, i, j, finals[j], compensate(finals[j], sens[j], c),
-                                        after_truth))
+                rows = cross_rows(seeds, p, method, i, j, finals[j], compensate(finals[j], sens[j], c), after_truth)
+                bad = dict(zip(map(int, seeds), fail.get(i, np.zeros(seeds.size, bool))))
+                rows["failed"] = rows["seed"].map(bad).astype(bool)   # the calibration run failed
+                cross.append(rows)
     return {"cross": pd.concat(cross, ignore_index=True), "coeffs": pd.concat(coeffs, ignore_index=True),
             "trace": tr}
 

@@ -53,22 +53,51 @@ def identify(cfg, rec, passes: int | None = None):
     return c[0], P[0], float(nis[0])
 
 
+def run_problems(est: np.ndarray, P: np.ndarray, nis: float) -> list[str]:
+    """Why an EKF run cannot be trusted (empty if it can): non-finite estimates, a covariance
+    that is not finite or not positive definite, a non-finite NIS (an update that went wrong).
+    Messages in plain numbers and coefficient names."""
+    out = []
+    bad = np.flatnonzero(~np.isfinite(est))
+    if bad.size:
+        names = [coef_names()[i] for i in bad]
+        out.append(f"{len(names)} non-finite estimate(s) ({', '.join(names[:5])}{' ...' if len(names) > 5 else ''})")
+    if not np.all(np.isfinite(P)):
+        out.append("the covariance has non-finite entries")
+    else:
+        try:
+            np.linalg.cholesky(0.5 * (P + P.T))
+        except np.linalg.LinAlgError:
+            out.append("the final covariance is not positive definite")
+    if not np.isfinite(nis):
+        out.append("the normalised innovations are not finite")
+    return out
+
+
 def cmd_identify(cfg, args) -> int:
     _refuse(args, ("method",))
     if args.estimator not in (None, *ESTIMATORS):
         raise InputError("--estimator", f"unknown estimator {args.estimator!r}; rig multiposition has {list(ESTIMATORS)}")
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
-    rec, scheme = read_record(args.data, scheme)
+    rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]))
     t0 = time.perf_counter()
     est, P, nis = identify(cfg, rec)
     seconds = time.perf_counter() - t0
+    problems = run_problems(est, P, nis)
+    if problems:
+        print(f"platcal identify: error: the multiposition EKF run over {args.data} failed: {'; '.join(problems)}. "
+              f"Nothing was written to {args.out}. Check the record's units (Ax, Ay, Az in g, angles in deg) "
+              "and the config's noise and filter settings.", file=sys.stderr)
+        return 1
+    used = rec.samples_used()
     names = coef_names()
     sig = np.sqrt(np.diag(P))
     df = pd.DataFrame({"name": names, "unit": [unit_of(n) for n in names], "group": [group_of(n) for n in names],
                        "estimate": est, "sigma": sig})
     summary = {"rig": "multiposition", "scheme": scheme.name, "n_states": len(names) + 3, "passes": cfg.passes,
-               "positions": int(len(rec.t)), "samples": int(sum(len(t) for t in rec.t)), "mean_nis": nis,
+               "positions": int(len(rec.t)), "samples": int(sum(used.values())),
+               "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
     use_truth = rec.has_truth and not args.no_truth
     if use_truth:
@@ -84,7 +113,8 @@ def cmd_identify(cfg, args) -> int:
     with atomic_files(out) as tmp:  # both files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
         tmp("summary.json").write_text(json_text(summary))
-    msg = f"platcal identify: multiposition 27-state EKF, {cfg.passes} pass(es), {seconds:.2f} s -> {out}"
+    msg = (f"platcal identify: multiposition 27-state EKF, {cfg.passes} pass(es), {min(used.values())}-"
+           f"{max(used.values())} samples per position, {seconds:.2f} s -> {out}")
     if use_truth:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.3f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.4f} %, NEES {summary['nees']:.1f} (dof 24)")

@@ -3,7 +3,8 @@
 The centrifuge's record (docs/centrifuge-model.md §13: ``position, t, alpha_cmd, beta_cmd,
 gamma_cmd, Ax, Ay, Az`` in s, deg and g) plus the measured gimbal angles ``alpha_m, beta_m,
 gamma_m`` (deg, present in a real log) and, for simulated runs only, the true ``alpha, beta,
-gamma`` (deg). A recorded log in these columns is identified exactly as a simulated one.
+gamma`` (deg). A recorded log in these columns is identified exactly as a simulated one; its
+timestamps are used as recorded (:func:`read_record`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import pandas as pd
 
 from ...errors import InputError
 from ...model.frames import DEG
+from ...records import check_times, grid_origin, nearest_samples, num, read_table
 from ..centrifuge.record import LOG_COLUMNS, TRUTH_COLUMNS, write_record  # noqa: F401  (re-exported)
 from ..centrifuge.scheme import Scheme
 
@@ -34,6 +36,13 @@ class Record:
     t: list
     z: list
     has_truth: bool
+    positions: list = None
+    """Position numbers (1-based) of ``t`` and ``z``; None: 1..K."""
+
+    def samples_used(self) -> dict[int, int]:
+        """Samples the EKF uses, per position number."""
+        ks = self.positions or list(range(1, len(self.t) + 1))
+        return {int(k): int(len(t)) for k, t in zip(ks, self.t)}
 
     def packed(self):
         """``(tk (K, m), Z (1, K, m, 6), nk (K,))`` padded to the longest position."""
@@ -66,62 +75,77 @@ def to_frame(scheme: Scheme, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> p
     return pd.DataFrame(df)
 
 
-def read_record(path: str | os.PathLike, scheme: Scheme | None = None) -> tuple[Record, Scheme]:
-    """Read and check a record (CSV or Parquet); InputError naming the column otherwise.
+def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float = 0.02,
+                max_gap_s: float = 0.1) -> tuple[Record, Scheme]:
+    """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.read_table`) and
+    select the samples the EKF uses; InputError naming the column (and position) otherwise.
 
-    With ``scheme`` the commanded angles must match it; without, the positions are taken from
-    the record (a recorded log needs no scheme file).
+    Times as recorded (docs/multiposition-1g.md §16): per position, ``t`` must increase, its
+    median step must be within a factor 10 of the sample period ``ts`` (``sampling.ts_ms``, so
+    t is in seconds), and no gap may exceed ``max_gap_s`` (``record.max_gap_s``). A position's
+    clock may restart at 0 (a first sample within ``max_gap_s`` of 0) or run on from any origin
+    (a constant offset, removed by :func:`platcal.records.grid_origin`). The EKF instants are
+    the multiples of ``ts`` from the position's start; each takes the nearest sample within half
+    the median step (decimation by time), used at its recorded time: the filter propagates over
+    the actual interval, so jitter enters the dynamics and a small gap drops only the instants it
+    covers. With ``scheme`` the record must hold exactly its positions 1..K, with its commanded
+    angles, each spanning the scheme's dwell (within ``max_gap_s``); without, the positions and
+    dwell are taken from the record (a recorded log needs no scheme file).
     """
-    path = Path(path)
-    try:
-        df = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
-    except FileNotFoundError:
-        raise InputError("--data", f"no such file: {path}") from None
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise InputError("--data", f"cannot read {path} as a test record: {exc}") from None
+    df = read_table(path, COLUMNS, TRUTH_COLUMNS, what="a multiposition record")
     cols = list(df.columns)
-    missing = [c for c in COLUMNS if c not in cols]
-    if missing:
-        raise InputError(f"--data column {missing[0]}", f"missing; a multiposition record has columns "
-                         f"{list(COLUMNS)} (the gimbal angle sensors alpha_m, beta_m, gamma_m in deg, §12) "
-                         f"and optionally the true {list(TRUTH_COLUMNS)}")
-    extra = [c for c in cols if c not in COLUMNS + TRUTH_COLUMNS]
-    if extra:
-        raise InputError(f"--data column {extra[0]}", f"unexpected column; allowed: {list(COLUMNS + TRUTH_COLUMNS)}")
-    if len(df) == 0:
-        raise InputError("--data", "the record has no rows")
-    for c in cols:
-        v = pd.to_numeric(df[c], errors="coerce").to_numpy(float)
-        bad = ~np.isfinite(v)
-        if bad.any():
-            row = int(np.argmax(bad))
-            raise InputError(f"--data column {c}, row {row + 2}", f"value {df[c].iloc[row]!r} is not a finite number")
-        df[c] = v
+    present_truth = [c for c in TRUTH_COLUMNS if c in cols]
+    if present_truth and len(present_truth) != 3:
+        raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in cols][0]}",
+                         "the true angles come as all three of alpha, beta, gamma or not at all")
     pos = df["position"].to_numpy()
-    if np.any(pos != np.round(pos)) or pos.min() < 1:
-        raise InputError("--data column position", "positions are whole numbers from 1")
-    present = sorted(set(pos.astype(int)))
-    cmds, ts, zs = [], [], []
-    for k in present:
-        rows = df[pos == k]
-        c = rows[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
+    off = (pos != np.round(pos)) | (pos < 1)
+    if scheme is not None:
+        off |= pos > scheme.n_positions
+    if off.any():
+        where = f"scheme {scheme.name!r} has positions 1..{scheme.n_positions}" if scheme else \
+            "positions are whole numbers from 1"
+        raise InputError("--data column position", f"index {num(pos[off][0])} is not a position: {where}")
+    present = sorted({int(k) for k in pos})
+    cmds = []
+    for k in present:  # the commanded angles first: a wrong scheme shows there before anywhere else
+        c = df.loc[pos == k, ["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
         if np.ptp(c, axis=0).max() > 1e-9:
             raise InputError(f"--data position {k}", "commanded angles change within the position")
-        if scheme is not None:
-            if k > scheme.n_positions or np.max(np.abs(c[0] - scheme.angles_deg[k - 1])) > 1e-6:
-                raise InputError(f"--data position {k}", f"commanded angles {c[0].tolist()} are not those of "
-                                 f"scheme {scheme.name!r}; pick the right --scheme or leave it out")
-        t = rows["t"].to_numpy(float)
-        if np.any(np.diff(t) <= 0):
-            raise InputError(f"--data column t, position {k}", "time must increase within a position")
-        z = np.empty((len(rows), 6))
-        z[:, :3] = rows[["Ax", "Ay", "Az"]].to_numpy(float) / UG
-        z[:, 3:] = rows[list(ANGLE_COLUMNS)].to_numpy(float) * 3600.0
+        if scheme is not None and np.max(np.abs(c[0] - scheme.angles_deg[k - 1])) > 1e-6:
+            raise InputError(f"--data position {k}", f"commanded angles {c[0].tolist()} are not those of "
+                             f"scheme {scheme.name!r} ({scheme.angles_deg[k - 1].tolist()}); pick the right "
+                             "--scheme or leave it out")
         cmds.append(c[0])
-        ts.append(t - t[0])
+    if scheme is not None:
+        missing = [k for k in range(1, scheme.n_positions + 1) if k not in present]
+        if missing:
+            raise InputError("--data column position", f"the record has positions {present} but scheme "
+                             f"{scheme.name!r} has {scheme.n_positions}: missing {missing}; pick the right "
+                             "--scheme or record every position")
+    ts_used, zs = [], []
+    for k in present:
+        rows = df[pos == k]
+        field = f"--data column t, position {k}"
+        t = rows["t"].to_numpy(float)
+        med = check_times(t, ts, max_gap_s, field, f"sampling.ts_ms = {ts * 1e3:g} ms", where=" of the position")
+        t = t - (0.0 if abs(t[0]) <= max_gap_s else grid_origin(t, med))
+        if scheme is not None:
+            span = float(t[-1])
+            if abs(span - scheme.dwell_s) > max_gap_s:
+                raise InputError(field, f"position {k} spans {num(span)} s (t = {num(t[0])} .. {num(t[-1])} s "
+                                 f"from its start), but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s per "
+                                 f"position (record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
+        keep = nearest_samples(t, ts, 0.5 * med)
+        if keep.size < 2:
+            raise InputError(field, f"only {keep.size} sample(s) fall on the {ts * 1e3:g} ms filter instants")
+        z = np.empty((keep.size, 6))
+        z[:, :3] = rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep] / UG
+        z[:, 3:] = rows[list(ANGLE_COLUMNS)].to_numpy(float)[keep] * 3600.0
+        ts_used.append(t[keep])
         zs.append(z)
     cmd = np.array(cmds)
     if scheme is None:
-        dwell = max(float(t[-1]) for t in ts) or 1.0
-        scheme = Scheme(name=f"record:{path.name}", positions=tuple(map(tuple, cmd)), dwell_s=dwell)
-    return Record(cmd_deg=cmd, t=ts, z=zs, has_truth=all(c in cols for c in TRUTH_COLUMNS)), scheme
+        dwell = max(float(t[-1]) for t in ts_used) or 1.0
+        scheme = Scheme(name=f"record:{Path(path).name}", positions=tuple(map(tuple, cmd)), dwell_s=dwell)
+    return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=len(present_truth) == 3, positions=present), scheme

@@ -12,9 +12,9 @@ from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
 from ...study.tables import write_table
 from .config import SledConfig
-from .identify import estimates, identify, metrics
+from .identify import estimates, identify, metrics, run_problems
 from .observability import rank_table
-from .record import check_out_path, read_record, record_arrays, record_truth, write_record
+from .record import check_out_path, read_record, record_arrays, record_truth, samples_per_phase, write_record
 from .simulate import simulate
 
 
@@ -48,18 +48,26 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     """INS, run and stop filters and X compensation of a record -> estimates.csv, metrics.json."""
     refuse(args, ("scheme", "estimator", "method"))
     check_writable(args.out, "--out", folder=True)
-    traj, df = read_record(args.data, cfg)
+    traj, df, t = read_record(args.data, cfg)
     truth = None if args.no_truth else record_truth(args.data, df)
     t0 = time.perf_counter()
     f, w = record_arrays(df)
-    idn = identify(cfg, traj, f, w)
+    idn = identify(cfg, traj, f, w, t=t)
+    problems = run_problems(idn)
+    if problems:
+        print(f"platcal identify: error: the sled filters over {args.data} failed: {'; '.join(problems)}. "
+              f"Nothing was written to {args.out}. Check the record's units (f in m/s^2, w in rad/s) and the "
+              "config's filter settings.", file=sys.stderr)
+        return 1
     met = metrics(idn, truth).iloc[0]
     est = estimates(idn, truth)
     seconds = time.perf_counter() - t0
     out = Path(args.out)
     summary = {k: (None if not np.isfinite(v) else float(v)) for k, v in met.items()}
     summary.update({"states": cfg.states, "compensation": cfg.compensation, "tuning": cfg.tuning,
-                    "truth_known": truth is not None, "seconds": round(seconds, 3)})
+                    "truth_known": truth is not None, "seconds": round(seconds, 3),
+                    "samples": int(len(t)), "samples_used_per_phase": samples_per_phase(traj, t, cfg.dt),
+                    "filter_epochs": {"run": int(idn.j_stop), "stop": int(idn.j_end - idn.j_stop)}})
     with atomic_files(out) as tmp:  # both files land together, metrics.json last
         est.to_csv(tmp("estimates.csv"), index=False, float_format="%.6g")
         tmp("metrics.json").write_text(json_text(summary))

@@ -100,7 +100,7 @@ def propagate_full(fl: np.ndarray, omega_ie: np.ndarray, phi0: np.ndarray, nabla
 
 
 @nb.njit(cache=True)
-def _run_model(fl, w, x0, has_phix, dt, out):
+def _run_model(fl, w, x0, has_phix, dts, out):
     S, N = fl.shape[0], fl.shape[1]
     for s in range(S):
         vy, ry, vz, rz = 0.0, 0.0, 0.0, 0.0
@@ -110,6 +110,7 @@ def _run_model(fl, w, x0, has_phix, dt, out):
         out[s, 0, 0] = 0.0
         out[s, 0, 1] = 0.0
         for k in range(N):
+            dt = dts[k]
             fx, fy, fz = fl[s, k, 0], fl[s, k, 1], fl[s, k, 2]
             ay = fz * px - fx * pz + 2 * w[0] * vz
             az = fx * py - fy * px - 2 * w[0] * vy
@@ -130,16 +131,17 @@ def _run_model(fl, w, x0, has_phix, dt, out):
             out[s, k + 1, 1] = rz
 
 
-def propagate_run_model(fl: np.ndarray, omega_ie: np.ndarray, phi: np.ndarray, states: int, dt: float) -> np.ndarray:
+def propagate_run_model(fl: np.ndarray, omega_ie: np.ndarray, phi: np.ndarray, states: int, dt) -> np.ndarray:
     """Metric B's model (§8): the run model driven by recorded f^l and a fixed attitude estimate.
 
     x_0 = [0, 0, 0, 0, φ̂] (``phi`` (S,3) rad, [φ_x, φ_y, φ_z]; φ_x ≡ 0 for 6 states),
     noise-free, integrated at the IMU rate with the INS's scheme (velocity and attitude Euler,
     position trapezoid); the equations are those of :func:`run_F`. Returns the model's
-    [δr_y, δr_z] (S,N+1,2), m.
+    [δr_y, δr_z] (S,N+1,2), m. ``dt``: the IMU period or (N,) the record's sample intervals, s.
     """
     fl = np.ascontiguousarray(fl, dtype=np.float64)
+    dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (fl.shape[1],)))
     out = np.empty((fl.shape[0], fl.shape[1] + 1, 2))
     _run_model(fl, np.asarray(omega_ie, dtype=np.float64), np.ascontiguousarray(phi, dtype=np.float64),
-               states == 7, float(dt), out)
+               states == 7, dts, out)
     return out

@@ -7,6 +7,11 @@ filter epochs are the navigation states k = m·j (m = IMU samples per filter per
 at j = 0 is the prior (x = 0 for the run filter), and each later epoch is a prediction over
 the preceding m samples, with F from the mean computed specific force over them, then an
 update with the navigation values at k = m·j.
+
+Recorded times (§12): the epochs are the samples nearest the multiples of the filter period
+(:class:`Epochs`, decimation by time); each prediction spans the actual interval T_j between its
+epochs (Φ and, with the default tuning, Q_d = diag(q)·T_j), F uses the interval-weighted mean
+force of the samples in between. On a clean record this is exactly the grid above.
 """
 
 from __future__ import annotations
@@ -26,11 +31,30 @@ SIG_PHI = (3e-4, 3e-4, 2e-3)   # rad, P0 of φ_x, φ_y, φ_z (§6.1)
 
 @dataclass(frozen=True)
 class Tuning:
-    """P0 (n,n), Q per step (n,n) and R (4,4) of one filter (SI units, rad)."""
+    """P0 (n,n), Q per step (n,n) and R (4,4) of one filter (SI units, rad). ``per_step``: Q is
+    per filter step whatever its length (paper tuning); otherwise it is for the nominal period
+    and scales with each step's actual length."""
 
     P0: np.ndarray
     Qd: np.ndarray
     R: np.ndarray
+    per_step: bool = False
+
+
+@dataclass(frozen=True)
+class Epochs:
+    """Filter epochs of a record: ``k`` (J+1,) sample indices (increasing, k[0] = 0), ``T`` (J,)
+    the intervals between them (s), ``dts`` (N,) the interval each sample covers (s)."""
+
+    k: np.ndarray
+    T: np.ndarray
+    dts: np.ndarray
+
+    @staticmethod
+    def grid(n: int, m: int, dt: float) -> "Epochs":
+        """The clean grid: every m-th of n samples, dt apart."""
+        k = m * np.arange((n - 1) // m + 1)
+        return Epochs(k=k, T=np.full(k.size - 1, m * dt), dts=np.full(n, dt))
 
 
 @dataclass(frozen=True)
@@ -50,7 +74,7 @@ def run_tuning(cfg: SledConfig, states: int) -> Tuning:
     """§6.1: default tuning, or the paper's literal P0 = I, Q_d = 1e-9 I, R = 1e6 I."""
     T = cfg.period_ms / 1000.0
     if cfg.tuning == "paper":
-        return Tuning(np.eye(states), 1e-9 * np.eye(states), 1e6 * np.eye(4))
+        return Tuning(np.eye(states), 1e-9 * np.eye(states), 1e6 * np.eye(4), per_step=True)
     sphi = SIG_PHI if states == 7 else SIG_PHI[1:]
     P0 = np.diag(np.r_[[0.01] * 4, sphi] ** 2)
     q = np.r_[Q_VEL ** 2, 0.0, Q_VEL ** 2, 0.0, [Q_ATT ** 2] * (states - 4)]
@@ -64,7 +88,7 @@ def stop_tuning(cfg: SledConfig, p_run_phiy: np.ndarray) -> Tuning:
     """
     S = len(p_run_phiy)
     if cfg.tuning == "paper":
-        return Tuning(np.broadcast_to(np.eye(6), (S, 6, 6)).copy(), 1e-9 * np.eye(6), 1e6 * np.eye(4))
+        return Tuning(np.broadcast_to(np.eye(6), (S, 6, 6)).copy(), 1e-9 * np.eye(6), 1e6 * np.eye(4), per_step=True)
     T = cfg.period_ms / 1000.0
     sig = np.zeros((S, 6))
     sig[:] = [0.005, 0.005, 0.005, 0.001, 3e-4, 0.0]
@@ -74,9 +98,10 @@ def stop_tuning(cfg: SledConfig, p_run_phiy: np.ndarray) -> Tuning:
     return Tuning(P0, np.diag(q) * T, _R(cfg))
 
 
-def discretise(F: np.ndarray, T: float) -> np.ndarray:
-    """Φ = I + F T + (F T)²/2 (§6), batched."""
-    FT = F * T
+def discretise(F: np.ndarray, T) -> np.ndarray:
+    """Φ = I + F T + (F T)²/2 (§6), batched; ``T`` (s) scalar or one per step (J,) for F (S,J,n,n)."""
+    T = np.asarray(T, dtype=float)
+    FT = F * (T[..., None, None] if T.ndim else T)
     return np.eye(F.shape[-1]) + FT + FT @ FT / 2
 
 
@@ -118,7 +143,7 @@ def _kalman(Phis, z, x0, P0, Qd, R, xs, sig, Pout):
                     acc = 0.0
                     for c in range(n):
                         acc += T[a, c] * Phi[b, c]
-                    P[a, b] = acc + Qd[a, b]
+                    P[a, b] = acc + Qd[j, a, b]
             for a in range(4):
                 for b in range(4):
                     Sm[a, b] = P[a, b] + R[a, b]
@@ -166,55 +191,67 @@ def _kalman(Phis, z, x0, P0, Qd, R, xs, sig, Pout):
         Pout[s] = P
 
 
-def kalman(Fs: np.ndarray, z: np.ndarray, x0: np.ndarray, tun: Tuning, T: float) -> FilterOut:
+def kalman(Fs: np.ndarray, z: np.ndarray, x0: np.ndarray, tun: Tuning, T, T_nominal: float | None = None) -> FilterOut:
     """Open-loop linear KF over epochs: ``Fs`` (S,J,n,n) per prediction, ``z`` (S,J,4) per update.
 
-    ``x0`` (S,n) and ``tun.P0`` ((n,n) or (S,n,n)) are the state at epoch 0. Returns the
-    posteriors at epochs 0 … J (one numba kernel looping over seeds and epochs).
+    ``x0`` (S,n) and ``tun.P0`` ((n,n) or (S,n,n)) are the state at epoch 0. ``T``: the step (s),
+    or (J,) the actual steps of a record; ``tun.Qd`` is for ``T_nominal`` (default ``T``) and
+    scales with each step unless ``tun.per_step``. Returns the posteriors at epochs 0 … J (one
+    numba kernel looping over seeds and epochs).
     """
     S, J, n = Fs.shape[0], Fs.shape[1], Fs.shape[-1]
+    T = np.broadcast_to(np.asarray(T, dtype=float), (J,))
+    scale = np.ones(J) if tun.per_step or T_nominal is None else T / T_nominal
+    Qs = np.ascontiguousarray(np.asarray(tun.Qd, dtype=np.float64)[None] * scale[:, None, None])
     P0 = np.ascontiguousarray(np.broadcast_to(tun.P0, (S, n, n)), dtype=np.float64)
     xs = np.empty((S, J + 1, n))
     sig = np.empty((S, J + 1, n))
     P = np.empty((S, n, n))
     _kalman(np.ascontiguousarray(discretise(Fs, T)), np.ascontiguousarray(z, dtype=np.float64),
-            np.ascontiguousarray(x0, dtype=np.float64), P0, np.ascontiguousarray(tun.Qd, dtype=np.float64),
+            np.ascontiguousarray(x0, dtype=np.float64), P0, Qs,
             np.ascontiguousarray(tun.R, dtype=np.float64), xs, sig, P)
     return FilterOut(xs, sig, P)
 
 
-def epoch_mean(fl: np.ndarray, m: int, j0: int, j1: int) -> np.ndarray:
-    """Mean computed specific force over the samples of predictions j0+1 … j1 (S, j1−j0, 3)."""
-    seg = fl[:, m * j0:m * j1]
-    return seg.reshape(seg.shape[0], j1 - j0, m, 3).mean(axis=2)
+def epoch_mean(fl: np.ndarray, ep: Epochs, j0: int, j1: int) -> np.ndarray:
+    """Mean computed specific force over the samples of predictions j0+1 … j1 (S, j1−j0, 3),
+    each sample weighted by the interval it covers (equal weights on a clean record)."""
+    k = ep.k[j0:j1 + 1]
+    seg = fl[:, k[0]:k[-1]] * ep.dts[None, k[0]:k[-1], None]
+    sums = np.add.reduceat(seg, k[:-1] - k[0], axis=1)
+    return sums / np.add.reduceat(ep.dts[k[0]:k[-1]], k[:-1] - k[0])[None, :, None]
 
 
-def run_filter(cfg: SledConfig, fl: np.ndarray, v: np.ndarray, r: np.ndarray, j_stop: int) -> FilterOut:
+def run_filter(cfg: SledConfig, fl: np.ndarray, v: np.ndarray, r: np.ndarray, j_stop: int,
+               ep: Epochs | None = None) -> FilterOut:
     """Run filter from t = 0 to the stop epoch ``j_stop`` (§6.1), ``cfg.states`` states.
 
-    ``v, r`` navigation states (S,N+1,3); measurements ``[v_y, r_y, v_z, r_z]`` of the nav.
+    ``v, r`` navigation states (S,N+1,3); measurements ``[v_y, r_y, v_z, r_z]`` of the nav;
+    ``ep`` the record's epochs (default: the clean grid).
     """
-    m, T = cfg.kf_every, cfg.period_ms / 1000.0
-    Fs = run_F(epoch_mean(fl, m, 0, j_stop), cfg.omega_ie, states=cfg.states)
-    k = m * np.arange(1, j_stop + 1)
+    ep = Epochs.grid(fl.shape[1], cfg.kf_every, cfg.dt) if ep is None else ep
+    T = cfg.period_ms / 1000.0
+    Fs = run_F(epoch_mean(fl, ep, 0, j_stop), cfg.omega_ie, states=cfg.states)
+    k = ep.k[1:j_stop + 1]
     z = np.stack([v[:, k, 1], r[:, k, 1], v[:, k, 2], r[:, k, 2]], axis=-1)
     x0 = np.zeros((fl.shape[0], cfg.states))
-    return kalman(Fs, z, x0, run_tuning(cfg, cfg.states), T)
+    return kalman(Fs, z, x0, run_tuning(cfg, cfg.states), ep.T[:j_stop], T)
 
 
 def stop_filter(cfg: SledConfig, fl: np.ndarray, v: np.ndarray, r: np.ndarray, j_stop: int, j_end: int,
-                phi_y_run: np.ndarray, p_phi_y_run: np.ndarray) -> FilterOut:
+                phi_y_run: np.ndarray, p_phi_y_run: np.ndarray, ep: Epochs | None = None) -> FilterOut:
     """Stop (ZUPT) filter from ``j_stop`` to ``j_end`` (§6.2).
 
     z = ``[v_y, r_y, v_x, r_x − r_x(t_stop)]``; initial state from the nav values at the stop,
     δr_x = 0, φ_x = 0, φ_y = the run filter's final estimate.
     """
-    m, T = cfg.kf_every, cfg.period_ms / 1000.0
-    ks = m * j_stop
-    Fs = stop_F(epoch_mean(fl, m, j_stop, j_end), cfg.omega_ie)
-    k = m * np.arange(j_stop + 1, j_end + 1)
+    ep = Epochs.grid(fl.shape[1], cfg.kf_every, cfg.dt) if ep is None else ep
+    T = cfg.period_ms / 1000.0
+    ks = ep.k[j_stop]
+    Fs = stop_F(epoch_mean(fl, ep, j_stop, j_end), cfg.omega_ie)
+    k = ep.k[j_stop + 1:j_end + 1]
     z = np.stack([v[:, k, 1], r[:, k, 1], v[:, k, 0], r[:, k, 0] - r[:, ks, None, 0]], axis=-1)
     x0 = np.zeros((fl.shape[0], 6))
     x0[:, 0], x0[:, 1], x0[:, 2] = v[:, ks, 1], r[:, ks, 1], v[:, ks, 0]
     x0[:, 5] = phi_y_run
-    return kalman(Fs, z, x0, stop_tuning(cfg, p_phi_y_run), T)
+    return kalman(Fs, z, x0, stop_tuning(cfg, p_phi_y_run), ep.T[j_stop:j_end], T)

@@ -3,6 +3,11 @@
 docs/rocket-sled.md §4-8. Everything is batched over a leading seed axis (S); one record is
 S = 1. Times: navigation states at t_k (k = 0 … N−1, the record's rows; the state after the
 last sample is dropped so that "end" is the last row), filter epochs at k = m·j.
+
+Recorded times (docs/rocket-sled.md §12): with the record's ``t`` the navigation integrates each
+sample over its actual interval, the epochs are the samples nearest the multiples of the filter
+period (:func:`record_epochs`), the stop is the first sample at or after the trajectory's stop
+time, and the X compensation and metric B use the same intervals; a clean record gives the grid.
 """
 
 from __future__ import annotations
@@ -14,7 +19,8 @@ import pandas as pd
 
 from .config import ARCSEC, G, SledConfig
 from .errmodel import propagate_run_model
-from .filters import FilterOut, run_filter, stop_filter
+from ...records import nearest_samples
+from .filters import Epochs, FilterOut, run_filter, stop_filter
 from .ins import mechanise
 from .simulate import Truth
 from .trajectory import Trajectory
@@ -39,10 +45,32 @@ class Identification:
     x_con: np.ndarray        # (S,N) compensated X position (config's compensation), m
     x_con_other: np.ndarray  # (S,N) the other compensation mode, m
     nabla_x_hat: np.ndarray  # (S,) stop filter by-product ∇̂_x = g (φ̂_y^run − φ̂_y^stop), m/s^2
+    t: np.ndarray            # (N,) sample times from the record's start, s
+    epochs: Epochs           # filter epochs (sample indices) and intervals
+    n_stop: int              # sample index of the stop in the record
 
     @property
     def t_epochs(self) -> np.ndarray:
-        return np.arange(self.j_end + 1) * self.cfg.kf_every * self.cfg.dt
+        return self.t[self.epochs.k]
+
+
+def record_epochs(t: np.ndarray, period_s: float) -> Epochs:
+    """Epochs of a record with times ``t`` (s from its start, increasing): the samples nearest
+    the multiples of ``period_s`` within half the median step (decimation by time; an instant in
+    a gap is skipped and the next prediction spans both periods), the first sample always being
+    epoch 0 (the run filter's prior); sample intervals
+    ``dts = diff(t)``, the last sample covering the median step."""
+    step = float(np.median(np.diff(t)))
+    k = np.union1d(0, nearest_samples(t, period_s, 0.5 * step))   # epoch 0 (the prior) is the first sample
+    dts = np.r_[np.diff(t), step]
+    return Epochs(k=k, T=np.diff(t[k]), dts=dts)
+
+
+def stop_index(t: np.ndarray, stop_time_s: float) -> int:
+    """The record's sample of the stop: the first at or after the trajectory's stop time (half a
+    median step of tolerance, so the grid's own sample is found despite jitter)."""
+    tol = 0.5 * float(np.median(np.diff(t)))
+    return int(min(np.searchsorted(t, stop_time_s - tol), t.size - 1))
 
 
 def phi_columns(states: int) -> dict[str, int]:
@@ -50,11 +78,12 @@ def phi_columns(states: int) -> dict[str, int]:
     return {"phi_x": 4, "phi_y": 5, "phi_z": 6} if states == 7 else {"phi_y": 4, "phi_z": 5}
 
 
-def compensate_x(fl: np.ndarray, r_x: np.ndarray, v_x: np.ndarray, phi_hat: np.ndarray, dt: float):
+def compensate_x(fl: np.ndarray, r_x: np.ndarray, v_x: np.ndarray, phi_hat: np.ndarray, dt):
     """Open-loop X compensation (§7, eqs. 20-21) with φ̂ per sample (S,N,3) [φ_x, φ_y, φ_z].
 
     ``Δa_x = f_y φ̂_z − f_z φ̂_y``; ``v^c = v − Σ Δa dt`` (Euler), ``r^c = r − trapezoid`` (the
-    INS's rules). ``r_x``, ``v_x`` (S,N) at t_k; returns r_x^c (S,N).
+    INS's rules). ``r_x``, ``v_x`` (S,N) at t_k; ``dt`` the IMU period or (N,) the record's
+    sample intervals, s; returns r_x^c (S,N).
     """
     da = fl[..., 1] * phi_hat[..., 2] - fl[..., 2] * phi_hat[..., 1]
     dv = np.concatenate([np.zeros((da.shape[0], 1)), np.cumsum(da * dt, axis=1)], axis=1)   # at t_0 … t_N
@@ -62,9 +91,10 @@ def compensate_x(fl: np.ndarray, r_x: np.ndarray, v_x: np.ndarray, phi_hat: np.n
     return r_x - dr[:, :r_x.shape[1]]
 
 
-def phi_per_sample(run: FilterOut, states: int, m: int, j_stop: int, n: int, mode: str) -> np.ndarray:
+def phi_per_sample(run: FilterOut, states: int, epochs: np.ndarray, j_stop: int, n: int, mode: str) -> np.ndarray:
     """φ̂(t_k) for the X compensation (§7, D6): realtime = latest run estimate held (zero-order
-    hold; the final one after the stop), post = the final run estimate from t = 0."""
+    hold; the final one after the stop), post = the final run estimate from t = 0. ``epochs``:
+    the epochs' sample indices."""
     S = run.x.shape[0]
     cols = phi_columns(states)
     est = np.zeros((S, j_stop + 1, 3))
@@ -72,18 +102,32 @@ def phi_per_sample(run: FilterOut, states: int, m: int, j_stop: int, n: int, mod
         est[..., "xyz".index(name[-1])] = run.x[:, :, i]
     if mode == "post":
         return np.broadcast_to(est[:, -1:, :], (S, n, 3))
-    j = np.minimum(np.arange(n) // m, j_stop)
+    j = np.minimum(np.searchsorted(epochs, np.arange(n), side="right") - 1, j_stop)
     return est[:, j, :]
 
 
-def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray) -> Identification:
-    """Run §4-7 on recorded samples f, ω (S,N,3) in the record's body axes (Ĉ_0 = I)."""
-    m, N = cfg.kf_every, traj.n
-    v, r, fl = mechanise(f, w, np.zeros((f.shape[0], 3)), cfg.omega_ie, cfg.dt)
+def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
+             t: np.ndarray | None = None) -> Identification:
+    """Run §4-7 on recorded samples f, ω (S,N,3) in the record's body axes (Ĉ_0 = I).
+
+    ``t`` (N,): the samples' times from the record's start (s), as recorded; default the
+    config's grid k·dt (then N must be the trajectory's length).
+    """
+    N = f.shape[1]
+    if t is None:
+        t = np.arange(N) * cfg.dt
+        ep = Epochs.grid(N, cfg.kf_every, cfg.dt)
+        n_stop = traj.n_stop
+    else:
+        t = np.asarray(t, dtype=float)
+        ep = record_epochs(t, cfg.period_ms / 1000.0)
+        n_stop = stop_index(t, traj.stop_time_s)
+    dts = ep.dts
+    v, r, fl = mechanise(f, w, np.zeros((f.shape[0], 3)), cfg.omega_ie, dts)
     v, r = v[:, :N], r[:, :N]
-    j_stop = -(-traj.n_stop // m)
-    j_end = (N - 1) // m
-    run = run_filter(cfg, fl, v, r, j_stop)
+    j_stop = int(min(np.searchsorted(ep.k, n_stop), ep.k.size - 1))
+    j_end = ep.k.size - 1
+    run = run_filter(cfg, fl, v, r, j_stop, ep)
     cols = phi_columns(cfg.states)
     S = f.shape[0]
     phi_run = np.full((S, 3), np.nan)
@@ -92,16 +136,41 @@ def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray) ->
         phi_run[:, "xyz".index(name[-1])] = run.x[:, -1, i]
         sig_run[:, "xyz".index(name[-1])] = run.sigma[:, -1, i]
     iy = cols["phi_y"]
-    stop = stop_filter(cfg, fl, v, r, j_stop, j_end, run.x[:, -1, iy], run.P[:, iy, iy])
+    stop = stop_filter(cfg, fl, v, r, j_stop, j_end, run.x[:, -1, iy], run.P[:, iy, iy], ep)
     phi_b = np.nan_to_num(phi_run)
-    r_model = propagate_run_model(fl[:, :traj.n_stop], cfg.omega_ie, phi_b, cfg.states, cfg.dt)
-    xc = {mode: compensate_x(fl, r[..., 0], v[..., 0], phi_per_sample(run, cfg.states, m, j_stop, N, mode), cfg.dt)
+    r_model = propagate_run_model(fl[:, :n_stop], cfg.omega_ie, phi_b, cfg.states, dts[:n_stop])
+    xc = {mode: compensate_x(fl, r[..., 0], v[..., 0], phi_per_sample(run, cfg.states, ep.k, j_stop, N, mode), dts)
           for mode in ("realtime", "post")}
     other = "post" if cfg.compensation == "realtime" else "realtime"
     nabla = G * (run.x[:, -1, iy] - stop.x[:, -1, 5])
     return Identification(cfg=cfg, traj=traj, v=v, r=r, fl=fl, run=run, stop=stop, j_stop=j_stop, j_end=j_end,
                           phi_run=phi_run, sig_run=sig_run, r_model=r_model, x_con=xc[cfg.compensation],
-                          x_con_other=xc[other], nabla_x_hat=nabla)
+                          x_con_other=xc[other], nabla_x_hat=nabla, t=t, epochs=ep, n_stop=n_stop)
+
+
+def run_problems(idn: Identification, s: int = 0) -> list[str]:
+    """Why seed slot ``s``'s filter run cannot be trusted (empty if it can): non-finite navigation,
+    estimates or sigmas of the run or stop filter, or a final covariance that is not positive
+    definite (the updates are Cholesky solves: a failed one leaves NaN behind)."""
+    out = []
+    if not (np.all(np.isfinite(idn.v[s])) and np.all(np.isfinite(idn.r[s]))):
+        out.append("the navigation is not finite (a non-physical sample?)")
+    for name, fo in (("run", idn.run), ("stop", idn.stop)):
+        if not (np.all(np.isfinite(fo.x[s])) and np.all(np.isfinite(fo.sigma[s]))):
+            out.append(f"the {name} filter's estimates or sigmas are not finite")
+        elif not np.all(np.isfinite(fo.P[s])):
+            out.append(f"the {name} filter's covariance has non-finite entries")
+        else:
+            try:
+                np.linalg.cholesky(0.5 * (fo.P[s] + fo.P[s].T))
+            except np.linalg.LinAlgError:
+                out.append(f"the {name} filter's final covariance is not positive definite")
+    return out
+
+
+def failed_runs(idn: Identification) -> np.ndarray:
+    """(S,) True where a seed's run fails :func:`run_problems`."""
+    return np.array([bool(run_problems(idn, s)) for s in range(idn.r.shape[0])])
 
 
 def effective_phi(truth: Truth) -> np.ndarray:
@@ -114,23 +183,22 @@ def effective_phi(truth: Truth) -> np.ndarray:
 
 def after_a(idn: Identification) -> dict[str, np.ndarray]:
     """Metric A (§8): nav minus the filter's position-error estimate at the epochs (S,J)."""
-    m = idn.cfg.kf_every
-    kr = m * np.arange(idn.j_stop + 1)
-    ks = m * np.arange(idn.j_stop, idn.j_end + 1)
+    kr = idn.epochs.k[:idn.j_stop + 1]
+    ks = idn.epochs.k[idn.j_stop:idn.j_end + 1]
     return {"y_run": idn.r[:, kr, 1] - idn.run.x[:, :, 1], "z_run": idn.r[:, kr, 2] - idn.run.x[:, :, 3],
             "y_static": idn.r[:, ks, 1] - idn.stop.x[:, :, 1]}
 
 
 def after_b(idn: Identification) -> np.ndarray:
     """Metric B (§8): nav minus the model driven by the final run estimate, run phase (S,n_stop+1,2)."""
-    n = idn.traj.n_stop + 1
+    n = idn.n_stop + 1
     rr = np.concatenate([idn.r, idn.r[:, -1:]], axis=1)[:, :n, 1:]
     return rr - idn.r_model
 
 
 def metrics(idn: Identification, truth: Truth | None) -> pd.DataFrame:
     """Per-seed metrics of §8 with the keys of §10 (cm, arcsec, µg; absolute values)."""
-    tr, ns = idn.traj, idn.traj.n_stop
+    tr, ns = idn.traj, idn.n_stop
     S = idn.r.shape[0]
     a = after_a(idn)
     b = after_b(idn)

@@ -3,10 +3,14 @@
 Per IMU step k (first order, identical in the truth and the erroneous runs)::
 
     f_l     = Ĉ_k f̃_k
-    v_{k+1} = v_k + (f_l − 2 ω_ie × v_k + g^l) dt
-    r_{k+1} = r_k + (v_k + v_{k+1})/2 dt
-    Ĉ_{k+1} = exp(−[ω_ie dt ×]) Ĉ_k exp([ω̃_k dt ×])     (Rodrigues)
+    v_{k+1} = v_k + (f_l − 2 ω_ie × v_k + g^l) dt_k
+    r_{k+1} = r_k + (v_k + v_{k+1})/2 dt_k
+    Ĉ_{k+1} = exp(−[ω_ie dt_k ×]) Ĉ_k exp([ω̃_k dt_k ×])     (Rodrigues)
     Ĉ_0     = exp(−[φ0 ×]),  v_0 = r_0 = 0
+
+dt_k is the interval sample k covers, t_{k+1} − t_k of the record's own times (docs/rocket-sled.md
+§12, "Recorded times"): a jittered or gapped record is integrated over its actual intervals, the
+sample before a small gap held over it (zero-order hold, as the IMU's sample-and-hold would).
 
 One numba kernel loops over seeds (leading axis) and samples.
 """
@@ -43,10 +47,9 @@ def _rodrigues(ax, ay, az, out):
 
 
 @nb.njit(cache=True)
-def _mechanise(f, w, phi0, wie, g, dt, v_out, r_out, fl_out):
+def _mechanise(f, w, phi0, wie, g, dts, v_out, r_out, fl_out):
     S, N = f.shape[0], f.shape[1]
     E = np.empty((3, 3))
-    _rodrigues(-wie[0] * dt, -wie[1] * dt, -wie[2] * dt, E)
     C = np.empty((3, 3))
     D = np.empty((3, 3))
     T = np.empty((3, 3))
@@ -61,6 +64,9 @@ def _mechanise(f, w, phi0, wie, g, dt, v_out, r_out, fl_out):
         v_out[s, 0, :] = 0.0
         r_out[s, 0, :] = 0.0
         for k in range(N):
+            dt = dts[k]
+            if k == 0 or dt != dts[k - 1]:
+                _rodrigues(-wie[0] * dt, -wie[1] * dt, -wie[2] * dt, E)
             fx = C[0, 0] * f[s, k, 0] + C[0, 1] * f[s, k, 1] + C[0, 2] * f[s, k, 2]
             fy = C[1, 0] * f[s, k, 0] + C[1, 1] * f[s, k, 1] + C[1, 2] * f[s, k, 2]
             fz = C[2, 0] * f[s, k, 0] + C[2, 1] * f[s, k, 1] + C[2, 2] * f[s, k, 2]
@@ -94,8 +100,10 @@ def _mechanise(f, w, phi0, wie, g, dt, v_out, r_out, fl_out):
                     C[i, j] = E[i, 0] * T[0, j] + E[i, 1] * T[1, j] + E[i, 2] * T[2, j]
 
 
-def mechanise(f: np.ndarray, w: np.ndarray, phi0: np.ndarray, omega_ie: np.ndarray, dt: float):
+def mechanise(f: np.ndarray, w: np.ndarray, phi0: np.ndarray, omega_ie: np.ndarray, dt):
     """Navigate IMU samples f̃, ω̃ (S,N,3; m/s^2, rad/s) from attitude error φ0 (S,3; rad).
+
+    ``dt``: the IMU period (s), or (N,) the interval each sample covers (recorded times).
 
     Returns ``v, r`` (S,N+1,3; m/s, m, at t_0 … t_N) and the computed specific force
     ``f_l = Ĉ_k f̃_k`` (S,N,3; m/s^2) per interval.
@@ -107,5 +115,6 @@ def mechanise(f: np.ndarray, w: np.ndarray, phi0: np.ndarray, omega_ie: np.ndarr
     v = np.empty((S, N + 1, 3))
     r = np.empty((S, N + 1, 3))
     fl = np.empty((S, N, 3))
-    _mechanise(f, w, phi0, np.asarray(omega_ie, dtype=np.float64), G, float(dt), v, r, fl)
+    dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
+    _mechanise(f, w, phi0, np.asarray(omega_ie, dtype=np.float64), G, dts, v, r, fl)
     return v, r, fl

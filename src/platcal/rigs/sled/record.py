@@ -19,6 +19,7 @@ import pandas as pd
 
 from ...errors import InputError
 from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
+from ...records import check_times, grid_origin, num, read_table
 from .config import G, SledConfig
 from .sensors import ErrorParams
 from .simulate import SimBatch, Truth
@@ -66,40 +67,64 @@ def write_record(sb: SimBatch, path: str | Path, s: int = 0) -> None:
         atomic_to_csv(df, path, float_format="%.17g")
 
 
-def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataFrame]:
+PHASE_TOL_G = 0.1
+"""A phase whose median along-track specific force ``fx`` is further than this (g, plus 2 % of
+the phase's level) from the config's acceleration is refused: the record is another run."""
+
+
+def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataFrame, np.ndarray]:
     """Read and check a record against the config's trajectory; InputError naming the field.
 
-    Refused: a missing file or column, non-numeric or non-finite values, a time step that is
-    not the config's IMU period (a gap), a length that is not the config's trajectory.
+    Returns the trajectory, the frame and ``t`` (N,), the samples' times from the record's start
+    (s), used as recorded (docs/rocket-sled.md §12, "Recorded times"). Refused, before any work:
+    a file that is not UTF-8 CSV or Parquet, a missing or unknown column, non-finite values;
+    time that does not increase, a median step more than 10x off the IMU period (``t`` not in
+    seconds), a gap above ``record.max_gap_s``; a duration that differs from the trajectory's by
+    more than ``record.max_gap_s``; a phase whose median ``fx`` is not the trajectory's
+    acceleration (within :data:`PHASE_TOL_G`), or a median ``fz`` that is not about 1 g in m/s^2.
+    The clock may count from 0 (a first sample within ``record.max_gap_s`` of it) or from any
+    origin (a constant offset, removed by :func:`platcal.records.grid_origin`); jitter is kept.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("--data", f"no such file: {path}")
-    try:
-        df = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
-    except Exception as exc:  # noqa: BLE001 (any parse failure is bad input)
-        raise InputError("--data", f"cannot read {path.name} as {path.suffix or 'CSV'} ({exc.__class__.__name__})") from None
-    for c in IMU_COLUMNS:
-        if c not in df.columns:
-            raise InputError(f"--data column {c}", f"missing; a sled record has columns {list(IMU_COLUMNS)}")
-    for c in list(IMU_COLUMNS) + [c for c in TRUTH_COLUMNS if c in df.columns]:
-        vals = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(vals))
-        if bad.size:
-            raise InputError(f"--data column {c}", f"row {bad[0]}: not a finite number")
+    max_gap = float(cfg.raw["record"]["max_gap_s"])
+    df = read_table(path, IMU_COLUMNS, TRUTH_COLUMNS, what="a sled record", min_rows=2)
     traj = build_trajectory(cfg)
     t = df["t"].to_numpy(dtype=float)
-    dt = np.diff(t)
-    bad = np.flatnonzero(np.abs(dt - cfg.dt) > 1e-6 * cfg.dt + 1e-9)
-    if bad.size:
-        k = bad[0]
-        raise InputError("--data column t", f"time step {dt[k]:.6g} s between rows {k} and {k + 1} "
-                         f"(t = {t[k]:.6g} -> {t[k + 1]:.6g}); the record must be gap-free at "
-                         f"imu.rate_hz = {cfg.rate_hz:g} Hz")
-    if len(df) != traj.n:
-        raise InputError("--data", f"{len(df)} rows; the config's trajectory has {traj.n} IMU samples "
-                         f"({traj.n * cfg.dt:g} s): check the trajectory section or the record")
-    return traj, df
+    field = "--data column t"
+    med = check_times(t, cfg.dt, max_gap, field, f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
+    t = t - (0.0 if abs(t[0]) <= max_gap else grid_origin(t, med))
+    span, want = float(t[-1] + med), traj.n * cfg.dt
+    if abs(span - want) > max_gap:
+        raise InputError(field, f"the record lasts {span:g} s ({len(df)} rows from t = {num(t[0])} s), but the "
+                         f"config's trajectory lasts {want:g} s ({traj.n} IMU samples: static_before_s, phases, "
+                         f"braking, static_after_s; record.max_gap_s = {max_gap:g} s); check the trajectory "
+                         "section or the record")
+    fz = float(np.median(df["fz"].to_numpy(float)))
+    if not 0.9 * G <= fz <= 1.1 * G:
+        raise InputError("--data column fz", f"median fz = {fz:.4g}, expected about g = {G} m/s^2 (the sled is "
+                         "level); the specific force must be in m/s^2")
+    fx = df["fx"].to_numpy(float)
+    for p, name in enumerate(traj.phase_names):
+        rows = np.flatnonzero(traj.phase == p)
+        if rows.size == 0:
+            continue
+        a, b = rows[0] * cfg.dt, (rows[-1] + 1) * cfg.dt
+        inside = (t >= a + 2 * med) & (t < b - 2 * med)
+        if not inside.any():
+            continue
+        level = float(traj.accel[rows[0]])
+        got = float(np.median(fx[inside]))
+        if abs(got - level) > PHASE_TOL_G * G + 0.02 * abs(level):
+            raise InputError("--data column fx", f"in the {name} phase (t = {a:g} .. {b:g} s) the median fx is "
+                             f"{got / G:.3g} g, but the config's trajectory accelerates at {level / G:.3g} g there; "
+                             "the record is not a run of this trajectory (check the trajectory section)")
+    return traj, df, t
+
+
+def samples_per_phase(traj: Trajectory, t: np.ndarray, dt: float) -> dict[str, int]:
+    """Record samples in each phase of the trajectory (by time), for the summary."""
+    k = np.clip(np.floor(t / dt + 0.5).astype(np.int64), 0, traj.n - 1)   # nearest grid sample
+    counts = np.bincount(traj.phase[k], minlength=len(traj.phase_names))
+    return {name: int(c) for name, c in zip(traj.phase_names, counts)}
 
 
 def record_arrays(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:

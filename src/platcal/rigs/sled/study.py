@@ -23,7 +23,7 @@ from ...io import atomic_path, atomic_to_csv, atomic_write_text, read_yaml  # no
 from ...log import eta_line, job_logger  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
 from .config import ARCSEC, SledConfig, load_config  # noqa: E402
-from .identify import after_a, after_b, effective_phi, identify, metrics, phi_columns  # noqa: E402
+from .identify import after_a, after_b, effective_phi, failed_runs, identify, metrics, phi_columns  # noqa: E402
 from .simulate import simulate  # noqa: E402
 
 CASES = {
@@ -59,10 +59,10 @@ def case_config(raw: dict, case: str) -> SledConfig:
 
 def series(idn, truth, s: int = 0) -> pd.DataFrame:
     """Time series of seed slot ``s`` at the filter epochs (m, arcsec) for the figures."""
-    m, cfg = idn.cfg.kf_every, idn.cfg
+    cfg = idn.cfg
     J = idn.j_end
-    k = m * np.arange(J + 1)
-    t = k * cfg.dt
+    k = idn.epochs.k
+    t = idn.t[k]
     a = after_a(idn)
     b = after_b(idn)
     df = pd.DataFrame({"t": t, "r_y": idn.r[s, k, 1], "r_z": idn.r[s, k, 2]})
@@ -70,7 +70,7 @@ def series(idn, truth, s: int = 0) -> pd.DataFrame:
     ay = np.r_[a["y_run"][s], a["y_static"][s, 1:]]
     az = np.r_[a["z_run"][s], np.full(J - js, np.nan)]
     df["a_y"], df["a_z"] = ay, az
-    kb = k[k <= idn.traj.n_stop]
+    kb = k[k <= idn.n_stop]
     df["b_y"] = np.r_[b[s, kb, 0], np.full(J + 1 - len(kb), np.nan)]
     df["b_z"] = np.r_[b[s, kb, 1], np.full(J + 1 - len(kb), np.nan)]
     df["e_naive"] = idn.r[s, k, 0] - truth.x_true[s, k]
@@ -98,6 +98,7 @@ def run_case(raw: dict, case: str, seeds: int, out_metrics, out_series, log_path
         idn = identify(cfg, sb.traj, sb.f, sb.w)
         met = metrics(idn, sb.truth)
         met.insert(0, "seed", ids)
+        met.insert(1, "failed", failed_runs(idn))   # flagged, counted and left out by summarise()
         frames.append(met)
         if first is None:
             first = series(idn, sb.truth)
@@ -129,11 +130,12 @@ TABLE1_COLUMNS = [
 ]
 
 
-def table1(mets: dict[str, pd.DataFrame]) -> pd.DataFrame:
-    """Table-1 analogue: per case, 'RMS (max)' over the seeds of each metric."""
+def table1(mets: dict[str, pd.DataFrame], failed: dict[str, int] | None = None) -> pd.DataFrame:
+    """Table-1 analogue: per case, 'RMS (max)' over the seeds of each metric; ``failed``: runs
+    per case left out because their filters failed (:func:`split_failed`)."""
     rows = []
     for case, m in mets.items():
-        row = {"case": case, "seeds": len(m)}
+        row = {"case": case, "seeds": len(m), "failed runs": (failed or {}).get(case, 0)}
         for key, label in TABLE1_COLUMNS:
             v = m[key].to_numpy(float)
             row[label] = "-" if not np.isfinite(v).all() else f"{rms(v):.3g} ({v.max():.3g})"
@@ -281,16 +283,27 @@ def summarise(metric_files: dict[str, str], series_files: dict[str, str], rank_c
               raw: dict) -> None:
     """Table-1 analogue, §11 checks, figures and report.md under ``outdir``."""
     outdir = Path(outdir)
-    mets = {c: pd.read_csv(p) for c, p in metric_files.items()}
+    mets, failed = split_failed({c: pd.read_csv(p) for c, p in metric_files.items()})
     ser = {c: pd.read_csv(p) for c, p in series_files.items()}
     ranks = pd.read_csv(rank_csv, dtype=str, keep_default_na=False)
-    t1 = table1(mets)
+    t1 = table1(mets, failed)
     write_table(t1, outdir / "table1", "Sled: Table-1 analogue, RMS (max) over the seeds",
                 note="before/after metric A/B, X error against the instrument-only truth, attitude errors")
     chk = checks(mets, ranks)
     write_table(chk, outdir / "checks", "Sled: docs/rocket-sled.md §11 'what an implementation must show'")
     figs = figures(ser, outdir / "figures")
-    atomic_write_text(outdir / "report.md", report_md(mets, t1, chk, ranks, figs, raw))
+    atomic_write_text(outdir / "report.md", report_md(mets, t1, chk, ranks, figs, raw, failed))
+
+
+def split_failed(mets: dict[str, pd.DataFrame]) -> tuple[dict[str, pd.DataFrame], dict[str, int]]:
+    """Per case, the seeds whose filters ran (column ``failed`` False) and the number that failed
+    (non-finite navigation or estimates, covariance not positive definite): failed runs are
+    counted in the tables and the report, never averaged in."""
+    ok, failed = {}, {}
+    for c, m in mets.items():
+        bad = m["failed"].astype(bool) if "failed" in m else pd.Series(False, index=m.index)
+        ok[c], failed[c] = m[~bad].reset_index(drop=True), int(bad.sum())
+    return ok, failed
 
 
 def raw_sigma_x(raw: dict) -> float:
@@ -298,13 +311,16 @@ def raw_sigma_x(raw: dict) -> float:
     return load_config(raw).alignment_arcsec[0]
 
 
-def report_md(mets, t1, chk, ranks, figs, raw) -> str:
+def report_md(mets, t1, chk, ranks, figs, raw, failed: dict[str, int] | None = None) -> str:
     """results/sled/report.md: tables inline, figures linked, the reading of the numbers."""
     g = mets.get
     n = len(next(iter(mets.values())))
+    n_failed = sum((failed or {}).values())
     lines = ["# Rig 3: rocket-sled one-dimensional motion constraint", "",
              f"Spec: docs/rocket-sled.md (Wei & Gao 2020). {n} seeds per case; numbers are RMS (max) over the seeds.",
-             "", "## Cases", ""]
+             "", f"Failed runs (non-finite navigation or estimates, covariance not positive definite): {n_failed}"
+             + (f", left out of the numbers: {', '.join(f'{c} {k}' for c, k in failed.items() if k)}" if n_failed
+                else "."), "", "## Cases", ""]
     lines += [f"- `{c}`: {CASES[c][1]}" for c in mets]
     lines += ["", "## Table-1 analogue", "", frame_markdown(t1), "## Checks of §11", "", frame_markdown(chk),
               "## Observability ranks (§8)", "", frame_markdown(ranks), "## Figures", "",

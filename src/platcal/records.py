@@ -1,0 +1,202 @@
+"""Recorded test logs, for every rig: the one reader (UTF-8 CSV or Parquet) and the time checks.
+
+A real log differs from a simulated one in its clock: timestamps jitter, a logger counts from
+its own origin, samples go missing. The rigs therefore use the record's own times (each filter
+propagates over the actual interval between the samples it uses) and refuse, before any work,
+what would give silent garbage: time that does not increase, ``t`` in another unit (a median
+step far from the configured sample period), a gap longer than the rig's ``record.max_gap_s``.
+These are pure functions on numpy arrays; messages say what was found and what was expected,
+in plain numbers, and the :class:`~platcal.errors.InputError` names the column.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .errors import InputError
+
+PARQUET_MAGIC = b"PAR1"
+"""The first (and last) four bytes of every Parquet file."""
+UNIT_FACTOR = 10.0
+"""A record whose median time step is this many times larger or smaller than the configured
+sample period is refused: its ``t`` is in another unit (ms for s gives a factor of 1000)."""
+TIME_TOL = 1e-6
+"""Tolerance (s) when matching sample times to filter instants."""
+
+
+def num(v) -> int | float:
+    """A plain Python number for messages (no ``np.float64(...)``, no float noise)."""
+    v = float(f"{float(v):.10g}")  # no float noise such as 1.6500000000000001
+    return int(v) if v.is_integer() else v
+
+
+def shown(v) -> str:
+    """A record value for a message: text quoted, numbers plain."""
+    return repr(v) if isinstance(v, str) else str(num(v))
+
+
+def csv_text(path: Path, field: str = "--data", what: str = "a test record") -> str:
+    """The text of a CSV record: UTF-8 without NUL bytes, last line complete.
+
+    A last line with fewer fields than the header is reported as a truncated file (a log cut off
+    while being written), not as a bad number.
+    """
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(field, f"{path} is not a UTF-8 CSV file (byte {exc.start} cannot be decoded); "
+                         f"{what} is CSV text or Parquet (.parquet)") from None
+    if "\x00" in text:
+        raise InputError(field, f"{path} is not a CSV text file (it holds NUL bytes); {what} is CSV "
+                         "text or Parquet (.parquet)")
+    lines = text.rstrip("\r\n").splitlines()
+    if len(lines) >= 2:
+        n_head, n_last = lines[0].count(","), lines[-1].count(",")
+        if n_last < n_head:
+            raise InputError(f"{field} line {len(lines)}", f"the last line is truncated: {n_last + 1} of "
+                             f"{n_head + 1} fields (was the file cut off while being written?)")
+    return text
+
+
+def read_frame(path: str | os.PathLike, field: str = "--data", what: str = "a test record") -> pd.DataFrame:
+    """Read a record file as a table: Parquet when named ``.parquet``, UTF-8 CSV otherwise.
+
+    Refused (InputError naming ``field``): a missing file, a folder, a file whose content is not
+    what its name says (Parquet named .csv or the reverse), text that is not UTF-8 or holds NUL
+    bytes, a truncated last line, anything pandas cannot parse.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(field, f"no such file: {path}")
+    if path.is_dir():
+        raise InputError(field, f"{path} is a folder; give {what} file (.csv or .parquet)")
+    parquet = path.suffix == ".parquet"
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+    except OSError as exc:
+        raise InputError(field, f"cannot read {path}: {exc.strerror}") from None
+    if parquet and head != PARQUET_MAGIC:
+        raise InputError(field, f"{path} is named .parquet but is not a Parquet file; a CSV record is named .csv")
+    if not parquet and head == PARQUET_MAGIC:
+        raise InputError(field, f"{path} is a Parquet file named {path.suffix or 'without .parquet'}; "
+                         "rename it to .parquet")
+    text = None if parquet else csv_text(path, field, what)
+    try:
+        return pd.read_parquet(path) if parquet else pd.read_csv(io.StringIO(text))
+    except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise InputError(field, f"cannot read {path} as {what}: {exc}") from None
+
+
+def read_table(path: str | os.PathLike, required: tuple[str, ...], optional: tuple[str, ...] = (),
+               text: tuple[str, ...] = (), field: str = "--data", what: str = "a test record",
+               min_rows: int = 1) -> pd.DataFrame:
+    """:func:`read_frame` plus the columns: every ``required`` one present, nothing outside
+    ``required + optional``, at least ``min_rows`` rows, every column except ``text`` a finite
+    number (InputError naming the column and the file's line). Numeric columns come back as float.
+    """
+    df = read_frame(path, field, what)
+    cols = [str(c) for c in df.columns]
+    missing = [c for c in required if c not in cols]
+    if missing:
+        hint = ""
+        if len(cols) == 1 and any(sep in cols[0] for sep in ";\t|"):
+            hint = f"; the header {cols[0][:60]!r} is not comma-separated: a CSV record uses ','"
+        raise InputError(f"{field} column {missing[0]}", f"missing; {what} has columns {list(required)}"
+                         + (f" (and optionally {list(optional)})" if optional else "") + hint)
+    extra = [c for c in cols if c not in required + optional]
+    if extra:
+        raise InputError(f"{field} column {extra[0]}", f"unexpected column; allowed: {list(required + optional)}")
+    if len(df) < min_rows:
+        raise InputError(field, f"the record has {len(df)} rows; {what} needs at least {min_rows}")
+    for c in cols:
+        if c in text:
+            continue
+        values = pd.to_numeric(df[c], errors="coerce")
+        bad = ~np.isfinite(values.to_numpy(float))
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise InputError(f"{field} column {c}, row {row + 2}",
+                             f"value {shown(df[c].iloc[row])} is not a finite number (NaN, infinite or text)")
+        df[c] = values.astype(float)
+    return df
+
+
+def check_increasing(t: np.ndarray, field: str, where: str = "") -> None:
+    """Refuse time that does not increase strictly (``where``: e.g. " of the position")."""
+    step = np.diff(t)
+    if np.any(step <= 0):
+        i = int(np.argmax(step <= 0)) + 1
+        raise InputError(field, f"time does not increase at sample {i + 1}{where} "
+                         f"(t = {num(t[i - 1])} then {num(t[i])} s)")
+
+
+def check_time_unit(t: np.ndarray, sample_s: float, field: str, expected: str, origin_note: str = "") -> float:
+    """The median time step (s) of increasing ``t``; refused when it is more than
+    :data:`UNIT_FACTOR` times off the configured sample period ``sample_s`` (``expected`` names
+    the config key and its value, e.g. ``"sampling.ts_ms = 20 ms"``): ``t`` is then not in
+    seconds (ms give 1000) or the config's rate is not the log's."""
+    med = float(np.median(np.diff(t)))
+    ratio = med / sample_s
+    if ratio > UNIT_FACTOR or ratio < 1 / UNIT_FACTOR:
+        hint = " (t looks like milliseconds)" if 300 < ratio < 3000 else ""
+        raise InputError(field, f"median time step {med:g} s, expected about {expected}{hint}; "
+                         f"t must be seconds{origin_note}")
+    return med
+
+
+def largest_gap(t: np.ndarray) -> tuple[int, float]:
+    """``(i, step)``: the largest step of ``t``, between samples i and i + 1."""
+    step = np.diff(t)
+    i = int(np.argmax(step))
+    return i, float(step[i])
+
+
+def check_gap(t: np.ndarray, max_gap_s: float, field: str, key: str = "record.max_gap_s",
+              sample_s: float | None = None) -> None:
+    """Refuse a gap between consecutive samples longer than ``max_gap_s`` (config ``key``). With
+    the configured sample period ``sample_s`` a step of up to 1.5 periods is never a gap (so a
+    limit below the period, e.g. 0.05 s at 10 Hz, does not refuse every step)."""
+    if t.size < 2:
+        return
+    i, step = largest_gap(t)
+    if step > max_gap_s and (sample_s is None or step > 1.5 * sample_s):
+        raise InputError(field, f"gap of {step:g} s between t = {num(t[i])} and {num(t[i + 1])} s, "
+                         f"more than {key} = {max_gap_s:g} s (raise it in the config if the gap is harmless)")
+
+
+def check_times(t: np.ndarray, sample_s: float, max_gap_s: float, field: str, expected: str,
+                gap_key: str = "record.max_gap_s", where: str = "") -> float:
+    """Increasing, in seconds, without a gap above ``max_gap_s``; returns the median step (s)."""
+    if t.size < 2:
+        raise InputError(field, f"has {t.size} sample{where}; a record needs samples every {sample_s:g} s")
+    check_increasing(t, field, where)
+    med = check_time_unit(t, sample_s, field, expected)
+    check_gap(t, max_gap_s, field, gap_key, sample_s)
+    return med
+
+
+def grid_origin(t: np.ndarray, step: float) -> float:
+    """The instant of the first sample of a (jittered) grid of period ``step``: ``t[0]`` corrected
+    by the median offset of all samples from the grid, so jitter of the first sample alone does not
+    shift the origin (a constant clock offset is then removed exactly)."""
+    d = t - t[0]
+    return float(t[0] + np.median(d - step * np.round(d / step)))
+
+
+def nearest_samples(t: np.ndarray, period_s: float, tol_s: float) -> np.ndarray:
+    """Indices of the samples nearest each multiple of ``period_s`` (within ``tol_s``), increasing
+    and without repeats: decimation by time, not by an exact grid match. ``t`` increases."""
+    m = np.arange(np.ceil((t[0] - tol_s) / period_s), np.floor((t[-1] + tol_s) / period_s) + 1)
+    want = m * period_s
+    j = np.clip(np.searchsorted(t, want), 1, t.size - 1) if t.size > 1 else np.zeros(want.size, dtype=int)
+    if t.size > 1:
+        j = np.where(np.abs(t[j - 1] - want) <= np.abs(t[j] - want), j - 1, j)
+    ok = np.abs(t[j] - want) <= tol_s + TIME_TOL
+    return np.unique(j[ok])

@@ -396,10 +396,14 @@ class _Problem:
 
 
 def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_iter: int = 20,
-             tol: float = 1e-3, start: str = "ekf", damping: bool = False) -> tuple[Estimate, MLInfo]:
-    """:func:`run_ml` with the solver's diagnostics: ``(Estimate, MLInfo)``."""
-    if start not in STARTS:
-        raise ValueError(f"start must be one of {STARTS}, got {start!r}")
+             tol: float = 1e-3, start="ekf", damping: bool = False) -> tuple[Estimate, MLInfo]:
+    """:func:`run_ml` with the solver's diagnostics: ``(Estimate, MLInfo)``.
+
+    ``start`` may also be a (B, nc) array of starting coefficients (e.g. an EKF estimate at hand).
+    """
+    given = not isinstance(start, str)
+    if not given and start not in STARTS:
+        raise ValueError(f"start must be one of {STARTS} or a (B, nc) array, got {start!r}")
     if int(max_iter) < 0:
         raise ValueError("max_iter must be >= 0")
     if not tol > 0:
@@ -407,7 +411,11 @@ def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_
     prob = _Problem(z, t, cmd_deg, centrifuge_params, settings)
     nc, B = prob.nc, prob.B
     ekf_s = 0.0
-    if start == "ekf":
+    if given:
+        coef0 = np.asarray(start, float)
+        if coef0.shape != (B, nc):
+            raise ValueError(f"start must be (B, nc) = ({B}, {nc}), got {coef0.shape}")
+    elif start == "ekf":
         t0 = time.perf_counter()
         ekf = run_ekf(z, t, cmd_deg, centrifuge_params, replace(settings, passes=1, history_every_s=None))
         ekf_s = time.perf_counter() - t0

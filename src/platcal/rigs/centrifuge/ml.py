@@ -55,6 +55,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from ...errors import InputError
 from ...estimation.gauss_newton import GNResult, solve_map
 from ...model.attitude import GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from ...model.frames import ARCSEC, DEG
@@ -403,11 +404,12 @@ def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_
     """
     given = not isinstance(start, str)
     if not given and start not in STARTS:
-        raise ValueError(f"start must be one of {STARTS} or a (B, nc) array, got {start!r}")
-    if int(max_iter) < 0:
-        raise ValueError("max_iter must be >= 0")
-    if not tol > 0:
-        raise ValueError("tol must be > 0")
+        raise InputError("start", f"must be one of {', '.join(STARTS)} (or an array of starting coefficients), "
+                                  f"not {start!r}")
+    if int(max_iter) != max_iter or max_iter < 0:
+        raise InputError("max_iter", f"must be a whole number >= 0, not {max_iter!r}")
+    if not (np.isfinite(tol) and tol > 0):
+        raise InputError("tol", f"must be a number > 0 (Newton decrement in posterior sigmas), not {tol!r}")
     prob = _Problem(z, t, cmd_deg, centrifuge_params, settings)
     nc, B = prob.nc, prob.B
     ekf_s = 0.0

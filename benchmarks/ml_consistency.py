@@ -106,6 +106,7 @@ def main(argv=None):
     ap.add_argument("--batch", type=int, default=10)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--damping", action="store_true", help="Levenberg-Marquardt for the ML")
+    ap.add_argument("--tol", type=float, default=1e-2, help="ML Newton-decrement tolerance, posterior sigmas")
     ap.add_argument("--json", default=None, help="write the numbers here too")
     args = ap.parse_args(argv)
     numba.set_num_threads(args.threads)
@@ -137,12 +138,12 @@ def main(argv=None):
             acc["ekf2"]["coef"].append(e2.coef); acc["ekf2"]["P"].append(e2.P[:, :45, :45])
             acc["ekf2"]["cpu"] += c; acc["ekf2"]["wall"] += w
             (em, info), c, w = timed(solve_ml, z, t, scheme.angles_deg, params, fs, start="zero",
-                                     damping=args.damping)
+                                     damping=args.damping, tol=args.tol)
             acc["ml"]["coef"].append(em.coef); acc["ml"]["P"].append(em.P[:, :45, :45])
             acc["ml"]["cpu"] += c; acc["ml"]["wall"] += w
             steps_cold.append(info.steps); conv.append(info.converged); nis.append(em.mean_nis)
             (em2, info2), c, _ = timed(solve_ml, z, t, scheme.angles_deg, params, fs, start=e1.coef,
-                                       damping=args.damping)
+                                       damping=args.damping, tol=args.tol)
             ml_ekf_cpu += c
             steps_ekf.append(info2.steps)
             ml_diff.append(np.max(np.abs(em2.coef - em.coef) / em.coef_sigma, axis=1))

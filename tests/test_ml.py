@@ -194,8 +194,8 @@ def test_covariance_agrees_with_observability_crb(study):
 def test_damped_and_ekf_starts_reach_the_same_estimate(study):
     sch, params, z, t, _ = _record(study, SHORT, 1.0, np.random.SeedSequence(8).spawn(1))
     fs = replace(study.filter, history_every_s=None)
-    a, ia = ml.solve_ml(z, t, sch.angles_deg, params, fs, start="zero")
-    b, ib = ml.solve_ml(z, t, sch.angles_deg, params, fs, start="ekf", damping=True)
+    a, ia = ml.solve_ml(z, t, sch.angles_deg, params, fs, start="zero", tol=1e-3)
+    b, ib = ml.solve_ml(z, t, sch.angles_deg, params, fs, start="ekf", damping=True, tol=1e-3)
     assert ia.converged[0] and ib.converged[0]
     # both stop within 1e-3 posterior sigma of the optimum
     assert np.max(np.abs(a.coef[0] - b.coef[0]) / a.coef_sigma[0]) < 2e-3

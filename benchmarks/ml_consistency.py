@@ -108,6 +108,8 @@ def main(argv=None):
     ap.add_argument("--damping", action="store_true", help="Levenberg-Marquardt for the ML")
     ap.add_argument("--tol", type=float, default=1e-2, help="ML Newton-decrement tolerance, posterior sigmas")
     ap.add_argument("--json", default=None, help="write the numbers here too")
+    ap.add_argument("--no-arw-variant", action="store_true",
+                    help="also run the ML with the filter's ARW set to 0 (process noise ignored)")
     args = ap.parse_args(argv)
     numba.set_num_threads(args.threads)
     study = load_config(args.config)
@@ -123,7 +125,8 @@ def main(argv=None):
         fs = replace(study.filter, sigma_a_ug=sig, history_every_s=None)
         root = seed_sequence(study.seed, "ml_consistency", int(round(sig * 1000)))
         seeds = root.spawn(args.replicates)
-        acc = {k: {"coef": [], "P": [], "cpu": 0.0, "wall": 0.0} for k in ("ekf1", "ekf2", "ml")}
+        names = ("ekf1", "ekf2", "ml") + (("ml_no_arw",) if args.no_arw_variant else ())
+        acc = {k: {"coef": [], "P": [], "cpu": 0.0, "wall": 0.0} for k in names}
         steps_cold, steps_ekf, conv, ml_ekf_cpu, nis, ml_diff, ml_sig = [], [], [], 0.0, [], [], []
         for a in range(0, args.replicates, args.batch):
             sd = seeds[a:a + args.batch]
@@ -148,6 +151,11 @@ def main(argv=None):
             steps_ekf.append(info2.steps)
             ml_diff.append(np.max(np.abs(em2.coef - em.coef) / em.coef_sigma, axis=1))
             ml_sig.append(em.coef_sigma)
+            if args.no_arw_variant:
+                (en, _), c, w = timed(solve_ml, z, t, scheme.angles_deg, params, replace(fs, arw_deg_rth=0.0),
+                                      start="zero", damping=args.damping, tol=args.tol)
+                acc["ml_no_arw"]["coef"].append(en.coef); acc["ml_no_arw"]["P"].append(en.P[:, :45, :45])
+                acc["ml_no_arw"]["cpu"] += c; acc["ml_no_arw"]["wall"] += w
             print(f"sigma_a {sig:g} ug: {a + len(sd)}/{args.replicates} replicates", flush=True)
         R = args.replicates
         res = {}
@@ -175,7 +183,7 @@ def main(argv=None):
         print(f"\n== sigma_a {sig:g} ug, {R} replicates, table1, threads {args.threads} ==")
         print(f"{'estimator':9s} {'meanNEES':>9s} {'>80.1':>7s} {'in95%':>7s} {'gyroRMS%':>9s} "
               f"{'accRMS%':>8s} {'CPU s':>7s} {'wall s':>7s}")
-        for k in ("ekf1", "ekf2", "ml"):
+        for k in names:
             r = res[k]
             print(f"{k:9s} {r['mean_nees']:9.2f} {r['share_beyond_80.1']:7.3f} {r['share_in_95_band']:7.3f} "
                   f"{r['max_gyro_rms_rel_pct']:9.3f} {r['max_accel_rms_rel_pct']:8.4f} "

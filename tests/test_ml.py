@@ -16,6 +16,7 @@ from platcal.parallel import threads
 from platcal.rigs.centrifuge import ml
 from platcal.rigs.centrifuge import observability as ob
 from platcal.rigs.centrifuge.config import load_config
+from platcal.rigs.centrifuge.ekf import default_p0_sigma
 from platcal.rigs.centrifuge.scheme import Scheme
 from platcal.rigs.centrifuge.simulate import simulate
 
@@ -209,3 +210,14 @@ def test_bad_options_are_refused(study, opts, field):
     with pytest.raises(InputError) as err:
         ml.run_ml(z, [np.array([0.02, 0.04])], np.zeros((1, 3)), study.centrifuge.params(), fs, **opts)
     assert field in str(err.value)
+
+
+def test_estimate_doo_runs_with_48_coefficients(study):
+    """With estimate_doo the DOO terms join the gyro sensitivities (51 states in the Estimate)."""
+    sch, params, z, t, _ = _record(study, SHORT, 0.5, np.random.SeedSequence(6).spawn(1))
+    fs = replace(study.filter, estimate_doo=True, p0_sigma=default_p0_sigma(True), history_every_s=None)
+    est = ml.run_ml(z, t, sch.angles_deg, params, fs)
+    assert est.x.shape == (1, 51) and est.names[45:48] == ("DOO_x", "DOO_y", "DOO_z")
+    assert np.linalg.eigvalsh(est.P[0] / np.sqrt(np.outer(np.diag(est.P[0]), np.diag(est.P[0])))).min() > 0
+    # DOO is not separable from DF at one g level: its sigma stays near its prior
+    assert np.all(est.coef_sigma[0, 45:48] > 0.1 * fs.p0_sigma[45:48])

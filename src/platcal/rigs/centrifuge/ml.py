@@ -358,6 +358,8 @@ class _Problem:
             tk = np.asarray(tk, float)
             if tk.size and (tk[0] < 0 or np.any(np.diff(tk) <= 0)):
                 raise ValueError(f"t[{k}] must be >= 0 and increasing")
+            if np.shape(z[k]) != (self.B, tk.size, 3):
+                raise ValueError(f"z[{k}] must be (B, M, 3) = ({self.B}, {tk.size}, 3), got {np.shape(z[k])}")
         self.z_all = np.ascontiguousarray(np.concatenate([np.asarray(zk, float) for zk in z], axis=1))
         self.params = broadcast_params(centrifuge_params, self.B, K)
         self.coef_fixed = np.zeros((self.B, N_FULL))

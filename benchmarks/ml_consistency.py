@@ -110,6 +110,8 @@ def main(argv=None):
     ap.add_argument("--json", default=None, help="write the numbers here too")
     ap.add_argument("--no-arw-variant", action="store_true",
                     help="also run the ML with the filter's ARW set to 0 (process noise ignored)")
+    ap.add_argument("--variants", nargs="*", default=["ml_c16:16:converge", "ml_c16_1step:16:one-step"],
+                    help="further ML variants name:coarse:final (run from a cold start)")
     args = ap.parse_args(argv)
     numba.set_num_threads(args.threads)
     study = load_config(args.config)
@@ -125,7 +127,10 @@ def main(argv=None):
         fs = replace(study.filter, sigma_a_ug=sig, history_every_s=None)
         root = seed_sequence(study.seed, "ml_consistency", int(round(sig * 1000)))
         seeds = root.spawn(args.replicates)
-        names = ("ekf1", "ekf2", "ml") + (("ml_no_arw",) if args.no_arw_variant else ())
+        variants = [(v.split(":")[0], int(v.split(":")[1]), v.split(":")[2]) for v in args.variants]
+        names = (("ekf1", "ekf2", "ml") + (("ml_no_arw",) if args.no_arw_variant else ())
+                 + tuple(v[0] for v in variants))
+        vsteps = {v[0]: [] for v in variants}
         acc = {k: {"coef": [], "P": [], "cpu": 0.0, "wall": 0.0} for k in names}
         steps_cold, steps_ekf, conv, ml_ekf_cpu, nis, ml_diff, ml_sig = [], [], [], 0.0, [], [], []
         for a in range(0, args.replicates, args.batch):
@@ -156,6 +161,12 @@ def main(argv=None):
                                       start="zero", damping=args.damping, tol=args.tol)
                 acc["ml_no_arw"]["coef"].append(en.coef); acc["ml_no_arw"]["P"].append(en.P[:, :45, :45])
                 acc["ml_no_arw"]["cpu"] += c; acc["ml_no_arw"]["wall"] += w
+            for name, coarse, final in variants:
+                (ev, iv), c, w = timed(solve_ml, z, t, scheme.angles_deg, params, fs, start="zero",
+                                       damping=args.damping, tol=args.tol, coarse=coarse, final=final)
+                acc[name]["coef"].append(ev.coef); acc[name]["P"].append(ev.P[:, :45, :45])
+                acc[name]["cpu"] += c; acc[name]["wall"] += w
+                vsteps[name].append(np.stack([iv.coarse_steps, iv.steps, iv.converged], axis=1))
             print(f"sigma_a {sig:g} ug: {a + len(sd)}/{args.replicates} replicates", flush=True)
         R = args.replicates
         res = {}
@@ -171,6 +182,11 @@ def main(argv=None):
             "mean_nis": float(np.concatenate(nis).mean()),
             "cost_vs_ekf1_pass": res["ml"]["cpu_s_per_run"] / res["ekf1"]["cpu_s_per_run"],
         })
+        for name, _, _ in variants:
+            v = np.concatenate(vsteps[name])
+            res[name].update({"coarse_steps_mean": float(v[:, 0].mean()), "steps_mean": float(v[:, 1].mean()),
+                              "steps_max": int(v[:, 1].max()), "converged_share": float(v[:, 2].mean()),
+                              "cost_vs_ekf1_pass": res[name]["cpu_s_per_run"] / res["ekf1"]["cpu_s_per_run"]})
         crb, cov_truth = crb_comparison(study, scheme, fs, params)
         s_crb = np.sqrt(np.diag(crb))
         ratio_truth = np.sqrt(np.diag(cov_truth)) / s_crb
@@ -195,6 +211,11 @@ def main(argv=None):
               f"{m['mean_nis']:.4f}")
         print(f"ml CPU per run = {m['cost_vs_ekf1_pass']:.2f} x one EKF pass (cold start); from the EKF: "
               f"{m['cpu_s_per_run_from_ekf_incl_ekf_pass']:.3f} s incl. the EKF pass")
+        for name, _, _ in variants:
+            r = res[name]
+            print(f"{name}: coarse steps mean {r['coarse_steps_mean']:.2f}, full steps mean {r['steps_mean']:.2f} "
+                  f"max {r['steps_max']}, converged {r['converged_share']:.3f}, CPU = {r['cost_vs_ekf1_pass']:.2f} x "
+                  "one EKF pass")
         c = res["crb"]
         print(f"ML sigma / CRB sigma: at the truth (t from 0) {c['ml_at_truth_over_crb_sigma_min']:.6f} .. "
               f"{c['ml_at_truth_over_crb_sigma_max']:.6f}; at the estimates (t from period) "

@@ -56,7 +56,7 @@ import numpy as np
 from numba import njit, prange
 
 from ...errors import InputError
-from ...estimation.gauss_newton import GNResult, solve_map
+from ...estimation.gauss_newton import GNResult, one_step, solve_map
 from ...model.attitude import GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import N_FULL
@@ -64,6 +64,7 @@ from .base import broadcast_params, specific_force_into
 from .ekf import Estimate, FilterSettings, run_ekf
 
 STARTS = ("zero", "ekf")
+FINALS = ("converge", "one-step")
 
 
 @dataclass
@@ -71,7 +72,9 @@ class MLInfo:
     """Solver diagnostics of :func:`solve_ml` per replicate (B,): accepted steps, evaluations of
     the normal equations, convergence, objective, Newton decrement; ``theta`` (B, n) and ``cov``
     (B, n, n) over every parameter (coefficients, then 3 initial angles per position);
-    ``seconds`` wall time of the solve and ``ekf_seconds`` of the starting EKF pass (0 if none)."""
+    ``seconds`` wall time of the solve and ``ekf_seconds`` of the starting EKF pass (0 if none);
+    ``coarse_steps`` the preliminary fit's steps (0 without one). With ``final='one-step'``,
+    ``decrement`` and ``cost`` are those at the linearisation point."""
 
     steps: np.ndarray
     evaluations: np.ndarray
@@ -82,6 +85,7 @@ class MLInfo:
     cov: np.ndarray
     seconds: float
     ekf_seconds: float
+    coarse_steps: np.ndarray
 
 
 def _structure(est_idx: np.ndarray):
@@ -399,7 +403,8 @@ class _Problem:
 
 
 def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_iter: int = 20,
-             tol: float = 1e-2, start="zero", damping: bool = False) -> tuple[Estimate, MLInfo]:
+             tol: float = 1e-2, start="zero", damping: bool = False, coarse: int = 1,
+             final: str = "converge") -> tuple[Estimate, MLInfo]:
     """:func:`run_ml` with the solver's diagnostics: ``(Estimate, MLInfo)``.
 
     ``start`` may also be a (B, nc) array of starting coefficients (e.g. an EKF estimate at hand).
@@ -412,6 +417,11 @@ def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_
         raise InputError("max_iter", f"must be a whole number >= 0, not {max_iter!r}")
     if not (np.isfinite(tol) and tol > 0):
         raise InputError("tol", f"must be a number > 0 (Newton decrement in posterior sigmas), not {tol!r}")
+    if int(coarse) != coarse or coarse < 1:
+        raise InputError("coarse", f"must be a whole number >= 1 (1: no preliminary fit), not {coarse!r}")
+    if final not in FINALS:
+        raise InputError("final", f"must be one of {', '.join(FINALS)}, not {final!r}")
+    coarse = int(coarse)
     prob = _Problem(z, t, cmd_deg, centrifuge_params, settings)
     nc, B = prob.nc, prob.B
     ekf_s = 0.0
@@ -427,13 +437,28 @@ def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_
     else:
         coef0 = np.zeros((B, nc))
     t0 = time.perf_counter()
-    res: GNResult = solve_map(prob.evaluate, prob.start(coef0), prob.prior_mean, prob.prior_sigma,
-                              max_iter=int(max_iter), tol=float(tol), damping=bool(damping))
-    # diagnostics at the returned estimate: the solver's last evaluation, unless that was a rejected step
-    stale = np.flatnonzero(np.any(prob.stats_theta != res.theta, axis=1))
-    if stale.size:
-        prob.evaluate(res.theta[stale], stale)
-    stats = prob.stats
+    theta0 = prob.start(coef0)
+    coarse_steps = np.zeros(B, dtype=np.int64)
+    if coarse > 1:
+        # preliminary fit on every coarse-th instant (the first kept): a cheap consistent start
+        zc = [np.asarray(zk, float)[:, ::coarse] for zk in z]
+        tc = [np.asarray(tk, float)[::coarse] for tk in t]
+        pc = _Problem(zc, tc, cmd_deg, centrifuge_params, settings)
+        rc = solve_map(pc.evaluate, theta0, pc.prior_mean, pc.prior_sigma, max_iter=int(max_iter), tol=float(tol),
+                       damping=bool(damping))
+        theta0, coarse_steps = rc.theta, rc.steps
+    if final == "one-step":
+        N, g, c = prob.evaluate(theta0, np.arange(B))
+        res: GNResult = one_step(N, g, c, theta0, prob.prior_mean, prob.prior_sigma)
+        stats = prob.stats  # at the linearisation point: nothing is evaluated after the step
+    else:
+        res = solve_map(prob.evaluate, theta0, prob.prior_mean, prob.prior_sigma,
+                        max_iter=int(max_iter), tol=float(tol), damping=bool(damping))
+        # diagnostics at the returned estimate: the solver's last evaluation, unless a rejected step
+        stale = np.flatnonzero(np.any(prob.stats_theta != res.theta, axis=1))
+        if stale.size:
+            prob.evaluate(res.theta[stale], stale)
+        stats = prob.stats
     secs = time.perf_counter() - t0
     keep = np.r_[np.arange(nc), prob.n - 3 + np.arange(3)]
     x = res.theta[:, keep]
@@ -451,12 +476,14 @@ def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_
         failed_updates=stats[:, 2].astype(np.int64),
     )
     info = MLInfo(steps=res.steps, evaluations=res.evaluations, converged=res.converged, cost=res.cost,
-                  decrement=res.decrement, theta=res.theta, cov=res.cov, seconds=secs, ekf_seconds=ekf_s)
+                  decrement=res.decrement, theta=res.theta, cov=res.cov, seconds=secs, ekf_seconds=ekf_s,
+                  coarse_steps=coarse_steps)
     return est, info
 
 
 def run_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_iter: int = 20,
-           tol: float = 1e-2, start: str = "zero", damping: bool = False) -> Estimate:
+           tol: float = 1e-2, start: str = "zero", damping: bool = False, coarse: int = 1,
+           final: str = "converge") -> Estimate:
     """Batch MAP identification of a centrifuge record (module docstring), for a batch of B runs.
 
     Parameters
@@ -478,13 +505,19 @@ def run_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_it
         'ekf' (one EKF pass's coefficients). The initial angles start at the commanded ones.
     damping : Levenberg-Marquardt (not needed on the centrifuge: plain Gauss-Newton converges
         from a cold start).
+    coarse : > 1: first fit (to ``tol``) on every ``coarse``-th instant only, at ``1/coarse`` of
+        the cost per step, and start the full fit there (1: no preliminary fit).
+    final : 'converge' (iterate on the full record until the decrement is below ``tol``) or
+        'one-step' (one Gauss-Newton step on the full record from the preliminary estimate, no
+        evaluation after it: the one-step estimator; the covariance and mean NIS are those at
+        the preliminary estimate).
 
     Returns
     -------
     Estimate (x: coefficients, then the last position's initial angles in rad).
     """
     return solve_ml(z, t, cmd_deg, centrifuge_params, settings, max_iter=max_iter, tol=tol, start=start,
-                    damping=damping)[0]
+                    damping=damping, coarse=coarse, final=final)[0]
 
 
 @njit(cache=True)

@@ -33,7 +33,12 @@ the RK4 map (``Phi_a <- phi_a Phi_a``, ``Phi_g <- phi_a Phi_g + phi_g``), and
 Solver: :func:`platcal.estimation.gauss_newton.solve_map` (Gauss-Newton, optionally
 Levenberg-Marquardt), started from zero coefficients (``start='zero'``, the EKF's initial state)
 or from a one-pass EKF's estimate (``start='ekf'``), initial angles at the commanded ones. The
-covariance is the inverse of the information plus the prior's at the estimate.
+covariance is the inverse of the information plus the prior's at the estimate. Cheaper variant
+(``coarse=16, final='one-step'``): converge first on every 16th instant (1/16 of the cost per
+step; the RK4 then steps 0.32 s, a sixth of the centrifuge's period at 180 deg/s, so keep
+``coarse * period`` well below the period), then take one Gauss-Newton step on the whole record
+(Le Cam's one-step estimator: from a consistent start, one Newton step is as efficient as the
+converged ML), with the covariance at the preliminary estimate.
 
 Returned :class:`~platcal.rigs.centrifuge.ekf.Estimate`: ``x`` holds the coefficients and the
 **initial** angles (time 0) of the **last** position, ``P`` the matching block of the full

@@ -236,3 +236,9 @@ def test_estimate_doo_runs_with_48_coefficients(study):
     assert np.linalg.eigvalsh(est.P[0] / np.sqrt(np.outer(np.diag(est.P[0]), np.diag(est.P[0])))).min() > 0
     # DOO is not separable from DF at one g level: its sigma stays near its prior
     assert np.all(est.coef_sigma[0, 45:48] > 0.1 * fs.p0_sigma[45:48])
+
+
+def test_zero_measurement_noise_is_refused(study):
+    fs = replace(study.filter, sigma_a_ug=0.0, history_every_s=None)
+    with pytest.raises(InputError, match="filter.sigma_a_ug"):
+        ml.run_ml([np.zeros((1, 2, 3))], [np.array([0.02, 0.04])], np.zeros((1, 3)), study.centrifuge.params(), fs)

@@ -357,6 +357,14 @@ class _Problem:
         p0 = np.asarray(settings.p0_sigma, float)
         if p0.shape != (self.nc,):
             raise ValueError(f"p0_sigma has {p0.shape} entries, the estimator has {self.nc} coefficients")
+        if not np.all(p0 > 0):
+            raise InputError("filter.p0", "every coefficient's prior sigma must be > 0")
+        if not settings.sigma_a_ug > 0:
+            raise InputError("filter.sigma_a_ug", "the estimator's measurement noise must be > 0 "
+                             "(set noise.sigma_a_ug > 0 or filter.sigma_a_ug)")
+        if settings.sigma_set_arcsec < 0 or settings.arw_deg_rth < 0:
+            raise InputError("filter.sigma_set_arcsec" if settings.sigma_set_arcsec < 0 else "filter.arw_deg_rth",
+                             "must be >= 0")
         self.p0 = p0
         sizes = [len(tk) for tk in t]
         self.offs = np.zeros(K + 1, dtype=np.int64)

@@ -15,11 +15,11 @@ import pandas as pd
 
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
-from .filter import nees, run_ekf, simulate
+from .estimators import estimate, variant_choice
+from .filter import nees, simulate
 from .model import coef_names, group_of, unit_of
 from .record import read_record, to_frame, write_record
 
-ESTIMATORS = ("ekf",)
 
 
 def _refuse(args, names):
@@ -46,28 +46,29 @@ def cmd_simulate(cfg, args) -> int:
     return 0
 
 
-def identify(cfg, rec, passes: int | None = None):
-    """``(estimate (nc,), covariance (nc, nc), mean NIS)`` of one record."""
+def identify(cfg, rec, choice=None):
+    """``(estimate (nc,), covariance (nc, nc), mean NIS)`` of one record with the estimator of
+    ``choice`` (:class:`.estimators.FilterChoice`; default the config's ``filter``)."""
     tk, Z, nk = rec.packed()
-    c, P, nis = run_ekf(cfg, rec.cmd_deg, tk, Z, nk=nk, passes=passes)
-    return c[0], P[0], float(nis[0])
+    r = estimate(cfg, choice or cfg.filter_choice(), rec.cmd_deg, tk, Z, nk=nk)
+    return r.coef[0], r.cov[0], float(r.mean_nis[0])
 
 
 def cmd_identify(cfg, args) -> int:
     _refuse(args, ("method",))
-    if args.estimator not in (None, *ESTIMATORS):
-        raise InputError("--estimator", f"unknown estimator {args.estimator!r}; rig multiposition has {list(ESTIMATORS)}")
+    choice = cfg.filter_choice() if args.estimator is None else variant_choice(cfg, args.estimator)
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
     rec, scheme = read_record(args.data, scheme)
     t0 = time.perf_counter()
-    est, P, nis = identify(cfg, rec)
+    est, P, nis = identify(cfg, rec, choice)
     seconds = time.perf_counter() - t0
     names = coef_names()
     sig = np.sqrt(np.diag(P))
     df = pd.DataFrame({"name": names, "unit": [unit_of(n) for n in names], "group": [group_of(n) for n in names],
                        "estimate": est, "sigma": sig})
-    summary = {"rig": "multiposition", "scheme": scheme.name, "n_states": len(names) + 3, "passes": cfg.passes,
+    summary = {"rig": "multiposition", "scheme": scheme.name, "n_states": len(names) + 3,
+               "estimator": choice.estimator, "passes": choice.passes, "estimator_options": choice.options,
                "positions": int(len(rec.t)), "samples": int(sum(len(t) for t in rec.t)), "mean_nis": nis,
                "seconds": seconds}
     use_truth = rec.has_truth and not args.no_truth
@@ -84,7 +85,7 @@ def cmd_identify(cfg, args) -> int:
     with atomic_files(out) as tmp:  # both files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
         tmp("summary.json").write_text(json_text(summary))
-    msg = f"platcal identify: multiposition 27-state EKF, {cfg.passes} pass(es), {seconds:.2f} s -> {out}"
+    msg = f"platcal identify: multiposition 27-state {choice.label}, {seconds:.2f} s -> {out}"
     if use_truth:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.3f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.4f} %, NEES {summary['nees']:.1f} (dof 24)")

@@ -86,6 +86,7 @@ rule multiposition_extension:
     output:
         ranks="results/multiposition/extension/ranks.json",
         sigma="results/multiposition/extension/sigma.csv",
+        spread="results/multiposition/extension/spread.csv",
     params:
         config=MP_SETUP.config,
         code=MP_SETUP.code,
@@ -118,6 +119,7 @@ rule multiposition_report:
         design="results/multiposition/design/compare.csv",
         ext_ranks="results/multiposition/extension/ranks.json",
         ext_sigma="results/multiposition/extension/sigma.csv",
+        ext_spread="results/multiposition/extension/spread.csv",
         centrifuge=MP_SETUP.centrifuge_json(),
     output:
         tables=expand(

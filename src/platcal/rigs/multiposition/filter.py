@@ -218,7 +218,9 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
                     for c in range(3):
                         q[r, c] = arw2 * dt * (T[r, 0] * T[c, 0] + T[r, 1] * T[c, 1] + T[r, 2] * T[c, 2])
                 propagate_sparse(P, dyn, cols, phi, q, W, blk)
-                rk4_k(phi0s[k], x, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd)
+                for r in range(3):  # the rate at x, RK4's first stage
+                    k4[0, r] = nxt[r]
+                rk4_k(phi0s[k], x, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, True)
                 x[:3] = nxt
             if iters > 0:
                 used = iterated_update_sparse(x, P, zk[k, s], r_var, resid6_k, ctx, iters, tol, scr, nu6)

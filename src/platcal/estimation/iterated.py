@@ -108,6 +108,55 @@ def gain_step(P, hval, hcols, hnnz, r_var, innov, xp, xout, U, S, Sinv, nu):
 
 
 @njit(cache=True, inline="always")
+def gauss_newton_point(x, P, z, r_var, resid_fn, ctx, max_iter, tol, scratch, nis_out):
+    """The iterations of :func:`iterated_update_sparse` without the final update.
+
+    x and P (the prior) are left unchanged; the scratch's ``hval, hcols, hnnz`` hold the Jacobian
+    rows at the last linearisation point x_i and ``innov`` the Gauss-Newton innovation
+    ``z - h(x_i) - H_i (x - x_i)``. The update of x and P is then the linear Kalman update of the
+    prior with that H and innovation, which a caller may split into independent measurement
+    blocks (R diagonal: sequential blocks give the same result; a linear block's innovation is
+    recomputed at the state the previous block left).
+
+    Returns ``(used, gained)``: the linearisations used (0 if an innovation covariance was not
+    positive definite) and whether a gain step ran (then ``nis_out`` holds the standardised
+    innovation of the first linearisation, at the prior).
+    """
+    xp, xi, xn, res, innov, hval, hcols, hnnz, U, K, D, S, Sinv, nu = scratch
+    n = x.shape[0]
+    m = z.shape[0]
+    for j in range(n):
+        xp[j] = x[j]
+        xi[j] = x[j]
+    used = 0
+    gained = False
+    for it in range(max_iter):
+        resid_fn(ctx, xi, z, res, hval, hcols, hnnz)
+        gn_innovation(res, hval, hcols, hnnz, xp, xi, innov)
+        used = it + 1
+        if it == max_iter - 1:
+            break
+        if not gain_step(P, hval, hcols, hnnz, r_var, innov, xp, xn, U, S, Sinv, nu):
+            return 0, gained
+        if it == 0:
+            gained = True
+            for r in range(m):
+                nis_out[r] = nu[r]
+        step = 0.0
+        for j in range(n):
+            pj = P[j, j]
+            if pj > 0.0:
+                d = abs(xn[j] - xi[j]) / np.sqrt(pj)
+                if d > step:
+                    step = d
+        if step < tol:
+            break
+        for j in range(n):
+            xi[j] = xn[j]
+    return used, gained
+
+
+@njit(cache=True, inline="always")
 def iterated_update_sparse(x, P, z, r_var, resid_fn, ctx, max_iter, tol, scratch, nis_out):
     """One Gauss-Newton iterated EKF update (see the module docstring), in place on x and P.
 
@@ -128,40 +177,15 @@ def iterated_update_sparse(x, P, z, r_var, resid_fn, ctx, max_iter, tol, scratch
     int : the number of linearisations used (>= 1), or 0 if an innovation covariance was not
     positive definite (x and P then unchanged).
     """
+    used, gained = gauss_newton_point(x, P, z, r_var, resid_fn, ctx, max_iter, tol, scratch, nis_out)
+    if used == 0:
+        return 0
     xp, xi, xn, res, innov, hval, hcols, hnnz, U, K, D, S, Sinv, nu = scratch
-    n = x.shape[0]
-    m = z.shape[0]
-    for j in range(n):
-        xp[j] = x[j]
-        xi[j] = x[j]
-    used = 0
-    for it in range(max_iter):
-        resid_fn(ctx, xi, z, res, hval, hcols, hnnz)
-        gn_innovation(res, hval, hcols, hnnz, xp, xi, innov)
-        used = it + 1
-        if it == max_iter - 1:
-            break
-        if not gain_step(P, hval, hcols, hnnz, r_var, innov, xp, xn, U, S, Sinv, nu):
-            return 0
-        if it == 0:
-            for r in range(m):
-                nis_out[r] = nu[r]
-        step = 0.0
-        for j in range(n):
-            pj = P[j, j]
-            if pj > 0.0:
-                d = abs(xn[j] - xi[j]) / np.sqrt(pj)
-                if d > step:
-                    step = d
-        if step < tol:
-            break
-        for j in range(n):
-            xi[j] = xn[j]
     # the covariance (and the returned state, = xn when the loop stopped on tol) from the last
     # linearisation, Joseph form
     if not joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu, True):
         return 0
-    if used == 1:
-        for r in range(m):
+    if not gained:
+        for r in range(z.shape[0]):
             nis_out[r] = nu[r]
     return used

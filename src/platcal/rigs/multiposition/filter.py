@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from ...model.frames import ARCSEC, DEG
-from ...estimation.iterated import iterated_update_sparse, make_iterated_scratch
+from ...estimation.iterated import gauss_newton_point, make_iterated_scratch
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
 
@@ -154,7 +154,9 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     ``tk`` (K, m) sample times, ``zk`` (K, m, 6) outputs (ug, arcsec), ``nk`` (K,) samples used.
     ``iters`` 0: the EKF update (two 3-D Joseph updates); >= 1: the Gauss-Newton iterated update
     of the 6-D measurement with at most ``iters`` linearisations and step tolerance ``tol``
-    (prior sigmas), :func:`platcal.estimation.iterated.iterated_update_sparse`.
+    (prior sigmas): :func:`platcal.estimation.iterated.gauss_newton_point` finds the last
+    linearisation point, then the same two 3-D Joseph updates apply its Jacobian and innovation
+    (``iters = 1`` is the EKF, bit for bit).
     Returns the sum of squared standardised innovations (NIS), the number of updates and the
     number of measurement linearisations.
     """
@@ -222,26 +224,40 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
                     k4[0, r] = nxt[r]
                 rk4_k(phi0s[k], x, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, True)
                 x[:3] = nxt
+            gained = False
             if iters > 0:
-                used = iterated_update_sparse(x, P, zk[k, s], r_var, resid6_k, ctx, iters, tol, scr, nu6)
-                if used > 0:
-                    for i in range(6):
-                        nis += nu6[i] * nu6[i]
-                    nup += 1
-                    nlin += used
-                continue
-            meas_k(phi0s[k], x, lay, zp, Hs, hc, nn, C, dC)
-            nlin += 1
-            for i in range(3):
-                innov[i] = zk[k, s, i] - zp[i]
+                # the Gauss-Newton linearisation point of the 6-D update; the update itself is
+                # then the EKF's two 3-D Joseph updates with that point's accelerometer rows and
+                # innovation (R diagonal and the angle rows linear: equal to the 6-D update)
+                used, gained = gauss_newton_point(x, P, zk[k, s], r_var, resid6_k, ctx, iters, tol, scr, nu6)
+                if used == 0:
+                    continue
+                nlin += used
+                hv6, hc6, nn6, in6 = scr[5], scr[6], scr[7], scr[4]
+                for j in range(3):
+                    nn[j] = nn6[j]
+                    innov[j] = in6[j]
+                    for t in range(nn6[j]):
+                        Hs[j, t] = hv6[j, t]
+                        hc[j, t] = hc6[j, t]
+            else:
+                meas_k(phi0s[k], x, lay, zp, Hs, hc, nn, C, dC)
+                nlin += 1
+                for i in range(3):
+                    innov[i] = zk[k, s, i] - zp[i]
             if joseph_update_sparse(x, P, hc, nn, Hs, innov, ra, U, Kg, D, S, Sinv, nu, update_x):
-                nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+                if not gained:
+                    nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
                 nup += 1
             for i in range(3):
                 d = zk[k, s, 3 + i] - (phi0s[k, i] + x[i]) / ARCSEC
                 innov[i] = (d + 648000.0) % 1296000.0 - 648000.0
             if joseph_update_sparse(x, P, hca, nna, ha, innov, rn, U, Kg, D, S, Sinv, nu, update_x):
-                nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+                if not gained:
+                    nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+            if gained:
+                for i in range(6):
+                    nis += nu6[i] * nu6[i]
     return nis, nup, nlin
 
 

@@ -222,6 +222,19 @@ def _rank_reading(rf: pd.DataFrame) -> str:
     return text
 
 
+def warm_kernels(cfg) -> None:
+    """Compile (or load) every numba kernel of the study once, on a tiny run, so that the jobs
+    that follow load them from numba's cache instead of compiling them side by side."""
+    from .filter import covariance_only
+
+    s = cfg.scheme("TET4")
+    t, _, z = simulate(cfg, s, [0])
+    for name in cfg.raw["study"]["estimators"]:
+        estimate(cfg, variant_choice(cfg, name, field=f"study.estimators.{name}"), s.angles_deg, t[:5], z[:, :, :5])
+    covariance_only(cfg, s.angles_deg, 1.0)
+    covariance_only(cfg, s.angles_deg, 1.0, sequential=False)
+
+
 def spread_lines(spread: list[dict] | None) -> list[str]:
     """Report paragraph on the §13 sigma ranges over further random draws (§16)."""
     sm = spread_summary(spread or [])

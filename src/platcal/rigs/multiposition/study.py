@@ -49,7 +49,8 @@ def scheme_of(cfg, name: str, design_file: str | None = None) -> Scheme:
     return cfg.scheme(name)
 
 
-def mc_cell(cfg, scheme: Scheme, sigma_a: float, seeds: int, variants: dict, log=None, threads: int = 1) -> pd.DataFrame:
+def mc_cell(cfg, scheme: Scheme, sigma_a: float, seeds: int, variants: dict, log=None,
+            threads: int = 1) -> pd.DataFrame:
     """Tidy results of one cell: one row per (estimator variant, replicate, coefficient).
 
     ``variants``: ``study.estimators`` (name -> overrides of ``filter``). Every variant sees the

@@ -62,3 +62,23 @@ def test_sigma_ranges_within_spread_of_random_draws(cfg):
         assert min(his) / 1.2 <= hi <= max(his) * 1.2, (k, hi, his)
     for d in draws:
         assert d["gyro"][0] >= 5 and d["k3"][0] >= 5
+
+
+def test_spread_summary_counts_draws_within_20_percent():
+    rows = []
+    for d, scale in ((1, 1.0), (2, 1.1), (3, 1.5)):  # draws 1 and 2 within 20 % of every spec endpoint
+        for g, (lo, hi) in ex.SPEC_RANGES.items():
+            rows.append({"draw": d, "seed": 13 + d, "group": g, "min_pct": lo * scale, "max_pct": hi * scale})
+    sm = ex.spread_summary(rows)
+    assert sm["draws"] == 3 and sm["share_all_within_20pct"] == pytest.approx(2 / 3)
+    assert sm["groups"]["kIP"]["min"]["median"] == pytest.approx(4.4 * 1.1)
+    assert sm["groups"]["k3"]["max"]["within_20pct"] == pytest.approx(2 / 3)
+    assert ex.spread_summary([])["draws"] == 0
+
+
+def test_group_ranges_of_the_extended_layout():
+    rel = np.arange(len(coef_names(1)), dtype=float)
+    r = ex.group_ranges(rel)
+    terms = [term_of(n) for n in coef_names(1)]
+    assert r["k3"] == (terms.index("k3"), terms.index("k3") + 2)
+    assert r["gyro g^2"] == (terms.index("DII"), terms.index("DOS") + 2)

@@ -80,3 +80,19 @@ def test_names_and_layout():
 
 def test_wrap():
     np.testing.assert_allclose(m.wrap_arcsec([648001.0, -648001.0, 10.0]), [-647999.0, 647999.0, 10.0])
+
+
+def test_fused_rotation_equals_the_frames_functions():
+    """rot_t_into (the filter's fused C and T) gives exactly the numbers of the shared frames."""
+    from platcal.model.frames import c_rp_into, euler_t_into
+    from platcal.rigs.multiposition.model import rot_t_into
+
+    rng = np.random.default_rng(5)
+    for a in rng.uniform(-3, 3, size=(20, 3)) * [1, 0.5, 1]:
+        C, dC, T, dT = np.empty((3, 3)), np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3, 3))
+        C2, dC2, T2, dT2 = np.empty((3, 3)), np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3, 3))
+        rot_t_into(a[0], a[1], a[2], C, dC, T, dT, True)
+        c_rp_into(a[0], a[1], a[2], C2, dC2)
+        euler_t_into(a[1], a[2], T2, dT2)
+        for u, v in ((C, C2), (dC, dC2), (T, T2), (dT, dT2)):
+            assert np.array_equal(u, v)

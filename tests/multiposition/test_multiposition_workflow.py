@@ -20,7 +20,7 @@ schemes:
   TET4: {dwell_s: 6, positions: [[0, 0, 0], [109.47, 0, 0], [109.47, 0, 120], [109.47, 0, 240]]}
 design: {positions: [4], grid_deg: 90, population: 6, generations: 2, info_step_s: 2, dwell_s: 6}
 extension: {random_positions: 10, dwell_s: 6}
-study: {seeds: 2, schemes: [TET4, GA], rank_schemes: [TET4, ROLL4], sigma_a_ug: [5], passes: [1, 2]}
+study: {seeds: 2, schemes: [TET4, GA], rank_schemes: [TET4, ROLL4], sigma_a_ug: [5], estimators: {ekf1: {estimator: ekf}, iekf: {estimator: iekf}}}
 """
 
 
@@ -53,7 +53,7 @@ def test_tiny_study_end_to_end(tmp_path):
     ranks = pd.read_csv(res / "tables/ranks.csv").set_index("scheme")
     assert ranks.loc["ROLL4", "verdict"] == "refuse" and ranks.loc["ROLL4", "static rank"] == 21
     summ = pd.read_csv(res / "tables/montecarlo_summary.csv")
-    assert set(summ["scheme"]) == {"TET4", "GA"} and set(summ["passes"]) == {1, 2}
+    assert set(summ["scheme"]) == {"TET4", "GA"} and set(summ["estimator"]) == {"ekf1", "iekf"}
     # a code-free rerun does nothing
     r2 = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2", "-n"], cwd=d, env=env,
                         capture_output=True, text=True, timeout=300)

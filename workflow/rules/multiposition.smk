@@ -32,17 +32,18 @@ rule multiposition_observability:
     input:
         "results/multiposition/lie_cache.json",
     output:
-        "results/multiposition/observability/{scheme}/observability.json",
+        MP_SETUP.observability(),
     params:
         config=MP_SETUP.config,
         code=MP_SETUP.code,
+        schemes=MP_SETUP.study["rank_schemes"],
+        outdirs=[f"results/multiposition/observability/{s}" for s in MP_SETUP.study["rank_schemes"]],
     conda:
         "../envs/platcal.yaml"
     log:
-        "results/multiposition/logs/observability_{scheme}.log",
-    shell:
-        "platcal observability --config {params.config} --scheme {wildcards.scheme} "
-        "--out results/multiposition/observability/{wildcards.scheme} > {log} 2>&1"
+        "results/multiposition/logs/observability.log",
+    script:
+        "../scripts/multiposition_observability.py"
 
 
 rule multiposition_design:
@@ -50,6 +51,7 @@ rule multiposition_design:
         expand("results/multiposition/design/GA{k}.yaml", k=MP_SETUP.design_k),
         ga="results/multiposition/design/GA.yaml",
         compare="results/multiposition/design/compare.csv",
+    priority: 10  # the GA scheme's Monte Carlo cells wait for it: start it first
     params:
         config=MP_SETUP.config,
         code=MP_SETUP.code,
@@ -63,6 +65,7 @@ rule multiposition_design:
 
 rule multiposition_montecarlo:
     input:
+        "results/multiposition/lie_cache.json",
         lambda w: MP_SETUP.design_input(w.scheme),
     output:
         "results/multiposition/runs/{scheme}/sa{sigma}.parquet",
@@ -86,6 +89,7 @@ rule multiposition_extension:
     output:
         ranks="results/multiposition/extension/ranks.json",
         sigma="results/multiposition/extension/sigma.csv",
+        spread="results/multiposition/extension/spread.csv",
     params:
         config=MP_SETUP.config,
         code=MP_SETUP.code,
@@ -118,6 +122,7 @@ rule multiposition_report:
         design="results/multiposition/design/compare.csv",
         ext_ranks="results/multiposition/extension/ranks.json",
         ext_sigma="results/multiposition/extension/sigma.csv",
+        ext_spread="results/multiposition/extension/spread.csv",
         centrifuge=MP_SETUP.centrifuge_json(),
     output:
         tables=expand(

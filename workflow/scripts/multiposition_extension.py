@@ -5,7 +5,7 @@ import pandas as pd
 
 from platcal.io import atomic_to_csv, atomic_write_text
 from platcal.log import job_logger
-from platcal.rigs.multiposition.extension import rank_table, sigma_table
+from platcal.rigs.multiposition.extension import draw_spread, rank_table, sigma_table
 from platcal.rigs.multiposition.study import load
 
 log = job_logger(snakemake.log[0])  # noqa: F821
@@ -14,3 +14,6 @@ ranks = rank_table(cfg)
 log.info("ranks: " + "; ".join(f"{r['set']} {r['model']}: {r['static_rank']}/{r['n_states']}" for r in ranks))
 atomic_write_text(snakemake.output.ranks, json.dumps(ranks, indent=1) + "\n")  # noqa: F821
 atomic_to_csv(pd.DataFrame(sigma_table(cfg)), snakemake.output.sigma)  # noqa: F821
+spread = draw_spread(cfg)
+log.info(f"sigma ranges over {cfg.raw['extension']['draws']} further draws")
+atomic_to_csv(pd.DataFrame(spread, columns=["draw", "seed", "group", "min_pct", "max_pct"]), snakemake.output.spread)  # noqa: F821

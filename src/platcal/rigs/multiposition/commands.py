@@ -15,11 +15,11 @@ import pandas as pd
 
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
-from .filter import nees, run_ekf, simulate
+from .estimators import estimate, variant_choice
+from .filter import nees, simulate
 from .model import coef_names, group_of, unit_of
 from .record import read_record, to_frame, write_record
 
-ESTIMATORS = ("ekf",)
 
 
 def _refuse(args, names):
@@ -46,11 +46,12 @@ def cmd_simulate(cfg, args) -> int:
     return 0
 
 
-def identify(cfg, rec, passes: int | None = None):
-    """``(estimate (nc,), covariance (nc, nc), mean NIS)`` of one record."""
+def identify(cfg, rec, choice=None):
+    """``(estimate (nc,), covariance (nc, nc), mean NIS)`` of one record with the estimator of
+    ``choice`` (:class:`.estimators.FilterChoice`; default the config's ``filter``)."""
     tk, Z, nk = rec.packed()
-    c, P, nis = run_ekf(cfg, rec.cmd_deg, tk, Z, nk=nk, passes=passes)
-    return c[0], P[0], float(nis[0])
+    r = estimate(cfg, choice or cfg.filter_choice(), rec.cmd_deg, tk, Z, nk=nk)
+    return r.coef[0], r.cov[0], float(r.mean_nis[0])
 
 
 def run_problems(est: np.ndarray, P: np.ndarray, nis: float) -> list[str]:
@@ -76,13 +77,12 @@ def run_problems(est: np.ndarray, P: np.ndarray, nis: float) -> list[str]:
 
 def cmd_identify(cfg, args) -> int:
     _refuse(args, ("method",))
-    if args.estimator not in (None, *ESTIMATORS):
-        raise InputError("--estimator", f"unknown estimator {args.estimator!r}; rig multiposition has {list(ESTIMATORS)}")
+    choice = cfg.filter_choice() if args.estimator is None else variant_choice(cfg, args.estimator)
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
     rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]))
     t0 = time.perf_counter()
-    est, P, nis = identify(cfg, rec)
+    est, P, nis = identify(cfg, rec, choice)
     seconds = time.perf_counter() - t0
     problems = run_problems(est, P, nis)
     if problems:
@@ -95,7 +95,8 @@ def cmd_identify(cfg, args) -> int:
     sig = np.sqrt(np.diag(P))
     df = pd.DataFrame({"name": names, "unit": [unit_of(n) for n in names], "group": [group_of(n) for n in names],
                        "estimate": est, "sigma": sig})
-    summary = {"rig": "multiposition", "scheme": scheme.name, "n_states": len(names) + 3, "passes": cfg.passes,
+    summary = {"rig": "multiposition", "scheme": scheme.name, "n_states": len(names) + 3,
+               "estimator": choice.estimator, "passes": choice.passes, "estimator_options": choice.options,
                "positions": int(len(rec.t)), "samples": int(sum(used.values())),
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
@@ -113,7 +114,7 @@ def cmd_identify(cfg, args) -> int:
     with atomic_files(out) as tmp:  # both files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
         tmp("summary.json").write_text(json_text(summary))
-    msg = (f"platcal identify: multiposition 27-state EKF, {cfg.passes} pass(es), {min(used.values())}-"
+    msg = (f"platcal identify: multiposition 27-state {choice.label}, {min(used.values())}-"
            f"{max(used.values())} samples per position, {seconds:.2f} s -> {out}")
     if use_truth:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.3f} %, accel "

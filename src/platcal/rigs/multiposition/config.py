@@ -15,6 +15,7 @@ import numpy as np
 from ...errors import InputError
 from ...schema import load_schema, validate
 from ..centrifuge.scheme import TABLE1_POSITIONS, Scheme
+from .estimators import check_estimator, choice_from_filter
 from .model import Site, coef_names, p0_vector, truth_vector
 
 ROLL = lambda step: tuple((float(a), 0.0, 0.0) for a in range(0, 360, step))  # noqa: E731
@@ -52,6 +53,7 @@ class Config:
     truth_overrides: dict
     p0_terms: dict
     passes: int
+    estimator: str
     rank_rtol: float
     lie_order: int
     cov_step_s: float
@@ -81,6 +83,10 @@ class Config:
         if name not in self.schemes:
             raise InputError("--scheme", f"unknown scheme {name!r}; the config has {sorted(self.schemes)}")
         return self.schemes[name]
+
+    def filter_choice(self):
+        """The config's estimator, passes and options (:class:`.estimators.FilterChoice`)."""
+        return choice_from_filter({**self.raw["filter"], "estimator": self.estimator, "passes": self.passes})
 
     def with_noise(self, **kw) -> "Config":
         from dataclasses import replace
@@ -120,6 +126,10 @@ def load_config(raw) -> Config:
         if k not in names:
             raise InputError(f"truth.{k}", f"unknown coefficient; use names such as DF_x, DI_y, theta_px (§15): "
                              f"{sorted(names)}")
+    check_estimator(cfg["filter"]["estimator"], "filter.estimator")
+    for v, o in cfg["study"]["estimators"].items():
+        if "estimator" in o:
+            check_estimator(o["estimator"], f"study.estimators.{v}.estimator")
     if cfg["default_scheme"] not in schemes:
         raise InputError("default_scheme", f"unknown scheme {cfg['default_scheme']!r}; known {sorted(schemes)}")
     n, s, o = cfg["noise"], cfg["sampling"], cfg["observability"]
@@ -129,6 +139,7 @@ def load_config(raw) -> Config:
                   sigma_an_arcsec=float(n["sigma_an_arcsec"]), arw_deg_rth=float(n["arw_deg_rth"]),
                   sigma_set_arcsec=float(n["sigma_set_arcsec"]), truth_overrides=dict(cfg["truth"]),
                   p0_terms=dict(cfg["filter"]["p0"]), passes=int(cfg["filter"]["passes"]),
+                  estimator=cfg["filter"]["estimator"],
                   rank_rtol=float(o["rank_rtol"]), lie_order=int(o["lie_order"]), cov_step_s=float(o["cov_step_s"]),
                   max_rel_sigma_pct=float(o["max_rel_sigma_pct"]), seed=int(cfg["seed"]),
                   default_scheme=cfg["default_scheme"], schemes=schemes)

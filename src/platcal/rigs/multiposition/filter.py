@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from ...model.frames import ARCSEC, DEG
+from ...estimation.iterated import gauss_newton_point, make_iterated_scratch
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
 
@@ -127,11 +128,37 @@ def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=N
 # ------------------------------------------------------------------ EKF kernel
 
 @njit(cache=True)
-def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x):
+def resid6_k(ctx, x, z, res, hval, hcols, hnnz):
+    """Residual ``z - h(x)`` of the 6-D measurement (§7; angles wrapped to +-180 deg) and its
+    sparse Jacobian rows, in the form :func:`platcal.estimation.iterated.iterated_update_sparse`
+    takes. ``ctx = (phi0, lay, zp, Hs, hc, nn, C, dC)`` (commanded angles, layout, scratch)."""
+    phi0, lay, zp, Hs, hc, nn, C, dC = ctx
+    meas_k(phi0, x, lay, zp, Hs, hc, nn, C, dC)
+    for j in range(3):
+        res[j] = z[j] - zp[j]
+        hnnz[j] = nn[j]
+        for t in range(nn[j]):
+            hval[j, t] = Hs[j, t]
+            hcols[j, t] = hc[j, t]
+        d = z[3 + j] - zp[3 + j]
+        res[3 + j] = (d + 648000.0) % 1296000.0 - 648000.0
+        hval[3 + j, 0] = 1.0 / ARCSEC
+        hcols[3 + j, 0] = j
+        hnnz[3 + j] = 1
+
+
+@njit(cache=True)
+def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol):
     """One pass over K positions for one replicate; x (n,), P (n, n) updated in place.
 
     ``tk`` (K, m) sample times, ``zk`` (K, m, 6) outputs (ug, arcsec), ``nk`` (K,) samples used.
-    Returns the sum of squared standardised innovations (NIS) and the number of updates.
+    ``iters`` 0: the EKF update (two 3-D Joseph updates); >= 1: the Gauss-Newton iterated update
+    of the 6-D measurement with at most ``iters`` linearisations and step tolerance ``tol``
+    (prior sigmas): :func:`platcal.estimation.iterated.gauss_newton_point` finds the last
+    linearisation point, then the same two 3-D Joseph updates apply its Jacobian and innovation
+    (``iters = 1`` is the EKF, bit for bit).
+    Returns the sum of squared standardised innovations (NIS), the number of updates and the
+    number of measurement linearisations.
     """
     n = x.shape[0]
     K = phi0s.shape[0]
@@ -164,8 +191,11 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     ra = r_var[:3].copy()
     rn = r_var[3:].copy()
     zero3 = np.zeros(3)
+    scr = make_iterated_scratch(n, 6, 10)
+    nu6 = np.empty(6)
     nis = 0.0
     nup = 0
+    nlin = 0
     for k in range(K):
         x[:3] = 0.0
         for i in range(3):
@@ -173,6 +203,7 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
                 P[i, j] = 0.0
                 P[j, i] = 0.0
             P[i, i] = set_var
+        ctx = (phi0s[k], lay, zp, Hs, hc, nn, C, dC)
         for s in range(nk[k]):
             if s > 0:
                 dt = tk[k, s] - tk[k, s - 1]
@@ -189,27 +220,55 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
                     for c in range(3):
                         q[r, c] = arw2 * dt * (T[r, 0] * T[c, 0] + T[r, 1] * T[c, 1] + T[r, 2] * T[c, 2])
                 propagate_sparse(P, dyn, cols, phi, q, W, blk)
-                rk4_k(phi0s[k], x, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd)
+                for r in range(3):  # the rate at x, RK4's first stage
+                    k4[0, r] = nxt[r]
+                rk4_k(phi0s[k], x, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, True)
                 x[:3] = nxt
-            meas_k(phi0s[k], x, lay, zp, Hs, hc, nn, C, dC)
-            for i in range(3):
-                innov[i] = zk[k, s, i] - zp[i]
+            gained = False
+            if iters > 0:
+                # the Gauss-Newton linearisation point of the 6-D update; the update itself is
+                # then the EKF's two 3-D Joseph updates with that point's accelerometer rows and
+                # innovation (R diagonal and the angle rows linear: equal to the 6-D update)
+                used, gained = gauss_newton_point(x, P, zk[k, s], r_var, resid6_k, ctx, iters, tol, scr, nu6)
+                if used == 0:
+                    continue
+                nlin += used
+                hv6, hc6, nn6, in6 = scr[5], scr[6], scr[7], scr[4]
+                for j in range(3):
+                    nn[j] = nn6[j]
+                    innov[j] = in6[j]
+                    for t in range(nn6[j]):
+                        Hs[j, t] = hv6[j, t]
+                        hc[j, t] = hc6[j, t]
+            else:
+                meas_k(phi0s[k], x, lay, zp, Hs, hc, nn, C, dC)
+                nlin += 1
+                for i in range(3):
+                    innov[i] = zk[k, s, i] - zp[i]
             if joseph_update_sparse(x, P, hc, nn, Hs, innov, ra, U, Kg, D, S, Sinv, nu, update_x):
-                nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+                if not gained:
+                    nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
                 nup += 1
             for i in range(3):
                 d = zk[k, s, 3 + i] - (phi0s[k, i] + x[i]) / ARCSEC
                 innov[i] = (d + 648000.0) % 1296000.0 - 648000.0
             if joseph_update_sparse(x, P, hca, nna, ha, innov, rn, U, Kg, D, S, Sinv, nu, update_x):
-                nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
-    return nis, nup
+                if not gained:
+                    nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+            if gained:
+                for i in range(6):
+                    nis += nu6[i] * nu6[i]
+    return nis, nup, nlin
 
 
 @njit(cache=True, nogil=True)
-def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, nis):
+def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol,
+               nis, nlin):
     for b in range(lo, hi):
-        s, u = _ekf_one(X[b], Ps[b], phi0s, tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x)
+        s, u, nl = _ekf_one(X[b], Ps[b], phi0s, tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x,
+                            iters, tol)
         nis[b] = s / max(u, 1) / 6.0
+        nlin[b] += nl
 
 
 def dynamic_cols(ext: int) -> np.ndarray:
@@ -219,13 +278,17 @@ def dynamic_cols(ext: int) -> np.ndarray:
     return np.array([0, 1, 2] + sorted(gy), dtype=np.int64)
 
 
-def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
-            threads: int | None = None, sigma_a_ug: float | None = None):
+def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
+               threads: int | None = None, sigma_a_ug: float | None = None, iterations: int = 0,
+               tolerance: float = 0.0):
     """Identify the coefficients from outputs ``Z`` (R, K, n, 6) (ug, arcsec) at times ``t``.
 
     ``positions_deg`` (K, 3) commanded angles; ``t`` is (n,) shared by all positions, or (K, n)
-    with ``nk`` (K,) samples used per position (records of unequal length). Returns ``(coef (R, nc), cov (R, nc, nc),
-    mean NIS per measurement (R,))``. Filter R uses the config's noise (``sigma_a_ug`` overrides).
+    with ``nk`` (K,) samples used per position (records of unequal length). ``iterations`` 0: the
+    EKF of §9; >= 1: the iterated EKF (at most ``iterations`` linearisations per update, step
+    tolerance ``tolerance`` prior sigmas; 1 = the EKF as one 6-D update). Returns ``(coef (R, nc),
+    cov (R, nc, nc), mean NIS per measurement (R,), linearisations per update (R,))`` (the last
+    averaged over the passes). Filter R uses the config's noise (``sigma_a_ug`` overrides).
     """
     Z = np.ascontiguousarray(Z, dtype=float)
     R, K, ns, _ = Z.shape
@@ -246,14 +309,22 @@ def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: i
     cols = dynamic_cols(ext)
     phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
     nis = np.empty(R)
-    for p in range(passes or cfg.passes):
+    nlin = np.zeros(R)
+    npass = int(passes or cfg.passes)
+    for p in range(npass):
         if p > 0:
             C = Ps[:, 3:, 3:].copy()
             Ps[:] = 0.0
             Ps[:, 3:, 3:] = 100.0 * C
         _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, cfg.arw_rad**2,
-                  cfg.sigma_set_rad**2, cols, True, nis)
-    return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis
+                  cfg.sigma_set_rad**2, cols, True, int(iterations), float(tolerance), nis, nlin)
+    return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis, nlin / (npass * int(nk.sum()))
+
+
+def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
+            threads: int | None = None, sigma_a_ug: float | None = None):
+    """The EKF of §9 (:func:`run_filter` with ``iterations = 0``): ``(coef, cov, mean NIS)``."""
+    return run_filter(cfg, positions_deg, t, Z, nk, passes, ext, threads, sigma_a_ug)[:3]
 
 
 def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: float | None = None,
@@ -287,7 +358,7 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
         X, Ps = x0[None].copy(), Pinit[None].copy()
         Zd = np.zeros((1, K, ns, 6))
         _ekf_range(0, 1, X, Ps, phi0s, tk, Zd, nk, lay, wn, wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, cols,
-                   False, np.empty(1))
+                   False, 0, 0.0, np.empty(1), np.zeros(1))
         return Ps[0, 3:, 3:]
     X = np.repeat(x0[None], K, axis=0)
     Ps = np.repeat(Pinit[None], K, axis=0)
@@ -304,7 +375,8 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
 def _ekf_pos_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, nis):
     """One covariance-only position per batch entry (position b from ``phi0s[b]``)."""
     for b in range(lo, hi):
-        s, u = _ekf_one(X[b], Ps[b], phi0s[b:b + 1], tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, False)
+        s, u, _ = _ekf_one(X[b], Ps[b], phi0s[b:b + 1], tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, False,
+                           0, 0.0)
         nis[b] = s
 
 

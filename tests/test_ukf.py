@@ -14,7 +14,7 @@ import pytest
 
 from platcal.errors import InputError
 from platcal.estimation.consistency import nees
-from platcal.estimation.unscented import (cholesky_lower_into, joseph_update, sigma_points_into,
+from platcal.estimation.unscented import (cholesky_upper_into, joseph_update, sigma_points_into,
                                           unscented_transform, ut_cross_into, ut_moments_into,
                                           ut_spread, ut_weights)
 from platcal.parallel import max_threads, threads
@@ -27,6 +27,20 @@ from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 CEN = Centrifuge()
 PARAM_SETS = [(1.0, 2.0, None), (1e-3, 2.0, 0.0), (0.5, 1.0, 1.0)]
+
+
+def test_cholesky_upper_factor():
+    rng = np.random.default_rng(0)
+    for n in (1, 2, 5, 18, 48):
+        A = rng.standard_normal((n, n))
+        P = A @ A.T + 0.1 * np.eye(n)
+        R = np.full((n, n), 7.0)
+        assert cholesky_upper_into(P, R)
+        np.testing.assert_allclose(R, np.linalg.cholesky(P).T, rtol=1e-12, atol=1e-13)
+        Q = np.tril(P) + np.triu(np.full((n, n), np.nan), 1)  # only the lower triangle is read
+        assert cholesky_upper_into(Q, Q)
+        np.testing.assert_array_equal(Q, R)
+    assert not cholesky_upper_into(np.diag([1.0, -1.0, 2.0]), np.zeros((3, 3)))
 
 
 def _gaussian(n, seed):
@@ -112,23 +126,23 @@ def test_central_form_positive_semidefinite_where_textbook_weights_are_not():
 def _ukf_step(x, P, Phi, Q, H, R, z, h, w2):
     """One predict + update of a UKF assembled from the generic pieces (linear model)."""
     n = x.size
-    L = np.zeros((n, n))
-    assert cholesky_lower_into(P, L)
+    Rt = np.zeros((n, n))
+    assert cholesky_upper_into(P, Rt)
     X = np.empty((2 * n + 1, n))
-    sigma_points_into(x, L, h, X)
+    sigma_points_into(x, Rt, h, X)
     Y = X @ Phi.T
     m, Pp = np.empty(n), np.empty((n, n))
     ut_moments_into(Y[1:n + 1] - Y[0], Y[n + 1:] - Y[0], h, w2, m, Pp)
     x = Y[0] + m
     P = Pp + Q
-    assert cholesky_lower_into(P, L)
-    sigma_points_into(x, L, h, X)
+    assert cholesky_upper_into(P, Rt)
+    sigma_points_into(x, Rt, h, X)
     Z = X @ H.T
     q = H.shape[0]
     mz, Pzz, C = np.empty(q), np.empty((q, q)), np.empty((n, q))
     Dp, Dm = Z[1:n + 1] - Z[0], Z[n + 1:] - Z[0]
     ut_moments_into(Dp, Dm, h, w2, mz, Pzz)
-    ut_cross_into(L, Dp, Dm, h, C)
+    ut_cross_into(Rt, Dp, Dm, h, C)
     innov = z - (Z[0] + mz)
     K, D = np.empty((q, n)), np.empty((q, n))
     assert joseph_update(x, P, np.ascontiguousarray(C.T), Pzz + R, innov, K, D, np.empty((q, q)),

@@ -2,10 +2,11 @@
 replicate, compiled with numba. Nothing here names a rig.
 
 Scaled unscented transform (Julier 2002; van der Merwe 2004). For ``n`` states with mean ``x0``,
-covariance ``P = L L^T`` (``L`` its lower Cholesky factor) and parameters ``alpha, beta, kappa``::
+covariance ``P = R^T R`` (``R`` its upper Cholesky factor, rows ``r_j``; the textbook's lower
+factor is ``L = R^T``, columns ``L e_j = r_j``) and parameters ``alpha, beta, kappa``::
 
     c = alpha^2 (n + kappa)          (squared spread; h = sqrt(c) is the spread in sigmas)
-    X_0 = x0,  X_j+ = x0 + h L e_j,  X_j- = x0 - h L e_j          (j = 1..n)
+    X_0 = x0,  X_j+ = x0 + h r_j,  X_j- = x0 - h r_j          (j = 1..n)
     Wm_0 = 1 - n / c,  Wc_0 = Wm_0 + 1 - alpha^2 + beta,  W_i = 1 / (2 c)  (i > 0)
 
 Central form (used throughout). With ``Y = f(X)`` and the deviations from the central point
@@ -14,7 +15,7 @@ ybar)^T`` are, exactly (algebra, not an approximation)::
 
     m    = (1 / 2c) sum_j (d_j+ + d_j-)                          ybar = Y_0 + m
     Pyy  = (1 / 2c) sum_j (d_j+ d_j+^T + d_j- d_j-^T) + (beta - alpha^2) m m^T
-    Pxy  = (1 / 2h) sum_j (L e_j) (d_j+ - d_j-)^T
+    Pxy  = (1 / 2h) sum_j r_j^T (d_j+ - d_j-)^T
 
 so no weight ever multiplies a large quantity that must cancel: with alpha << 1 the textbook
 ``Wm_0 ~ -n/alpha^2`` is huge and negative and the covariance loses positive definiteness to
@@ -29,9 +30,10 @@ scalar input when ``c + beta - alpha^2 = 2`` (the Gaussian kurtosis), not in gen
 axis points cannot see the fourth moments of cross terms such as ``x1 x2``.
 
 A function of a subset. If ``f`` depends on the states ``N`` only, the sigma points over ``N``
-with ``L_NN`` (Cholesky of ``P_NN``) give the same moments as sigma points over all states with
-a square root whose first columns are ``[L_NN; P_ON L_NN^-T]``, and the cross-covariance of
-every state with ``f`` is the Gaussian regression ``P_xN L_NN^-T G``,
+with ``R_NN`` (upper Cholesky factor of ``P_NN``) give the same moments as sigma points over all
+states with a square root whose first rows are ``[R_NN, R_NN^-T P_NO]`` (the Cholesky factor of P
+with ``N`` ordered first), and the cross-covariance of every state with ``f`` is the Gaussian
+regression ``P_xN R_NN^-1 G``,
 ``G = (1/2h) [d_j+ - d_j-]_j`` (:func:`regression_cross_into`). States on which ``f`` depends
 linearly (``f = H_L x_L + g(x_N)``) can be left out of the sigma points and added in closed form.
 
@@ -78,39 +80,50 @@ def ut_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[float, 
 
 
 @njit(cache=True)
-def cholesky_lower_into(A, L):
-    """Lower Cholesky factor of the symmetric ``A`` (its lower triangle is read) into ``L``
-    (upper triangle zeroed); ``L`` may be ``A`` itself. Returns False if ``A`` is not positive
-    definite."""
+def cholesky_upper_into(A, R):
+    """Upper Cholesky factor ``R`` of the symmetric ``A`` (``A = R^T R``; its lower triangle is
+    read; ``R`` may be ``A`` itself, strict lower triangle zeroed). Returns False if ``A`` is not
+    positive definite.
+
+    Row-oriented outer-product form: the innermost loop updates independent, contiguous entries
+    (vectorisable), not a dependent dot-product chain; rows of ``R`` are the sigma directions.
+    """
     n = A.shape[0]
     for i in range(n):
-        li = L[i]
-        for j in range(i + 1):
-            v = A[i, j]
-            lj = L[j]
-            for k in range(j):
-                v -= li[k] * lj[k]
-            if i == j:
-                if not v > 0.0:
-                    return False
-                li[i] = np.sqrt(v)
-            else:
-                li[j] = v / lj[j]
-        for j in range(i + 1, n):
-            li[j] = 0.0
+        for j in range(i):
+            R[j, i] = A[i, j]
+        R[i, i] = A[i, i]
+    for j in range(n):
+        rj = R[j]
+        v = rj[j]
+        if not v > 0.0:
+            return False
+        d = np.sqrt(v)
+        rj[j] = d
+        inv = 1.0 / d
+        for k in range(j + 1, n):
+            rj[k] *= inv
+        for k in range(j + 1, n):
+            c = rj[k]
+            rk = R[k]
+            for i in range(k, n):
+                rk[i] -= c * rj[i]
+    for i in range(n):
+        for j in range(i):
+            R[i, j] = 0.0
     return True
 
 
 @njit(cache=True)
-def sigma_points_into(x, L, h, X):
-    """Sigma points ``X`` (2 nl + 1, n): ``x``, then ``x + h L[:, j]``, then ``x - h L[:, j]``
-    for the ``nl`` columns of the square root ``L`` (n, nl)."""
-    n, nl = L.shape
+def sigma_points_into(x, R, h, X):
+    """Sigma points ``X`` (2 nl + 1, n): ``x``, then ``x + h R[j]``, then ``x - h R[j]`` for the
+    ``nl`` rows of a square root ``R`` (nl, n) of P (``P = R^T R``; e.g. the upper Cholesky factor)."""
+    nl, n = R.shape
     for i in range(n):
         X[0, i] = x[i]
     for j in range(nl):
         for i in range(n):
-            d = h * L[i, j]
+            d = h * R[j, i]
             X[1 + j, i] = x[i] + d
             X[1 + nl + j, i] = x[i] - d
 
@@ -138,46 +151,48 @@ def ut_moments_into(Dp, Dm, h, w2, m, cov):
 
 
 @njit(cache=True)
-def ut_cross_into(L, Dp, Dm, h, C):
-    """Cross-covariance ``C`` (n, q) of the states with the outputs: ``(1/2h) sum_j L[:, j]
-    (Dp[j] - Dm[j])^T`` for the square root ``L`` (n, nl) the sigma points were drawn with."""
-    n, nl = L.shape
+def ut_cross_into(R, Dp, Dm, h, C):
+    """Cross-covariance ``C`` (n, q) of the states with the outputs: ``(1/2h) sum_j R[j]^T
+    (Dp[j] - Dm[j])`` for the square root ``R`` (nl, n) the sigma points were drawn with."""
+    nl, n = R.shape
     q = Dp.shape[1]
     i2h = 0.5 / h
     for i in range(n):
         for r in range(q):
             C[i, r] = 0.0
     for j in range(nl):
+        rj = R[j]
         for r in range(q):
             g = i2h * (Dp[j, r] - Dm[j, r])
             for i in range(n):
-                C[i, r] += L[i, j] * g
+                C[i, r] += rj[i] * g
 
 
 @njit(cache=True)
-def regression_cross_into(P, idx, L, Dp, Dm, h, Y, C):
+def regression_cross_into(P, idx, R, Dp, Dm, h, Y, C):
     """Cross-covariance ``C`` (q, n) (transposed: one contiguous row per output) of every state
-    with a function of the states ``idx`` only, from sigma points drawn with ``L`` = Cholesky
-    of ``P[idx][:, idx]``: ``C^T = P[:, idx] L^-T G`` with ``G = (Dp - Dm) / 2h`` (the Gaussian
-    linear regression of the other states on ``x[idx]``). ``Y`` (nl, q) scratch.
+    with a function of the states ``idx`` only, from sigma points drawn with ``R``, the upper
+    Cholesky factor of ``P[idx][:, idx]``: ``C^T = P[:, idx] R^-1 G`` with ``G = (Dp - Dm) / 2h``
+    (the Gaussian linear regression of the other states on ``x[idx]``). ``Y`` (nl, q) scratch.
 
-    For the states in ``idx`` this is ``L G``, the plain cross-covariance of the transform.
+    For the states in ``idx`` this is ``R^T G``, the plain cross-covariance of the transform.
     """
     nl = idx.shape[0]
     q = Dp.shape[1]
     n = P.shape[0]
     i2h = 0.5 / h
-    # L^T Y = G by back substitution (L^T upper triangular), all outputs at once
+    # R Y = G by back substitution, all outputs at once
     for i in range(nl - 1, -1, -1):
         yi = Y[i]
+        ri = R[i]
         for r in range(q):
             yi[r] = i2h * (Dp[i, r] - Dm[i, r])
         for k in range(i + 1, nl):
-            lki = L[k, i]
+            c = ri[k]
             yk = Y[k]
             for r in range(q):
-                yi[r] -= lki * yk[r]
-        d = 1.0 / L[i, i]
+                yi[r] -= c * yk[r]
+        d = 1.0 / ri[i]
         for r in range(q):
             yi[r] *= d
     for r in range(q):
@@ -238,15 +253,15 @@ def unscented_transform(f, mean, cov, alpha=1.0, beta=2.0, kappa=None):
     n = x0.size
     kappa = 3.0 - n if kappa is None else float(kappa)
     h, w2 = ut_spread(n, alpha, beta, kappa)
-    L = np.zeros((n, n))
-    if not cholesky_lower_into(np.asarray(cov, float), L):
+    R = np.zeros((n, n))
+    if not cholesky_upper_into(np.asarray(cov, float), R):
         raise ValueError("cov is not positive definite")
     X = np.empty((2 * n + 1, n))
-    sigma_points_into(x0, L, h, X)
+    sigma_points_into(x0, R, h, X)
     Y = np.array([np.atleast_1d(f(X[i])) for i in range(2 * n + 1)], float)
     Dp, Dm = Y[1:n + 1] - Y[0], Y[n + 1:] - Y[0]
     q = Y.shape[1]
     m, Pyy, Pxy = np.empty(q), np.empty((q, q)), np.empty((n, q))
     ut_moments_into(Dp, Dm, h, w2, m, Pyy)
-    ut_cross_into(L, Dp, Dm, h, Pxy)
+    ut_cross_into(R, Dp, Dm, h, Pxy)
     return Y[0] + m, Pyy, Pxy

@@ -50,7 +50,7 @@ from numba import njit, prange
 
 from ...errors import InputError
 from ...estimation.kalman import propagate_sparse
-from ...estimation.unscented import (check_ut_params, cholesky_lower_into, joseph_update,
+from ...estimation.unscented import (check_ut_params, cholesky_upper_into, joseph_update,
                                      regression_cross_into, ut_cross_into, ut_moments_into)
 from ...model.attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch,
                                measure_scalar, rk4_jac_sc, rk4_scalar)
@@ -81,7 +81,7 @@ def _accel_at(coef, fp, out):
 
 
 @njit(cache=True)
-def update_nonlinear(xb, Pb, coef, fr, g, zrow, r_var, h, w2, nl, nl_full, lin, update_x, Lnn, Dp,
+def update_nonlinear(xb, Pb, coef, fr, g, zrow, r_var, h, w2, nl, nl_full, lin, update_x, Rnn, Dp,
                      Dm, Y, U, S, K, D, F, nu, innov, cs, a, fp0, y0, y, mz, Pzz):
     """Unscented update with sigma points over the states ``nl`` only (see the module docstring).
 
@@ -97,8 +97,8 @@ def update_nonlinear(xb, Pb, coef, fr, g, zrow, r_var, h, w2, nl, nl_full, lin, 
     q = nl.shape[0]
     for i in range(q):
         for j in range(i + 1):
-            Lnn[i, j] = Pb[nl[i], nl[j]]
-    if not cholesky_lower_into(Lnn, Lnn):
+            Rnn[i, j] = Pb[nl[i], nl[j]]
+    if not cholesky_upper_into(Rnn, Rnn):
         return False, 0.0
     sa, ca = np.sin(xb[nc]), np.cos(xb[nc])
     sb, cb = np.sin(xb[nc + 1]), np.cos(xb[nc + 1])
@@ -112,13 +112,13 @@ def update_nonlinear(xb, Pb, coef, fr, g, zrow, r_var, h, w2, nl, nl_full, lin, 
         for sgn in (1.0, -1.0):
             # a: the sigma point's angle offsets (rad); cs: its coefficients
             for i in range(j, q):
-                d = sgn * h * Lnn[i, j]
+                d = sgn * h * Rnn[j, i]
                 f = nl_full[i]
                 if f < 0:
                     a[-1 - f] = d
                 else:
                     cs[f] += d
-            if j < 3:  # only the first three columns move the angles (Lnn lower triangular)
+            if j < 3:  # only the first three rows move the angles (Rnn upper triangular)
                 s0, c0 = _shift(sa, ca, a[0])
                 s1, c1 = _shift(sb, cb, a[1])
                 s2, c2 = _shift(sg, cg, a[2])
@@ -135,7 +135,7 @@ def update_nonlinear(xb, Pb, coef, fr, g, zrow, r_var, h, w2, nl, nl_full, lin, 
                 else:
                     cs[f] = coef[f]
     ut_moments_into(Dp, Dm, h, w2, mz, Pzz)
-    regression_cross_into(Pb, nl, Lnn, Dp, Dm, h, Y, U)
+    regression_cross_into(Pb, nl, Rnn, Dp, Dm, h, Y, U)
     for r in range(3):
         lr = Pb[lin[r]]
         ur = U[r]
@@ -155,52 +155,54 @@ def update_nonlinear(xb, Pb, coef, fr, g, zrow, r_var, h, w2, nl, nl_full, lin, 
 
 
 @njit(cache=True)
-def _full_sqrt(Pb, perm, Lp, Lf):
-    """Square root ``Lf`` (n, n) of P in state order from the Cholesky factor of P with its
-    states permuted by ``perm`` (``Lf[perm[i], j] = Lp[i, j]``); False if P is not PD."""
+def _full_sqrt(Pb, perm, Rp, Sf):
+    """Square root ``Sf`` (n, n) of P (``P = Sf^T Sf``; rows: sigma directions, in state order)
+    from the upper Cholesky factor ``Rp`` of P with its states permuted by ``perm``
+    (``Sf[j, perm[i]] = Rp[j, i]``); False if P is not PD."""
     n = Pb.shape[0]
     for i in range(n):
         for j in range(i + 1):
-            Lp[i, j] = Pb[perm[i], perm[j]]
-    if not cholesky_lower_into(Lp, Lp):
+            Rp[i, j] = Pb[perm[i], perm[j]]
+    if not cholesky_upper_into(Rp, Rp):
         return False
-    for i in range(n):
-        for j in range(n):
-            Lf[perm[i], j] = Lp[i, j]
+    for j in range(n):
+        for i in range(n):
+            Sf[j, perm[i]] = Rp[j, i]
     return True
 
 
 @njit(cache=True)
-def _sigma_coef(xb, Lf, j, step, est_idx, coef, cs, a):
-    """The coefficients ``cs`` (48,) and angles ``a`` of the sigma point ``x + step Lf[:, j]``."""
+def _sigma_coef(xb, Sf, j, step, est_idx, coef, cs, a):
+    """The coefficients ``cs`` (48,) and angles ``a`` of the sigma point ``x + step Sf[j]``."""
     nc = xb.shape[0] - 3
+    sj = Sf[j]
     for k in range(nc):
-        cs[est_idx[k]] = coef[est_idx[k]] + step * Lf[k, j]
+        cs[est_idx[k]] = coef[est_idx[k]] + step * sj[k]
     for r in range(3):
-        a[r] = xb[nc + r] + step * Lf[nc + r, j]
+        a[r] = xb[nc + r] + step * sj[nc + r]
 
 
 @njit(cache=True)
-def propagate_all(xb, Pb, coef, fr3, dt, pb, q_var, h, w2, perm, est_idx, Lp, Lf, Dp, Dm, cs, a,
+def propagate_all(xb, Pb, coef, fr3, dt, pb, q_var, h, w2, perm, est_idx, Rp, Sf, Dp, Dm, cs, a,
                   a0, y, mz, blk):
     """Unscented propagation over ``dt`` s with sigma points over all n states.
 
     The coefficients are constant: their sigma points map to themselves, so the transform returns
     P's coefficient block unchanged (algebra) and only the attitude rows are recomputed:
-    ``P'_ai = (1/2h) sum_j Lf[i, j] (Dp[j, a] - Dm[j, a])`` for a coefficient i, the central-form
+    ``P'_ai = (1/2h) sum_j Sf[j, i] (Dp[j, a] - Dm[j, a])`` for a coefficient i, the central-form
     moments for the angle block, plus ``q_var`` (rad^2) on the angles' diagonal.
     Returns False (nothing changed) if P is not positive definite.
     """
     n = xb.shape[0]
     nc = n - 3
-    if not _full_sqrt(Pb, perm, Lp, Lf):
+    if not _full_sqrt(Pb, perm, Rp, Sf):
         return False
     for r in range(3):
         a[r] = xb[nc + r]
     rk4_scalar(a, coef, fr3, dt, pb, a0)
     for j in range(n):
         for sgn in (1.0, -1.0):
-            _sigma_coef(xb, Lf, j, sgn * h, est_idx, coef, cs, a)
+            _sigma_coef(xb, Sf, j, sgn * h, est_idx, coef, cs, a)
             rk4_scalar(a, cs, fr3, dt, pb, y)
             dst = Dp if sgn > 0.0 else Dm
             for r in range(3):
@@ -213,7 +215,7 @@ def propagate_all(xb, Pb, coef, fr3, dt, pb, q_var, h, w2, perm, est_idx, Lp, Lf
         for i in range(nc):
             v = 0.0
             for j in range(n):
-                v += Lf[i, j] * (Dp[j, r] - Dm[j, r])
+                v += Sf[j, i] * (Dp[j, r] - Dm[j, r])
             Pb[nc + r, i] = i2h * v
             Pb[i, nc + r] = i2h * v
     for r in range(3):
@@ -224,20 +226,20 @@ def propagate_all(xb, Pb, coef, fr3, dt, pb, q_var, h, w2, perm, est_idx, Lp, Lf
 
 
 @njit(cache=True)
-def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, est_idx, update_x, Lp, Lf, Dp, Dm,
+def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, est_idx, update_x, Rp, Sf, Dp, Dm,
                C, U, S, K, D, F, nu, innov, cs, a, y0, y, mz, Pzz):
     """Unscented update with 2n + 1 sigma points over all states (the reference). Returns
     ``(ok, nis)``; ok False (nothing changed) if P or S is not positive definite."""
     n = xb.shape[0]
     nc = n - 3
-    if not _full_sqrt(Pb, perm, Lp, Lf):
+    if not _full_sqrt(Pb, perm, Rp, Sf):
         return False, 0.0
     for r in range(3):
         a[r] = xb[nc + r]
     _measure(a, coef, fr, g, y0)
     for j in range(n):
         for sgn in (1.0, -1.0):
-            _sigma_coef(xb, Lf, j, sgn * h, est_idx, coef, cs, a)
+            _sigma_coef(xb, Sf, j, sgn * h, est_idx, coef, cs, a)
             _measure(a, cs, fr, g, y)
             dst = Dp if sgn > 0.0 else Dm
             for r in range(3):
@@ -245,7 +247,7 @@ def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, est_idx, update_x,
     for k in range(nc):
         cs[est_idx[k]] = coef[est_idx[k]]
     ut_moments_into(Dp, Dm, h, w2, mz, Pzz)
-    ut_cross_into(Lf, Dp, Dm, h, C)
+    ut_cross_into(Sf, Dp, Dm, h, C)
     for r in range(3):
         for i in range(n):
             U[r, i] = C[i, r]
@@ -298,9 +300,9 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     blk = np.empty((3, 3))
     Wd = np.empty((3, n))
     nsig = n if full else q
-    Lnn = np.zeros((q, q))
-    Lp = np.zeros((n, n))
-    Lf = np.zeros((n, n))
+    Rnn = np.zeros((q, q))
+    Rp = np.zeros((n, n))
+    Sf = np.zeros((n, n))
     Dp = np.empty((nsig, 3))
     Dm = np.empty((nsig, 3))
     Y = np.empty((q, 3))
@@ -347,7 +349,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
             specific_force_into(t_prev + 0.5 * dt, pb, fr3[1])
             if full:
                 if not propagate_all(xb, Pb, coef, fr3, dt, pb, q_rate * dt, h, w2, perm, est_idx,
-                                     Lp, Lf, Dp, Dm, cs, a, a0, y, mz, blk):
+                                     Rp, Sf, Dp, Dm, cs, a, a0, y, mz, blk):
                     bad += 1
                     _propagate_linear(xb, Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg,
                                       ang_new, pa, pgyro, phi, qm, Wd, blk, scratch)
@@ -357,10 +359,10 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
         zrow = zb[m]
         if full:
             ok, s = update_all(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, perm, est_idx, update_x,
-                               Lp, Lf, Dp, Dm, C, U, S, K, D, F, nu, innov, cs, a, y0, y, mz, Pzz)
+                               Rp, Sf, Dp, Dm, C, U, S, K, D, F, nu, innov, cs, a, y0, y, mz, Pzz)
         else:
             ok, s = update_nonlinear(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, nl, nl_full, lin,
-                                     update_x, Lnn, Dp, Dm, Y, U, S, K, D, F, nu, innov, cs, a,
+                                     update_x, Rnn, Dp, Dm, Y, U, S, K, D, F, nu, innov, cs, a,
                                      fp0, y0, y, mz, Pzz)
         if ok:
             nis += s

@@ -8,13 +8,15 @@ not used). Prints, per estimator: mean NEES of the 45 coefficients (45 expected)
 runs beyond the 99.9 % chi-square(45) bound (80.1) and inside the 95 % band, the largest gyro and
 accelerometer RMS relative error over the replicates (%), the median of the runs' largest gyro
 error, mean NIS, failed updates, and wall / CPU seconds per run (one numba thread, batches of
-``--batch``). ``--compare-full N`` also runs the full UKF (2n + 1 sigma points everywhere) on the
-first N replicates and prints its largest difference from the nonlinear-subset UKF, in units of
-the latter's sigma, and the sigma ratios.
+``--batch``). ``--compare-full N`` also runs the full UKF (``sigma_points="all"``, 2n + 1 sigma
+points everywhere) on the first N replicates and prints, for every one-pass UKF estimator given,
+its largest difference from the full one in units of the full one's sigma, the sigma ratios, and
+the NEES of both.
 
-Estimators: ``ekf1``, ``ekf2`` (EKF, 1 or 2 passes), ``ukf`` (the default nonlinear-subset UKF),
-``ukf2`` (2 passes), ``ukf-all`` (2n + 1 sigma points; slow), ``ukf:a=<alpha>/b=<beta>/k=<kappa>``
-(other transform parameters; k may be ``none`` = 3 - n).
+Estimators: ``ekf1``, ``ekf2`` (EKF, 1 or 2 passes); ``ukf`` (run_ukf's default), ``ukf2`` (2
+passes), with ``-upd``, ``-nl``, ``-all`` for the ``sigma_points`` variant ("update",
+"nonlinear", "all") and ``:a=<alpha>/b=<beta>/k=<kappa>`` for other transform parameters (k may
+be ``none`` = 3 - n), e.g. ``ukf-nl:a=1e-3/b=2/k=0``.
 
 Usage::
 
@@ -46,21 +48,23 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def parse_estimator(spec: str):
-    """(label, function, settings overrides, options) of an estimator name."""
+    """(label, function, settings overrides, options) of an estimator name:
+    ``ekf1``/``ekf2``, or ``ukf[2][-upd|-nl|-all][:a=<alpha>/b=<beta>/k=<kappa>]``."""
     if spec in ("ekf1", "ekf2"):
         return spec, run_ekf, {"passes": int(spec[-1])}, {}
-    if spec in ("ukf", "ukf2"):
-        return spec, run_ukf, {"passes": 2 if spec == "ukf2" else 1}, {}
-    if spec == "ukf-all":
-        return spec, run_ukf, {"passes": 1}, {"sigma_points": "all"}
-    if spec.startswith("ukf:"):
-        opts = {}
-        for part in spec[4:].split("/"):
-            key, val = part.split("=")
-            name = {"a": "alpha", "b": "beta", "k": "kappa"}[key]
-            opts[name] = None if val == "none" else float(val)
-        return spec, run_ukf, {"passes": 1}, opts
-    raise SystemExit(f"unknown estimator {spec!r}")
+    if not spec.startswith("ukf"):
+        raise SystemExit(f"unknown estimator {spec!r}")
+    head, _, params = spec.partition(":")
+    name, _, variant = head.partition("-")
+    if name not in ("ukf", "ukf2") or variant not in ("", "upd", "nl", "all"):
+        raise SystemExit(f"unknown estimator {spec!r}")
+    opts = {}
+    if variant:
+        opts["sigma_points"] = {"upd": "update", "nl": "nonlinear", "all": "all"}[variant]
+    for part in params.split("/") if params else []:
+        key, val = part.split("=")
+        opts[{"a": "alpha", "b": "beta", "k": "kappa"}[key]] = None if val == "none" else float(val)
+    return spec, run_ukf, {"passes": 2 if name == "ukf2" else 1}, opts
 
 
 def main() -> None:
@@ -122,22 +126,27 @@ def main() -> None:
             res[label]["bad"].append(est.failed_updates)
             ests[label] = est
         n_full = max(0, min(len(bs), args.compare_full - b0))
-        if n_full and "ukf" in ests:
+        if n_full:
             sl = slice(0, n_full)
             c0 = time.process_time()
             full = run_ukf([zk[sl] for zk in z], t, scheme.angles_deg, params, replace(fs, passes=1),
                            sigma_points="all")
             full_cpu = (time.process_time() - c0) / n_full
-            red = ests["ukf"]
-            sig = red.coef_sigma[sl]
-            full_diff.append({
-                "max_diff_sigma": float(np.max(np.abs(full.coef - red.coef[sl]) / sig)),
-                "sigma_ratio_min": float(np.min(full.coef_sigma / sig)),
-                "sigma_ratio_max": float(np.max(full.coef_sigma / sig)),
-                "nees_full": nees(full.coef, full.P[:, :nc, :nc], truth[None, :nc]).tolist(),
-                "nees_reduced": nees(red.coef[sl], red.P[sl, :nc, :nc], truth[None, :nc]).tolist(),
-                "cpu_s_per_run_full": full_cpu,
-            })
+            sig = full.coef_sigma
+            for label, _, over, _ in specs:
+                if over["passes"] != 1 or not label.startswith("ukf") or label.startswith("ukf2") \
+                        or label == "ukf-all":
+                    continue
+                red = ests[label]
+                full_diff.append({
+                    "label": label,
+                    "max_diff_sigma": float(np.max(np.abs(red.coef[sl] - full.coef) / sig)),
+                    "sigma_ratio_min": float(np.min(red.coef_sigma[sl] / sig)),
+                    "sigma_ratio_max": float(np.max(red.coef_sigma[sl] / sig)),
+                    "nees_full": nees(full.coef, full.P[:, :nc, :nc], truth[None, :nc]).tolist(),
+                    "nees_other": nees(red.coef[sl], red.P[sl, :nc, :nc], truth[None, :nc]).tolist(),
+                    "cpu_s_per_run_full": full_cpu,
+                })
         print(f"# {min(b0 + args.batch, args.replicates)}/{args.replicates} replicates", flush=True)
 
     lo, hi = nees_band(nc)
@@ -180,15 +189,17 @@ def main() -> None:
         print("CPU per run relative to one EKF pass: "
               + ", ".join(f"{k} {v['cpu_s_per_run'] / base_cpu:.2f}x" for k, v in out["estimators"].items()))
     if full_diff:
-        out["full_vs_reduced"] = full_diff
-        md = max(d["max_diff_sigma"] for d in full_diff)
-        rlo = min(d["sigma_ratio_min"] for d in full_diff)
-        rhi = max(d["sigma_ratio_max"] for d in full_diff)
+        out["full_vs_other"] = full_diff
         cpu_full = np.mean([d["cpu_s_per_run_full"] for d in full_diff])
-        print(f"full UKF (2n+1 everywhere) vs nonlinear-subset UKF on {args.compare_full} replicates: largest "
-              f"|difference| {md:.4f} sigma, sigma ratio {rlo:.5f}-{rhi:.5f}; full UKF CPU {cpu_full:.2f} s/run")
-        for d in full_diff:
-            print("  NEES full", np.round(d["nees_full"], 2), "reduced", np.round(d["nees_reduced"], 2))
+        print(f"full UKF (2n+1 everywhere) on the first {args.compare_full} replicates, CPU {cpu_full:.2f} s/run")
+        for label in dict.fromkeys(d["label"] for d in full_diff):
+            ds = [d for d in full_diff if d["label"] == label]
+            ef = np.concatenate([d["nees_full"] for d in ds])
+            eo = np.concatenate([d["nees_other"] for d in ds])
+            print(f"  {label} vs full: largest |difference| {max(d['max_diff_sigma'] for d in ds):.4f} sigma, "
+                  f"sigma ratio {min(d['sigma_ratio_min'] for d in ds):.5f}-{max(d['sigma_ratio_max'] for d in ds):.5f}; "
+                  f"mean NEES {eo.mean():.2f} vs {ef.mean():.2f}, beyond {bound:.1f}: {np.mean(eo > bound):.1%} vs "
+                  f"{np.mean(ef > bound):.1%}")
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))
 

@@ -196,7 +196,7 @@ def _run(scheme, z, t, settings=None, **opts):
 
 @pytest.fixture(scope="module")
 def short():
-    """Two noisy replicates, 2 s per position, filtered as a batch by the default UKF."""
+    """Two noisy replicates, 2 s per position, filtered as a batch by the default UKF ("update")."""
     scheme, z, t = _record(2.0, [0, 1])
     return scheme, z, t, _run(scheme, z, t)
 
@@ -249,6 +249,8 @@ def test_nonlinear_update_equals_full_update_with_permuted_square_root(short):
 
 
 def test_linearised_propagation_equals_unscented_propagation(short):
+    # one 20 ms step from a state with correlated P: the EKF's propagation (used by the default
+    # "update" and by "nonlinear") against the unscented one of "all"
     from platcal.model.attitude import make_sc_rk4_scratch
     x, P, tm, _ = _state_after(short)
     fs = FilterSettings()
@@ -313,20 +315,26 @@ def test_covariance_symmetric_positive_definite(short):
     assert np.all(np.isfinite(est.x)) and np.all(np.abs(est.mean_nis - 3.0) < 0.5)
 
 
-def test_full_and_nonlinear_variants_agree(short):
-    scheme, z, t, red = short
+def test_variants_agree(short):
+    scheme, z, t, upd = short
+    full = _run(scheme, z, t, sigma_points="all")
+    sig = full.coef_sigma
+    # the default ("update") differs from the textbook UKF only by the linearised 20 ms propagation
+    assert np.max(np.abs(upd.coef - full.coef) / sig) < 0.02
+    np.testing.assert_allclose(upd.coef_sigma, sig, rtol=1e-4)
+    # "nonlinear" is the "update" UKF with the nonlinear states first in the square root ...
     perm = ukf.nonlinear_first_order(48, FilterSettings().coef_index)
-    same_root = _run(scheme, z, t, sigma_points="all", sqrt_order=perm)
-    natural = _run(scheme, z, t, sigma_points="all")
-    sig = red.coef_sigma
-    # same square root: only the linearised 20 ms propagation differs
-    assert np.max(np.abs(same_root.coef - red.coef) / sig) < 0.02
-    np.testing.assert_allclose(same_root.coef_sigma, sig, rtol=1e-4)
-    # the textbook order of the square root: the transform's own dependence on that choice
-    assert np.max(np.abs(natural.coef - red.coef) / sig) < 0.5
-    np.testing.assert_allclose(natural.coef_sigma, sig, rtol=5e-3)
-    for P in natural.P:
-        np.linalg.cholesky(P)
+    nl = _run(scheme, z, t, sigma_points="nonlinear")
+    same_root = _run(scheme, z, t, sigma_points="update", sqrt_order=perm)
+    np.testing.assert_allclose((nl.coef - same_root.coef) / sig, 0.0, atol=1e-6)
+    np.testing.assert_allclose(nl.coef_sigma, same_root.coef_sigma, rtol=1e-6)
+    # ... and the transform's dependence on that choice is a fraction of a sigma, not more
+    assert np.max(np.abs(nl.coef - full.coef) / sig) < 0.5
+    np.testing.assert_allclose(nl.coef_sigma, sig, rtol=5e-3)
+    for est in (full, nl):
+        assert np.all(est.failed_updates == 0)
+        for P in est.P:
+            np.linalg.cholesky(P)
 
 
 def test_passes_and_history():

@@ -9,30 +9,37 @@ no cross-covariance (the coefficients carry over); the filter then propagates fr
 and so on, one RK4 step per interval. Passes as in the EKF (each further pass restarts from the
 previous estimate with ``P0 = 100 x`` its coefficient covariance).
 
-Sigma points are in engineering units (deg/h, ug, arcsec, rad), drawn from the lower Cholesky
+Sigma points are in engineering units (deg/h, ug, arcsec, rad), drawn from the upper Cholesky
 factor of P with the scaled unscented transform in the central form of
 :mod:`platcal.estimation.unscented` (positive semidefinite for any spread when
 ``beta >= alpha^2``); the update is Joseph-safe (:func:`platcal.estimation.unscented.joseph_update`).
 
-Two variants (option ``sigma_points``):
+Three variants (option ``sigma_points``):
 
-``"all"``: the textbook UKF over all n states, 2n + 1 sigma points for the propagation and
-    2n + 1 redrawn ones for the measurement. The coefficients are constant, so their
-    sigma points propagate unchanged and the coefficient block of P is kept as it is (the
-    transform gives it back exactly); only the attitude rows are recomputed.
-``"nonlinear"`` (default): sigma points only where the model is nonlinear. The propagation over
-    one filter period is the EKF's: the mean through RK4 and P through the exact Jacobian of the
-    RK4 map (the drift is linear in the gyro coefficients; the attitude moves ~1e-6 rad per
-    20 ms, so the second-order terms are ~1e-12 rad: measured in benchmarks/ukf_study.py). The
-    measurement depends nonlinearly only on the angles, the misalignments theta and k1, k2, k3,
-    kIP (18 states, 37 sigma points, of which only the 6 that move the angles need
-    trigonometry); k0 enters linearly and the gyro coefficients not at all, so they are added
-    in closed form (Gaussian regression on the 18 states,
-    :func:`platcal.estimation.unscented.regression_cross_into`). This update is exactly the
-    ``"all"`` update with a square root of P that orders those 18 states first (tests/test_ukf.py).
+``"all"``: the textbook UKF over all n states, 2n + 1 sigma points (Cholesky factor in the state
+    order) for the propagation and 2n + 1 redrawn ones for the measurement. The coefficients are
+    constant, so their sigma points propagate unchanged and the coefficient block of P is kept as
+    it is (the transform gives it back exactly); only the attitude rows are recomputed.
+``"update"`` (default): the same 2n + 1 measurement update; the propagation over one filter period
+    is the EKF's (the mean through RK4, P through the exact Jacobian of the RK4 map). The drift is
+    linear in the gyro coefficients and the attitude moves ~1e-6 rad per 20 ms, so this changes
+    the estimates by < 0.01 sigma against ``"all"`` (measured: 0.008 sigma on Table 1, 10 s per
+    position) at about a third of its cost.
+``"nonlinear"``: sigma points only where the measurement is nonlinear: the angles, the
+    misalignments theta and k1, k2, k3, kIP (18 states, 37 sigma points, of which only the 6 that
+    move the angles need trigonometry); k0 enters linearly and the gyro coefficients not at all,
+    so they are added in closed form (Gaussian regression on the 18 states,
+    :func:`platcal.estimation.unscented.regression_cross_into`); propagation as ``"update"``.
+    This is exactly the ``"all"`` update with a Cholesky factor that orders those 18 states
+    first (tests/test_ukf.py), i.e. a UKF with another, equally valid, matrix square root. The
+    unscented transform is not invariant to that choice beyond second order, and here it shows:
+    on 48 replicates at 10 ug the estimates differ from the state-order ``"all"`` UKF by up to
+    1.15 sigma, with mean NEES 58.7 against 56.1 and 16.7 % against 12.5 % of runs beyond 80.1.
+    So the default is the state-order update; ``"nonlinear"`` costs about a quarter of it
+    (about 1.9 x one EKF pass) and is offered as the cheap variant (benchmarks/ukf_study.py).
 
 Parameters of the transform: ``alpha``, ``beta``, ``kappa`` (None: ``3 - n``), with ``n`` the full
-state dimension in both variants so that they use the same spread ``h = alpha sqrt(n + kappa)``.
+state dimension in every variant so that they use the same spread ``h = alpha sqrt(n + kappa)``.
 The default ``alpha = 1, beta = 2, kappa = 3 - n`` puts the sigma points at ``sqrt(3)`` sigma
 (Julier's ``n + kappa = 3``: the Gaussian's fourth moment along each axis) and weights the
 central form's ``m m^T`` term by ``beta - alpha^2 = 1``; the textbook zeroth weight would be
@@ -59,17 +66,7 @@ from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_on
 from .base import broadcast_params, specific_force_into
 from .ekf import Estimate, FilterSettings
 
-SIGMA_POINT_MODES = ("nonlinear", "all")
-
-
-@njit(cache=True)
-def _measure(ang, coef, fr, g, out):
-    """Accelerometer outputs (g) at the angles ``ang`` (rad), eq. 13."""
-    o0, o1, o2 = measure_scalar(np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]),
-                                np.sin(ang[2]), np.cos(ang[2]), coef, fr[0], fr[1], fr[2], g)
-    out[0] = o0
-    out[1] = o1
-    out[2] = o2
+SIGMA_POINT_MODES = ("nonlinear", "update", "all")
 
 
 @njit(cache=True)
@@ -234,13 +231,18 @@ def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, est_idx, update_x,
     nc = n - 3
     if not _full_sqrt(Pb, perm, Rp, Sf):
         return False, 0.0
-    for r in range(3):
-        a[r] = xb[nc + r]
-    _measure(a, coef, fr, g, y0)
+    sa, ca = np.sin(xb[nc]), np.cos(xb[nc])
+    sb, cb = np.sin(xb[nc + 1]), np.cos(xb[nc + 1])
+    sg, cg = np.sin(xb[nc + 2]), np.cos(xb[nc + 2])
+    y0[0], y0[1], y0[2] = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
     for j in range(n):
         for sgn in (1.0, -1.0):
             _sigma_coef(xb, Sf, j, sgn * h, est_idx, coef, cs, a)
-            _measure(a, cs, fr, g, y)
+            # a: the sigma point's angles; sin/cos by exact-to-rounding shifts from the mean's
+            s0, c0 = _shift(sa, ca, a[0] - xb[nc])
+            s1, c1 = _shift(sb, cb, a[1] - xb[nc + 1])
+            s2, c2 = _shift(sg, cg, a[2] - xb[nc + 2])
+            y[0], y[1], y[2] = measure_scalar(s0, c0, s1, c1, s2, c2, cs, fr[0], fr[1], fr[2], g)
             dst = Dp if sgn > 0.0 else Dm
             for r in range(3):
                 dst[j, r] = y[r] - y0[r]
@@ -280,8 +282,12 @@ def _propagate_linear(xb, Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, an
 
 @njit(cache=True)
 def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
-                hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, h, w2, full, perm):
-    """One replicate through one position; returns (sum of NIS, number of failed steps)."""
+                hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, h, w2, mode, perm):
+    """One replicate through one position; returns (sum of NIS, number of failed steps).
+    ``mode``: 0 sigma points over the nonlinear states, 1 over all states in the update only,
+    2 over all states in the propagation and the update."""
+    full_prop = mode == 2
+    full = mode >= 1
     n = xb.shape[0]
     nc = n - 3
     M = t.shape[0]
@@ -347,7 +353,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
                 fr3[0, r] = fr_prev[r]
                 fr3[2, r] = fr_now[r]
             specific_force_into(t_prev + 0.5 * dt, pb, fr3[1])
-            if full:
+            if full_prop:
                 if not propagate_all(xb, Pb, coef, fr3, dt, pb, q_rate * dt, h, w2, perm, est_idx,
                                      Rp, Sf, Dp, Dm, cs, a, a0, y, mz, blk):
                     bad += 1
@@ -382,14 +388,14 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
 @njit(cache=True)
 def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                       q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl,
-                      nl_full, lin, h, w2, full, perm):
+                      nl_full, lin, h, w2, mode, perm):
     """Replicate b through every position of one pass."""
     for k in range(offs.shape[0] - 1):
         o0, o1 = offs[k], offs[k + 1]
         zb = z[b, o0:o1] if update_x else z[b]
         stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx, coef_fixed[b],
                             params[b, k], r_var, q_rate, update_x, hist_idx[o0:o1], hist_x[b],
-                            hist_s[b], pcols, pg, nl, nl_full, lin, h, w2, full, perm)
+                            hist_s[b], pcols, pg, nl, nl_full, lin, h, w2, mode, perm)
         nis_sum[b] += stats[0]
         n_bad[b] += int(stats[1])
 
@@ -397,23 +403,23 @@ def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, 
 @njit(parallel=True, cache=True)
 def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
               update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full, lin, h,
-              w2, full, perm):
+              w2, mode, perm):
     """Every replicate of the batch through one pass, one replicate per ``prange`` iteration."""
     for b in prange(x.shape[0]):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                           q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          nl, nl_full, lin, h, w2, full, perm)
+                          nl, nl_full, lin, h, w2, mode, perm)
 
 
 @njit(cache=True)
 def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
                      update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full,
-                     lin, h, w2, full, perm):
+                     lin, h, w2, mode, perm):
     """:func:`_run_pass` without threads (a batch of one, or one thread): the same kernel."""
     for b in range(x.shape[0]):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                           q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          nl, nl_full, lin, h, w2, full, perm)
+                          nl, nl_full, lin, h, w2, mode, perm)
 
 
 def propagation_structure(est_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -481,7 +487,7 @@ def run_ukf(
     centrifuge_params: np.ndarray,
     settings: FilterSettings,
     *,
-    sigma_points: str = "nonlinear",
+    sigma_points: str = "update",
     alpha: float = 1.0,
     beta: float = 2.0,
     kappa: float | None = None,
@@ -496,11 +502,14 @@ def run_ukf(
     cmd_deg : (B, K, 3) or (K, 3) commanded alpha, beta, gamma per position, deg.
     centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters.
     settings : the filter settings (those of the EKF; ``passes`` as there).
-    sigma_points : ``"nonlinear"`` (default: sigma points over the 18 states the measurement is
-        nonlinear in, the rest exact) or ``"all"`` (2n + 1 over every state; the reference).
+    sigma_points : ``"update"`` (default: 2n + 1 sigma points in the measurement update, the
+        EKF's propagation), ``"all"`` (2n + 1 in the propagation too; the textbook reference) or
+        ``"nonlinear"`` (sigma points over the 18 states the measurement is nonlinear in, the
+        rest exact; cheapest). See the module docstring for how they differ.
     alpha, beta, kappa : scaled-transform parameters (kappa None: ``3 - n``); beta >= alpha^2.
-    sqrt_order : (n,) state permutation for the Cholesky factor of the ``"all"`` variant
-        (default: the state order); :func:`nonlinear_first_order` makes it equal ``"nonlinear"``.
+    sqrt_order : (n,) state permutation for the Cholesky factor of the ``"update"`` and ``"all"``
+        variants (default: the state order); :func:`nonlinear_first_order` makes the update
+        equal to ``"nonlinear"``'s (for tests).
 
     Returns
     -------
@@ -517,7 +526,7 @@ def run_ukf(
     nc = est_idx.size
     n = nc + 3
     h, w2, _ = check_options(n, sigma_points, alpha, beta, kappa)
-    full = sigma_points == "all"
+    mode = SIGMA_POINT_MODES.index(sigma_points)
     perm = np.arange(n, dtype=np.int64) if sqrt_order is None else np.asarray(sqrt_order, np.int64)
     if sorted(perm.tolist()) != list(range(n)):
         raise InputError("ukf.sqrt_order", f"must be a permutation of 0..{n - 1}")
@@ -582,7 +591,7 @@ def run_ukf(
         with numba.parallel_chunksize(1):
             kernel(x, P, z_all, t_all, offs, cmd_rad, reset_var, est_idx, coef_fixed, params, r_var,
                    q_rate, True, hidx_all, hist_x, hist_s, nis, n_bad, pcols, pg, nl, nl_full, lin,
-                   h, w2, full, perm)
+                   h, w2, mode, perm)
         pass_x[p] = x[:, :nc]
         pass_P[p] = P[:, :nc, :nc]
     return Estimate(

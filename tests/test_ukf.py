@@ -235,10 +235,11 @@ def test_nonlinear_update_equals_full_update_with_permuted_square_root(short):
     x2, P2 = x.copy(), P.copy()
     s2 = _scratch(n, q)
     perm = ukf.nonlinear_first_order(n, est)
-    ok2, nis2 = ukf.update_all(x2, P2, coef, fr, 9.80665, zrow, r_var, h, w2, perm, est, True,
+    mstates = np.arange(27, 45)
+    ok2, nis2 = ukf.update_all(x2, P2, coef, fr, 9.80665, zrow, r_var, h, w2, perm, mstates, est, True,
                                np.zeros((n, n)), np.zeros((n, n)), np.empty((n, 3)), np.empty((n, 3)),
-                               np.empty((n, 3)), s2["U"], s2["S"], s2["K"], s2["D"], s2["F"], s2["nu"],
-                               s2["innov"], coef.copy(), s2["a"], s2["y0"], s2["y"], s2["mz"], s2["Pzz"])
+                               s2["U"], s2["S"], s2["K"], s2["D"], s2["F"], s2["nu"], s2["innov"],
+                               coef.copy(), s2["a"], s2["y0"], s2["y"], s2["mz"], s2["Pzz"])
     assert ok1 and ok2
     sig = np.sqrt(np.diag(P))
     np.testing.assert_allclose((x1 - x2) / sig, 0.0, atol=1e-6)

@@ -58,7 +58,7 @@ from numba import njit, prange
 from ...errors import InputError
 from ...estimation.kalman import propagate_sparse
 from ...estimation.unscented import (check_ut_params, cholesky_upper_into, joseph_update,
-                                     regression_cross_into, ut_cross_into, ut_moments_into)
+                                     regression_cross_into, ut_moments_into)
 from ...model.attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch,
                                measure_scalar, rk4_jac_sc, rk4_scalar)
 from ...model.frames import ARCSEC, DEG
@@ -157,6 +157,11 @@ def _full_sqrt(Pb, perm, Rp, Sf):
     from the upper Cholesky factor ``Rp`` of P with its states permuted by ``perm``
     (``Sf[j, perm[i]] = Rp[j, i]``); False if P is not PD."""
     n = Pb.shape[0]
+    identity = True
+    for i in range(n):
+        identity = identity and perm[i] == i
+    if identity:
+        return cholesky_upper_into(Pb, Sf)
     for i in range(n):
         for j in range(i + 1):
             Rp[i, j] = Pb[perm[i], perm[j]]
@@ -223,10 +228,14 @@ def propagate_all(xb, Pb, coef, fr3, dt, pb, q_var, h, w2, perm, est_idx, Rp, Sf
 
 
 @njit(cache=True)
-def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, est_idx, update_x, Rp, Sf, Dp, Dm,
-               C, U, S, K, D, F, nu, innov, cs, a, y0, y, mz, Pzz):
+def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, mstates, est_idx, update_x, Rp, Sf,
+               Dp, Dm, U, S, K, D, F, nu, innov, cs, a, y0, y, mz, Pzz):
     """Unscented update with 2n + 1 sigma points over all states (the reference). Returns
-    ``(ok, nis)``; ok False (nothing changed) if P or S is not positive definite."""
+    ``(ok, nis)``; ok False (nothing changed) if P or S is not positive definite.
+
+    ``mstates``: the coefficient states the measurement reads (k0 ... kIP, theta); every sigma
+    point moves every state, but the others cannot change the outputs, so only these are set.
+    """
     n = xb.shape[0]
     nc = n - 3
     if not _full_sqrt(Pb, perm, Rp, Sf):
@@ -237,22 +246,32 @@ def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, est_idx, update_x,
     y0[0], y0[1], y0[2] = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
     for j in range(n):
         for sgn in (1.0, -1.0):
-            _sigma_coef(xb, Sf, j, sgn * h, est_idx, coef, cs, a)
-            # a: the sigma point's angles; sin/cos by exact-to-rounding shifts from the mean's
-            s0, c0 = _shift(sa, ca, a[0] - xb[nc])
-            s1, c1 = _shift(sb, cb, a[1] - xb[nc + 1])
-            s2, c2 = _shift(sg, cg, a[2] - xb[nc + 2])
+            step = sgn * h
+            sj = Sf[j]
+            for k in mstates:
+                cs[est_idx[k]] = coef[est_idx[k]] + step * sj[k]
+            # the sigma point's angles: sin/cos by exact-to-rounding shifts from the mean's
+            s0, c0 = _shift(sa, ca, step * sj[nc])
+            s1, c1 = _shift(sb, cb, step * sj[nc + 1])
+            s2, c2 = _shift(sg, cg, step * sj[nc + 2])
             y[0], y[1], y[2] = measure_scalar(s0, c0, s1, c1, s2, c2, cs, fr[0], fr[1], fr[2], g)
             dst = Dp if sgn > 0.0 else Dm
             for r in range(3):
                 dst[j, r] = y[r] - y0[r]
-    for k in range(nc):
+    for k in mstates:
         cs[est_idx[k]] = coef[est_idx[k]]
     ut_moments_into(Dp, Dm, h, w2, mz, Pzz)
-    ut_cross_into(Sf, Dp, Dm, h, C)
+    # cross-covariance (1/2h) sum_j Sf[j]^T (Dp[j] - Dm[j]), one contiguous row per output
+    i2h = 0.5 / h
     for r in range(3):
+        ur = U[r]
         for i in range(n):
-            U[r, i] = C[i, r]
+            ur[i] = 0.0
+        for j in range(n):
+            gj = i2h * (Dp[j, r] - Dm[j, r])
+            sj = Sf[j]
+            for i in range(n):
+                ur[i] += gj * sj[i]
     for r in range(3):
         for c in range(3):
             S[r, c] = Pzz[r, c]
@@ -282,7 +301,7 @@ def _propagate_linear(xb, Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, an
 
 @njit(cache=True)
 def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
-                hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, h, w2, mode, perm):
+                hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm):
     """One replicate through one position; returns (sum of NIS, number of failed steps).
     ``mode``: 0 sigma points over the nonlinear states, 1 over all states in the update only,
     2 over all states in the propagation and the update."""
@@ -312,7 +331,6 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     Dp = np.empty((nsig, 3))
     Dm = np.empty((nsig, 3))
     Y = np.empty((q, 3))
-    C = np.empty((n, 3))
     U = np.empty((3, n))
     K = np.empty((3, n))
     D = np.empty((3, n))
@@ -364,8 +382,9 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
                                   pa, pgyro, phi, qm, Wd, blk, scratch)
         zrow = zb[m]
         if full:
-            ok, s = update_all(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, perm, est_idx, update_x,
-                               Rp, Sf, Dp, Dm, C, U, S, K, D, F, nu, innov, cs, a, y0, y, mz, Pzz)
+            ok, s = update_all(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, perm, mstates, est_idx,
+                               update_x, Rp, Sf, Dp, Dm, U, S, K, D, F, nu, innov, cs,
+                               a, y0, y, mz, Pzz)
         else:
             ok, s = update_nonlinear(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, nl, nl_full, lin,
                                      update_x, Rnn, Dp, Dm, Y, U, S, K, D, F, nu, innov, cs, a,
@@ -388,38 +407,38 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
 @njit(cache=True)
 def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                       q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl,
-                      nl_full, lin, h, w2, mode, perm):
+                      nl_full, lin, mstates, h, w2, mode, perm):
     """Replicate b through every position of one pass."""
     for k in range(offs.shape[0] - 1):
         o0, o1 = offs[k], offs[k + 1]
         zb = z[b, o0:o1] if update_x else z[b]
         stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx, coef_fixed[b],
                             params[b, k], r_var, q_rate, update_x, hist_idx[o0:o1], hist_x[b],
-                            hist_s[b], pcols, pg, nl, nl_full, lin, h, w2, mode, perm)
+                            hist_s[b], pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm)
         nis_sum[b] += stats[0]
         n_bad[b] += int(stats[1])
 
 
 @njit(parallel=True, cache=True)
 def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full, lin, h,
-              w2, mode, perm):
+              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full, lin, mstates,
+              h, w2, mode, perm):
     """Every replicate of the batch through one pass, one replicate per ``prange`` iteration."""
     for b in prange(x.shape[0]):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                           q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          nl, nl_full, lin, h, w2, mode, perm)
+                          nl, nl_full, lin, mstates, h, w2, mode, perm)
 
 
 @njit(cache=True)
 def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
                      update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full,
-                     lin, h, w2, mode, perm):
+                     lin, mstates, h, w2, mode, perm):
     """:func:`_run_pass` without threads (a batch of one, or one thread): the same kernel."""
     for b in range(x.shape[0]):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                           q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          nl, nl_full, lin, h, w2, mode, perm)
+                          nl, nl_full, lin, mstates, h, w2, mode, perm)
 
 
 def propagation_structure(est_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -547,6 +566,7 @@ def run_ukf(
     params = broadcast_params(centrifuge_params, B, K)
     pcols, pg = propagation_structure(est_idx)
     nl, nl_full, lin = measurement_structure(est_idx)
+    mstates = np.array([k for k, f in enumerate(est_idx) if I_K0 <= f < I_THETA + 3], dtype=np.int64)
     kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
 
     passes = settings.passes
@@ -591,7 +611,7 @@ def run_ukf(
         with numba.parallel_chunksize(1):
             kernel(x, P, z_all, t_all, offs, cmd_rad, reset_var, est_idx, coef_fixed, params, r_var,
                    q_rate, True, hidx_all, hist_x, hist_s, nis, n_bad, pcols, pg, nl, nl_full, lin,
-                   h, w2, mode, perm)
+                   mstates, h, w2, mode, perm)
         pass_x[p] = x[:, :nc]
         pass_P[p] = P[:, :nc, :nc]
     return Estimate(

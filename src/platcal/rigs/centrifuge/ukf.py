@@ -1,0 +1,628 @@
+"""An unscented Kalman filter of the centrifuge model (docs/centrifuge-model.md §9; issue 9 item 3),
+batched over replicates.
+
+Same model, state, units, timing and settings as the EKF (:mod:`.ekf`): 45 coefficients in
+Table 2's engineering units (48 with ``estimate_doo``), then alpha, beta, gamma in rad; at time
+0 of each position the attitude is reset to the commanded angles with variance sigma_set^2 and
+no cross-covariance (the coefficients carry over); the filter then propagates from 0 to
+``t[k][0]`` (nothing if ``t[k][0] == 0``), updates with ``z`` there, propagates to ``t[k][1]``,
+and so on, one RK4 step per interval. Passes as in the EKF (each further pass restarts from the
+previous estimate with ``P0 = 100 x`` its coefficient covariance).
+
+Sigma points are in engineering units (deg/h, ug, arcsec, rad), drawn from the upper Cholesky
+factor of P with the scaled unscented transform in the central form of
+:mod:`platcal.estimation.unscented` (positive semidefinite for any spread when
+``beta >= alpha^2``); the update is Joseph-safe (:func:`platcal.estimation.unscented.joseph_update`).
+
+Three variants (option ``sigma_points``):
+
+``"all"``: the textbook UKF over all n states, 2n + 1 sigma points (Cholesky factor in the state
+    order) for the propagation and 2n + 1 redrawn ones for the measurement. The coefficients are
+    constant, so their sigma points propagate unchanged and the coefficient block of P is kept as
+    it is (the transform gives it back exactly); only the attitude rows are recomputed.
+``"update"`` (default): the same 2n + 1 measurement update; the propagation over one filter period
+    is the EKF's (the mean through RK4, P through the exact Jacobian of the RK4 map). The drift is
+    linear in the gyro coefficients and the attitude moves ~1e-6 rad per 20 ms, so this changes
+    the estimates by < 0.01 sigma against ``"all"`` (measured: 0.008 sigma on Table 1, 10 s per
+    position) at about a third of its cost.
+``"nonlinear"``: sigma points only where the measurement is nonlinear: the angles, the
+    misalignments theta and k1, k2, k3, kIP (18 states, 37 sigma points, of which only the 6 that
+    move the angles need trigonometry); k0 enters linearly and the gyro coefficients not at all,
+    so they are added in closed form (Gaussian regression on the 18 states,
+    :func:`platcal.estimation.unscented.regression_cross_into`); propagation as ``"update"``.
+    This is exactly the ``"all"`` update with a Cholesky factor that orders those 18 states
+    first (tests/test_ukf.py), i.e. a UKF with another, equally valid, matrix square root. The
+    unscented transform is not invariant to that choice beyond second order, and here it shows:
+    on 48 replicates at 10 ug the estimates differ from the state-order ``"all"`` UKF by up to
+    1.15 sigma, with mean NEES 58.7 against 56.1 and 16.7 % against 12.5 % of runs beyond 80.1.
+    So the default is the state-order update; ``"nonlinear"`` costs about a quarter of it
+    (about 1.9 x one EKF pass) and is offered as the cheap variant (benchmarks/ukf_study.py).
+
+Parameters of the transform: ``alpha``, ``beta``, ``kappa`` (None: ``3 - n``), with ``n`` the full
+state dimension in every variant so that they use the same spread ``h = alpha sqrt(n + kappa)``.
+The default ``alpha = 1, beta = 2, kappa = 3 - n`` puts the sigma points at ``sqrt(3)`` sigma
+(Julier's ``n + kappa = 3``: the Gaussian's fourth moment along each axis) and weights the
+central form's ``m m^T`` term by ``beta - alpha^2 = 1``; the textbook zeroth weight would be
+``1 - n/3 = -15``, harmless in the central form.
+
+Each replicate runs the same sequential kernel in its own ``prange`` iteration, so the numbers do
+not depend on the batch size or the number of threads.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from ...errors import InputError
+from ...estimation.kalman import propagate_sparse
+from ...estimation.unscented import (check_ut_params, cholesky_upper_into, joseph_update,
+                                     regression_cross_into, ut_moments_into)
+from ...model.attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch,
+                               measure_scalar, rk4_jac_sc, rk4_scalar)
+from ...model.frames import ARCSEC, DEG
+from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
+from .base import broadcast_params, specific_force_into
+from .ekf import Estimate, FilterSettings
+
+SIGMA_POINT_MODES = ("nonlinear", "update", "all")
+
+
+@njit(cache=True)
+def _accel_at(coef, fp, out):
+    """Accelerometer outputs (g) at the platform specific force ``fp`` (g), eq. 13."""
+    for j in range(3):
+        aI, aP = accel_axes(coef, j, fp[0], fp[1], fp[2])
+        out[j] = accel_one(coef, j, aI, aP)
+
+
+@njit(cache=True)
+def update_nonlinear(xb, Pb, coef, fr, g, zrow, r_var, h, w2, nl, nl_full, lin, update_x, Rnn, Dp,
+                     Dm, Y, U, S, K, D, F, nu, innov, cs, a, fp0, y0, y, mz, Pzz):
+    """Unscented update with sigma points over the states ``nl`` only (see the module docstring).
+
+    ``nl`` (nl,) state indices, the three angles first; ``nl_full`` their full-coefficient
+    index (-1 - i for angle i); ``lin`` (3,) the state of k0 of each axis (the linear part,
+    output j = ``UG k0_j`` + the rest). ``coef`` (48,) is the full coefficient vector at the
+    state (``xb``'s coefficients mapped in); ``cs`` (48,) scratch equal to ``coef`` on entry and
+    exit. ``fr`` (3,) base specific force (m/s^2), ``g`` m/s^2, ``zrow`` (3,) the outputs (g).
+    Returns ``(ok, nis)``; ok False (nothing changed) if P_NN or S is not positive definite.
+    """
+    n = xb.shape[0]
+    nc = n - 3
+    q = nl.shape[0]
+    for i in range(q):
+        for j in range(i + 1):
+            Rnn[i, j] = Pb[nl[i], nl[j]]
+    if not cholesky_upper_into(Rnn, Rnn):
+        return False, 0.0
+    sa, ca = np.sin(xb[nc]), np.cos(xb[nc])
+    sb, cb = np.sin(xb[nc + 1]), np.cos(xb[nc + 1])
+    sg, cg = np.sin(xb[nc + 2]), np.cos(xb[nc + 2])
+    c = c_rp_sc(sa, ca, sb, cb, sg, cg)
+    for r in range(3):
+        fp0[r] = (c[3 * r] * fr[0] + c[3 * r + 1] * fr[1] + c[3 * r + 2] * fr[2]) / g
+        a[r] = 0.0
+    _accel_at(coef, fp0, y0)
+    for j in range(q):
+        for sgn in (1.0, -1.0):
+            # a: the sigma point's angle offsets (rad); cs: its coefficients
+            for i in range(j, q):
+                d = sgn * h * Rnn[j, i]
+                f = nl_full[i]
+                if f < 0:
+                    a[-1 - f] = d
+                else:
+                    cs[f] += d
+            if j < 3:  # only the first three rows move the angles (Rnn upper triangular)
+                s0, c0 = _shift(sa, ca, a[0])
+                s1, c1 = _shift(sb, cb, a[1])
+                s2, c2 = _shift(sg, cg, a[2])
+                y[0], y[1], y[2] = measure_scalar(s0, c0, s1, c1, s2, c2, cs, fr[0], fr[1], fr[2], g)
+            else:
+                _accel_at(cs, fp0, y)
+            dst = Dp if sgn > 0.0 else Dm
+            for r in range(3):
+                dst[j, r] = y[r] - y0[r]
+            for i in range(j, q):
+                f = nl_full[i]
+                if f < 0:
+                    a[-1 - f] = 0.0
+                else:
+                    cs[f] = coef[f]
+    ut_moments_into(Dp, Dm, h, w2, mz, Pzz)
+    regression_cross_into(Pb, nl, Rnn, Dp, Dm, h, Y, U)
+    for r in range(3):
+        lr = Pb[lin[r]]
+        ur = U[r]
+        for i in range(n):
+            ur[i] += UG * lr[i]
+    for r in range(3):
+        for c in range(r + 1):
+            v = UG * (U[c, lin[r]] + U[r, lin[c]]) - UG * UG * Pb[lin[r], lin[c]] + Pzz[r, c]
+            S[r, c] = v
+            S[c, r] = v
+        S[r, r] += r_var[r]
+    for r in range(3):
+        innov[r] = zrow[r] - (y0[r] + mz[r]) if update_x else 0.0
+    if not joseph_update(xb, Pb, U, S, innov, K, D, F, nu, update_x):
+        return False, 0.0
+    return True, nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+
+
+@njit(cache=True)
+def _full_sqrt(Pb, perm, Rp, Sf):
+    """Square root ``Sf`` (n, n) of P (``P = Sf^T Sf``; rows: sigma directions, in state order)
+    from the upper Cholesky factor ``Rp`` of P with its states permuted by ``perm``
+    (``Sf[j, perm[i]] = Rp[j, i]``); False if P is not PD."""
+    n = Pb.shape[0]
+    identity = True
+    for i in range(n):
+        identity = identity and perm[i] == i
+    if identity:
+        return cholesky_upper_into(Pb, Sf)
+    for i in range(n):
+        for j in range(i + 1):
+            Rp[i, j] = Pb[perm[i], perm[j]]
+    if not cholesky_upper_into(Rp, Rp):
+        return False
+    for j in range(n):
+        for i in range(n):
+            Sf[j, perm[i]] = Rp[j, i]
+    return True
+
+
+@njit(cache=True)
+def _sigma_coef(xb, Sf, j, step, est_idx, coef, cs, a):
+    """The coefficients ``cs`` (48,) and angles ``a`` of the sigma point ``x + step Sf[j]``."""
+    nc = xb.shape[0] - 3
+    sj = Sf[j]
+    for k in range(nc):
+        cs[est_idx[k]] = coef[est_idx[k]] + step * sj[k]
+    for r in range(3):
+        a[r] = xb[nc + r] + step * sj[nc + r]
+
+
+@njit(cache=True)
+def propagate_all(xb, Pb, coef, fr3, dt, pb, q_var, h, w2, perm, est_idx, Rp, Sf, Dp, Dm, cs, a,
+                  a0, y, mz, blk):
+    """Unscented propagation over ``dt`` s with sigma points over all n states.
+
+    The coefficients are constant: their sigma points map to themselves, so the transform returns
+    P's coefficient block unchanged (algebra) and only the attitude rows are recomputed:
+    ``P'_ai = (1/2h) sum_j Sf[j, i] (Dp[j, a] - Dm[j, a])`` for a coefficient i, the central-form
+    moments for the angle block, plus ``q_var`` (rad^2) on the angles' diagonal.
+    Returns False (nothing changed) if P is not positive definite.
+    """
+    n = xb.shape[0]
+    nc = n - 3
+    if not _full_sqrt(Pb, perm, Rp, Sf):
+        return False
+    for r in range(3):
+        a[r] = xb[nc + r]
+    rk4_scalar(a, coef, fr3, dt, pb, a0)
+    for j in range(n):
+        for sgn in (1.0, -1.0):
+            _sigma_coef(xb, Sf, j, sgn * h, est_idx, coef, cs, a)
+            rk4_scalar(a, cs, fr3, dt, pb, y)
+            dst = Dp if sgn > 0.0 else Dm
+            for r in range(3):
+                dst[j, r] = y[r] - a0[r]
+    for k in range(nc):
+        cs[est_idx[k]] = coef[est_idx[k]]
+    ut_moments_into(Dp, Dm, h, w2, mz, blk)
+    i2h = 0.5 / h
+    for r in range(3):
+        for i in range(nc):
+            v = 0.0
+            for j in range(n):
+                v += Sf[j, i] * (Dp[j, r] - Dm[j, r])
+            Pb[nc + r, i] = i2h * v
+            Pb[i, nc + r] = i2h * v
+    for r in range(3):
+        for c in range(3):
+            Pb[nc + r, nc + c] = blk[r, c] + (q_var if r == c else 0.0)
+        xb[nc + r] = a0[r] + mz[r]
+    return True
+
+
+@njit(cache=True)
+def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, mstates, est_idx, update_x, Rp, Sf,
+               Dp, Dm, U, S, K, D, F, nu, innov, cs, a, y0, y, mz, Pzz):
+    """Unscented update with 2n + 1 sigma points over all states (the reference). Returns
+    ``(ok, nis)``; ok False (nothing changed) if P or S is not positive definite.
+
+    ``mstates``: the coefficient states the measurement reads (k0 ... kIP, theta); every sigma
+    point moves every state, but the others cannot change the outputs, so only these are set.
+    """
+    n = xb.shape[0]
+    nc = n - 3
+    if not _full_sqrt(Pb, perm, Rp, Sf):
+        return False, 0.0
+    sa, ca = np.sin(xb[nc]), np.cos(xb[nc])
+    sb, cb = np.sin(xb[nc + 1]), np.cos(xb[nc + 1])
+    sg, cg = np.sin(xb[nc + 2]), np.cos(xb[nc + 2])
+    y0[0], y0[1], y0[2] = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
+    for j in range(n):
+        for sgn in (1.0, -1.0):
+            step = sgn * h
+            sj = Sf[j]
+            for k in mstates:
+                cs[est_idx[k]] = coef[est_idx[k]] + step * sj[k]
+            # the sigma point's angles: sin/cos by exact-to-rounding shifts from the mean's
+            s0, c0 = _shift(sa, ca, step * sj[nc])
+            s1, c1 = _shift(sb, cb, step * sj[nc + 1])
+            s2, c2 = _shift(sg, cg, step * sj[nc + 2])
+            y[0], y[1], y[2] = measure_scalar(s0, c0, s1, c1, s2, c2, cs, fr[0], fr[1], fr[2], g)
+            dst = Dp if sgn > 0.0 else Dm
+            for r in range(3):
+                dst[j, r] = y[r] - y0[r]
+    for k in mstates:
+        cs[est_idx[k]] = coef[est_idx[k]]
+    ut_moments_into(Dp, Dm, h, w2, mz, Pzz)
+    # cross-covariance (1/2h) sum_j Sf[j]^T (Dp[j] - Dm[j]), one contiguous row per output
+    i2h = 0.5 / h
+    for r in range(3):
+        ur = U[r]
+        for i in range(n):
+            ur[i] = 0.0
+        for j in range(n):
+            gj = i2h * (Dp[j, r] - Dm[j, r])
+            sj = Sf[j]
+            for i in range(n):
+                ur[i] += gj * sj[i]
+    for r in range(3):
+        for c in range(3):
+            S[r, c] = Pzz[r, c]
+        S[r, r] += r_var[r]
+        innov[r] = zrow[r] - (y0[r] + mz[r]) if update_x else 0.0
+    if not joseph_update(xb, Pb, U, S, innov, K, D, F, nu, update_x):
+        return False, 0.0
+    return True, nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+
+
+@njit(cache=True)
+def _propagate_linear(xb, Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new, pa, pgyro, phi,
+                      q, Wd, blk, scratch):
+    """The EKF's propagation: the mean through RK4, P through the RK4 map's exact Jacobian."""
+    npc = pcols.shape[0]
+    rk4_jac_sc(ang, coef, fr3, dt, pb, ang_new, pa, pgyro, scratch)
+    for r in range(3):
+        for k in range(npc - 3):
+            phi[r, k] = pgyro[r, pg[k]]
+        for i in range(3):
+            phi[r, npc - 3 + i] = pa[r, i]
+        q[r, r] = q_rate * dt
+    for r in range(3):
+        ang[r] = ang_new[r]
+    propagate_sparse(Pb, dyn, pcols, phi, q, Wd, blk)
+
+
+@njit(cache=True)
+def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
+                hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm):
+    """One replicate through one position; returns (sum of NIS, number of failed steps).
+    ``mode``: 0 sigma points over the nonlinear states, 1 over all states in the update only,
+    2 over all states in the propagation and the update."""
+    full_prop = mode == 2
+    full = mode >= 1
+    n = xb.shape[0]
+    nc = n - 3
+    M = t.shape[0]
+    q = nl.shape[0]
+    npc = pcols.shape[0]
+    g = pb[P_G]
+    dyn = np.arange(nc, n)
+    coef = coef_fixed.copy()
+    cs = coef_fixed.copy()
+    scratch = make_sc_rk4_scratch()
+    ang_new = np.empty(3)
+    pa = np.empty((3, 3))
+    pgyro = np.empty((3, N_GYRO))
+    phi = np.empty((3, npc))
+    qm = np.zeros((3, 3))
+    blk = np.empty((3, 3))
+    Wd = np.empty((3, n))
+    nsig = n if full else q
+    Rnn = np.zeros((q, q))
+    Rp = np.zeros((n, n))
+    Sf = np.zeros((n, n))
+    Dp = np.empty((nsig, 3))
+    Dm = np.empty((nsig, 3))
+    Y = np.empty((q, 3))
+    U = np.empty((3, n))
+    K = np.empty((3, n))
+    D = np.empty((3, n))
+    S = np.empty((3, 3))
+    F = np.empty((3, 3))
+    nu = np.empty(3)
+    innov = np.zeros(3)
+    a = np.empty(3)
+    a0 = np.empty(3)
+    fp0 = np.empty(3)
+    y0 = np.empty(3)
+    y = np.empty(3)
+    mz = np.empty(3)
+    Pzz = np.empty((3, 3))
+    fr3 = np.empty((3, 3))
+    fr_prev = np.empty(3)
+    fr_now = np.empty(3)
+    ang = xb[nc:]
+    nis = 0.0
+    bad = 0
+    # attitude reset at time 0: commanded angles, variance sigma_set^2, no cross-covariance
+    for r in range(3):
+        xb[nc + r] = cmd[r]
+        for i in range(n):
+            Pb[nc + r, i] = 0.0
+            Pb[i, nc + r] = 0.0
+        Pb[nc + r, nc + r] = reset_var
+    t_prev = 0.0
+    specific_force_into(0.0, pb, fr_prev)
+    for m in range(M):
+        for k in range(nc):
+            coef[est_idx[k]] = xb[k]
+            cs[est_idx[k]] = xb[k]
+        dt = t[m] - t_prev
+        specific_force_into(t[m], pb, fr_now)
+        if dt > 0.0:
+            for r in range(3):
+                fr3[0, r] = fr_prev[r]
+                fr3[2, r] = fr_now[r]
+            specific_force_into(t_prev + 0.5 * dt, pb, fr3[1])
+            if full_prop:
+                if not propagate_all(xb, Pb, coef, fr3, dt, pb, q_rate * dt, h, w2, perm, est_idx,
+                                     Rp, Sf, Dp, Dm, cs, a, a0, y, mz, blk):
+                    bad += 1
+                    _propagate_linear(xb, Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg,
+                                      ang_new, pa, pgyro, phi, qm, Wd, blk, scratch)
+            else:
+                _propagate_linear(xb, Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new,
+                                  pa, pgyro, phi, qm, Wd, blk, scratch)
+        zrow = zb[m]
+        if full:
+            ok, s = update_all(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, perm, mstates, est_idx,
+                               update_x, Rp, Sf, Dp, Dm, U, S, K, D, F, nu, innov, cs,
+                               a, y0, y, mz, Pzz)
+        else:
+            ok, s = update_nonlinear(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, nl, nl_full, lin,
+                                     update_x, Rnn, Dp, Dm, Y, U, S, K, D, F, nu, innov, cs, a,
+                                     fp0, y0, y, mz, Pzz)
+        if ok:
+            nis += s
+        else:
+            bad += 1
+        for r in range(3):
+            fr_prev[r] = fr_now[r]
+        t_prev = t[m]
+        hi = hist_idx[m]
+        if hi >= 0:
+            for i in range(n):
+                hist_x[hi, i] = xb[i]
+                hist_s[hi, i] = np.sqrt(Pb[i, i]) if Pb[i, i] > 0.0 else -1.0
+    return nis, bad
+
+
+@njit(cache=True)
+def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                      q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl,
+                      nl_full, lin, mstates, h, w2, mode, perm):
+    """Replicate b through every position of one pass."""
+    for k in range(offs.shape[0] - 1):
+        o0, o1 = offs[k], offs[k + 1]
+        zb = z[b, o0:o1] if update_x else z[b]
+        stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx, coef_fixed[b],
+                            params[b, k], r_var, q_rate, update_x, hist_idx[o0:o1], hist_x[b],
+                            hist_s[b], pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm)
+        nis_sum[b] += stats[0]
+        n_bad[b] += int(stats[1])
+
+
+@njit(parallel=True, cache=True)
+def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full, lin, mstates,
+              h, w2, mode, perm):
+    """Every replicate of the batch through one pass, one replicate per ``prange`` iteration."""
+    for b in prange(x.shape[0]):
+        _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                          q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
+                          nl, nl_full, lin, mstates, h, w2, mode, perm)
+
+
+@njit(cache=True)
+def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+                     update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full,
+                     lin, mstates, h, w2, mode, perm):
+    """:func:`_run_pass` without threads (a batch of one, or one thread): the same kernel."""
+    for b in range(x.shape[0]):
+        _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                          q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
+                          nl, nl_full, lin, mstates, h, w2, mode, perm)
+
+
+def propagation_structure(est_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(pcols, pg)``: the states where the attitude rows of the RK4 map's Jacobian may be nonzero
+    (the estimated gyro coefficients, then the three angles) and, for each coefficient among
+    them, its column of the compact gyro Jacobian (:data:`platcal.model.attitude.GYRO_COLS`)."""
+    nc = est_idx.size
+    state_of = {int(f): k for k, f in enumerate(est_idx)}
+    pairs = [(state_of[int(f)], q) for q, f in enumerate(GYRO_COLS) if int(f) in state_of]
+    pcols = np.array([s for s, _ in pairs] + [nc, nc + 1, nc + 2], dtype=np.int64)
+    pg = np.array([q for _, q in pairs], dtype=np.int64)
+    return pcols, pg
+
+
+def measurement_structure(est_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(nl, nl_full, lin)`` of :func:`update_nonlinear`: the states the measurement depends on
+    nonlinearly (alpha, beta, gamma, theta_py, theta_pz, theta_oz, k1, k2, k3, kIP of x, y, z),
+    their full-coefficient indices (-1 - i for angle i), and the state of k0 of each axis."""
+    nc = est_idx.size
+    state_of = {int(f): k for k, f in enumerate(est_idx)}
+    full = [I_THETA + i for i in range(3)] + [I_K0 + 3 * m + j for m in range(1, 5) for j in range(3)]
+    nl = np.array([nc, nc + 1, nc + 2] + [state_of[f] for f in full], dtype=np.int64)
+    nl_full = np.array([-1, -2, -3] + full, dtype=np.int64)
+    lin = np.array([state_of[I_K0 + j] for j in range(3)], dtype=np.int64)
+    return nl, nl_full, lin
+
+
+def nonlinear_first_order(n: int, est_idx: np.ndarray) -> np.ndarray:
+    """The state permutation that puts the nonlinear measurement states first, then k0, then the
+    rest: with it the ``"all"`` update equals the ``"nonlinear"`` one (to rounding)."""
+    nl, _, lin = measurement_structure(est_idx)
+    head = list(nl) + list(lin)
+    return np.array(head + [i for i in range(n) if i not in set(head)], dtype=np.int64)
+
+
+def _history_index(t: np.ndarray, every_s: float | None, start: int) -> tuple[np.ndarray, int]:
+    """History slot of each filter instant (-1: not kept) and the number of slots used."""
+    idx = np.full(t.shape[0], -1, dtype=np.int64)
+    if every_s is None:
+        return idx, 0
+    k = np.round(t / every_s)
+    keep = np.abs(t - k * every_s) < 1e-9
+    idx[keep] = start + np.arange(int(keep.sum()))
+    return idx, int(keep.sum())
+
+
+def check_options(n: int, sigma_points: str, alpha: float, beta: float, kappa: float | None
+                  ) -> tuple[float, float, float]:
+    """Validate the UKF options (InputError naming the option); returns ``(h, w2, kappa)``."""
+    if sigma_points not in SIGMA_POINT_MODES:
+        raise InputError("ukf.sigma_points", f"is {sigma_points!r}; use one of {', '.join(SIGMA_POINT_MODES)}")
+    kappa = 3.0 - n if kappa is None else float(kappa)
+    try:
+        check_ut_params(n, float(alpha), float(beta), kappa)
+    except ValueError as exc:
+        name = str(exc).split(" ", 1)[0]
+        raise InputError(f"ukf.{name}", str(exc)) from None
+    return float(alpha * np.sqrt(n + kappa)), float(beta - alpha * alpha), kappa
+
+
+def run_ukf(
+    z: list[np.ndarray],
+    t: list[np.ndarray],
+    cmd_deg: np.ndarray,
+    centrifuge_params: np.ndarray,
+    settings: FilterSettings,
+    *,
+    sigma_points: str = "update",
+    alpha: float = 1.0,
+    beta: float = 2.0,
+    kappa: float | None = None,
+    sqrt_order: np.ndarray | None = None,
+) -> Estimate:
+    """Run the UKF over every position of a scheme, for a batch of B runs.
+
+    Parameters
+    ----------
+    z : K arrays (B, M_k, 3), accelerometer outputs (g) at the filter instants.
+    t : K arrays (M_k,), those instants in s since each position's start (increasing, >= 0).
+    cmd_deg : (B, K, 3) or (K, 3) commanded alpha, beta, gamma per position, deg.
+    centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters.
+    settings : the filter settings (those of the EKF; ``passes`` as there).
+    sigma_points : ``"update"`` (default: 2n + 1 sigma points in the measurement update, the
+        EKF's propagation), ``"all"`` (2n + 1 in the propagation too; the textbook reference) or
+        ``"nonlinear"`` (sigma points over the 18 states the measurement is nonlinear in, the
+        rest exact; cheapest). See the module docstring for how they differ.
+    alpha, beta, kappa : scaled-transform parameters (kappa None: ``3 - n``); beta >= alpha^2.
+    sqrt_order : (n,) state permutation for the Cholesky factor of the ``"update"`` and ``"all"``
+        variants (default: the state order); :func:`nonlinear_first_order` makes the update
+        equal to ``"nonlinear"``'s (for tests).
+
+    Returns
+    -------
+    Estimate (``failed_updates`` counts updates skipped because S or the sigma points' P block was
+    not positive definite, and ``"all"`` propagations that fell back to the linear one for that reason).
+    """
+    K = len(t)
+    cmd = np.asarray(cmd_deg, float)
+    B = z[0].shape[0]
+    if cmd.ndim == 2:
+        cmd = np.broadcast_to(cmd, (B,) + cmd.shape)
+    cmd_rad = np.ascontiguousarray(cmd * DEG)
+    est_idx = settings.coef_index
+    nc = est_idx.size
+    n = nc + 3
+    h, w2, _ = check_options(n, sigma_points, alpha, beta, kappa)
+    mode = SIGMA_POINT_MODES.index(sigma_points)
+    perm = np.arange(n, dtype=np.int64) if sqrt_order is None else np.asarray(sqrt_order, np.int64)
+    if sorted(perm.tolist()) != list(range(n)):
+        raise InputError("ukf.sqrt_order", f"must be a permutation of 0..{n - 1}")
+    p0 = np.asarray(settings.p0_sigma, float)
+    if p0.shape != (nc,):
+        raise ValueError(f"p0_sigma has {p0.shape} entries, the filter has {nc} coefficients")
+    for k, tk in enumerate(t):
+        tk = np.asarray(tk, float)
+        if tk.size and (tk[0] < 0 or np.any(np.diff(tk) <= 0)):
+            raise InputError(f"t[{k}]", "filter instants must be >= 0 and increasing")
+    x = np.zeros((B, n))
+    coef_fixed = np.zeros((B, N_FULL))
+    P = np.zeros((B, n, n))
+    P[:, np.arange(nc), np.arange(nc)] = p0**2
+    reset_var = (settings.sigma_set_arcsec * ARCSEC) ** 2
+    r_var = np.full(3, (settings.sigma_a_ug * 1e-6) ** 2)
+    q_rate = (settings.arw_deg_rth * DEG / 60.0) ** 2  # (rad/sqrt(s))^2
+    params = broadcast_params(centrifuge_params, B, K)
+    pcols, pg = propagation_structure(est_idx)
+    nl, nl_full, lin = measurement_structure(est_idx)
+    mstates = np.array([k for k, f in enumerate(est_idx) if I_K0 <= f < I_THETA + 3], dtype=np.int64)
+    kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
+
+    passes = settings.passes
+    hist_slots = []
+    total = 0
+    for k in range(K):
+        idx, used = _history_index(np.asarray(t[k], float), settings.history_every_s, total)
+        hist_slots.append(idx)
+        total += used
+    durations = [float(tk[-1]) + settings.period_s if len(tk) else 0.0 for tk in t]
+    H = total * passes
+    hist_x = np.zeros((B, H, n))
+    hist_s = np.zeros((B, H, n))
+    hist_t = np.zeros(H)
+    pass_x = np.zeros((passes, B, nc))
+    pass_P = np.zeros((passes, B, nc, nc))
+    nis = np.zeros(B)
+    n_bad = np.zeros(B, dtype=np.int64)
+    sizes = [len(tk) for tk in t]
+    offs = np.zeros(K + 1, dtype=np.int64)
+    offs[1:] = np.cumsum(sizes)
+    t_all = np.ascontiguousarray(np.concatenate([np.asarray(tk, float) for tk in t]))
+    z_all = np.ascontiguousarray(np.concatenate([np.asarray(zk, float) for zk in z], axis=1))
+    m_total = int(offs[-1])
+    for p in range(passes):
+        if p > 0:
+            Pcc = P[:, :nc, :nc] * 100.0
+            P = np.zeros((B, n, n))
+            P[:, :nc, :nc] = Pcc
+            nis[:] = 0.0
+        hidx_all = []
+        offset = 0.0
+        for k in range(K):
+            tk = np.asarray(t[k], float)
+            hidx = hist_slots[k] + (p * total if settings.history_every_s is not None else 0)
+            hidx[hist_slots[k] < 0] = -1
+            sel = hidx >= 0
+            hist_t[hidx[sel]] = p * sum(durations) + offset + tk[sel]
+            hidx_all.append(hidx)
+            offset += durations[k]
+        hidx_all = np.ascontiguousarray(np.concatenate(hidx_all), dtype=np.int64)
+        with numba.parallel_chunksize(1):
+            kernel(x, P, z_all, t_all, offs, cmd_rad, reset_var, est_idx, coef_fixed, params, r_var,
+                   q_rate, True, hidx_all, hist_x, hist_s, nis, n_bad, pcols, pg, nl, nl_full, lin,
+                   mstates, h, w2, mode, perm)
+        pass_x[p] = x[:, :nc]
+        pass_P[p] = P[:, :nc, :nc]
+    return Estimate(
+        names=settings.state_names,
+        x=x,
+        P=P,
+        history_t=hist_t,
+        history_x=hist_x,
+        history_sigma=hist_s,
+        pass_x=pass_x,
+        pass_P=pass_P,
+        mean_nis=nis / max(m_total, 1),
+        failed_updates=n_bad,
+    )

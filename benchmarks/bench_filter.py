@@ -134,11 +134,12 @@ def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):
         P[nc:, :] = 0.0
         P[:, nc:] = 0.0
         P[nc:, nc:] = np.eye(3) * reset_var
+        t_prev = 0.0  # the reset instant: the filter propagates from it to the first instant
         for m in range(len(t[k])):
-            if m > 0:
-                h = t[k][m] - t[k][m - 1]
+            if t[k][m] > t_prev:
+                h = t[k][m] - t_prev
                 coef[:nc] = ekf.x[:nc, 0]
-                fr3 = np.stack([specific_force(t[k][m - 1] + c * h, pk) for c in (0.0, 0.5, 1.0)])
+                fr3 = np.stack([specific_force(t_prev + c * h, pk) for c in (0.0, 0.5, 1.0)])
                 ang, pa, pc = platform.rk4(ekf.x[nc:, 0], coef, fr3, h, pk)
                 F = np.eye(n)
                 F[nc:, :nc] = pc[:, :nc]
@@ -150,6 +151,7 @@ def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):
                 Q[nc:, nc:] = np.eye(3) * q_rate * h
                 ekf.Q = Q
                 ekf.predict()
+                t_prev = t[k][m]
             ekf.update(z[k][m].reshape(3, 1), h_jac, h_x, args=(t[k][m], pk))
     return ekf.x[:, 0].copy(), ekf.P.copy()
 

@@ -16,7 +16,7 @@ import numpy as np
 from ...errors import InputError
 from ...io import check_writable
 from ...study.montecarlo import cell_job
-from .config import Study
+from .config import Study, check_filter
 from .design import design_config, preset, run_design, write_design
 from .identify import (consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
                        write_identification)
@@ -62,6 +62,7 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
 
 def identify_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal identify``: the EKF over a test record."""
+    check_filter(study.filter)
     scheme = _scheme(study, args)
     check_writable(args.out, "--out", folder=True)
     df = read_record(args.data)
@@ -90,6 +91,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
 
 def observability_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal observability``: covariance-only analysis of a scheme."""
+    check_filter(study.filter)
     scheme = _scheme(study, args)
     if args.replicates < 0:
         raise InputError("--replicates", "must be a whole number >= 0")
@@ -113,6 +115,7 @@ def observability_command(study: Study, args: argparse.Namespace) -> int:
 
 def design_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal design``: the genetic-algorithm scheme search."""
+    check_filter(study.filter)
     if not str(args.out).endswith((".yaml", ".yml")):
         raise InputError("--out", "must be a scheme file name ending in .yaml")
     check_writable(args.out, "--out")
@@ -135,6 +138,7 @@ def design_command(study: Study, args: argparse.Namespace) -> int:
 
 def montecarlo_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal montecarlo``: one (scheme, sigma_a, estimator) cell of the sweep."""
+    check_filter(study.filter)
     if args.noise is None:
         raise InputError("--noise", "required for rig centrifuge: the accelerometer noise sigma_a, ug per sample")
     check_writable(args.out, "--out", folder=True)

@@ -18,6 +18,17 @@ update is the Joseph form as a rank-6 correction of the lower triangle, mirrored
 (:func:`platcal.estimation.kalman.joseph_update_sparse`). Replicates run in parallel numba threads
 (:mod:`platcal.parallel`); the history is decimated (``history_every_s``), so the memory is
 O(B n^2) plus O(B n) per kept instant, whatever the dwell.
+
+Timing convention (docs/centrifuge-model.md §9, "the filter propagates over 20 ms and updates
+with the sample taken at the update instant"; issue 9 item 1): at time 0 of each position the
+attitude is reset to the commanded angles with variance sigma_set^2 and no cross-covariance with
+the coefficients (which carry over); the filter then propagates from 0 to the first instant
+``t[k][0]``, updates there, propagates to ``t[k][1]``, and so on. The default instants are
+``period, 2 period, ... < dwell`` (:func:`filter_times`): the sample at the reset instant is not
+used. ``FilterSettings.update_at_reset`` (config ``filter.update_at_reset``) restores the earlier
+behaviour, an update with the sample at t = 0 before any propagation (instants ``0, period, ...
+< dwell``); the kernel handles both, since it propagates only when an instant lies after the
+previous one.
 """
 
 from __future__ import annotations
@@ -60,6 +71,8 @@ class FilterSettings:
     p0_sigma : (n_coef,) initial 1-sigma of the coefficient states, engineering units.
     estimate_doo : identify DOO_x/y/z too (51 states).
     history_every_s : decimation of the returned history, s (None: no history).
+    update_at_reset : also update with the sample at each position's reset instant t = 0
+        (before any propagation); False (the spec) drops that sample (:func:`filter_times`).
     """
 
     period_s: float = 0.02
@@ -70,6 +83,7 @@ class FilterSettings:
     p0_sigma: np.ndarray = field(default_factory=lambda: default_p0_sigma(False))
     estimate_doo: bool = False
     history_every_s: float | None = 1.0
+    update_at_reset: bool = False
 
     @property
     def coef_index(self) -> np.ndarray:
@@ -79,6 +93,20 @@ class FilterSettings:
     @property
     def state_names(self) -> tuple[str, ...]:
         return tuple(FULL_NAMES[i] for i in self.coef_index) + ANGLE_NAMES
+
+
+def filter_times(dwell_s: float, period_s: float, update_at_reset: bool = False) -> np.ndarray:
+    """The filter instants of one position, s since its start (the module's timing convention):
+    ``period, 2 period, ... < dwell`` (the spec), or ``0, period, ... < dwell`` with
+    ``update_at_reset``. ``dwell_s`` is a whole number of periods."""
+    n = int(round(dwell_s / period_s))
+    return np.arange(0 if update_at_reset else 1, n) * period_s
+
+
+def first_instant(update_at_reset: bool) -> int:
+    """Index of the first filter instant in the grid ``0, period, ... < dwell``: 1 (the spec:
+    the sample at the reset instant is dropped) or 0 (``update_at_reset``)."""
+    return 0 if update_at_reset else 1
 
 
 def estimated_index(estimate_doo: bool) -> np.ndarray:
@@ -244,17 +272,19 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
             Pb[nc + r, i] = 0.0
             Pb[i, nc + r] = 0.0
         Pb[nc + r, nc + r] = reset_var
-    if M > 0:
-        specific_force_into(t[0], pb, fr_now)
+    # the position starts at the reset (t = 0): the first instant is reached by propagation,
+    # unless it is the reset instant itself (filter.update_at_reset)
+    t_prev = 0.0
+    specific_force_into(t_prev, pb, fr_now)
     for m in range(M):
         for k in range(nc):
             coef[est_idx[k]] = xb[k]
-        if m > 0:
-            h = t[m] - t[m - 1]
+        if t[m] > t_prev:
+            h = t[m] - t_prev
             # the end-of-step force is the one measured at t[m]: computed once, used twice
             for r in range(3):
                 fr3[0, r] = fr_now[r]
-            specific_force_into(t[m - 1] + 0.5 * h, pb, fr3[1])
+            specific_force_into(t_prev + 0.5 * h, pb, fr3[1])
             specific_force_into(t[m], pb, fr_now)
             for r in range(3):
                 fr3[2, r] = fr_now[r]
@@ -268,6 +298,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
             for r in range(3):
                 ang[r] = ang_new[r]
             propagate_sparse(Pb, dyn, pcols, phi, q, Wd, blk)
+            t_prev = t[m]
         measure_jac_sc(ang, coef, fr_now[0], fr_now[1], fr_now[2], g, out, hm, ha)
         for r in range(3):
             for k in range(hnnz[r]):

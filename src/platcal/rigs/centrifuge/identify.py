@@ -13,7 +13,7 @@ from scipy.stats import chi2
 from ...estimation.consistency import nees
 from ...io import atomic_files, json_text
 from .config import Study
-from .ekf import Estimate, FilterSettings, run_ekf
+from .ekf import Estimate, FilterSettings, first_instant, run_ekf
 from .record import TRUTH_COLUMNS, FilterInput, check_record, filter_input
 from .scheme import Scheme
 from .simulate import simulate
@@ -32,7 +32,9 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
     params = study.centrifuge.scheme_params(scheme)
     sim = simulate(truth, scheme, params, study.noise, seeds, sample_s=study.sample_s, keep_every=study.keep_every)
     K = scheme.n_positions
-    return run_ekf([sim.A[:, k] for k in range(K)], [sim.t] * K, scheme.angles_deg, params, fs)
+    # the samples at the reset instant (t = 0) are not used unless filter.update_at_reset
+    i0 = first_instant(fs.update_at_reset)
+    return run_ekf([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, scheme.angles_deg, params, fs)
 
 
 def record_input(study: Study, scheme: Scheme, df: pd.DataFrame) -> FilterInput:
@@ -40,7 +42,8 @@ def record_input(study: Study, scheme: Scheme, df: pd.DataFrame) -> FilterInput:
     select the samples the filter uses."""
     check_record(df, scheme, study.sample_s, float(study.config["record"]["max_gap_s"]),
                  expected_g=expected_g(study, scheme))
-    return filter_input(df, scheme, study.filter.period_s, float(study.config["record"]["max_gap_s"]))
+    return filter_input(df, scheme, study.filter.period_s, float(study.config["record"]["max_gap_s"]),
+                        update_at_reset=study.filter.update_at_reset)
 
 
 def expected_g(study: Study, scheme: Scheme) -> np.ndarray:

@@ -35,7 +35,7 @@ from ...parallel import set_threads
 from ...rig import NoiseAxis, ReplicateBatch, RunSettings
 from ...seeding import stable_key
 from ...study.montecarlo import noise_key, noise_label, replicate_seed
-from .config import study_from_config, validate_config
+from .config import check_filter, study_from_config, validate_config
 from .identify import simulate_identify
 from .scheme import check_scheme, load_scheme_file, whole_periods
 from .tables import covariance_frame, estimates_frame
@@ -166,6 +166,10 @@ def check_study(raw: dict) -> dict:
         if not re.fullmatch(r"[A-Za-z0-9_-]+", name):
             raise InputError(f"study.estimators.{name}", "an estimator name is letters, digits, '_' or '-'")
     whole_periods(st["dwell_s"], cfg["sampling"]["sample_ms"] / 1000.0, "study.dwell_s")
+    # every cell runs a filter: its settings are checked before any job starts
+    for level in st["sigma_a_ug"]:
+        for name in st["estimators"]:
+            study_for_cell(cfg, level, name)
     return cfg
 
 
@@ -174,12 +178,15 @@ def check_study(raw: dict) -> dict:
 
 
 def study_for_cell(cfg: dict, sigma_a_ug: float, estimator: str):
-    """The Study of one cell: the config with this noise level and this estimator's settings."""
+    """The Study of one cell: the config with this noise level and this estimator's settings
+    (its filter checked: InputError naming the field)."""
     raw = json.loads(json.dumps(cfg))  # deep copy of plain data
     raw["noise"]["sigma_a_ug"] = float(sigma_a_ug)
     raw["filter"].update(cfg["study"]["estimators"][estimator])
     raw["filter"]["history_s"] = raw["filter"].get("history_s", 1.0)
-    return study_from_config(raw)
+    study = study_from_config(raw)
+    check_filter(study.filter)
+    return study
 
 
 def replicate_batch(study, est) -> ReplicateBatch:

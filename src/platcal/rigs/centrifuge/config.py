@@ -23,6 +23,7 @@ from ...schema import load_schema, validate
 from .base import Centrifuge
 from .catalogue import full_truth
 from .ekf import FilterSettings, default_p0_sigma
+from .estimators import check_kind, options_from_filter
 from .scheme import Scheme, check_scheme, whole_periods
 from .simulate import Noise
 
@@ -58,6 +59,7 @@ def validate_config(raw: dict) -> dict:
         if key not in INDEX and key not in terms and key not in ANGLE_KEYS:
             raise InputError(f"filter.p0.{key}", f"unknown term or coefficient; use one of {sorted(terms)} "
                              "or a coefficient name such as DF_x")
+    check_kind(cfg["filter"]["estimator"])
     sample = cfg["sampling"]["sample_ms"]
     ratio = cfg["filter"]["period_ms"] / sample
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
@@ -107,6 +109,8 @@ def filter_settings(fcfg: dict, noise: Noise) -> FilterSettings:
         estimate_doo=bool(fcfg["estimate_doo"]),
         history_every_s=float(fcfg["history_s"]),
         update_at_reset=bool(fcfg.get("update_at_reset", False)),
+        estimator=str(fcfg.get("estimator", "ekf")),
+        estimator_options=options_from_filter(fcfg),
     )
 
 

@@ -73,6 +73,9 @@ class FilterSettings:
     history_every_s : decimation of the returned history, s (None: no history).
     update_at_reset : also update with the sample at each position's reset instant t = 0
         (before any propagation); False (the spec) drops that sample (:func:`filter_times`).
+    estimator : the estimator kind that runs (:mod:`platcal.rigs.centrifuge.estimators`:
+        ``ekf``, ``iekf``, ...); the covariance-only runs are always the EKF's.
+    estimator_options : ``(keyword, value)`` pairs passed to that kind's run function.
     """
 
     period_s: float = 0.02
@@ -84,6 +87,8 @@ class FilterSettings:
     estimate_doo: bool = False
     history_every_s: float | None = 1.0
     update_at_reset: bool = False
+    estimator: str = "ekf"
+    estimator_options: tuple = ()
 
     @property
     def coef_index(self) -> np.ndarray:
@@ -458,6 +463,7 @@ def run_ekf(
     *,
     linearise_about: np.ndarray | None = None,
     iterate: np.ndarray | None = None,
+    warmup_s: float | None = None,
 ) -> Estimate:
     """Run the EKF over every position of a scheme, for a batch of B runs.
 
@@ -474,6 +480,12 @@ def run_ekf(
         of these coefficients, and only P evolves.
     iterate : the iterated update's control array (:func:`iteration_control`; :func:`run_iekf`);
         None: the EKF (one linearisation per update).
+    warmup_s : a warm-up pass before the first pass: the filter runs over the instants t <
+        warmup_s of every position, and the passes then start from its coefficient estimate with
+        ``P0 = 100 x`` its coefficient covariance (as a further pass does), so that the whole
+        record is filtered about a better linearisation point for (1 + warmup_s / dwell) times
+        the cost of one pass. Not a pass: ``pass_x``, ``pass_P`` and the history hold the full
+        passes only. None: no warm-up (the paper's EKF).
 
     Returns
     -------
@@ -536,6 +548,20 @@ def run_ekf(
     else:
         z_all = np.ascontiguousarray(np.concatenate([np.asarray(zk, float) for zk in z], axis=1))
     m_total = int(offs[-1])
+    if warmup_s is not None and not cov_only:
+        keep = [np.asarray(tk, float) < warmup_s for tk in t]
+        offs_w = np.zeros(K + 1, dtype=np.int64)
+        offs_w[1:] = np.cumsum([int(kp.sum()) for kp in keep])
+        t_w = np.ascontiguousarray(np.concatenate([np.asarray(tk, float)[kp] for tk, kp in zip(t, keep)]))
+        z_w = np.ascontiguousarray(np.concatenate([np.asarray(zk, float)[:, kp] for zk, kp in zip(z, keep)], axis=1))
+        no_hist = np.full(t_w.size, -1, dtype=np.int64)
+        with numba.parallel_chunksize(1):
+            kernel(x, P, z_w, t_w, offs_w, cmd_rad, reset_var, est_idx, coef_fixed, params,
+                   r_var, q_rate, True, no_hist, hist_x, hist_s, nis, n_bad, *structure, it_ctl)
+        Pcc = P[:, :nc, :nc] * 100.0
+        P = np.zeros((B, n, n))
+        P[:, :nc, :nc] = Pcc
+        nis[:] = 0.0
     for p in range(passes):
         if p > 0:
             Pcc = P[:, :nc, :nc] * 100.0

@@ -36,6 +36,7 @@ from ...rig import NoiseAxis, ReplicateBatch, RunSettings
 from ...seeding import stable_key
 from ...study.montecarlo import noise_key, noise_label, replicate_seed
 from .config import check_filter, study_from_config, validate_config
+from .estimators import check_kind
 from .identify import simulate_identify
 from .scheme import check_scheme, load_scheme_file, whole_periods
 from .tables import covariance_frame, estimates_frame
@@ -162,9 +163,11 @@ def check_study(raw: dict) -> dict:
     labels = [noise_label(v) for v in st["sigma_a_ug"]]
     if len(set(labels)) != len(labels) or len({noise_key(v) for v in st["sigma_a_ug"]}) != len(labels):
         raise InputError("study.sigma_a_ug", f"noise levels must be distinct (to 0.001 ug), got {st['sigma_a_ug']}")
-    for name in st["estimators"]:
+    for name, entry in st["estimators"].items():
         if not re.fullmatch(r"[A-Za-z0-9_-]+", name):
             raise InputError(f"study.estimators.{name}", "an estimator name is letters, digits, '_' or '-'")
+        if "estimator" in entry:
+            check_kind(entry["estimator"], f"study.estimators.{name}.estimator")
     whole_periods(st["dwell_s"], cfg["sampling"]["sample_ms"] / 1000.0, "study.dwell_s")
     # every cell runs a filter: its settings are checked before any job starts
     for level in st["sigma_a_ug"]:

@@ -45,6 +45,10 @@ VARIANTS = {
     "iekf3_first10s": (run_iekf, {"iterations": 3, "tol": 0.01, "until_s": 10.0}, 1),
     "iekf3_ratio1e-4": (run_iekf, {"iterations": 3, "tol": 0.01, "ratio": 1e-4}, 1),
     "iekf5": (run_iekf, {"iterations": 5, "tol": 0.01}, 1),
+    "ekf_warm1s": (run_ekf, {"warmup_s": 1.0}, 1),
+    "ekf_warm2s": (run_ekf, {"warmup_s": 2.0}, 1),
+    "ekf_warm5s": (run_ekf, {"warmup_s": 5.0}, 1),
+    "ekf_warm10s": (run_ekf, {"warmup_s": 10.0}, 1),
 }
 
 
@@ -126,19 +130,20 @@ def diagnose(study, scheme, level, fs, sim, params, args, truth):
     print(f"-- diagnosis at {level:g} ug")
     # linearisation error alone: noise-free data, the filter's own noise model
     nf, _ = simulate_cell(study, scheme, level, 1, noise=Noise(0.0, 0.0, 0.0))
-    for name in ("ekf1", "ekf2", "iekf3"):
+    for name in ("ekf1", "ekf2", "iekf3", "ekf_warm5s"):
         fn, opts, passes = VARIANTS[name]
         x, P, _, _ = run_variant(fn, opts, passes, fs, nf, scheme, params, 1)
         print(f"noise-free {name}: NEES {float(nees(x, P, truth[None])[0]):.1f}")
     # after each position: prefix runs
     for K in range(1, scheme.n_positions + 1):
         out = {}
-        for name in ("ekf1", "ekf2"):
+        for name in ("ekf1", "ekf2", "iekf3"):
             fn, opts, passes = VARIANTS[name]
             x, P, _, _ = run_variant(fn, opts, passes, fs, sim, scheme, params, args.batch, positions=K)
             out[name] = metrics(x, P, truth)
         print(f"after position {K}: ekf1 mean NEES {out['ekf1']['mean_nees']:.1f} (beyond 80.1: "
-              f"{out['ekf1']['beyond_999_pct']:.0f} %), ekf2 mean NEES {out['ekf2']['mean_nees']:.1f}", flush=True)
+              f"{out['ekf1']['beyond_999_pct']:.0f} %), ekf2 mean NEES {out['ekf2']['mean_nees']:.1f}, "
+              f"iekf3 mean NEES {out['iekf3']['mean_nees']:.1f}", flush=True)
     # the noise sources one at a time (filter model unchanged except what is switched off)
     for label, noise, fsx in [
             ("no gyro noise (ARW 0 in truth and filter)", replace(study.noise, sigma_a_ug=level, arw_deg_rth=0.0),

@@ -169,8 +169,22 @@ def check_study(raw: dict) -> dict:
         if "estimator" in entry:
             check_kind(entry["estimator"], f"study.estimators.{name}.estimator")
     whole_periods(st["dwell_s"], cfg["sampling"]["sample_ms"] / 1000.0, "study.dwell_s")
+    comp = st["compare"]
+    if comp["scheme"] not in cfg["schemes"] and comp["scheme"] != "classical" \
+            and not re.fullmatch(r"random_\d+", comp["scheme"]):
+        raise InputError("study.compare.scheme", f"unknown scheme {comp['scheme']!r}; use a scheme of the config's "
+                         f"'schemes' ({sorted(cfg['schemes'])}), 'classical' or 'random_<i>'")
+    for i, name in enumerate(comp["estimators"]):
+        if name not in st["estimators"]:
+            raise InputError(f"study.compare.estimators[{i}]", f"unknown estimator {name!r}; the study defines "
+                             f"{sorted(st['estimators'])}")
+    if len(set(comp["estimators"])) != len(comp["estimators"]):
+        raise InputError("study.compare.estimators", "an estimator is listed twice")
+    if len({noise_key(v) for v in comp["sigma_a_ug"]}) != len(comp["sigma_a_ug"]):
+        raise InputError("study.compare.sigma_a_ug", f"noise levels must be distinct (to 0.001 ug), got "
+                         f"{comp['sigma_a_ug']}")
     # every cell runs a filter: its settings are checked before any job starts
-    for level in st["sigma_a_ug"]:
+    for level in list(st["sigma_a_ug"]) + list(comp["sigma_a_ug"]):
         for name in st["estimators"]:
             study_for_cell(cfg, level, name)
     return cfg

@@ -54,6 +54,32 @@ def test_zero_noise_config_simulates_but_a_filter_refuses_it(tmp_path, noise_fre
     assert main(["identify", "--config", str(cfg), "--scheme", "short", "--data", str(rec), "--out", str(out)]) == 0
 
 
+def test_identify_estimator_option(small, tmp_path, capsys):
+    """--estimator: a kind or a study.estimators name (its filter overrides); unknown -> exit 2
+    naming both lists; summary.json says which estimator ran."""
+    cfg, rec = small
+    cfg.write_text(SMALL + "study:\n  estimators: {ekf1: {passes: 1}, ekf2: {passes: 2}, "
+                   "it2: {estimator: iekf, iterations: 2, passes: 1}}\n")
+    base = ["identify", "--config", str(cfg), "--scheme", "short", "--data", str(rec)]
+    out = {}
+    for name in ("iekf", "it2", "ekf1"):
+        out[name] = tmp_path / name
+        assert main(base + ["--out", str(out[name]), "--estimator", name]) == 0
+    s = {k: json.loads((v / "summary.json").read_text()) for k, v in out.items()}
+    assert s["iekf"]["estimator"] == "iekf" and s["iekf"]["passes"] == 2  # the config's filter, kind iekf
+    assert s["iekf"]["estimator_options"]["iterations"] == 3
+    assert s["it2"]["estimator"] == "iekf" and s["it2"]["passes"] == 1 and s["it2"]["estimator_options"]["iterations"] == 2
+    assert s["ekf1"]["estimator"] == "ekf" and s["ekf1"]["passes"] == 1 and s["ekf1"]["estimator_options"] == {}
+    e1 = pd.read_csv(out["ekf1"] / "estimates.csv")["estimate"]
+    e2 = pd.read_csv(out["it2"] / "estimates.csv")["estimate"]
+    assert not np.allclose(e1, e2, rtol=1e-9, atol=0)
+    capsys.readouterr()
+    bad = tmp_path / "bad"
+    assert main(base + ["--out", str(bad), "--estimator", "kalman"]) == 2
+    err = capsys.readouterr().err
+    assert "--estimator" in err and "ekf, iekf" in err and "ekf1, ekf2, it2" in err and not bad.exists()
+
+
 def test_quick_start_simulate_then_identify(small, tmp_path):
     cfg, rec = small
     df = pd.read_csv(rec)

@@ -141,3 +141,20 @@ def test_bounds_and_the_recommendation_come_from_the_numbers():
                ("ukf", "ukf", 1, 10.0, 200, 1.9, 0.08, 50.0, 48, 90, 2.0, 0.9, 0.50, 0)])
     sentence = compare.ukf_sentence(u)
     assert "1.90 %" in sentence and "2.20 %" in sentence and "holds" in sentence
+
+
+def test_comparison_may_define_its_own_estimators():
+    """study.compare.estimators as a mapping: estimators of the comparison only (the sweep does not
+    run them); a name of study.estimators must keep its definition."""
+    c = cfg(estimators={"ekf1": {"passes": 1}, "w1": {"estimator": "ekf", "warmup_s": 0.2}})
+    assert list(c["study"]["estimators"]) == ["ekf1", "ekf2", "ekfw", "iekf"]  # the sweep's, unchanged
+    assert compare.compare_cells(c) == [("10", "ekf1"), ("10", "w1"), ("50", "ekf1"), ("50", "w1")]
+    assert compare.kind_of(c, "w1") == "ekf" and compare.passes_of(c, "w1") == 1
+    p = compare.cell_params(c, 10.0, "w1")
+    assert p["estimator"] == {"estimator": "ekf", "warmup_s": 0.2} and p["replicates"] == 3
+    with pytest.raises(InputError) as e:
+        cfg(estimators={"ekf1": {"passes": 3}})
+    assert e.value.field == "study.compare.estimators.ekf1"
+    with pytest.raises(InputError) as e:
+        cfg(estimators={"u": {"estimator": "nosuch"}})
+    assert e.value.field == "study.compare.estimators.u.estimator"

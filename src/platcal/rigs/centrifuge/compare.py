@@ -2,7 +2,9 @@
 
 Its own set of cells, sized apart from the scheme sweep (config ``study.compare``): one scheme
 (``table1`` by default), the noise levels ``study.compare.sigma_a_ug``, the estimators
-``study.compare.estimators`` (names of ``study.estimators``; empty: all of them) and
+``study.compare.estimators`` (names of ``study.estimators``, empty: all of them; or a mapping of
+the comparison's own estimators, ``filter:`` overrides as in ``study.estimators``, which the
+scheme sweep does not run) and
 ``study.compare.replicates`` replicates per cell. A cell is run by the generic runner
 (:func:`platcal.study.montecarlo.run_cell`) with the sweep's seeds, so every estimator of a noise
 level sees the same data, and replicate r of (table1, 10 ug) is the same record in the sweep and
@@ -63,10 +65,20 @@ SUMMARY_FMT = {"sigma_a_ug": "g", "runs": "d", "kind": "s", "passes": "d",
 
 
 def compare_settings(cfg: dict) -> dict:
-    """``study.compare`` of a checked config with its estimator list filled in."""
+    """``study.compare`` of a checked config with its estimator list filled in (names, in order)."""
     c = dict(cfg["study"]["compare"])
     c["estimators"] = list(c["estimators"]) or list(cfg["study"]["estimators"])
     return c
+
+
+def with_compare_estimators(cfg: dict) -> dict:
+    """The config whose ``study.estimators`` also holds the comparison's own definitions
+    (``study.compare.estimators`` given as a mapping), so the generic cell runs them."""
+    own = cfg["study"]["compare"]["estimators"]
+    if not isinstance(own, dict) or not own:
+        return cfg
+    out = {**cfg, "study": {**cfg["study"], "estimators": {**cfg["study"]["estimators"], **own}}}
+    return out
 
 
 def compare_levels(cfg: dict) -> dict[str, float]:
@@ -83,6 +95,7 @@ def compare_cells(cfg: dict) -> list[tuple[str, str]]:
 def cell_params(cfg: dict, level: float, estimator: str) -> dict:
     """What a comparison cell's numbers depend on (a Snakemake param)."""
     hooks = get_rig("centrifuge").montecarlo
+    cfg = with_compare_estimators(cfg)
     c = compare_settings(cfg)
     p = hooks.cell_params(cfg, c["scheme"], level, estimator)
     p["replicates"] = int(c["replicates"])
@@ -90,18 +103,20 @@ def cell_params(cfg: dict, level: float, estimator: str) -> dict:
 
 
 def kind_of(cfg: dict, name: str) -> str:
-    """The estimator kind of a ``study.estimators`` name."""
-    return str(cfg["study"]["estimators"][name].get("estimator", cfg["filter"]["estimator"]))
+    """The estimator kind of a comparison estimator's name."""
+    entry = with_compare_estimators(cfg)["study"]["estimators"][name]
+    return str(entry.get("estimator", cfg["filter"]["estimator"]))
 
 
 def passes_of(cfg: dict, name: str) -> int:
-    return int(cfg["study"]["estimators"][name].get("passes", cfg["filter"]["passes"]))
+    entry = with_compare_estimators(cfg)["study"]["estimators"][name]
+    return int(entry.get("passes", cfg["filter"]["passes"]))
 
 
 def compare_cell_job(cfg: dict, level: float, estimator: str, out_dir, threads: int = 1, log_path=None) -> None:
     """Rule body: one (noise level, estimator) cell of the comparison."""
     lg = job_logger(log_path)
-    cfg = check_study(cfg)
+    cfg = with_compare_estimators(check_study(cfg))
     c = compare_settings(cfg)
     rig = get_rig("centrifuge")
     scheme = builtin_scheme(cfg, c["scheme"])
@@ -306,7 +321,7 @@ def compare_job(cfg: dict, coef_path, runs_path, out: dict, log_path=None) -> No
     """Rule body: the comparison's tables and figures (``out``: ``tables`` folder, ``cost`` and
     ``nees`` figure paths)."""
     lg = job_logger(log_path)
-    cfg = check_study(cfg)
+    cfg = with_compare_estimators(check_study(cfg))
     coef, runs = pd.read_parquet(coef_path), pd.read_parquet(runs_path)
     summ = write_compare_tables(cfg, coef, runs, out["tables"])
     c = compare_settings(cfg)

@@ -174,19 +174,35 @@ def check_study(raw: dict) -> dict:
             and not re.fullmatch(r"random_\d+", comp["scheme"]):
         raise InputError("study.compare.scheme", f"unknown scheme {comp['scheme']!r}; use a scheme of the config's "
                          f"'schemes' ({sorted(cfg['schemes'])}), 'classical' or 'random_<i>'")
-    for i, name in enumerate(comp["estimators"]):
-        if name not in st["estimators"]:
-            raise InputError(f"study.compare.estimators[{i}]", f"unknown estimator {name!r}; the study defines "
-                             f"{sorted(st['estimators'])}")
-    if len(set(comp["estimators"])) != len(comp["estimators"]):
-        raise InputError("study.compare.estimators", "an estimator is listed twice")
+    if isinstance(comp["estimators"], dict):  # the comparison's own estimators
+        for name, entry in comp["estimators"].items():
+            if not re.fullmatch(r"[A-Za-z0-9_-]+", name):
+                raise InputError(f"study.compare.estimators.{name}", "an estimator name is letters, digits, '_' or '-'")
+            if name in st["estimators"] and entry != st["estimators"][name]:
+                raise InputError(f"study.compare.estimators.{name}", f"{name!r} is defined differently in "
+                                 "study.estimators; use another name or the same definition")
+            if "estimator" in entry:
+                check_kind(entry["estimator"], f"study.compare.estimators.{name}.estimator")
+    else:
+        for i, name in enumerate(comp["estimators"]):
+            if name not in st["estimators"]:
+                raise InputError(f"study.compare.estimators[{i}]", f"unknown estimator {name!r}; the study "
+                                 f"defines {sorted(st['estimators'])} (or give study.compare.estimators as a "
+                                 "mapping of the comparison's own estimators)")
+        if len(set(comp["estimators"])) != len(comp["estimators"]):
+            raise InputError("study.compare.estimators", "an estimator is listed twice")
     if len({noise_key(v) for v in comp["sigma_a_ug"]}) != len(comp["sigma_a_ug"]):
         raise InputError("study.compare.sigma_a_ug", f"noise levels must be distinct (to 0.001 ug), got "
                          f"{comp['sigma_a_ug']}")
     # every cell runs a filter: its settings are checked before any job starts
-    for level in list(st["sigma_a_ug"]) + list(comp["sigma_a_ug"]):
+    for level in st["sigma_a_ug"]:
         for name in st["estimators"]:
             study_for_cell(cfg, level, name)
+    both = {**cfg, "study": {**st, "estimators": {**st["estimators"], **(comp["estimators"]
+                                                                         if isinstance(comp["estimators"], dict) else {})}}}
+    for level in comp["sigma_a_ug"]:
+        for name in (comp["estimators"] or st["estimators"]):
+            study_for_cell(both, level, name)
     return cfg
 
 

@@ -170,6 +170,8 @@ def check_study(raw: dict) -> dict:
             check_kind(entry["estimator"], f"study.estimators.{name}.estimator")
     whole_periods(st["dwell_s"], cfg["sampling"]["sample_ms"] / 1000.0, "study.dwell_s")
     comp = st["compare"]
+    if comp["scheme"] is None:  # the paper's cell's scheme, already checked above
+        comp["scheme"] = paper["scheme"]
     if comp["scheme"] not in cfg["schemes"] and comp["scheme"] != "classical" \
             and not re.fullmatch(r"random_\d+", comp["scheme"]):
         raise InputError("study.compare.scheme", f"unknown scheme {comp['scheme']!r}; use a scheme of the config's "

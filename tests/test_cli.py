@@ -67,7 +67,7 @@ def test_identify_estimator_option(small, tmp_path, capsys):
         assert main(base + ["--out", str(out[name]), "--estimator", name]) == 0
     s = {k: json.loads((v / "summary.json").read_text()) for k, v in out.items()}
     assert s["iekf"]["estimator"] == "iekf" and s["iekf"]["passes"] == 2  # the config's filter, kind iekf
-    assert s["iekf"]["estimator_options"]["iterations"] == 3
+    assert s["iekf"]["estimator_options"]["iterations"] == 2  # the schema default
     assert s["it2"]["estimator"] == "iekf" and s["it2"]["passes"] == 1 and s["it2"]["estimator_options"]["iterations"] == 2
     assert s["ekf1"]["estimator"] == "ekf" and s["ekf1"]["passes"] == 1 and s["ekf1"]["estimator_options"] == {}
     e1 = pd.read_csv(out["ekf1"] / "estimates.csv")["estimate"]

@@ -606,7 +606,7 @@ def run_iekf(
     centrifuge_params: np.ndarray,
     settings: FilterSettings,
     *,
-    iterations: int = 3,
+    iterations: int = 2,
     tol: float = 0.01,
     until_s: float | None = None,
     ratio: float | None = None,

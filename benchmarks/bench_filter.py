@@ -8,6 +8,8 @@ default noise and filter settings), this script times:
 * a baseline: FilterPy's ``ExtendedKalmanFilter`` driven step by step in Python with the same
   model functions (``platcal.model.attitude.rk4`` and ``platcal.model.attitude.measure``), on replicate 0;
 * the covariance-only run (observability / GA objective) over a population of random schemes;
+* every estimator kind of the registry (:data:`platcal.rigs.centrifuge.estimators.KINDS`, default
+  options) at the largest batch, so that a newly registered kind appears here;
 
 checks that platcal's estimate of replicate 0 agrees with FilterPy's, and reports the achieved
 GFLOP/s of the filter's covariance algebra against this machine's measured matrix-multiply peak.
@@ -38,7 +40,8 @@ from platcal.model.instruments import N_FULL, N_IDENTIFIED
 from platcal.parallel import get_threads, set_threads
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.catalogue import full_truth
-from platcal.rigs.centrifuge.ekf import FilterSettings, _structure, run_ekf
+from platcal.rigs.centrifuge.ekf import FilterSettings, _structure, first_instant, run_ekf
+from platcal.rigs.centrifuge.estimators import KINDS
 from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS, check_scheme
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 
@@ -134,11 +137,12 @@ def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):
         P[nc:, :] = 0.0
         P[:, nc:] = 0.0
         P[nc:, nc:] = np.eye(3) * reset_var
+        t_prev = 0.0  # the reset instant: the filter propagates from it to the first instant
         for m in range(len(t[k])):
-            if m > 0:
-                h = t[k][m] - t[k][m - 1]
+            if t[k][m] > t_prev:
+                h = t[k][m] - t_prev
                 coef[:nc] = ekf.x[:nc, 0]
-                fr3 = np.stack([specific_force(t[k][m - 1] + c * h, pk) for c in (0.0, 0.5, 1.0)])
+                fr3 = np.stack([specific_force(t_prev + c * h, pk) for c in (0.0, 0.5, 1.0)])
                 ang, pa, pc = platform.rk4(ekf.x[nc:, 0], coef, fr3, h, pk)
                 F = np.eye(n)
                 F[nc:, :nc] = pc[:, :nc]
@@ -150,6 +154,7 @@ def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):
                 Q[nc:, nc:] = np.eye(3) * q_rate * h
                 ekf.Q = Q
                 ekf.predict()
+                t_prev = t[k][m]
             ekf.update(z[k][m].reshape(3, 1), h_jac, h_x, args=(t[k][m], pk))
     return ekf.x[:, 0].copy(), ekf.P.copy()
 
@@ -178,9 +183,16 @@ def main(argv=None) -> None:
     def sim(B):
         return simulate(truth, scheme, params, Noise(), seeds[:B], keep_every=keep)
 
+    # the filter's default instants: period, 2 period, ... < dwell (docs/centrifuge-model.md §14)
+    i0 = first_instant(settings.update_at_reset)
+
     def ekf(data, B):
-        return run_ekf([data.A[:B, k] for k in range(K)], [data.t] * K, scheme.angles_deg, params,
+        return run_ekf([data.A[:B, k, i0:] for k in range(K)], [data.t[i0:]] * K, scheme.angles_deg, params,
                        settings)
+
+    def estimator(kind, data, B):
+        return KINDS[kind].run([data.A[:B, k, i0:] for k in range(K)], [data.t[i0:]] * K, scheme.angles_deg,
+                               params, settings)
 
     # compile (numba caches on disk; the first call of a process still loads and links)
     warm = check_scheme("w", {"dwell_s": 0.2, "positions": [list(p) for p in TABLE1_POSITIONS[:2]]})
@@ -190,7 +202,7 @@ def main(argv=None) -> None:
             linearise_about=np.repeat(truth[None], 2, axis=0))
 
     peak = matmul_peak()
-    n_steps = K * int(round(args.dwell / settings.period_s))
+    n_steps = K * (int(round(args.dwell / settings.period_s)) - i0)
     flops = filter_flops_per_step()
     print(f"platcal filter benchmark: Table 1 scheme, {K} x {args.dwell:g} s, {n_steps} filter steps "
           f"of {settings.period_s * 1e3:g} ms per replicate, numba threads {get_threads()}, "
@@ -210,8 +222,15 @@ def main(argv=None) -> None:
     if est1 is None:
         est1 = ekf(data, 1)
 
+    # every registered estimator kind with its default options, at the largest batch
+    kinds = []
+    for kind in KINDS:
+        estimator(kind, data, 1)  # compile / load
+        tk, ck, _ = best_times(lambda: estimator(kind, data, Bmax), args.repeat)
+        kinds.append((kind, tk / Bmax, ck / Bmax))
+
     t0, c0 = time.perf_counter(), time.process_time()
-    x_fp, P_fp = filterpy_run([data.A[0, k] for k in range(K)], [data.t] * K, scheme.angles_deg * DEG,
+    x_fp, P_fp = filterpy_run([data.A[0, k, i0:] for k in range(K)], [data.t[i0:]] * K, scheme.angles_deg * DEG,
                               params, settings)
     t_fp, c_fp = time.perf_counter() - t0, time.process_time() - c0
 
@@ -231,7 +250,7 @@ def main(argv=None) -> None:
     cmd[:, :, 2] = rng.integers(0, 360, (P, K))
     lin = np.repeat(truth[None], P, axis=0)
     cov_settings = FilterSettings(history_every_s=None)
-    tc, cc, _ = best_times(lambda: run_ekf([None] * K, [data.t] * K, cmd, params, cov_settings,
+    tc, cc, _ = best_times(lambda: run_ekf([None] * K, [data.t[i0:]] * K, cmd, params, cov_settings,
                                            linearise_about=lin), args.repeat)
 
     print()
@@ -243,6 +262,9 @@ def main(argv=None) -> None:
         print(f"| platcal run_ekf | {B} | {s_ekf:.4f} | {c_ekf:.4f} | {1 / s_ekf:.1f} | {gf:.2f} "
               f"| {100 * gf / peak:.1f} |")
         print(f"| platcal simulate + run_ekf | {B} | {s_tot:.4f} | {c_sim + c_ekf:.4f} | {1 / s_tot:.1f} | | |")
+    for kind, wall_k, cpu_k in kinds:
+        print(f"| estimator {kind} (registry, default options: {KINDS[kind].description}) | {Bmax} | {wall_k:.4f} "
+              f"| {cpu_k:.4f} | {1 / wall_k:.1f} | | |")
     gf_fp = flops * n_steps / t_fp / 1e9
     print(f"| FilterPy ExtendedKalmanFilter loop | 1 | {t_fp:.4f} | {c_fp:.4f} | {1 / t_fp:.2f} "
           f"| {gf_fp:.3f} (same count) | |")

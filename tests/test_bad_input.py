@@ -372,7 +372,7 @@ OUTPUTS = {
     "simulate: read-only folder": ("simulate", _out_read_only, "--out"),
     "observability: parent is a file": ("observability", _out_under_file, "--out"),
     "montecarlo: parent is a file": ("montecarlo", _out_under_file, "--out"),
-    "identify: --estimator not used": ("identify", lambda tmp: str(tmp / "id"), "--estimator"),
+    "identify: unknown --estimator": ("identify", lambda tmp: str(tmp / "id"), "--estimator"),
     "simulate: --platform not used": ("simulate", lambda tmp: str(tmp / "x.csv"), "--platform"),
     "simulate: negative seed": ("simulate", lambda tmp: str(tmp / "x.csv"), "--seed"),
     "identify: unknown scheme": ("identify", lambda tmp: str(tmp / "id"), "--scheme"),
@@ -396,8 +396,8 @@ def test_bad_output_or_option(case, tmp_path, capsys):
         argv += ["--data", str(data)]
     if command == "montecarlo":
         argv += ["--noise", "10", "--estimator", "ekf1"]
-    if "--estimator" in case:
-        argv += ["--estimator", "ekf2"]
+    if "--estimator" in case:  # neither a kind nor a name of study.estimators
+        argv += ["--estimator", "nosuch"]
     if "--platform" in case:
         argv += ["--platform", "x"]
     if "negative seed" in case:

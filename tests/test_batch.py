@@ -298,11 +298,13 @@ def _dense_ekf(z, t, cmd_rad, params, settings):
         P[nc:, :] = 0.0
         P[:, nc:] = 0.0
         P[nc:, nc:] = np.eye(3) * reset
+        t_prev = 0.0  # the reset instant (docs/centrifuge-model.md §14): propagate from it
         for m in range(len(t[k])):
-            if m > 0:
-                h = t[k][m] - t[k][m - 1]
+            if t[k][m] > t_prev:
+                h = t[k][m] - t_prev
                 coef[idx] = x[:nc]
-                ang, pa, pc = platform.rk4(x[nc:], coef, _fr3(t[k][m - 1], h, params[k]), h, params[k])
+                ang, pa, pc = platform.rk4(x[nc:], coef, _fr3(t_prev, h, params[k]), h, params[k])
+                t_prev = t[k][m]
                 F = np.eye(n)
                 F[nc:, :nc] = pc[:, idx]
                 F[nc:, nc:] = pa
@@ -320,18 +322,22 @@ def _dense_ekf(z, t, cmd_rad, params, settings):
     return x, P
 
 
-@pytest.mark.parametrize("estimate_doo", [False, True])
-def test_sparse_batched_ekf_equals_dense_ekf(estimate_doo):
+@pytest.mark.parametrize("estimate_doo,first", [(False, 1), (True, 1), (False, 0)])
+def test_sparse_batched_ekf_equals_dense_ekf(estimate_doo, first):
+    """first = 1: the spec's instants (period, 2 period, ...: the kernel propagates from the reset
+    at t = 0 to the first one); first = 0: filter.update_at_reset (an update at t = 0)."""
     positions = [(45, 0, 167), (350, 30, 325)]
     scheme = _scheme(0.4, positions)
     truth = full_truth({"DOO_x": 0.05}) if estimate_doo else full_truth()
     sim = _sim(scheme, range(2), truth)
     from platcal.rigs.centrifuge.ekf import default_p0_sigma
     s = FilterSettings(estimate_doo=estimate_doo, p0_sigma=default_p0_sigma(estimate_doo))
-    est = _ekf(scheme, sim, s)
+    t = sim.t[first:]
+    assert t[0] == pytest.approx(0.02 * first)
+    est = run_ekf([sim.A[:, k, first:] for k in range(2)], [t] * 2, scheme.angles_deg, CEN.scheme_params(scheme), s)
     params = CEN.scheme_params(scheme)
     for b in range(2):
-        x, P = _dense_ekf([sim.A[b, k] for k in range(2)], [sim.t] * 2, scheme.angles_deg * np.pi / 180,
+        x, P = _dense_ekf([sim.A[b, k, first:] for k in range(2)], [t] * 2, scheme.angles_deg * np.pi / 180,
                           params, s)
         sig = np.sqrt(np.diag(P))
         # same filter; only the order of rounding differs (e.g. the RK4 end time t[m] vs t + h)

@@ -29,6 +29,57 @@ def small(tmp_path):
     return cfg, rec
 
 
+@pytest.mark.parametrize("noise_free", [True, False])
+def test_zero_noise_config_simulates_but_a_filter_refuses_it(tmp_path, noise_free, capsys):
+    """platcal simulate needs no filter settings (issue 9 item 2): a config with zero noise
+    simulates, with and without --noise-free; identify (a filter run) refuses it, naming the field."""
+    cfg = tmp_path / "zero.yaml"
+    cfg.write_text(SMALL.replace("noise: {sigma_a_ug: 10, arw_deg_rth: 0.001, sigma_set_arcsec: 10}",
+                                 "noise: {sigma_a_ug: 0, arw_deg_rth: 0, sigma_set_arcsec: 0}"))
+    rec = tmp_path / "run.csv"
+    args = ["simulate", "--config", str(cfg), "--scheme", "short", "--out", str(rec)]
+    assert main(args + (["--noise-free"] if noise_free else [])) == 0
+    df = pd.read_csv(rec)
+    assert len(df) == 3 * 800
+    # zero noise: the record is the noise-free one whatever the seed
+    np.testing.assert_array_equal(df[["alpha", "beta", "gamma"]].to_numpy()[::800],
+                                  df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy()[::800])
+    capsys.readouterr()
+    out = tmp_path / "id"
+    assert main(["identify", "--config", str(cfg), "--scheme", "short", "--data", str(rec), "--out", str(out)]) == 2
+    assert "filter.sigma_set_arcsec" in capsys.readouterr().err and not out.exists()
+    # the filter's own settings make it runnable again
+    cfg.write_text(cfg.read_text().replace("filter: {period_ms: 20, passes: 2}",
+                                           "filter: {period_ms: 20, passes: 2, sigma_set_arcsec: 10, sigma_a_ug: 10}"))
+    assert main(["identify", "--config", str(cfg), "--scheme", "short", "--data", str(rec), "--out", str(out)]) == 0
+
+
+def test_identify_estimator_option(small, tmp_path, capsys):
+    """--estimator: a kind or a study.estimators name (its filter overrides); unknown -> exit 2
+    naming both lists; summary.json says which estimator ran."""
+    cfg, rec = small
+    cfg.write_text(SMALL + "study:\n  estimators: {ekf1: {passes: 1}, ekf2: {passes: 2}, "
+                   "it2: {estimator: iekf, iterations: 2, passes: 1}}\n")
+    base = ["identify", "--config", str(cfg), "--scheme", "short", "--data", str(rec)]
+    out = {}
+    for name in ("iekf", "it2", "ekf1"):
+        out[name] = tmp_path / name
+        assert main(base + ["--out", str(out[name]), "--estimator", name]) == 0
+    s = {k: json.loads((v / "summary.json").read_text()) for k, v in out.items()}
+    assert s["iekf"]["estimator"] == "iekf" and s["iekf"]["passes"] == 2  # the config's filter, kind iekf
+    assert s["iekf"]["estimator_options"]["iterations"] == 2  # the schema default
+    assert s["it2"]["estimator"] == "iekf" and s["it2"]["passes"] == 1 and s["it2"]["estimator_options"]["iterations"] == 2
+    assert s["ekf1"]["estimator"] == "ekf" and s["ekf1"]["passes"] == 1 and s["ekf1"]["estimator_options"] == {}
+    e1 = pd.read_csv(out["ekf1"] / "estimates.csv")["estimate"]
+    e2 = pd.read_csv(out["it2"] / "estimates.csv")["estimate"]
+    assert not np.allclose(e1, e2, rtol=1e-9, atol=0)
+    capsys.readouterr()
+    bad = tmp_path / "bad"
+    assert main(base + ["--out", str(bad), "--estimator", "kalman"]) == 2
+    err = capsys.readouterr().err
+    assert "--estimator" in err and "ekf, iekf" in err and "ekf1, ekf2, it2" in err and not bad.exists()
+
+
 def test_quick_start_simulate_then_identify(small, tmp_path):
     cfg, rec = small
     df = pd.read_csv(rec)
@@ -43,7 +94,9 @@ def test_quick_start_simulate_then_identify(small, tmp_path):
     assert cov.columns[-1] == "gamma"
     np.testing.assert_allclose(np.sqrt(np.diag(cov.to_numpy()))[:45], est["sigma"], rtol=1e-12)
     hist = pd.read_csv(out / "history.csv")
-    assert len(hist) == 2 * 3 * 4 and hist["t"].is_monotonic_increasing  # 2 passes x 3 positions x 4 s
+    # 2 passes x 3 positions x instants 1, 2, 3 s (the first instant is 20 ms after the reset,
+    # docs/centrifuge-model.md §9, so no history entry at t = 0 of a position)
+    assert len(hist) == 2 * 3 * 3 and hist["t"].is_monotonic_increasing
     assert hist["DF_x_sigma"].iloc[-1] < hist["DF_x_sigma"].iloc[0]
     md = (out / "table2.md").read_text()
     assert "| DF_x | deg/h | 7.37 | 7.3807 | 0.15 |" in md

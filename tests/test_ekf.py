@@ -8,7 +8,8 @@ import pytest
 
 from platcal.rigs.centrifuge.config import load_config
 from platcal.estimation.consistency import nees
-from platcal.rigs.centrifuge.ekf import run_ekf
+from platcal.rigs.centrifuge.ekf import filter_times, first_instant, run_ekf
+from platcal.rigs.centrifuge.identify import simulate_identify
 from platcal.model.instruments import INDEX, NAMES
 from platcal.rigs.centrifuge.catalogue import full_truth, load_catalogue
 from kalman_oracles import joseph_update, propagate_rows
@@ -29,7 +30,32 @@ def run(study, truth, seeds, passes, scheme="table1", filt=None):
     sim = simulate(truth, sch, params, study.noise, seeds, sample_s=study.sample_s, keep_every=study.keep_every)
     fs = replace(filt or study.filter, passes=passes)
     K = sch.n_positions
-    return run_ekf([sim.A[:, k] for k in range(K)], [sim.t] * K, sch.angles_deg, params, fs)
+    i0 = first_instant(fs.update_at_reset)  # the spec: no update with the sample at the reset
+    return run_ekf([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, sch.angles_deg, params, fs)
+
+
+@pytest.mark.parametrize("update_at_reset", [False, True])
+def test_simulate_identify_selects_the_spec_instants(study, update_at_reset):
+    """simulate -> identify uses the instants period, 2 period, ... < dwell (docs/centrifuge-model.md
+    §14); filter.update_at_reset adds the reset instant 0 back. Checked against run_ekf on the
+    explicitly selected samples, and the two conventions give different numbers."""
+    sch = replace(study.schemes["table1"], dwell_s=0.4)
+    fs = replace(study.filter, history_every_s=0.02, update_at_reset=update_at_reset)
+    seeds = lambda: [np.random.SeedSequence(11)]  # fresh: a SeedSequence spawns statefully
+    est = simulate_identify(study, sch, seeds(), fs)
+    params = study.centrifuge.scheme_params(sch)
+    sim = simulate(study.truth, sch, params, study.noise, seeds(), sample_s=study.sample_s,
+                   keep_every=study.keep_every)
+    assert sim.t[0] == 0.0 and sim.t.size == 20
+    t = filter_times(0.4, 0.02, update_at_reset)
+    np.testing.assert_allclose(t, sim.t[first_instant(update_at_reset):], rtol=0, atol=1e-15)
+    ref = run_ekf([sim.A[:, k, 20 - t.size:] for k in range(sch.n_positions)], [t] * sch.n_positions,
+                  sch.angles_deg, params, fs)
+    assert np.array_equal(est.x, ref.x) and np.array_equal(est.P, ref.P)
+    # one history entry per update: 19 (0.02 .. 0.38 s) or 20 (0 .. 0.38 s) per position
+    assert est.history_t.size == sch.n_positions * t.size
+    other = simulate_identify(study, sch, seeds(), replace(fs, update_at_reset=not update_at_reset))
+    assert not np.allclose(other.x, est.x, rtol=1e-12, atol=0)
 
 
 def test_primitives_equal_a_plain_kalman_filter():
@@ -123,7 +149,8 @@ def test_doo_aliases_into_df_dii_dss_as_eq22(study):
 def test_history_and_covariance_shapes(study):
     est = run(study, study.truth, [np.random.SeedSequence(3)], passes=1)
     assert est.x.shape == (1, 48) and est.P.shape == (1, 48, 48)
-    assert est.history_x.shape[1] == est.history_t.size == 6 * 60  # one sample a second
+    # one sample a second: t = 1 .. 59 s of each position (the first instant is 20 ms after the reset)
+    assert est.history_x.shape[1] == est.history_t.size == 6 * 59
     assert np.all(np.diff(est.history_t) > 0)
     s = est.history_sigma[0, :, :45]
     assert np.all(s[-1] <= s[0])  # every coefficient sigma shrinks

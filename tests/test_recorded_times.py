@@ -42,6 +42,8 @@ def test_nearest_samples_and_origin():
     np.testing.assert_array_equal(keep, np.arange(0, 200, 4))
     gap = np.delete(t, np.arange(40, 60))  # 0.1 s without samples: those instants are dropped
     assert nearest_samples(gap, 0.02, 0.0025).size == 50 - 5
+    # the filter's default instants start one period after the reset (ekf.filter_times)
+    np.testing.assert_array_equal(nearest_samples(t, 0.02, 0.0025, first=1), np.arange(4, 200, 4))
     assert position_origin(t, 0.005, 0.1) == 0.0
     assert position_origin(jit + 0.0001, 0.005, 0.1) == 0.0  # clock restarted: origin stays 0
     assert abs(position_origin(jit + 1234.5, 0.005, 0.1) - 1234.5) < 2e-5  # grid fit, not the first sample
@@ -110,8 +112,9 @@ def test_jittered_offset_log_identifies_as_well_as_the_clean_record(tmp_path):
         jit.to_csv(data, index=False) if fmt == "csv" else jit.to_parquet(data, index=False)
         results[fmt] = _identify(tmp_path, data, f"id_{fmt}")
     for fmt, res in results.items():
-        # every 20 ms filter instant of the 4 s dwell has its sample
-        assert res["samples_used_per_position"] == {"1": 200, "2": 200, "3": 200}, fmt
+        # every 20 ms filter instant of the 4 s dwell has its sample: 0.02 .. 3.98 s, 199 of them
+        # (the sample at the reset instant t = 0 is not used, docs/centrifuge-model.md §9)
+        assert res["samples_used_per_position"] == {"1": 199, "2": 199, "3": 199}, fmt
         assert res["failed_updates"] == 0
         ratio = res["max_abs_rel_err_pct_gyro"] / clean["max_abs_rel_err_pct_gyro"]
         print(f"{fmt}: largest gyro error {res['max_abs_rel_err_pct_gyro']:.3f} % vs clean "
@@ -130,7 +133,7 @@ def test_jittered_offset_log_identifies_as_well_as_the_clean_record(tmp_path):
     gap = jit.drop(jit.index[(jit["position"] == 2) & (jit.groupby("position").cumcount().between(400, 409))])
     gap.to_parquet(tmp_path / "gap.parquet", index=False)
     res = _identify(tmp_path, tmp_path / "gap.parquet", "id_gap")
-    assert res["samples_used_per_position"]["1"] == 200 and 197 <= res["samples_used_per_position"]["2"] < 200
+    assert res["samples_used_per_position"]["1"] == 199 and 196 <= res["samples_used_per_position"]["2"] < 199
     assert res["max_abs_rel_err_pct_gyro"] == pytest.approx(results["parquet"]["max_abs_rel_err_pct_gyro"], rel=0.1)
     assert results["csv"]["max_abs_rel_err_pct_gyro"] == pytest.approx(results["parquet"]["max_abs_rel_err_pct_gyro"],
                                                                        rel=1e-9)

@@ -51,9 +51,12 @@ def smk(d: Path, *args, timeout=300):
 def outputs(d: Path) -> dict[str, bytes]:
     """Result files that must not depend on the machine (everything but timing and the report)."""
     res = d / "results"
-    skip = ("timing", "report.md", "summary.md", "summary.html", "/logs/")
+    skip = ("timing", "report.md", "summary.md", "summary.html", "/logs/",
+            # the estimator comparison's cost per run (wall and CPU s) and what shows it
+            "compare_summary.csv", "compare_cost.png")
     return {str(p.relative_to(res)): p.read_bytes() for p in sorted(res.rglob("*"))
-            if p.is_file() and not any(s in str(p) for s in skip)}
+            if p.is_file() and not any(s in str(p) for s in skip)
+            and not ("/compare/" in str(p) and p.name == "runs.parquet")}
 
 
 def test_lint_is_clean():
@@ -94,6 +97,12 @@ def test_tiny_study_end_to_end(tmp_path):
     coef = pd.read_parquet(res / "montecarlo/coef.parquet")
     assert len(coef) == 2 * 2 * 2 * 2 * 45  # schemes x noise levels x estimators x replicates x coefficients
     assert "## Reading" in (res / "report.md").read_text()
+    # the estimator comparison (study.compare): its own cells, table, figures and report section
+    comp = pd.read_csv(res / "tables/compare_summary.csv")
+    assert sorted(comp["estimator"]) == ["ekf1", "ekf2"] and (comp["runs"] == 2).all()
+    assert (comp["cpu_s_per_run"] > 0).all()
+    assert (res / "figures/compare_cost.png").stat().st_size > 0 and (res / "figures/compare_nees.png").exists()
+    assert "## Which estimator" in (res / "report.md").read_text()
     # the single run is replicate 0 of its cell
     one = pd.read_csv(res / "single/estimates.csv")
     cell = coef[(coef.scheme == "table1") & (coef.noise == 10) & (coef.estimator == "ekf1") & (coef.replicate == 0)]

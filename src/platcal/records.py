@@ -190,10 +190,15 @@ def grid_origin(t: np.ndarray, step: float) -> float:
     return float(t[0] + np.median(d - step * np.round(d / step)))
 
 
-def nearest_samples(t: np.ndarray, period_s: float, tol_s: float) -> np.ndarray:
-    """Indices of the samples nearest each multiple of ``period_s`` (within ``tol_s``), increasing
-    and without repeats: decimation by time, not by an exact grid match. ``t`` increases."""
+def nearest_samples(t: np.ndarray, period_s: float, tol_s: float, first: int | None = None) -> np.ndarray:
+    """Indices of the samples nearest each multiple ``m period_s`` (within ``tol_s``; ``m >= first``
+    when ``first`` is given), increasing and without repeats: decimation by time, not by an exact
+    grid match. ``t`` increases."""
     m = np.arange(np.ceil((t[0] - tol_s) / period_s), np.floor((t[-1] + tol_s) / period_s) + 1)
+    if first is not None:
+        m = m[m >= first]
+    if m.size == 0:
+        return np.zeros(0, dtype=np.int64)
     want = m * period_s
     j = np.clip(np.searchsorted(t, want), 1, t.size - 1) if t.size > 1 else np.zeros(want.size, dtype=int)
     if t.size > 1:

@@ -5,7 +5,9 @@
 #   design/      GA schemes (ga_*.yaml, read by the sweep) and the design studies
 # `snakemake --cores 2 design_all` builds the full design report (design/report.md).
 from platcal.rigs.centrifuge.design import design_config
-from platcal.rigs.centrifuge.report import FIGURES, TABLES
+from platcal.rigs.centrifuge.compare import cell_params as compare_cell_params
+from platcal.rigs.centrifuge.compare import compare_cells, compare_levels
+from platcal.rigs.centrifuge.report import COMPARE_FIGURES, COMPARE_TABLES, FIGURES, TABLES
 from platcal.rigs.centrifuge.study import (
     DESIGN_KEYS,
     NO_DESIGN,
@@ -31,6 +33,8 @@ CENTRIFUGE_TARGETS = (
             ext=["csv", "md", "html"],
         ),
         *expand("results/centrifuge/figures/{f}", f=FIGURES.values()),
+        *expand("results/centrifuge/tables/{f}", f=COMPARE_TABLES),
+        *expand("results/centrifuge/figures/{f}", f=COMPARE_FIGURES.values()),
         *expand(
             "results/centrifuge/{f}",
             f=design_targets(MC_HOOKS["centrifuge"].cases(CEN), CEN_DESIGN),
@@ -147,10 +151,81 @@ rule centrifuge_figures:
         "../scripts/centrifuge_figures.py"
 
 
+# ---- the estimator comparison (issue 9): its own cells, study.compare
+
+CEN_COMPARE = [] if CEN is None else compare_cells(CEN)
+CEN_COMPARE_DIRS = [f"results/centrifuge/compare/noise{n}/{e}" for n, e in CEN_COMPARE]
+
+
+rule centrifuge_compare_cell:
+    output:
+        coef="results/centrifuge/compare/noise{noise}/{estimator}/coef.parquet",
+        runs="results/centrifuge/compare/noise{noise}/{estimator}/runs.parquet",
+        timing="results/centrifuge/compare/noise{noise}/{estimator}/timing.json",
+    params:
+        cell=lambda w: compare_cell_params(CEN, compare_levels(CEN)[w.noise], w.estimator),
+        level=lambda w: compare_levels(CEN)[w.noise],
+        code=lambda w: CODE_COMPUTE["centrifuge"],
+    threads: 1
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/centrifuge/logs/compare/noise{noise}_{estimator}.log",
+    script:
+        "../scripts/centrifuge_compare_cell.py"
+
+
+rule centrifuge_compare_collect:
+    input:
+        coef=[f"{d}/coef.parquet" for d in CEN_COMPARE_DIRS],
+        runs=[f"{d}/runs.parquet" for d in CEN_COMPARE_DIRS],
+        timing=[f"{d}/timing.json" for d in CEN_COMPARE_DIRS],
+    output:
+        coef="results/centrifuge/compare/coef.parquet",
+        runs="results/centrifuge/compare/runs.parquet",
+        timing="results/centrifuge/compare/timing.csv",
+    params:
+        code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/centrifuge/logs/compare/collect.log",
+    script:
+        "../scripts/centrifuge_compare_collect.py"
+
+
+rule centrifuge_compare:
+    input:
+        coef="results/centrifuge/compare/coef.parquet",
+        runs="results/centrifuge/compare/runs.parquet",
+    output:
+        tables=expand("results/centrifuge/tables/{f}", f=COMPARE_TABLES),
+        cost=report(
+            "results/centrifuge/figures/" + COMPARE_FIGURES["cost"],
+            caption="../report/compare_cost.rst",
+            category="Centrifuge figures",
+        ),
+        nees=report(
+            "results/centrifuge/figures/" + COMPARE_FIGURES["nees"],
+            caption="../report/compare_nees.rst",
+            category="Centrifuge figures",
+        ),
+    params:
+        study=config_provider("centrifuge", "study", "noise", "filter", "seed"),
+        code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/centrifuge/logs/compare/tables.log",
+    script:
+        "../scripts/centrifuge_compare.py"
+
+
 rule centrifuge_report:
     input:
         tables=rules.centrifuge_tables.output,
         figures=rules.centrifuge_figures.output,
+        compare=rules.centrifuge_compare.output.tables,
         timing="results/centrifuge/montecarlo/timing.csv",
     output:
         "results/centrifuge/report.md",

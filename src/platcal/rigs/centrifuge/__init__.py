@@ -3,7 +3,7 @@
 
 Modules: :mod:`.base` (the centrifuge's specific force), :mod:`.catalogue` (Table 2),
 :mod:`.config` (schema and typed study), :mod:`.scheme`, :mod:`.record`, :mod:`.simulate`,
-:mod:`.ekf`, :mod:`.identify` (the one simulate -> identify path), :mod:`.observability`
+:mod:`.ekf` (EKF and iterated EKF), :mod:`.estimators` (the registry of estimator kinds), :mod:`.identify` (the one simulate -> identify path), :mod:`.observability`
 (covariance-only kernel), :mod:`.design` (GA), :mod:`.design_study`, :mod:`.study` (its Monte
 Carlo hooks), :mod:`.tables` and :mod:`.report` (Table 2, figures, report section),
 :mod:`.commands` (its ``platcal`` sub-commands).
@@ -13,8 +13,9 @@ from ...rig import Rig
 from .catalogue import load_catalogue
 from .commands import COMMANDS
 from .config import study_from_config
+from .estimators import kind_names
 from .study import CentrifugeMonteCarlo
 
 RIG = Rig(name="centrifuge", title="precision centrifuge, 48-state EKF", spec="centrifuge-model.md",
           load_config=study_from_config, commands=COMMANDS, catalogue=lambda: load_catalogue().frame(),
-          estimators=("ekf",), montecarlo=CentrifugeMonteCarlo())
+          estimators=kind_names(), montecarlo=CentrifugeMonteCarlo())

@@ -8,6 +8,7 @@ needs and refuses, naming the option, those the centrifuge has no use for.
 from __future__ import annotations
 
 import argparse
+import copy
 import sys
 import time
 
@@ -16,7 +17,8 @@ import numpy as np
 from ...errors import InputError
 from ...io import check_writable
 from ...study.montecarlo import cell_job
-from .config import Study
+from .config import Study, check_filter, study_from_config
+from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
 from .identify import (consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
                        write_identification)
@@ -26,7 +28,7 @@ from .report import report_from_results
 from .scheme import resolve_scheme
 from .simulate import simulate
 
-UNUSED = {"simulate": ("platform", "run"), "identify": ("estimator", "method")}
+UNUSED = {"simulate": ("platform", "run"), "identify": ("method",)}
 """Options of the shared parser that the centrifuge does not use (refused when given)."""
 
 
@@ -60,8 +62,30 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
     return 0
 
 
+def with_estimator(study: Study, name: str | None) -> Study:
+    """The study whose filter is the estimator ``name``: an entry of ``study.estimators`` (its
+    ``filter:`` overrides, as in the Monte Carlo) or a kind (:data:`.estimators.KINDS`, the
+    config's filter with ``filter.estimator`` set); None keeps the config's. InputError naming
+    ``--estimator`` and both lists otherwise."""
+    if name is None:
+        return study
+    named = study.config["study"]["estimators"]
+    raw = copy.deepcopy(study.config)
+    if name in named:
+        raw["filter"].update(named[name])
+    elif name in KINDS:
+        raw["filter"]["estimator"] = name
+    else:
+        raise InputError("--estimator", f"unknown estimator {name!r}; use a kind ({', '.join(KINDS)}) or a name "
+                         f"of the config's study.estimators ({', '.join(named)})")
+    return study_from_config(raw)
+
+
 def identify_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal identify``: the EKF over a test record."""
+    """``platcal identify``: the study's estimator (``--estimator`` or ``filter.estimator``) over a
+    test record."""
+    study = with_estimator(study, args.estimator)
+    check_filter(study.filter)
     scheme = _scheme(study, args)
     check_writable(args.out, "--out", folder=True)
     df = read_record(args.data)
@@ -76,7 +100,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
     summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds,
                                    samples_used=used)
-    msg = (f"platcal identify: {len(est.names)}-state EKF, {study.filter.passes} pass(es), "
+    msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if "nees" in summary:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
@@ -90,6 +114,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
 
 def observability_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal observability``: covariance-only analysis of a scheme."""
+    check_filter(study.filter)
     scheme = _scheme(study, args)
     if args.replicates < 0:
         raise InputError("--replicates", "must be a whole number >= 0")
@@ -113,6 +138,7 @@ def observability_command(study: Study, args: argparse.Namespace) -> int:
 
 def design_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal design``: the genetic-algorithm scheme search."""
+    check_filter(study.filter)
     if not str(args.out).endswith((".yaml", ".yml")):
         raise InputError("--out", "must be a scheme file name ending in .yaml")
     check_writable(args.out, "--out")
@@ -135,6 +161,7 @@ def design_command(study: Study, args: argparse.Namespace) -> int:
 
 def montecarlo_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal montecarlo``: one (scheme, sigma_a, estimator) cell of the sweep."""
+    check_filter(study.filter)
     if args.noise is None:
         raise InputError("--noise", "required for rig centrifuge: the accelerometer noise sigma_a, ug per sample")
     check_writable(args.out, "--out", folder=True)

@@ -23,6 +23,7 @@ from ...schema import load_schema, validate
 from .base import Centrifuge
 from .catalogue import full_truth
 from .ekf import FilterSettings, default_p0_sigma
+from .estimators import check_kind, options_from_filter
 from .scheme import Scheme, check_scheme, whole_periods
 from .simulate import Noise
 
@@ -58,6 +59,7 @@ def validate_config(raw: dict) -> dict:
         if key not in INDEX and key not in terms and key not in ANGLE_KEYS:
             raise InputError(f"filter.p0.{key}", f"unknown term or coefficient; use one of {sorted(terms)} "
                              "or a coefficient name such as DF_x")
+    check_kind(cfg["filter"]["estimator"])
     sample = cfg["sampling"]["sample_ms"]
     ratio = cfg["filter"]["period_ms"] / sample
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
@@ -106,7 +108,26 @@ def filter_settings(fcfg: dict, noise: Noise) -> FilterSettings:
         p0_sigma=default_p0_sigma(bool(fcfg["estimate_doo"]), p0),
         estimate_doo=bool(fcfg["estimate_doo"]),
         history_every_s=float(fcfg["history_s"]),
+        update_at_reset=bool(fcfg.get("update_at_reset", False)),
+        estimator=str(fcfg.get("estimator", "ekf")),
+        estimator_options=options_from_filter(fcfg),
     )
+
+
+def check_filter(fs: FilterSettings) -> FilterSettings:
+    """Refuse filter settings a filter cannot run with (InputError naming the field); return them.
+
+    Called where a filter runs (identify, montecarlo, observability, design), not when a config
+    is read: ``platcal simulate`` needs no filter, so a noise-free config (``noise:
+    {sigma_a_ug: 0, arw_deg_rth: 0, sigma_set_arcsec: 0}``) simulates (issue 9 item 2).
+    """
+    if fs.sigma_set_arcsec <= 0:
+        raise InputError("filter.sigma_set_arcsec", "the filter's attitude variance at each reset must be > 0 "
+                         "(set noise.sigma_set_arcsec > 0 or filter.sigma_set_arcsec)")
+    if fs.sigma_a_ug <= 0:
+        raise InputError("filter.sigma_a_ug", "the filter's measurement noise must be > 0 "
+                         "(set noise.sigma_a_ug > 0 or filter.sigma_a_ug)")
+    return fs
 
 
 def study_from_config(cfg: dict) -> Study:
@@ -115,12 +136,6 @@ def study_from_config(cfg: dict) -> Study:
     site, cen = cfg["site"], cfg["centrifuge"]
     noise = Noise(**{k: float(v) for k, v in cfg["noise"].items()})
     fs = filter_settings(cfg["filter"], noise)
-    if fs.sigma_set_arcsec <= 0:
-        raise InputError("filter.sigma_set_arcsec", "the filter's attitude variance at each reset must be > 0 "
-                         "(set noise.sigma_set_arcsec > 0 or filter.sigma_set_arcsec)")
-    if fs.sigma_a_ug <= 0:
-        raise InputError("filter.sigma_a_ug", "the filter's measurement noise must be > 0 "
-                         "(set noise.sigma_a_ug > 0 or filter.sigma_a_ug)")
     return Study(
         centrifuge=Centrifuge(rate_deg_s=float(cen["rate_deg_s"]), g_level=float(cen["g_level"]),
                               latitude_deg=float(site["latitude_deg"]), g=float(site["g"]),

@@ -27,7 +27,7 @@ from ...io import atomic_path, atomic_to_csv, atomic_write_text  # noqa: E402
 from ...log import job_logger  # noqa: E402
 from ...model.instruments import FULL_NAMES, INDEX, N_IDENTIFIED, NAMES  # noqa: E402
 from ...study.tables import write_table  # noqa: E402
-from .config import study_from_config  # noqa: E402
+from .config import check_filter, study_from_config  # noqa: E402
 from .design import SchemeEvaluator, design_config, preset, run_design, write_design  # noqa: E402
 from .ekf import default_p0_sigma  # noqa: E402
 from .identify import simulate_identify  # noqa: E402
@@ -181,7 +181,9 @@ def doo_study(study, single: Scheme, two_level: Scheme, doo_truth: float = 0.05,
 
 def _study(config: dict):
     cfg = {k: v for k, v in config.items() if k not in ("study",)}
-    return study_from_config(cfg)
+    study = study_from_config(cfg)
+    check_filter(study.filter)
+    return study
 
 
 def _load(path) -> Scheme:

@@ -13,7 +13,8 @@ from scipy.stats import chi2
 from ...estimation.consistency import nees
 from ...io import atomic_files, json_text
 from .config import Study
-from .ekf import Estimate, FilterSettings, run_ekf
+from .ekf import Estimate, FilterSettings, first_instant
+from .estimators import run_estimator
 from .record import TRUTH_COLUMNS, FilterInput, check_record, filter_input
 from .scheme import Scheme
 from .simulate import simulate
@@ -23,7 +24,7 @@ from .tables import covariance_frame, estimates_frame, table2_markdown
 def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSettings | None = None,
                       truth: np.ndarray | None = None) -> Estimate:
     """Simulate a batch (one run per SeedSequence; ``seeds=None``: one noise-free run) and identify
-    it with the EKF: the one simulate -> identify path of the centrifuge (Monte Carlo, design
+    it with the study's estimator (``filter.estimator``, the EKF by default): the one simulate -> identify path of the centrifuge (Monte Carlo, design
     studies, observability checks). ``settings`` defaults to the study's filter without history;
     ``truth`` (48,) to the study's. Runs are independent: a batch gives the numbers of B runs of one.
     """
@@ -32,7 +33,9 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
     params = study.centrifuge.scheme_params(scheme)
     sim = simulate(truth, scheme, params, study.noise, seeds, sample_s=study.sample_s, keep_every=study.keep_every)
     K = scheme.n_positions
-    return run_ekf([sim.A[:, k] for k in range(K)], [sim.t] * K, scheme.angles_deg, params, fs)
+    # the samples at the reset instant (t = 0) are not used unless filter.update_at_reset
+    i0 = first_instant(fs.update_at_reset)
+    return run_estimator([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, scheme.angles_deg, params, fs)
 
 
 def record_input(study: Study, scheme: Scheme, df: pd.DataFrame) -> FilterInput:
@@ -40,7 +43,8 @@ def record_input(study: Study, scheme: Scheme, df: pd.DataFrame) -> FilterInput:
     select the samples the filter uses."""
     check_record(df, scheme, study.sample_s, float(study.config["record"]["max_gap_s"]),
                  expected_g=expected_g(study, scheme))
-    return filter_input(df, scheme, study.filter.period_s, float(study.config["record"]["max_gap_s"]))
+    return filter_input(df, scheme, study.filter.period_s, float(study.config["record"]["max_gap_s"]),
+                        update_at_reset=study.filter.update_at_reset)
 
 
 def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
@@ -54,9 +58,10 @@ def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
 
 
 def identify_input(study: Study, scheme: Scheme, fin: FilterInput) -> Estimate:
-    """Run the study's EKF over the selected samples of a record (one run: a batch of one)."""
+    """Run the study's estimator (``filter.estimator``) over the selected samples of a record (one
+    run: a batch of one)."""
     params = study.centrifuge.scheme_params(scheme)[np.array(fin.positions) - 1]
-    return run_ekf(fin.z, fin.t, fin.cmd_deg, params, study.filter)
+    return run_estimator(fin.z, fin.t, fin.cmd_deg, params, study.filter)
 
 
 def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:
@@ -101,7 +106,8 @@ def consistency_warning(summary: dict) -> str | None:
     if summary["nees"] <= bound:
         return None
     return (f"NEES {summary['nees']:.4g} for {dof} dof is above its {NEES_LEVEL:.1%} bound {bound:.4g}: the "
-            "filter's sigmas are too optimistic for its errors (filter.passes: 2 restores consistency)")
+            "filter's sigmas are too optimistic for its errors (filter.passes: 2 restores consistency, "
+            "and so does a 1 s warm-up pass, filter.warmup_s: 1, at about 1.1 x the cost of one pass)")
 
 
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
@@ -117,7 +123,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     nc = est.n_coef
     truth = study.truth if truth_known else None
     df = estimates_frame(est.names[:nc], est.coef[0], est.coef_sigma[0], truth)
-    summary = {"n_states": len(est.names), "passes": study.filter.passes,
+    summary = {"n_states": len(est.names), "estimator": study.filter.estimator,
+               "estimator_options": dict(study.filter.estimator_options), "passes": study.filter.passes,
                "mean_nis": float(est.mean_nis[0]), "failed_updates": int(est.failed_updates[0])}
     if samples_used is not None:
         summary["samples_used_per_position"] = {str(k): int(v) for k, v in samples_used.items()}

@@ -53,7 +53,7 @@ from ...model.attitude import make_rk4_scratch, make_work, measure_into, rk4_ste
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, N_FULL, N_IDENTIFIED, group_of, unit_of
 from .base import broadcast_params, specific_force_into
-from .ekf import FilterSettings, default_p0_sigma, run_ekf
+from .ekf import FilterSettings, default_p0_sigma, filter_times, run_ekf
 from .identify import simulate_identify
 from .scheme import whole_periods
 
@@ -86,8 +86,8 @@ class Setup:
     @property
     def times(self) -> np.ndarray:
         """Filter instants of one position, s."""
-        n = whole_periods(self.dwell_s, self.filter.period_s, "dwell_s", "filter periods")
-        return np.arange(n) * self.filter.period_s
+        whole_periods(self.dwell_s, self.filter.period_s, "dwell_s", "filter periods")
+        return filter_times(self.dwell_s, self.filter.period_s, self.filter.update_at_reset)
 
 
 def setup_from_study(study, dwell_s: float, **filter_overrides) -> Setup:
@@ -242,12 +242,15 @@ def _position_grams(ang0, coef, t, params, G):
         row = np.empty((3, nf + 3))
         fr3 = np.empty((3, 3))
         Gp = G[p]
+        # the initial angles are those at the position's start t = 0 (the filter's reset);
+        # the first instant may lie after it (ekf.filter_times)
+        t_prev = 0.0
         for m in range(M):
-            if m > 0:
-                h = t[m] - t[m - 1]
-                specific_force_into(t[m - 1], params[p], fr3[0])
-                specific_force_into(t[m - 1] + 0.5 * h, params[p], fr3[1])
-                specific_force_into(t[m - 1] + h, params[p], fr3[2])
+            if t[m] > t_prev:
+                h = t[m] - t_prev
+                specific_force_into(t_prev, params[p], fr3[0])
+                specific_force_into(t_prev + 0.5 * h, params[p], fr3[1])
+                specific_force_into(t_prev + h, params[p], fr3[2])
                 rk4_step_jac(ang, coef, fr3, h, params[p], new, pa, pc, work, scratch)
                 for r in range(3):
                     for i in range(3):
@@ -257,6 +260,7 @@ def _position_grams(ang0, coef, t, params, G):
                 phi_a[:, :] = tmp_a
                 phi_c[:, :] = tmp_c
                 ang[:] = new
+                t_prev = t[m]
             specific_force_into(t[m], params[p], fr3[0])
             measure_into(ang, coef, fr3[0], params[p], out, hc, ha, work)
             for r in range(3):

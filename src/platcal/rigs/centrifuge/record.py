@@ -189,7 +189,7 @@ def _ranges(ks: list[int]) -> str:
 
 
 def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
-                 max_gap_s: float | None = None) -> FilterInput:
+                 max_gap_s: float | None = None, update_at_reset: bool = False) -> FilterInput:
     """Select, per position, the samples nearest the filter instants (multiples of ``period_s``
     from the position's start, :func:`position_origin`), with their recorded times.
 
@@ -199,6 +199,10 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
     drops the instants it covers. A clean record (samples on the grid) gives exactly the samples
     at the instants. Checks that every position index is in the scheme, that the commanded
     angles match the scheme's, and that time increases within each position.
+
+    The filter instants are ``period, 2 period, ...`` (docs/centrifuge-model.md §9: the sample at
+    a position's reset instant t = 0 is not used; :func:`platcal.rigs.centrifuge.ekf.filter_times`);
+    ``update_at_reset`` keeps instant 0 too (config ``filter.update_at_reset``).
     """
     K = scheme.n_positions
     pos = df["position"].to_numpy()
@@ -224,7 +228,7 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
         origin = position_origin(t, step, max_gap_s)
         if origin != 0.0:
             t = t - origin
-        keep = nearest_samples(t, period_s, 0.5 * step)
+        keep = nearest_samples(t, period_s, 0.5 * step, first=0 if update_at_reset else 1)
         if keep.size < 1:
             raise InputError(f"--data column t, position {k}", f"no sample falls on a {period_s * 1e3:g} ms filter instant")
         ts.append(t[keep])

@@ -26,6 +26,7 @@ from ...study.plots import (boxplot_rel_err, convergence, correlation_heatmap, n
 from ...study.stats import per_coefficient, select_cell, summary, with_timing
 from ...study.tables import frame_html, frame_markdown, write_table
 from .catalogue import load_catalogue
+from .compare import which_estimator
 from .study import CentrifugeMonteCarlo, check_study
 from .tables import table2_frame
 
@@ -45,6 +46,10 @@ FIGURES = {
     "paper_vs_mc": "paper_vs_montecarlo.png",
 }
 """Figure key -> file name under ``results/figures``."""
+COMPARE_TABLES = ("compare_summary.csv", "compare_summary.md", "compare_summary.html", "compare_rms.csv")
+"""The estimator comparison's tables under ``results/centrifuge/tables`` (:mod:`.compare`)."""
+COMPARE_FIGURES = {"cost": "compare_cost.png", "nees": "compare_nees.png"}
+"""The estimator comparison's figures under ``results/centrifuge/figures``."""
 
 T2_FMT = {"truth": "g", "paper_estimate": "g", "paper_rel_err_pct": ".2f", "estimate": ".6g", "sigma": ".3g",
           "error": ".4g", "rel_err_pct": ".3f"}
@@ -202,6 +207,14 @@ def write_report(cfg: dict, tables_dir, figures_dir, out_path, timing: pd.DataFr
         parts += [f"- compute: {timing['wall_s'].sum():.0f} s of job wall time over {len(timing)} cells "
                   f"({timing['wall_s_per_run'].median():.2f} s per run, median)", ""]
     parts += ["## Reading", "", reading(cfg, pd.read_csv(tables_dir / "table2_single.csv"), t2mc, summ), ""]
+    compare = tables_dir / "compare_summary.csv"
+    if compare.exists():  # the estimator comparison (study.compare)
+        parts += [which_estimator(cfg, pd.read_csv(compare)), _body(tables_dir / "compare_summary.md")]
+        for k, f in COMPARE_FIGURES.items():
+            label = {"cost": "Error against cost per estimator and noise level",
+                     "nees": "NEES histograms per estimator"}[k]
+            parts.append(f"- [{label}]({rel(figures_dir / f)})")
+        parts.append("")
     parts += ["## Figures", ""]
     captions = {
         "boxplot": "Relative error per coefficient by scheme (paper's errors: red stars)",

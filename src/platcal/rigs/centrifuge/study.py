@@ -35,7 +35,8 @@ from ...parallel import set_threads
 from ...rig import NoiseAxis, ReplicateBatch, RunSettings
 from ...seeding import stable_key
 from ...study.montecarlo import noise_key, noise_label, replicate_seed
-from .config import study_from_config, validate_config
+from .config import check_filter, study_from_config, validate_config
+from .estimators import check_kind
 from .identify import simulate_identify
 from .scheme import check_scheme, load_scheme_file, whole_periods
 from .tables import covariance_frame, estimates_frame
@@ -162,10 +163,48 @@ def check_study(raw: dict) -> dict:
     labels = [noise_label(v) for v in st["sigma_a_ug"]]
     if len(set(labels)) != len(labels) or len({noise_key(v) for v in st["sigma_a_ug"]}) != len(labels):
         raise InputError("study.sigma_a_ug", f"noise levels must be distinct (to 0.001 ug), got {st['sigma_a_ug']}")
-    for name in st["estimators"]:
+    for name, entry in st["estimators"].items():
         if not re.fullmatch(r"[A-Za-z0-9_-]+", name):
             raise InputError(f"study.estimators.{name}", "an estimator name is letters, digits, '_' or '-'")
+        if "estimator" in entry:
+            check_kind(entry["estimator"], f"study.estimators.{name}.estimator")
     whole_periods(st["dwell_s"], cfg["sampling"]["sample_ms"] / 1000.0, "study.dwell_s")
+    comp = st["compare"]
+    if comp["scheme"] is None:  # the paper's cell's scheme, already checked above
+        comp["scheme"] = paper["scheme"]
+    if comp["scheme"] not in cfg["schemes"] and comp["scheme"] != "classical" \
+            and not re.fullmatch(r"random_\d+", comp["scheme"]):
+        raise InputError("study.compare.scheme", f"unknown scheme {comp['scheme']!r}; use a scheme of the config's "
+                         f"'schemes' ({sorted(cfg['schemes'])}), 'classical' or 'random_<i>'")
+    if isinstance(comp["estimators"], dict):  # the comparison's own estimators
+        for name, entry in comp["estimators"].items():
+            if not re.fullmatch(r"[A-Za-z0-9_-]+", name):
+                raise InputError(f"study.compare.estimators.{name}", "an estimator name is letters, digits, '_' or '-'")
+            if name in st["estimators"] and entry != st["estimators"][name]:
+                raise InputError(f"study.compare.estimators.{name}", f"{name!r} is defined differently in "
+                                 "study.estimators; use another name or the same definition")
+            if "estimator" in entry:
+                check_kind(entry["estimator"], f"study.compare.estimators.{name}.estimator")
+    else:
+        for i, name in enumerate(comp["estimators"]):
+            if name not in st["estimators"]:
+                raise InputError(f"study.compare.estimators[{i}]", f"unknown estimator {name!r}; the study "
+                                 f"defines {sorted(st['estimators'])} (or give study.compare.estimators as a "
+                                 "mapping of the comparison's own estimators)")
+        if len(set(comp["estimators"])) != len(comp["estimators"]):
+            raise InputError("study.compare.estimators", "an estimator is listed twice")
+    if len({noise_key(v) for v in comp["sigma_a_ug"]}) != len(comp["sigma_a_ug"]):
+        raise InputError("study.compare.sigma_a_ug", f"noise levels must be distinct (to 0.001 ug), got "
+                         f"{comp['sigma_a_ug']}")
+    # every cell runs a filter: its settings are checked before any job starts
+    for level in st["sigma_a_ug"]:
+        for name in st["estimators"]:
+            study_for_cell(cfg, level, name)
+    both = {**cfg, "study": {**st, "estimators": {**st["estimators"], **(comp["estimators"]
+                                                                         if isinstance(comp["estimators"], dict) else {})}}}
+    for level in comp["sigma_a_ug"]:
+        for name in (comp["estimators"] or st["estimators"]):
+            study_for_cell(both, level, name)
     return cfg
 
 
@@ -174,12 +213,15 @@ def check_study(raw: dict) -> dict:
 
 
 def study_for_cell(cfg: dict, sigma_a_ug: float, estimator: str):
-    """The Study of one cell: the config with this noise level and this estimator's settings."""
+    """The Study of one cell: the config with this noise level and this estimator's settings
+    (its filter checked: InputError naming the field)."""
     raw = json.loads(json.dumps(cfg))  # deep copy of plain data
     raw["noise"]["sigma_a_ug"] = float(sigma_a_ug)
     raw["filter"].update(cfg["study"]["estimators"][estimator])
     raw["filter"]["history_s"] = raw["filter"].get("history_s", 1.0)
-    return study_from_config(raw)
+    study = study_from_config(raw)
+    check_filter(study.filter)
+    return study
 
 
 def replicate_batch(study, est) -> ReplicateBatch:

@@ -1,0 +1,88 @@
+"""The centrifuge's estimators by kind (issue 9 item 3): the registry behind ``filter.estimator``,
+``study.estimators`` and ``platcal identify --estimator``.
+
+Every kind provides one run function with the signature shared by the centrifuge's estimators
+(notes: the contract of issue 9)::
+
+    run(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, **options) -> Estimate
+
+``z`` K arrays (B, M_k, 3) g at the instants ``t`` (K arrays (M_k,), s since position k's start;
+the instants of :func:`platcal.rigs.centrifuge.ekf.filter_times`), ``cmd_deg`` (B, K, 3) or
+(K, 3), ``centrifuge_params`` (5,), (K, 5) or (B, K, 5); batched over B replicates, bit-identical
+whatever B and the thread count. ``options`` are the kind's keywords; each maps from a key of
+the config's ``filter:`` section (:attr:`EstimatorKind.config_keys`), so that a
+``study.estimators`` entry, which overrides ``filter:`` keys, can set them.
+
+Kinds
+-----
+- ``ekf``: the paper's EKF (docs/centrifuge-model.md §9), ``filter.passes`` passes; option
+  ``filter.warmup_s`` (a warm-up pass over the first seconds of each position,
+  :func:`platcal.rigs.centrifuge.ekf.run_ekf`).
+- ``iekf``: the iterated EKF (Gauss-Newton relinearisation of each update,
+  :func:`platcal.rigs.centrifuge.ekf.run_iekf`); options ``filter.iterations``,
+  ``filter.iterate_tol``, ``filter.iterate_s``, ``filter.iterate_ratio``.
+
+The covariance-only runs of ``observability`` and ``design`` stay the EKF's
+(:func:`platcal.rigs.centrifuge.ekf.run_ekf` with ``linearise_about``) whatever the kind.
+Add a kind: its run function, an :class:`EstimatorKind` in :data:`KINDS`, its option keys in the
+``filter`` section of ``data/config.schema.yaml`` (and in the ``study.estimators`` entries).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from ...errors import InputError
+from .ekf import Estimate, FilterSettings, run_ekf, run_iekf
+
+
+@dataclass(frozen=True)
+class EstimatorKind:
+    """One kind of estimator: its name, run function, the ``filter:`` keys of its keyword options
+    (``{config key: keyword}``) and one line for people."""
+
+    name: str
+    run: Callable[..., Estimate]
+    config_keys: dict = field(default_factory=dict)
+    description: str = ""
+
+
+KINDS: dict[str, EstimatorKind] = {
+    "ekf": EstimatorKind("ekf", run_ekf, {"warmup_s": "warmup_s"},
+                         "the paper's EKF, filter.passes passes (after a warm-up pass over the first "
+                         "filter.warmup_s of each position when set)"),
+    "iekf": EstimatorKind("iekf", run_iekf, {"iterations": "iterations", "iterate_tol": "tol",
+                                             "iterate_s": "until_s", "iterate_ratio": "ratio"},
+                          "iterated EKF: each update relinearised (Gauss-Newton)"),
+}
+"""The registered kinds, in the order they are listed (``Rig.estimators``, benchmarks)."""
+
+
+def kind_names() -> tuple[str, ...]:
+    return tuple(KINDS)
+
+
+def check_kind(name: str, field_name: str = "filter.estimator") -> EstimatorKind:
+    """The kind called ``name``; InputError naming ``field_name`` and the kinds otherwise."""
+    if name not in KINDS:
+        raise InputError(field_name, f"unknown estimator kind {name!r}; use one of {list(KINDS)}")
+    return KINDS[name]
+
+
+def options_from_filter(fcfg: dict) -> tuple:
+    """``(keyword, value)`` options of the kind ``fcfg['estimator']`` from a validated ``filter:``
+    section (keys that are null or absent keep the run function's default)."""
+    kind = check_kind(str(fcfg.get("estimator", "ekf")))
+    out = []
+    for key, kw in kind.config_keys.items():
+        if fcfg.get(key) is not None:
+            v = fcfg[key]
+            out.append((kw, v))
+    return tuple(out)
+
+
+def run_estimator(z, t, cmd_deg, centrifuge_params, settings: FilterSettings) -> Estimate:
+    """Run the estimator ``settings.estimator`` with its ``settings.estimator_options``."""
+    kind = check_kind(settings.estimator)
+    return kind.run(z, t, cmd_deg, centrifuge_params, settings, **dict(settings.estimator_options))

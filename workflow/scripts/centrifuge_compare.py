@@ -1,0 +1,10 @@
+"""Snakemake wrapper: the estimator comparison's tables and figures."""
+from pathlib import Path
+
+from platcal.rig import rig_config
+from platcal.rigs.centrifuge.compare import compare_job
+
+sm = snakemake  # noqa: F821
+compare_job(rig_config(sm.config, "centrifuge"), sm.input.coef, sm.input.runs,
+            {"tables": Path(sm.output.tables[0]).parent, "cost": sm.output.cost, "nees": sm.output.nees},
+            log_path=sm.log[0])

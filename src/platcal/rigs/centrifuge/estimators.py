@@ -21,6 +21,15 @@ Kinds
 - ``iekf``: the iterated EKF (Gauss-Newton relinearisation of each update,
   :func:`platcal.rigs.centrifuge.ekf.run_iekf`); options ``filter.iterations``,
   ``filter.iterate_tol``, ``filter.iterate_s``, ``filter.iterate_ratio``.
+- ``ukf``: the unscented Kalman filter of the same model (sigma points over all states in the
+  measurement update, the EKF's propagation, :func:`platcal.rigs.centrifuge.ukf.run_ukf`),
+  ``filter.passes`` passes; options ``filter.ukf_sigma_points``, ``filter.ukf_alpha``,
+  ``filter.ukf_beta``, ``filter.ukf_kappa``.
+- ``ml``: the batch maximum-likelihood (MAP) estimate, Gauss-Newton over the whole record with
+  the angle random walk whitened (:func:`platcal.rigs.centrifuge.ml.run_ml`); its covariance is
+  the inverse information at the estimate (the Cramer-Rao bound of ``observability`` at the
+  truth); ``passes`` does not apply; options ``filter.ml_max_iter``, ``filter.ml_tol``,
+  ``filter.ml_start``, ``filter.ml_damping``, ``filter.ml_coarse``, ``filter.ml_final``.
 
 The covariance-only runs of ``observability`` and ``design`` stay the EKF's
 (:func:`platcal.rigs.centrifuge.ekf.run_ekf` with ``linearise_about``) whatever the kind.
@@ -35,6 +44,8 @@ from dataclasses import dataclass, field
 
 from ...errors import InputError
 from .ekf import Estimate, FilterSettings, run_ekf, run_iekf
+from .ml import run_ml
+from .ukf import run_ukf
 
 
 @dataclass(frozen=True)
@@ -55,6 +66,12 @@ KINDS: dict[str, EstimatorKind] = {
     "iekf": EstimatorKind("iekf", run_iekf, {"iterations": "iterations", "iterate_tol": "tol",
                                              "iterate_s": "until_s", "iterate_ratio": "ratio"},
                           "iterated EKF: each update relinearised (Gauss-Newton)"),
+    "ukf": EstimatorKind("ukf", run_ukf, {"ukf_sigma_points": "sigma_points", "ukf_alpha": "alpha",
+                                          "ukf_beta": "beta", "ukf_kappa": "kappa"},
+                         "unscented Kalman filter, filter.passes passes"),
+    "ml": EstimatorKind("ml", run_ml, {"ml_max_iter": "max_iter", "ml_tol": "tol", "ml_start": "start",
+                                       "ml_damping": "damping", "ml_coarse": "coarse", "ml_final": "final"},
+                        "batch maximum likelihood (MAP): Gauss-Newton over the whole record, ARW whitened"),
 }
 """The registered kinds, in the order they are listed (``Rig.estimators``, benchmarks)."""
 

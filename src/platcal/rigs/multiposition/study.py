@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ...cli import read_config
+from ...errors import InputError
 from ...io import atomic_to_parquet, atomic_write_text, read_yaml
 from ...log import eta_line
 from ..centrifuge.scheme import Scheme
@@ -38,7 +40,21 @@ NEES_999 = 51.18  # chi-square(24) 99.9 % quantile (scipy.stats.chi2.ppf(0.999, 
 
 
 def load(path) -> object:
-    return load_config(read_yaml(Path(path).read_text()))
+    """The validated rig config of a file (InputError naming ``--config`` when the file is not UTF-8
+    YAML, or the field)."""
+    return load_config(read_config(path))
+
+
+def check_scheme_names(cfg) -> None:
+    """Every scheme named in ``study.schemes`` and ``study.rank_schemes`` is one of the config's
+    schemes or a GA design (``GA``, or ``GA<K>`` with K in ``design.positions``) (InputError naming the field
+    before any job runs)."""
+    ga = {"GA"} | {f"GA{k}" for k in cfg.raw["design"]["positions"]}
+    for key in ("schemes", "rank_schemes"):
+        for i, name in enumerate(cfg.raw["study"].get(key, [])):
+            if name not in cfg.schemes and name not in ga:
+                raise InputError(f"study.{key}[{i}]", f"unknown scheme {name!r}; use one of the config's "
+                                 f"schemes {sorted(cfg.schemes)} or a GA design {sorted(ga)}")
 
 
 def scheme_of(cfg, name: str, design_file: str | None = None) -> Scheme:
@@ -356,6 +372,7 @@ class WorkflowSetup:
             self.design_k = []
             return
         self.cfg = load(self.config)
+        check_scheme_names(self.cfg)
         self.study = self.cfg.raw["study"]
         self.design_k = list(self.cfg.raw["design"]["positions"])
 

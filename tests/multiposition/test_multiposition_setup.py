@@ -1,0 +1,31 @@
+"""The multiposition workflow's set-up refuses bad scheme names before any job (issue 13 item 2)."""
+
+import pytest
+import yaml
+
+from platcal.errors import InputError
+from platcal.rigs.multiposition.study import WorkflowSetup
+
+
+@pytest.mark.parametrize("key", ["schemes", "rank_schemes"])
+def test_unknown_scheme_name_is_refused_before_any_job(tmp_path, key):
+    cfg = yaml.safe_load(open("config/multiposition.yaml"))
+    cfg.setdefault("study", {})[key] = ["S8", "nope"]
+    path = tmp_path / "mp.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    with pytest.raises(InputError) as exc:
+        WorkflowSetup({"rigs": {"multiposition": str(path)}})
+    assert exc.value.field == f"study.{key}[1]"
+    assert "nope" in str(exc.value) and "GA" in str(exc.value)
+
+
+def test_config_that_is_not_utf8_is_refused(tmp_path):
+    path = tmp_path / "mp.yaml"
+    path.write_bytes(b"rig: multiposition\n\xff\xfe\x00")
+    with pytest.raises(InputError) as exc:
+        WorkflowSetup({"rigs": {"multiposition": str(path)}})
+    assert exc.value.field == "--config"
+
+
+def test_default_config_passes():
+    assert WorkflowSetup({"rigs": {"multiposition": "config/multiposition.yaml"}}).active

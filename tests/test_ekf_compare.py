@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from platcal.errors import InputError
 from platcal.rigs.centrifuge import RIG, compare
@@ -158,3 +159,19 @@ def test_comparison_may_define_its_own_estimators():
     with pytest.raises(InputError) as e:
         cfg(estimators={"u": {"estimator": "nosuch"}})
     assert e.value.field == "study.compare.estimators.u.estimator"
+
+
+def test_levels_of_limits_an_estimator_to_some_levels():
+    """study.compare.levels_of runs a costly estimator at some levels only; bad names or levels
+    are refused naming the field (before any job: the workflow builds its cells from this)."""
+    raw = yaml.safe_load(open("config/centrifuge.yaml"))
+    cells = compare.compare_cells(mc.check_study(raw))
+    assert ("10", "ukf") in cells and ("5", "ukf") not in cells and ("5", "ekf1") in cells
+    raw["study"]["compare"]["levels_of"] = {"nope": [10]}
+    with pytest.raises(InputError) as exc:
+        compare.compare_cells(mc.check_study(raw))
+    assert exc.value.field == "study.compare.levels_of.nope"
+    raw["study"]["compare"]["levels_of"] = {"ukf": [20]}
+    with pytest.raises(InputError) as exc:
+        compare.compare_cells(mc.check_study(raw))
+    assert exc.value.field == "study.compare.levels_of.ukf[0]"

@@ -38,6 +38,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
+from ...errors import InputError
 from ...estimation.consistency import nees_band
 from ...io import atomic_files
 from ...log import job_logger
@@ -87,9 +88,23 @@ def compare_levels(cfg: dict) -> dict[str, float]:
 
 
 def compare_cells(cfg: dict) -> list[tuple[str, str]]:
-    """(noise label, estimator) of every comparison cell, in order."""
+    """(noise label, estimator) of every comparison cell, in order: every estimator at every level
+    of ``study.compare.sigma_a_ug``, except those that ``study.compare.levels_of`` limits to some
+    levels (a costly estimator run only at the paper's setting). InputError naming the field for a
+    name that is not a comparison estimator or a level that is not compared."""
     c = compare_settings(cfg)
-    return [(noise_label(v), e) for v in c["sigma_a_ug"] for e in c["estimators"]]
+    only = c.get("levels_of") or {}
+    levels = [float(v) for v in c["sigma_a_ug"]]
+    for name, lv in only.items():
+        if name not in c["estimators"]:
+            raise InputError(f"study.compare.levels_of.{name}", f"{name!r} is not an estimator of the comparison "
+                             f"({c['estimators']})")
+        for i, v in enumerate(lv):
+            if float(v) not in levels:
+                raise InputError(f"study.compare.levels_of.{name}[{i}]", f"{v:g} ug is not a level of "
+                                 f"study.compare.sigma_a_ug ({levels})")
+    return [(noise_label(v), e) for v in c["sigma_a_ug"] for e in c["estimators"]
+            if e not in only or float(v) in [float(u) for u in only[e]]]
 
 
 def cell_params(cfg: dict, level: float, estimator: str) -> dict:

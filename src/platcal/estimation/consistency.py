@@ -23,3 +23,26 @@ def nees_band(dof: int, level: float = 0.95) -> tuple[float, float]:
     """Two-sided ``level`` band of a chi-square(dof) NEES (for 45: 28.4 .. 65.4)."""
     a = (1.0 - level) / 2.0
     return float(sps.chi2.ppf(a, dof)), float(sps.chi2.ppf(1.0 - a, dof))
+
+
+def estimate_problems(x: np.ndarray, P: np.ndarray | None, names=None) -> list[str]:
+    """Why one run's estimate ``x`` (n,) and covariance ``P`` (n, n) (None: no covariance) cannot be
+    trusted, empty if they can: non-finite estimates (named from ``names`` when given), a
+    covariance with non-finite entries, or one that is not positive definite. Plain numbers and
+    names, for people."""
+    out = []
+    bad = np.flatnonzero(~np.isfinite(x))
+    if bad.size:
+        shown = [str(names[i]) for i in bad[:5]] if names is not None else []
+        more = " ..." if bad.size > 5 else ""
+        out.append(f"{bad.size} non-finite estimate(s)" + (f" ({', '.join(shown)}{more})" if shown else ""))
+    if P is None:
+        return out
+    if not np.all(np.isfinite(P)):
+        out.append("the covariance has non-finite entries")
+    else:
+        try:
+            np.linalg.cholesky(0.5 * (P + P.T))
+        except np.linalg.LinAlgError:
+            out.append("the final covariance is not positive definite")
+    return out

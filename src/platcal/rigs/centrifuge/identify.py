@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
-from ...estimation.consistency import nees
+from ...estimation.consistency import estimate_problems, nees
 from ...io import atomic_files, json_text
 from .config import Study
 from .ekf import Estimate, FilterSettings, first_instant
@@ -77,17 +77,7 @@ def run_problems(est: Estimate, replicate: int = 0) -> list[str]:
     bad = int(est.failed_updates[replicate])
     if bad:
         out.append(f"{bad} measurement update(s) failed (innovation covariance S not positive definite)")
-    x, P = est.x[replicate], est.P[replicate]
-    if not np.all(np.isfinite(x)):
-        names = [est.names[i] for i in np.flatnonzero(~np.isfinite(x))]
-        out.append(f"{len(names)} non-finite estimate(s) ({', '.join(names[:5])}{' ...' if len(names) > 5 else ''})")
-    if not np.all(np.isfinite(P)):
-        out.append("the covariance has non-finite entries")
-    else:
-        try:
-            np.linalg.cholesky(0.5 * (P + P.T))
-        except np.linalg.LinAlgError:
-            out.append("the final covariance is not positive definite")
+    out += estimate_problems(est.x[replicate], est.P[replicate], est.names)
     return out
 
 

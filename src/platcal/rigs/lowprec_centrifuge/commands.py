@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 
+from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
 from .config import COEFFS, Study
@@ -101,15 +102,4 @@ def identify(study: Study, args) -> int:
 def run_problems(x: np.ndarray, P: np.ndarray | None) -> list[str]:
     """Why an identification cannot be trusted (empty if it can): non-finite estimates, a
     covariance (proposed filter) that is not finite or not positive definite."""
-    out = []
-    if not np.all(np.isfinite(x)):
-        out.append("non-finite estimate(s)")
-    if P is not None:
-        if not np.all(np.isfinite(P)):
-            out.append("the covariance has non-finite entries")
-        else:
-            try:
-                np.linalg.cholesky(0.5 * (P + P.T))
-            except np.linalg.LinAlgError:
-                out.append("the final covariance is not positive definite")
-    return out
+    return estimate_problems(x, P)

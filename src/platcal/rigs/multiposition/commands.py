@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
 from .estimators import estimate, variant_choice
@@ -58,18 +59,7 @@ def run_problems(est: np.ndarray, P: np.ndarray, nis: float) -> list[str]:
     """Why an EKF run cannot be trusted (empty if it can): non-finite estimates, a covariance
     that is not finite or not positive definite, a non-finite NIS (an update that went wrong).
     Messages in plain numbers and coefficient names."""
-    out = []
-    bad = np.flatnonzero(~np.isfinite(est))
-    if bad.size:
-        names = [coef_names()[i] for i in bad]
-        out.append(f"{len(names)} non-finite estimate(s) ({', '.join(names[:5])}{' ...' if len(names) > 5 else ''})")
-    if not np.all(np.isfinite(P)):
-        out.append("the covariance has non-finite entries")
-    else:
-        try:
-            np.linalg.cholesky(0.5 * (P + P.T))
-        except np.linalg.LinAlgError:
-            out.append("the final covariance is not positive definite")
+    out = estimate_problems(est, P, coef_names())
     if not np.isfinite(nis):
         out.append("the normalised innovations are not finite")
     return out

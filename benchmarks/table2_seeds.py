@@ -15,7 +15,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from platcal.cli import read_config
 from platcal.estimation.consistency import nees
 from platcal.rigs.centrifuge.config import load_config
 from platcal.rigs.centrifuge.identify import simulate_identify
@@ -25,7 +24,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", default="config/centrifuge.yaml")
     args = ap.parse_args()
-    study = load_config(read_config(args.config))
+    study = load_config(args.config)
     scheme = study.schemes["table1"]
     seeds = [np.random.SeedSequence(s) for s in range(5)]
     truth = study.truth[:45]

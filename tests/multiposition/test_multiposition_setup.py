@@ -29,3 +29,14 @@ def test_config_that_is_not_utf8_is_refused(tmp_path):
 
 def test_default_config_passes():
     assert WorkflowSetup({"rigs": {"multiposition": "config/multiposition.yaml"}}).active
+
+
+def test_skipped_updates_make_a_run_fail():
+    """issue 13 item 3: a run whose updates were skipped (S not positive definite) is a failure."""
+    import numpy as np
+    from platcal.rigs.multiposition.commands import run_problems
+
+    est, P = np.zeros(24), np.eye(24)
+    assert run_problems(est, P, 1.0, 0) == []
+    msg = run_problems(est, P, 1.0, 3)
+    assert len(msg) == 1 and msg[0].startswith("3 measurement update(s) failed")

@@ -48,18 +48,22 @@ def cmd_simulate(cfg, args) -> int:
 
 
 def identify(cfg, rec, choice=None):
-    """``(estimate (nc,), covariance (nc, nc), mean NIS)`` of one record with the estimator of
-    ``choice`` (:class:`.estimators.FilterChoice`; default the config's ``filter``)."""
+    """``(estimate (nc,), covariance (nc, nc), mean NIS, skipped updates)`` of one record with the
+    estimator of ``choice`` (:class:`.estimators.FilterChoice`; default the config's ``filter``)."""
     tk, Z, nk = rec.packed()
     r = estimate(cfg, choice or cfg.filter_choice(), rec.cmd_deg, tk, Z, nk=nk)
-    return r.coef[0], r.cov[0], float(r.mean_nis[0])
+    return r.coef[0], r.cov[0], float(r.mean_nis[0]), int(r.failed_updates[0])
 
 
-def run_problems(est: np.ndarray, P: np.ndarray, nis: float) -> list[str]:
-    """Why an EKF run cannot be trusted (empty if it can): non-finite estimates, a covariance
-    that is not finite or not positive definite, a non-finite NIS (an update that went wrong).
-    Messages in plain numbers and coefficient names."""
-    out = estimate_problems(est, P, coef_names())
+def run_problems(est: np.ndarray, P: np.ndarray, nis: float, failed_updates: int = 0) -> list[str]:
+    """Why an EKF run cannot be trusted (empty if it can): updates skipped because S was not
+    positive definite, non-finite estimates, a covariance that is not finite or not positive
+    definite, a non-finite NIS (an update that went wrong). Messages in plain numbers and
+    coefficient names."""
+    out = []
+    if failed_updates:
+        out.append(f"{failed_updates} measurement update(s) failed (innovation covariance S not positive definite)")
+    out += estimate_problems(est, P, coef_names())
     if not np.isfinite(nis):
         out.append("the normalised innovations are not finite")
     return out
@@ -72,9 +76,9 @@ def cmd_identify(cfg, args) -> int:
     check_writable(args.out, "--out", folder=True)
     rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]))
     t0 = time.perf_counter()
-    est, P, nis = identify(cfg, rec, choice)
+    est, P, nis, failed = identify(cfg, rec, choice)
     seconds = time.perf_counter() - t0
-    problems = run_problems(est, P, nis)
+    problems = run_problems(est, P, nis, failed)
     if problems:
         print(f"platcal identify: error: the multiposition EKF run over {args.data} failed: {'; '.join(problems)}. "
               f"Nothing was written to {args.out}. Check the record's units (Ax, Ay, Az in g, angles in deg) "

@@ -32,12 +32,14 @@ from .filter import run_filter
 @dataclass(frozen=True)
 class Estimate:
     """Output of an estimator on R replicates: coefficients (R, nc), covariance (R, nc, nc),
-    mean NIS per measurement component (R,), measurement linearisations per update (R,)."""
+    mean NIS per measurement component (R,), measurement linearisations per update (R,), updates
+    skipped because the innovation covariance was not positive definite (R,)."""
 
     coef: np.ndarray
     cov: np.ndarray
     mean_nis: np.ndarray
     linearisations: np.ndarray
+    failed_updates: np.ndarray
 
 
 def run_ekf_estimator(cfg, positions_deg, t, Z, nk=None, passes=None, options=None, threads=None,

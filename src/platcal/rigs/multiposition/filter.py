@@ -196,6 +196,7 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     nis = 0.0
     nup = 0
     nlin = 0
+    nbad = 0
     for k in range(K):
         x[:3] = 0.0
         for i in range(3):
@@ -249,26 +250,31 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
                 if not gained:
                     nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
                 nup += 1
+            else:
+                nbad += 1
             for i in range(3):
                 d = zk[k, s, 3 + i] - (phi0s[k, i] + x[i]) / ARCSEC
                 innov[i] = (d + 648000.0) % 1296000.0 - 648000.0
             if joseph_update_sparse(x, P, hca, nna, ha, innov, rn, U, Kg, D, S, Sinv, nu, update_x):
                 if not gained:
                     nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+            else:
+                nbad += 1
             if gained:
                 for i in range(6):
                     nis += nu6[i] * nu6[i]
-    return nis, nup, nlin
+    return nis, nup, nlin, nbad
 
 
 @njit(cache=True, nogil=True)
 def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol,
-               nis, nlin):
+               nis, nlin, nbad):
     for b in range(lo, hi):
-        s, u, nl = _ekf_one(X[b], Ps[b], phi0s, tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x,
+        s, u, nl, nb = _ekf_one(X[b], Ps[b], phi0s, tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x,
                             iters, tol)
         nis[b] = s / max(u, 1) / 6.0
         nlin[b] += nl
+        nbad[b] += nb  # updates skipped because S was not positive definite
 
 
 def dynamic_cols(ext: int) -> np.ndarray:
@@ -287,8 +293,9 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     with ``nk`` (K,) samples used per position (records of unequal length). ``iterations`` 0: the
     EKF of §9; >= 1: the iterated EKF (at most ``iterations`` linearisations per update, step
     tolerance ``tolerance`` prior sigmas; 1 = the EKF as one 6-D update). Returns ``(coef (R, nc),
-    cov (R, nc, nc), mean NIS per measurement (R,), linearisations per update (R,))`` (the last
-    averaged over the passes). Filter R uses the config's noise (``sigma_a_ug`` overrides).
+    cov (R, nc, nc), mean NIS per measurement (R,), linearisations per update (R,), updates skipped
+    because S was not positive definite (R,))`` (linearisations averaged over the passes, skipped
+    updates summed). Filter R uses the config's noise (``sigma_a_ug`` overrides).
     """
     Z = np.ascontiguousarray(Z, dtype=float)
     R, K, ns, _ = Z.shape
@@ -310,6 +317,7 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
     nis = np.empty(R)
     nlin = np.zeros(R)
+    nbad = np.zeros(R, dtype=np.int64)
     npass = int(passes or cfg.passes)
     for p in range(npass):
         if p > 0:
@@ -317,8 +325,8 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
             Ps[:] = 0.0
             Ps[:, 3:, 3:] = 100.0 * C
         _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, cfg.arw_rad**2,
-                  cfg.sigma_set_rad**2, cols, True, int(iterations), float(tolerance), nis, nlin)
-    return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis, nlin / (npass * int(nk.sum()))
+                  cfg.sigma_set_rad**2, cols, True, int(iterations), float(tolerance), nis, nlin, nbad)
+    return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis, nlin / (npass * int(nk.sum())), nbad
 
 
 def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
@@ -358,7 +366,7 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
         X, Ps = x0[None].copy(), Pinit[None].copy()
         Zd = np.zeros((1, K, ns, 6))
         _ekf_range(0, 1, X, Ps, phi0s, tk, Zd, nk, lay, wn, wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, cols,
-                   False, 0, 0.0, np.empty(1), np.zeros(1))
+                   False, 0, 0.0, np.empty(1), np.zeros(1), np.zeros(1, dtype=np.int64))
         return Ps[0, 3:, 3:]
     X = np.repeat(x0[None], K, axis=0)
     Ps = np.repeat(Pinit[None], K, axis=0)
@@ -375,7 +383,7 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
 def _ekf_pos_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, nis):
     """One covariance-only position per batch entry (position b from ``phi0s[b]``)."""
     for b in range(lo, hi):
-        s, u, _ = _ekf_one(X[b], Ps[b], phi0s[b:b + 1], tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, False,
+        s, u, _, _ = _ekf_one(X[b], Ps[b], phi0s[b:b + 1], tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, False,
                            0, 0.0)
         nis[b] = s
 

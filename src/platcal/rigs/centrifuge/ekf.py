@@ -453,6 +453,51 @@ def _history_index(t: np.ndarray, every_s: float | None, start: int) -> tuple[np
     idx[keep] = start + np.arange(int(keep.sum()))
     return idx, int(keep.sum())
 
+def history_slots(t: list, every_s: float | None) -> tuple[list[np.ndarray], int]:
+    """History slot of each filter instant per position (-1: not kept) and the slots per pass."""
+    slots, total = [], 0
+    for tk in t:
+        idx, used = _history_index(np.asarray(tk, float), every_s, total)
+        slots.append(idx)
+        total += used
+    return slots, total
+
+
+def end_to_end(z: list | None, t: list, B: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(offs (K+1,), t_all, z_all (B, M, 3))``: every position's instants and outputs end to
+    end, so one kernel call runs a whole pass (``z`` None: a covariance-only run, no outputs)."""
+    offs = np.zeros(len(t) + 1, dtype=np.int64)
+    offs[1:] = np.cumsum([len(tk) for tk in t])
+    t_all = np.ascontiguousarray(np.concatenate([np.asarray(tk, float) for tk in t]))
+    if z is None:
+        return offs, t_all, np.zeros((B, 0, 3))
+    return offs, t_all, np.ascontiguousarray(np.concatenate([np.asarray(zk, float) for zk in z], axis=1))
+
+
+def pass_history_index(t: list, slots: list, total: int, p: int, period_s: float, keep: bool,
+                       hist_t: np.ndarray) -> np.ndarray:
+    """The history slot of every instant of pass ``p`` end to end; fills ``hist_t`` (s from the
+    start of the first pass; a position lasts to its last instant plus one filter period)."""
+    durations = [float(tk[-1]) + period_s if len(tk) else 0.0 for tk in t]
+    out, offset = [], 0.0
+    for k, tk in enumerate(t):
+        tk = np.asarray(tk, float)
+        hidx = slots[k] + (p * total if keep else 0)
+        hidx[slots[k] < 0] = -1
+        sel = hidx >= 0
+        hist_t[hidx[sel]] = p * sum(durations) + offset + tk[sel]
+        out.append(hidx)
+        offset += durations[k]
+    return np.ascontiguousarray(np.concatenate(out), dtype=np.int64)
+
+
+def restart_covariance(P: np.ndarray, nc: int) -> np.ndarray:
+    """P of a new pass (docs/centrifuge-model.md §11): 100 x the coefficient block, nothing else."""
+    out = np.zeros_like(P)
+    out[:, :nc, :nc] = P[:, :nc, :nc] * 100.0
+    return out
+
+
 
 def run_ekf(
     z: list[np.ndarray],
@@ -522,14 +567,7 @@ def run_ekf(
     structure = _structure(est_idx)
     it_ctl = iteration_control(p0) if iterate is None or cov_only else np.ascontiguousarray(iterate, float)
     kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
-    hist_slots = []
-    total = 0
-    for k in range(K):
-        idx, used = _history_index(np.asarray(t[k], float), settings.history_every_s, total)
-        hist_slots.append(idx)
-        total += used
-    # a position lasts to its last filter instant plus one filter period (the dwell)
-    durations = [float(tk[-1]) + settings.period_s if len(tk) else 0.0 for tk in t]
+    hist_slots, total = history_slots(t, settings.history_every_s)
     H = total * passes
     hist_x = np.zeros((B, H, n))
     hist_s = np.zeros((B, H, n))
@@ -538,15 +576,7 @@ def run_ekf(
     pass_P = np.zeros((passes, B, nc, nc))
     nis = np.zeros(B)
     n_bad = np.zeros(B, dtype=np.int64)
-    # every position's instants and outputs end to end, so one kernel call runs a whole pass
-    sizes = [len(tk) for tk in t]
-    offs = np.zeros(K + 1, dtype=np.int64)
-    offs[1:] = np.cumsum(sizes)
-    t_all = np.ascontiguousarray(np.concatenate([np.asarray(tk, float) for tk in t]))
-    if cov_only:
-        z_all = np.zeros((B, 0, 3))
-    else:
-        z_all = np.ascontiguousarray(np.concatenate([np.asarray(zk, float) for zk in z], axis=1))
+    offs, t_all, z_all = end_to_end(None if cov_only else z, t, B)
     m_total = int(offs[-1])
     if warmup_s is not None and not cov_only:
         keep = [np.asarray(tk, float) < warmup_s for tk in t]
@@ -558,27 +588,14 @@ def run_ekf(
         with numba.parallel_chunksize(1):
             kernel(x, P, z_w, t_w, offs_w, cmd_rad, reset_var, est_idx, coef_fixed, params,
                    r_var, q_rate, True, no_hist, hist_x, hist_s, nis, n_bad, *structure, it_ctl)
-        Pcc = P[:, :nc, :nc] * 100.0
-        P = np.zeros((B, n, n))
-        P[:, :nc, :nc] = Pcc
+        P = restart_covariance(P, nc)
         nis[:] = 0.0
     for p in range(passes):
         if p > 0:
-            Pcc = P[:, :nc, :nc] * 100.0
-            P = np.zeros((B, n, n))
-            P[:, :nc, :nc] = Pcc
+            P = restart_covariance(P, nc)
             nis[:] = 0.0
-        hidx_all = []
-        offset = 0.0
-        for k in range(K):
-            tk = np.asarray(t[k], float)
-            hidx = hist_slots[k] + (p * total if settings.history_every_s is not None else 0)
-            hidx[hist_slots[k] < 0] = -1
-            sel = hidx >= 0
-            hist_t[hidx[sel]] = p * sum(durations) + offset + tk[sel]
-            hidx_all.append(hidx)
-            offset += durations[k]
-        hidx_all = np.ascontiguousarray(np.concatenate(hidx_all), dtype=np.int64)
+        hidx_all = pass_history_index(t, hist_slots, total, p, settings.period_s,
+                                      settings.history_every_s is not None, hist_t)
         # replicates handed out one at a time: a thread slowed by other processes takes fewer
         with numba.parallel_chunksize(1):
             kernel(x, P, z_all, t_all, offs, cmd_rad, reset_var, est_idx, coef_fixed, params,

@@ -64,7 +64,7 @@ from ...model.attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
 from .base import broadcast_params, specific_force_into
-from .ekf import Estimate, FilterSettings
+from .ekf import Estimate, FilterSettings, end_to_end, history_slots, pass_history_index, restart_covariance
 
 SIGMA_POINT_MODES = ("nonlinear", "update", "all")
 
@@ -570,13 +570,7 @@ def run_ukf(
     kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
 
     passes = settings.passes
-    hist_slots = []
-    total = 0
-    for k in range(K):
-        idx, used = _history_index(np.asarray(t[k], float), settings.history_every_s, total)
-        hist_slots.append(idx)
-        total += used
-    durations = [float(tk[-1]) + settings.period_s if len(tk) else 0.0 for tk in t]
+    hist_slots, total = history_slots(t, settings.history_every_s)
     H = total * passes
     hist_x = np.zeros((B, H, n))
     hist_s = np.zeros((B, H, n))
@@ -585,29 +579,14 @@ def run_ukf(
     pass_P = np.zeros((passes, B, nc, nc))
     nis = np.zeros(B)
     n_bad = np.zeros(B, dtype=np.int64)
-    sizes = [len(tk) for tk in t]
-    offs = np.zeros(K + 1, dtype=np.int64)
-    offs[1:] = np.cumsum(sizes)
-    t_all = np.ascontiguousarray(np.concatenate([np.asarray(tk, float) for tk in t]))
-    z_all = np.ascontiguousarray(np.concatenate([np.asarray(zk, float) for zk in z], axis=1))
+    offs, t_all, z_all = end_to_end(z, t, B)
     m_total = int(offs[-1])
     for p in range(passes):
         if p > 0:
-            Pcc = P[:, :nc, :nc] * 100.0
-            P = np.zeros((B, n, n))
-            P[:, :nc, :nc] = Pcc
+            P = restart_covariance(P, nc)
             nis[:] = 0.0
-        hidx_all = []
-        offset = 0.0
-        for k in range(K):
-            tk = np.asarray(t[k], float)
-            hidx = hist_slots[k] + (p * total if settings.history_every_s is not None else 0)
-            hidx[hist_slots[k] < 0] = -1
-            sel = hidx >= 0
-            hist_t[hidx[sel]] = p * sum(durations) + offset + tk[sel]
-            hidx_all.append(hidx)
-            offset += durations[k]
-        hidx_all = np.ascontiguousarray(np.concatenate(hidx_all), dtype=np.int64)
+        hidx_all = pass_history_index(t, hist_slots, total, p, settings.period_s,
+                                      settings.history_every_s is not None, hist_t)
         with numba.parallel_chunksize(1):
             kernel(x, P, z_all, t_all, offs, cmd_rad, reset_var, est_idx, coef_fixed, params, r_var,
                    q_rate, True, hidx_all, hist_x, hist_s, nis, n_bad, pcols, pg, nl, nl_full, lin,

@@ -10,13 +10,15 @@ higher-order term with the random positions x ``extension.dwell_s``.
 The spec's sigma ranges (§15 item 6) come from one unstated draw of 24 positions, and the ranges
 move a lot from draw to draw: :func:`draw_spread` reruns the covariance-only analysis over
 ``extension.draws`` further seeded draws (seeds ``extension.seed + 1 ...``) and
-:func:`spread_summary` states, per term group, the median and 10-90 % range of each endpoint and
-the share of draws whose eight endpoints all lie within 20 % of the spec's.
+:func:`spread_summary` states, per term group, the median and 10-90 % range of each endpoint, the
+share of draws whose eight endpoints all lie within 20 % of the spec's, and whether the medians
+over the draws do (the reading of item 6 this implementation checks; docs/multiposition-1g.md §16).
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 
 from .filter import covariance_only
 from .lie import rank_analysis
@@ -62,22 +64,33 @@ def draw_spread(cfg, draws: int | None = None) -> list[dict]:
 
 def spread_summary(rows: list[dict]) -> dict:
     """Median and 10-90 % of each group's endpoints over the draws, and the share of draws with
-    all eight endpoints within 20 % of :data:`SPEC_RANGES`."""
-    import pandas as pd
+    all eight endpoints within 20 % of :data:`SPEC_RANGES`.
 
+    §15 item 6 ("the sigma/|truth| ranges within 20 %") is read on the median over the draws:
+    the spec's ranges are one unstated draw's, and a single draw's endpoints move by more than
+    20 % from draw to draw (docs/multiposition-1g.md §16). Per endpoint, ``median_dev`` is
+    median / spec - 1; ``medians_within_20pct`` is True when all eight are within +-0.2, and
+    ``largest_median_dev`` names the worst endpoint.
+    """
     df = pd.DataFrame(rows)
     if df.empty:
-        return {"draws": 0, "groups": {}, "share_all_within_20pct": None}
+        return {"draws": 0, "groups": {}, "share_all_within_20pct": None, "medians_within_20pct": None,
+                "largest_median_dev": None}
     groups = {}
     for g, d in df.groupby("group", sort=False):
         groups[g] = {k: {"median": float(d[c].median()), "p10": float(d[c].quantile(0.1)),
                          "p90": float(d[c].quantile(0.9)),
-                         "within_20pct": float((np.abs(d[c] / SPEC_RANGES[g][i] - 1) <= 0.2).mean())}
+                         "within_20pct": float((np.abs(d[c] / SPEC_RANGES[g][i] - 1) <= 0.2).mean()),
+                         "median_dev": float(d[c].median() / SPEC_RANGES[g][i] - 1)}
                      for i, (k, c) in enumerate((("min", "min_pct"), ("max", "max_pct")))}
     ok = df.assign(ok=[abs(r.min_pct / SPEC_RANGES[r.group][0] - 1) <= 0.2
                        and abs(r.max_pct / SPEC_RANGES[r.group][1] - 1) <= 0.2 for r in df.itertuples()])
     share = float(ok.groupby("draw")["ok"].all().mean())
-    return {"draws": int(df["draw"].nunique()), "groups": groups, "share_all_within_20pct": share}
+    devs = {f"{g} {k}": v["median_dev"] for g, ends in groups.items() for k, v in ends.items()}
+    worst = max(devs, key=lambda n: abs(devs[n]))
+    return {"draws": int(df["draw"].nunique()), "groups": groups, "share_all_within_20pct": share,
+            "medians_within_20pct": all(abs(v) <= 0.2 for v in devs.values()),
+            "largest_median_dev": (worst, devs[worst])}
 
 
 def position_sets(cfg) -> dict[str, np.ndarray]:

@@ -11,7 +11,7 @@ from platcal.cli import main
 from platcal.rigs.centrifuge.config import load_config
 from platcal.rigs.centrifuge.design import decode, design_config, output_paths, run_design, write_design
 from platcal.errors import InputError
-from platcal.rigs.centrifuge.scheme import load_scheme_file
+from platcal.scheme import load_scheme_file
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "centrifuge.yaml"
 SMALL = {"dwell_s": 2, "positions": 4, "population": 8, "generations": 3}

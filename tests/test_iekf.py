@@ -9,7 +9,7 @@ from platcal.parallel import threads
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf, run_iekf
-from platcal.rigs.centrifuge.scheme import check_scheme
+from platcal.scheme import check_scheme
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 CEN = Centrifuge()

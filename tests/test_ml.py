@@ -17,7 +17,7 @@ from platcal.rigs.centrifuge import ml
 from platcal.rigs.centrifuge import observability as ob
 from platcal.rigs.centrifuge.config import load_config
 from platcal.rigs.centrifuge.ekf import default_p0_sigma
-from platcal.rigs.centrifuge.scheme import Scheme
+from platcal.scheme import Scheme
 from platcal.rigs.centrifuge.simulate import simulate
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "centrifuge.yaml"

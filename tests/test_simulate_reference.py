@@ -14,7 +14,7 @@ import pytest
 from platcal.rigs.centrifuge.base import Centrifuge
 from platcal.model.instruments import FULL_NAMES
 from platcal.rigs.centrifuge.catalogue import full_truth
-from platcal.rigs.centrifuge.scheme import check_scheme
+from platcal.scheme import check_scheme
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 G = 9.80665

@@ -25,7 +25,7 @@ from .identify import (consistency_warning, identify_input, record_input, run_pr
 from .observability import write_observability
 from .record import read_record, sim_to_frame, write_record
 from .report import report_from_results
-from .scheme import resolve_scheme
+from ...scheme import resolve_scheme
 from .simulate import simulate
 
 UNUSED = {"simulate": ("platform", "run"), "identify": ("method",)}

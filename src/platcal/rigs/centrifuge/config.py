@@ -24,7 +24,7 @@ from .base import Centrifuge
 from .catalogue import full_truth
 from .ekf import FilterSettings, default_p0_sigma
 from .estimators import check_kind, options_from_filter
-from .scheme import Scheme, check_scheme, whole_periods
+from ...scheme import Scheme, check_scheme, whole_periods
 from .simulate import Noise
 
 SCHEMA_RESOURCE = "data/config.schema.yaml"

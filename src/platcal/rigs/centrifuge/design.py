@@ -42,7 +42,7 @@ from ...schema import load_schema, validate
 from .config import schema
 from .ekf import default_p0_sigma
 from .observability import CRITERIA, InfoCache, criteria, relative_scale, setup_from_study
-from .scheme import Scheme, check_scheme, dump_schemes, whole_periods
+from ...scheme import Scheme, check_scheme, dump_schemes, whole_periods
 
 DESIGN_SCHEMA_RESOURCE = "data/design.schema.yaml"
 

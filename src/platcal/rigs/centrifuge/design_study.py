@@ -34,7 +34,7 @@ from .identify import simulate_identify  # noqa: E402
 from .observability import (CRITERIA, InfoCache, correlation, monte_carlo_errors,  # noqa: E402
                             observability_matrix, posterior_covariance, relative_scale, rms_relative_error,
                             setup_from_study)
-from .scheme import Scheme, check_scheme, load_scheme_file  # noqa: E402
+from ...scheme import Scheme, check_scheme, load_scheme_file  # noqa: E402
 from .study import classical_scheme, random_schemes  # noqa: E402
 
 def _kind(name: str) -> str:

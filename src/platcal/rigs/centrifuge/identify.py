@@ -16,7 +16,7 @@ from .config import Study
 from .ekf import Estimate, FilterSettings, first_instant
 from .estimators import run_estimator
 from .record import TRUTH_COLUMNS, FilterInput, check_record, filter_input
-from .scheme import Scheme
+from ...scheme import Scheme
 from .simulate import simulate
 from .tables import covariance_frame, estimates_frame, table2_markdown
 

@@ -55,7 +55,7 @@ from ...model.instruments import FULL_NAMES, N_FULL, N_IDENTIFIED, group_of, uni
 from .base import broadcast_params, specific_force_into
 from .ekf import FilterSettings, default_p0_sigma, filter_times, run_ekf
 from .identify import simulate_identify
-from .scheme import whole_periods
+from ...scheme import whole_periods
 
 CRITERION_HELP = {
     "J": "sum_{i<j} |rho_ij| over the 45 coefficients (paper eq. 27)",

@@ -20,7 +20,7 @@ from ...records import (PARQUET_MAGIC, TIME_TOL, UNIT_FACTOR, check_gap, check_i
                         check_time_unit, grid_origin, nearest_samples, read_frame)
 from ...records import num as _num, shown as _shown  # noqa: F401
 from ...model.frames import DEG
-from .scheme import Scheme
+from ...scheme import Scheme
 
 LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay", "Az")
 TRUTH_COLUMNS = ("alpha", "beta", "gamma")

@@ -28,7 +28,7 @@ from ...model.attitude import P_G, measure_scalar, rk4_scalar_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import N_FULL
 from .base import broadcast_params
-from .scheme import Scheme, whole_periods
+from ...scheme import Scheme, whole_periods
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ from ...study.montecarlo import noise_key, noise_label, replicate_seed
 from .config import check_filter, study_from_config, validate_config
 from .estimators import check_kind
 from .identify import simulate_identify
-from .scheme import check_scheme, load_scheme_file, whole_periods
+from ...scheme import check_scheme, load_scheme_file, whole_periods
 from .tables import covariance_frame, estimates_frame
 
 CLASSICAL_POSITIONS = ((0, 0, 0), (180, 0, 0), (90, 0, 90), (90, 0, 270), (90, 0, 0), (90, 0, 180))

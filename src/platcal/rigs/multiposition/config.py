@@ -14,7 +14,8 @@ import numpy as np
 
 from ...errors import InputError
 from ...schema import load_schema, validate
-from ..centrifuge.scheme import TABLE1_POSITIONS, Scheme
+from ...scheme import Scheme
+from ..centrifuge.scheme import TABLE1_POSITIONS
 from .estimators import check_estimator, choice_from_filter
 from .model import Site, coef_names, p0_vector, truth_vector
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..centrifuge.scheme import Scheme
+from ...scheme import Scheme
 from .filter import position_information, scheme_covariance_from_info
 
 

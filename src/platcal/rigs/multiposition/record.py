@@ -20,7 +20,7 @@ from ...errors import InputError
 from ...model.frames import DEG
 from ...records import check_times, grid_origin, nearest_samples, num, read_table
 from ..centrifuge.record import LOG_COLUMNS, TRUTH_COLUMNS, write_record  # noqa: F401  (re-exported)
-from ..centrifuge.scheme import Scheme
+from ...scheme import Scheme
 
 ANGLE_COLUMNS = ("alpha_m", "beta_m", "gamma_m")
 COLUMNS = LOG_COLUMNS + ANGLE_COLUMNS

@@ -20,7 +20,7 @@ from ...cli import read_config
 from ...errors import InputError
 from ...io import atomic_to_parquet, atomic_write_text, read_yaml
 from ...log import eta_line
-from ..centrifuge.scheme import Scheme
+from ...scheme import Scheme
 from ...study.montecarlo import package_code_hash
 from ...study.tables import frame_markdown, write_table
 from .config import load_config

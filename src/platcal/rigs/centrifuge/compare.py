@@ -221,8 +221,8 @@ def meets_bounds(summ: pd.DataFrame, dof: int = 45) -> pd.DataFrame:
     same level), ``nees_ok`` (mean NEES within 10 % of dof), ``tail_ok`` (<= 1 % beyond the
     99.9 % point), ``gyro_ok`` (largest-gyro RMS error no worse than the 2-pass EKF's),
     ``meets`` (all three) and ``cheap`` (cost <= 1.5 x one EKF pass). ``gyro_ok`` allows the
-    Monte Carlo resolution of the RMS over R runs, a relative standard error of 1/sqrt(2R) (5 % at
-    200 runs): a difference smaller than that is not a difference the comparison can see."""
+    Monte Carlo resolution of the RMS over R runs, a relative standard error of 1/sqrt(2R) (7 % at
+    100 runs): a difference smaller than that is not a difference the comparison can see."""
     out = summ.copy()
     one, two = reference_names(out)
     cost, gyro_ref = [], []

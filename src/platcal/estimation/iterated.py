@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .kalman import cholesky_inverse, joseph_update_sparse
+from .kalman import cholesky_inverse, innovation_covariance, joseph_update_sparse
 
 
 @njit(cache=True)
@@ -75,26 +75,11 @@ def gain_step(P, hval, hcols, hnnz, r_var, innov, xp, xout, U, S, Sinv, nu):
     ``nu`` receives the standardised innovation ``L^-1 innov`` (S = L L^T). Returns False if S is
     not positive definite.
     """
-    n = P.shape[0]
-    m = hnnz.shape[0]
-    U[:, :] = 0.0
-    for r in range(m):
-        ur = U[r]
-        for t in range(hnnz[r]):
-            c = hval[r, t]
-            prow = P[hcols[r, t]]
-            for j in range(n):
-                ur[j] += c * prow[j]
-    for r in range(m):
-        for c in range(r + 1):
-            s = 0.0
-            for t in range(hnnz[c]):
-                s += U[r, hcols[c, t]] * hval[c, t]
-            S[r, c] = s
-            S[c, r] = s
-        S[r, r] += r_var[r]
+    innovation_covariance(P, hcols, hnnz, hval, r_var, U, S)
     if not cholesky_inverse(S, Sinv, nu, innov):
         return False
+    n = P.shape[0]
+    m = hnnz.shape[0]
     for j in range(n):
         xout[j] = xp[j]
     for r in range(m):

@@ -129,6 +129,30 @@ def cholesky_inverse(S, F, nu, innov):
     return True
 
 
+@njit(cache=True, inline="always")
+def innovation_covariance(P, hcols, hnnz, hval, r_var, U, S):
+    """``U = H P`` (m, n) and ``S = H P H^T + R`` (m, m) for the sparse rows of H (``hcols``,
+    ``hval``, ``hnnz``) and diagonal R (``r_var``); S is exactly symmetric."""
+    n = P.shape[0]
+    m = hnnz.shape[0]
+    U[:, :] = 0.0
+    for r in range(m):
+        ur = U[r]
+        for t in range(hnnz[r]):
+            c = hval[r, t]
+            prow = P[hcols[r, t]]
+            for j in range(n):
+                ur[j] += c * prow[j]
+    for r in range(m):
+        for c in range(r + 1):
+            s = 0.0
+            for t in range(hnnz[c]):
+                s += U[r, hcols[c, t]] * hval[c, t]
+            S[r, c] = s
+            S[c, r] = s
+        S[r, r] += r_var[r]
+
+
 @njit(cache=True)
 def joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu, update_x):
     """Kalman update with an m-dimensional measurement whose Jacobian rows are sparse, in Joseph
@@ -154,27 +178,10 @@ def joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv
     -------
     bool : False if ``S`` was not positive definite (the update is skipped).
     """
-    n = P.shape[0]
-    m = hnnz.shape[0]
-    U[:, :] = 0.0
-    for r in range(m):
-        ur = U[r]
-        for t in range(hnnz[r]):
-            c = hval[r, t]
-            prow = P[hcols[r, t]]
-            for j in range(n):
-                ur[j] += c * prow[j]
-    for r in range(m):
-        for c in range(r + 1):
-            s = 0.0
-            for t in range(hnnz[c]):
-                s += U[r, hcols[c, t]] * hval[c, t]
-            S[r, c] = s
-            S[c, r] = s
-        S[r, r] += r_var[r]
+    innovation_covariance(P, hcols, hnnz, hval, r_var, U, S)
     if not cholesky_inverse(S, Sinv, nu, innov):
         return False
-    if m == 3:
+    if hnnz.shape[0] == 3:
         _correct3(x, P, innov, U, K, D, S, Sinv, update_x)
     else:
         _correct(x, P, innov, U, K, D, S, Sinv, update_x)

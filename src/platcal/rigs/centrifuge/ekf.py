@@ -498,6 +498,79 @@ def restart_covariance(P: np.ndarray, nc: int) -> np.ndarray:
     return out
 
 
+@dataclass
+class FilterStart:
+    """What every pass of the EKF or UKF starts from (docs/centrifuge-model.md §9, §11): the
+    commanded angles (B, K, 3) in rad, the state (B, n) and covariance (B, n, n) at the start,
+    the attitude reset variance (rad^2), R's diagonal (g^2), the ARW rate (rad^2/s) and the
+    packed centrifuge parameters per replicate and position."""
+
+    cmd_rad: np.ndarray
+    x: np.ndarray
+    P: np.ndarray
+    reset_var: float
+    r_var: np.ndarray
+    q_rate: float
+    params: np.ndarray
+
+
+def filter_start(cmd_deg: np.ndarray, centrifuge_params: np.ndarray, settings: FilterSettings, B: int,
+                 K: int) -> FilterStart:
+    """The start of a batch of B runs over K positions: coefficients 0 with P0 = diag(p0^2),
+    angles 0 with no covariance until the first reset (docs/centrifuge-model.md §9)."""
+    cmd = np.asarray(cmd_deg, float)
+    if cmd.ndim == 2:
+        cmd = np.broadcast_to(cmd, (B,) + cmd.shape)
+    nc = settings.coef_index.size
+    p0 = np.asarray(settings.p0_sigma, float)
+    if p0.shape != (nc,):
+        raise ValueError(f"p0_sigma has {p0.shape} entries, the filter has {nc} coefficients")
+    P = np.zeros((B, nc + 3, nc + 3))
+    P[:, np.arange(nc), np.arange(nc)] = p0**2
+    return FilterStart(
+        cmd_rad=np.ascontiguousarray(cmd * DEG), x=np.zeros((B, nc + 3)), P=P,
+        reset_var=(settings.sigma_set_arcsec * ARCSEC) ** 2, r_var=np.full(3, (settings.sigma_a_ug * 1e-6) ** 2),
+        q_rate=(settings.arw_deg_rth * DEG / 60.0) ** 2,  # (rad/sqrt(s))^2
+        params=broadcast_params(centrifuge_params, B, K))
+
+
+def drive_passes(run_pass, x: np.ndarray, P: np.ndarray, z: list | None, t: list, settings: FilterSettings,
+                 passes: int, nis: np.ndarray | None = None, n_bad: np.ndarray | None = None) -> Estimate:
+    """Run ``passes`` passes over every position end to end (docs/centrifuge-model.md §9, §11):
+    pass p > 0 restarts from the previous estimate with P0 = 100 x its coefficient covariance.
+
+    ``run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad)`` runs one pass of a
+    filter kernel in place (replicates handed out one at a time, so that a thread slowed by other
+    processes takes fewer). ``nis`` and ``n_bad`` carry counts from a warm-up pass (None: zeros).
+    """
+    B = x.shape[0]
+    nc = settings.coef_index.size
+    n = x.shape[1]
+    hist_slots, total = history_slots(t, settings.history_every_s)
+    H = total * passes
+    hist_x = np.zeros((B, H, n))
+    hist_s = np.zeros((B, H, n))
+    hist_t = np.zeros(H)
+    pass_x = np.zeros((passes, B, nc))
+    pass_P = np.zeros((passes, B, nc, nc))
+    nis = np.zeros(B) if nis is None else nis
+    n_bad = np.zeros(B, dtype=np.int64) if n_bad is None else n_bad
+    offs, t_all, z_all = end_to_end(z, t, B)
+    for p in range(passes):
+        if p > 0:
+            P = restart_covariance(P, nc)
+            nis[:] = 0.0
+        hidx_all = pass_history_index(t, hist_slots, total, p, settings.period_s,
+                                      settings.history_every_s is not None, hist_t)
+        with numba.parallel_chunksize(1):
+            run_pass(x, P, z_all, t_all, offs, hidx_all, hist_x, hist_s, nis, n_bad)
+        pass_x[p] = x[:, :nc]
+        pass_P[p] = P[:, :nc, :nc]
+    return Estimate(names=settings.state_names, x=x, P=P, history_t=hist_t, history_x=hist_x,
+                    history_sigma=hist_s, pass_x=pass_x, pass_P=pass_P,
+                    mean_nis=nis / max(int(offs[-1]), 1), failed_updates=n_bad)
+
+
 
 def run_ekf(
     z: list[np.ndarray],
@@ -538,82 +611,40 @@ def run_ekf(
     """
     K = len(t)
     cov_only = linearise_about is not None
-    cmd = np.asarray(cmd_deg, float)
     B = z[0].shape[0] if not cov_only else np.asarray(linearise_about).shape[0]
-    if cmd.ndim == 2:
-        cmd = np.broadcast_to(cmd, (B,) + cmd.shape)
-    cmd_rad = np.ascontiguousarray(cmd * DEG)
+    st = filter_start(cmd_deg, centrifuge_params, settings, B, K)
     est_idx = settings.coef_index
     nc = est_idx.size
-    n = nc + 3
-    p0 = np.asarray(settings.p0_sigma, float)
-    if p0.shape != (nc,):
-        raise ValueError(f"p0_sigma has {p0.shape} entries, the filter has {nc} coefficients")
-    x = np.zeros((B, n))
+    x, P = st.x, st.P
     # coefficients the filter does not estimate keep these values (DOO = 0 in the paper's
     # filter); a covariance-only run follows the true trajectory, true DOO included
     coef_fixed = np.zeros((B, N_FULL))
     if cov_only:
         coef_fixed = np.ascontiguousarray(linearise_about, float)
         x[:, :nc] = coef_fixed[:, est_idx]
-    P = np.zeros((B, n, n))
-    P[:, np.arange(nc), np.arange(nc)] = p0**2
-    reset_var = (settings.sigma_set_arcsec * ARCSEC) ** 2
-    r_var = np.full(3, (settings.sigma_a_ug * 1e-6) ** 2)
-    q_rate = (settings.arw_deg_rth * DEG / 60.0) ** 2  # (rad/sqrt(s))^2
-    params = broadcast_params(centrifuge_params, B, K)
-
     passes = 1 if cov_only else settings.passes
     structure = _structure(est_idx)
+    p0 = np.asarray(settings.p0_sigma, float)
     it_ctl = iteration_control(p0) if iterate is None or cov_only else np.ascontiguousarray(iterate, float)
     kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
-    hist_slots, total = history_slots(t, settings.history_every_s)
-    H = total * passes
-    hist_x = np.zeros((B, H, n))
-    hist_s = np.zeros((B, H, n))
-    hist_t = np.zeros(H)
-    pass_x = np.zeros((passes, B, nc))
-    pass_P = np.zeros((passes, B, nc, nc))
+
+    def run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad, update_x=not cov_only):
+        kernel(x, P, z_all, t_all, offs, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params,
+               st.r_var, st.q_rate, update_x, hidx, hist_x, hist_s, nis, n_bad, *structure, it_ctl)
+
     nis = np.zeros(B)
     n_bad = np.zeros(B, dtype=np.int64)
-    offs, t_all, z_all = end_to_end(None if cov_only else z, t, B)
-    m_total = int(offs[-1])
     if warmup_s is not None and not cov_only:
         keep = [np.asarray(tk, float) < warmup_s for tk in t]
-        offs_w = np.zeros(K + 1, dtype=np.int64)
-        offs_w[1:] = np.cumsum([int(kp.sum()) for kp in keep])
-        t_w = np.ascontiguousarray(np.concatenate([np.asarray(tk, float)[kp] for tk, kp in zip(t, keep)]))
-        z_w = np.ascontiguousarray(np.concatenate([np.asarray(zk, float)[:, kp] for zk, kp in zip(z, keep)], axis=1))
+        offs_w, t_w, z_w = end_to_end([np.asarray(zk, float)[:, kp] for zk, kp in zip(z, keep)],
+                                      [np.asarray(tk, float)[kp] for tk, kp in zip(t, keep)], B)
         no_hist = np.full(t_w.size, -1, dtype=np.int64)
         with numba.parallel_chunksize(1):
-            kernel(x, P, z_w, t_w, offs_w, cmd_rad, reset_var, est_idx, coef_fixed, params,
-                   r_var, q_rate, True, no_hist, hist_x, hist_s, nis, n_bad, *structure, it_ctl)
+            run_pass(x, P, z_w, t_w, offs_w, no_hist, np.zeros((B, 0, nc + 3)), np.zeros((B, 0, nc + 3)),
+                     nis, n_bad, update_x=True)
         P = restart_covariance(P, nc)
         nis[:] = 0.0
-    for p in range(passes):
-        if p > 0:
-            P = restart_covariance(P, nc)
-            nis[:] = 0.0
-        hidx_all = pass_history_index(t, hist_slots, total, p, settings.period_s,
-                                      settings.history_every_s is not None, hist_t)
-        # replicates handed out one at a time: a thread slowed by other processes takes fewer
-        with numba.parallel_chunksize(1):
-            kernel(x, P, z_all, t_all, offs, cmd_rad, reset_var, est_idx, coef_fixed, params,
-                   r_var, q_rate, not cov_only, hidx_all, hist_x, hist_s, nis, n_bad, *structure, it_ctl)
-        pass_x[p] = x[:, :nc]
-        pass_P[p] = P[:, :nc, :nc]
-    return Estimate(
-        names=settings.state_names,
-        x=x,
-        P=P,
-        history_t=hist_t,
-        history_x=hist_x,
-        history_sigma=hist_s,
-        pass_x=pass_x,
-        pass_P=pass_P,
-        mean_nis=nis / max(m_total, 1),
-        failed_updates=n_bad,
-    )
+    return drive_passes(run_pass, x, P, None if cov_only else z, t, settings, passes, nis, n_bad)
 
 
 def run_iekf(

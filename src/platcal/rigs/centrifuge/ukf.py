@@ -61,10 +61,9 @@ from ...estimation.unscented import (check_ut_params, cholesky_upper_into, josep
                                      regression_cross_into, ut_moments_into)
 from ...model.attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch,
                                measure_scalar, rk4_jac_sc, rk4_scalar)
-from ...model.frames import ARCSEC, DEG
 from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
-from .base import broadcast_params, specific_force_into
-from .ekf import Estimate, FilterSettings, end_to_end, history_slots, pass_history_index, restart_covariance
+from .base import specific_force_into
+from .ekf import Estimate, FilterSettings, drive_passes, filter_start
 
 SIGMA_POINT_MODES = ("nonlinear", "update", "all")
 
@@ -474,17 +473,6 @@ def nonlinear_first_order(n: int, est_idx: np.ndarray) -> np.ndarray:
     return np.array(head + [i for i in range(n) if i not in set(head)], dtype=np.int64)
 
 
-def _history_index(t: np.ndarray, every_s: float | None, start: int) -> tuple[np.ndarray, int]:
-    """History slot of each filter instant (-1: not kept) and the number of slots used."""
-    idx = np.full(t.shape[0], -1, dtype=np.int64)
-    if every_s is None:
-        return idx, 0
-    k = np.round(t / every_s)
-    keep = np.abs(t - k * every_s) < 1e-9
-    idx[keep] = start + np.arange(int(keep.sum()))
-    return idx, int(keep.sum())
-
-
 def check_options(n: int, sigma_points: str, alpha: float, beta: float, kappa: float | None
                   ) -> tuple[float, float, float]:
     """Validate the UKF options (InputError naming the option); returns ``(h, w2, kappa)``."""
@@ -536,72 +524,28 @@ def run_ukf(
     not positive definite, and ``"all"`` propagations that fell back to the linear one for that reason).
     """
     K = len(t)
-    cmd = np.asarray(cmd_deg, float)
     B = z[0].shape[0]
-    if cmd.ndim == 2:
-        cmd = np.broadcast_to(cmd, (B,) + cmd.shape)
-    cmd_rad = np.ascontiguousarray(cmd * DEG)
     est_idx = settings.coef_index
-    nc = est_idx.size
-    n = nc + 3
+    n = est_idx.size + 3
     h, w2, _ = check_options(n, sigma_points, alpha, beta, kappa)
     mode = SIGMA_POINT_MODES.index(sigma_points)
     perm = np.arange(n, dtype=np.int64) if sqrt_order is None else np.asarray(sqrt_order, np.int64)
     if sorted(perm.tolist()) != list(range(n)):
         raise InputError("ukf.sqrt_order", f"must be a permutation of 0..{n - 1}")
-    p0 = np.asarray(settings.p0_sigma, float)
-    if p0.shape != (nc,):
-        raise ValueError(f"p0_sigma has {p0.shape} entries, the filter has {nc} coefficients")
     for k, tk in enumerate(t):
         tk = np.asarray(tk, float)
         if tk.size and (tk[0] < 0 or np.any(np.diff(tk) <= 0)):
             raise InputError(f"t[{k}]", "filter instants must be >= 0 and increasing")
-    x = np.zeros((B, n))
+    st = filter_start(cmd_deg, centrifuge_params, settings, B, K)
     coef_fixed = np.zeros((B, N_FULL))
-    P = np.zeros((B, n, n))
-    P[:, np.arange(nc), np.arange(nc)] = p0**2
-    reset_var = (settings.sigma_set_arcsec * ARCSEC) ** 2
-    r_var = np.full(3, (settings.sigma_a_ug * 1e-6) ** 2)
-    q_rate = (settings.arw_deg_rth * DEG / 60.0) ** 2  # (rad/sqrt(s))^2
-    params = broadcast_params(centrifuge_params, B, K)
     pcols, pg = propagation_structure(est_idx)
     nl, nl_full, lin = measurement_structure(est_idx)
     mstates = np.array([k for k, f in enumerate(est_idx) if I_K0 <= f < I_THETA + 3], dtype=np.int64)
     kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
 
-    passes = settings.passes
-    hist_slots, total = history_slots(t, settings.history_every_s)
-    H = total * passes
-    hist_x = np.zeros((B, H, n))
-    hist_s = np.zeros((B, H, n))
-    hist_t = np.zeros(H)
-    pass_x = np.zeros((passes, B, nc))
-    pass_P = np.zeros((passes, B, nc, nc))
-    nis = np.zeros(B)
-    n_bad = np.zeros(B, dtype=np.int64)
-    offs, t_all, z_all = end_to_end(z, t, B)
-    m_total = int(offs[-1])
-    for p in range(passes):
-        if p > 0:
-            P = restart_covariance(P, nc)
-            nis[:] = 0.0
-        hidx_all = pass_history_index(t, hist_slots, total, p, settings.period_s,
-                                      settings.history_every_s is not None, hist_t)
-        with numba.parallel_chunksize(1):
-            kernel(x, P, z_all, t_all, offs, cmd_rad, reset_var, est_idx, coef_fixed, params, r_var,
-                   q_rate, True, hidx_all, hist_x, hist_s, nis, n_bad, pcols, pg, nl, nl_full, lin,
-                   mstates, h, w2, mode, perm)
-        pass_x[p] = x[:, :nc]
-        pass_P[p] = P[:, :nc, :nc]
-    return Estimate(
-        names=settings.state_names,
-        x=x,
-        P=P,
-        history_t=hist_t,
-        history_x=hist_x,
-        history_sigma=hist_s,
-        pass_x=pass_x,
-        pass_P=pass_P,
-        mean_nis=nis / max(m_total, 1),
-        failed_updates=n_bad,
-    )
+    def run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad):
+        kernel(x, P, z_all, t_all, offs, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params, st.r_var,
+               st.q_rate, True, hidx, hist_x, hist_s, nis, n_bad, pcols, pg, nl, nl_full, lin,
+               mstates, h, w2, mode, perm)
+
+    return drive_passes(run_pass, st.x, st.P, z, t, settings, settings.passes)

@@ -35,8 +35,8 @@ from ...parallel import get_threads
 from ...rig import NoiseAxis, ReplicateBatch, RunSettings
 from ...study.montecarlo import noise_key, noise_label
 from ..centrifuge.scheme import Scheme
-from .config import load_config, make_scheme
-from .estimators import estimate, variant_choice
+from .config import load_config, make_scheme, scheme_table
+from .estimators import estimate, raw_variant_choice, variant_choice
 from .filter import nees, simulate
 from .model import coef_names, coef_terms, group_of, unit_of
 
@@ -135,18 +135,22 @@ class MultipositionMonteCarlo:
         return RunSettings(seed=int(cfg["seed"]), replicates=int(st["seeds"]), batch=int(st["batch"]),
                            backend=st["backend"], threads=int(st["threads"]))
 
+    # case, case_file and cell_params are called for every job while Snakemake builds its DAG:
+    # they read the checked mapping directly (the schema validation is for check and run_batch)
+
     def case(self, cfg: dict, name: str, case_file: str | None = None) -> Scheme:
-        c = load_config(cfg)
         if case_file:  # a GA design: {dwell_s, positions} written by the design rule
             d = read_yaml(Path(case_file).read_text(encoding="utf-8"))
-            return make_scheme(name, d["positions"], d["dwell_s"], c.beta_max_deg, where=str(case_file))
-        if name not in c.schemes:
+            return make_scheme(name, d["positions"], d["dwell_s"], float(cfg["gimbal"]["beta_max_deg"]),
+                               where=str(case_file))
+        schemes = scheme_table(cfg)
+        if name not in schemes:
             raise InputError("study.schemes", f"scheme {name!r} is a GA design: its cells need the design "
                              f"rule's file results/multiposition/{self.case_file(cfg, name)}")
-        return c.schemes[name]
+        return schemes[name]
 
     def case_file(self, cfg: dict, name: str) -> str | None:
-        return None if name in load_config(cfg).schemes else f"design/{name}.yaml"
+        return None if name in scheme_table(cfg) else f"design/{name}.yaml"
 
     def requires(self, cfg: dict) -> list[str]:
         """Every cell waits for the rule ``multiposition_kernels``, which compiles (or loads) the
@@ -154,16 +158,16 @@ class MultipositionMonteCarlo:
         return ["kernels.json"]
 
     def cell_params(self, cfg: dict, case: str, noise: float, estimator: str) -> dict:
-        c = load_config(cfg)
-        choice = variant_choice(c, estimator, field=f"study.estimators.{estimator}")
+        choice = raw_variant_choice(cfg, estimator, field=f"study.estimators.{estimator}")
         p = {k: cfg[k] for k in MODEL_KEYS}
         p["truth"] = {k: v for k, v in cfg["truth"].items() if k in coef_names()}  # §13 terms: not in the 24
         p["noise"] = {**cfg["noise"], "sigma_a_ug": float(noise)}
         p["filter"] = {"estimator": choice.estimator, "passes": choice.passes, "options": choice.options,
                        "p0": {k: v for k, v in cfg["filter"]["p0"].items() if k in coef_terms()}}
         p["replicates"] = int(cfg["study"]["seeds"])
-        if case in c.schemes:  # a GA design is the rule's input file instead
-            p["scheme"] = c.schemes[case].as_dict()
+        schemes = scheme_table(cfg)
+        if case in schemes:  # a GA design is the rule's input file instead
+            p["scheme"] = schemes[case].as_dict()
         return p
 
     def run_batch(self, cfg: dict, case, noise: float, estimator: str, seeds) -> ReplicateBatch:

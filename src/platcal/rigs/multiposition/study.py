@@ -53,6 +53,16 @@ def spec_cell(cfg) -> tuple[str, float, str | None]:
     return "S8", 5.0, None
 
 
+def in_study_order(df: pd.DataFrame, raw: dict) -> pd.DataFrame:
+    """Rows of a collected tidy table (sorted by name) in the study's order: ``study.schemes``,
+    then noise level, then ``study.estimators``; the order within a run is kept."""
+    st = raw["study"]
+    key = pd.DataFrame({"s": df["scheme"].map({n: i for i, n in enumerate(st["schemes"])}).to_numpy(),
+                        "n": df["noise"].to_numpy(),
+                        "e": df["estimator"].map({n: i for i, n in enumerate(st["estimators"])}).to_numpy()})
+    return df.iloc[key.sort_values(["s", "n", "e"], kind="stable").index.to_numpy()].reset_index(drop=True)
+
+
 def per_replicate(coef: pd.DataFrame) -> pd.DataFrame:
     """Largest |relative error| (%) of each group (gyro, accel) per run, from the tidy ``coef`` table."""
     return (coef.assign(abs_rel=coef["rel_err_pct"].abs())
@@ -329,6 +339,26 @@ def save_tables(outdir: Path, rf, summ, design, ext_ranks, ef) -> None:
                 "Section 13 ranks (order 1)", "static (Omega = 0) and exact, at x = 0")
     write_table(ef, outdir / "extension_sigma", "Section 13: 1 g vs centrifuge Table 1",
                 "covariance-only sigma/|truth|", {c: ".3g" for c in ef.columns if c not in ("name", "term")})
+
+
+def report_job(inp, out_report, config_path, log=print) -> None:
+    """The report rule's body: ``inp`` has ``obs`` (observability.json files), the collected tidy
+    tables ``coef``, ``runs`` (Parquet) and ``timing`` (CSV), ``design`` (compare.csv), the §13
+    ``ext_ranks``, ``ext_sigma``, ``ext_spread`` and ``centrifuge`` (the Table 1 json, or none);
+    tables, figures and ``report.md`` go next to ``out_report``."""
+    out = Path(out_report).parent
+    cfg = load(config_path)
+    rf = rank_frame([json.loads(Path(p).read_text()) for p in inp.obs])
+    coef, runs, timing = (in_study_order(t, cfg.raw) for t in (pd.read_parquet(inp.coef), pd.read_parquet(inp.runs),
+                                                               pd.read_csv(inp.timing)))
+    summ, design = mc_summary(coef, runs, timing), pd.read_csv(inp.design)
+    ext_ranks = pd.DataFrame(json.loads(Path(inp.ext_ranks).read_text()))
+    ef = extension_frame(pd.read_csv(inp.ext_sigma).to_dict("records"), inp.centrifuge[0] if len(inp.centrifuge) else None)
+    save_tables(out / "tables", rf, summ, design, ext_ranks, ef)
+    save_figures(out / "figures", rf, coef, runs, ef)
+    write_report(out_report, rf, summ, design, ext_ranks, ef, spread=pd.read_csv(inp.ext_spread).to_dict("records"),
+                 item4_cell=spec_cell(cfg))
+    log(f"report -> {out_report} ({len(runs)} Monte Carlo runs in {len(summ)} cells)")
 
 
 # ------------------------------------------------------------------ workflow set-up

@@ -129,3 +129,40 @@ def test_simulate_int_seeds_are_the_cells_replicates(cfg):
     b = simulate(cfg, short, [replicate_seed(cfg.seed, "TET4", cfg.sigma_a_ug, r) for r in (0, 5)])[2]
     assert np.array_equal(a, b)
     assert not np.array_equal(a, simulate(cfg.with_noise(seed=cfg.seed + 1), short, [0, 5])[2])
+
+
+def test_report_summary_from_the_tidy_tables(mc):
+    """The report's Monte Carlo table is computed from the generic runner's tables: per cell the
+    largest |relative error| per run, NEES, linearisations; §15 item 4's verdict follows its bounds."""
+    from platcal.rigs.multiposition import study as st
+
+    rig, cfg = mc
+    case = rig.montecarlo.case(cfg, "TET4")
+    parts = [run_cell(rig, cfg, case, 20.0, e, replicates=3) for e in ("ekf1", "iekf")]
+    coef, runs = (pd.concat([p[i] for p in parts[::-1]], ignore_index=True) for i in (0, 1))
+    timing = pd.DataFrame([p[2] for p in parts[::-1]])
+    coef, runs, timing = (st.in_study_order(t, cfg) for t in (coef, runs, timing))
+    assert list(dict.fromkeys(coef["estimator"])) == ["ekf1", "iekf"]  # study order, not the input's
+    summ = st.mc_summary(coef, runs, timing)
+    assert list(summ["estimator"]) == ["ekf1", "iekf"] and set(summ["sigma_a_ug"]) == {20.0}
+    for _, r in summ.iterrows():
+        c = coef[coef.estimator == r.estimator]
+        worst = c.assign(a=c.rel_err_pct.abs()).groupby(["replicate", "group"]).a.max().unstack()
+        assert r.gyro_max_rel_err_median_pct == pytest.approx(worst["gyro"].median())
+        assert r.accel_max_rel_err_worst_pct == pytest.approx(worst["accel"].max())
+        ru = runs[runs.estimator == r.estimator]
+        assert r.mean_nees_24 == pytest.approx(ru.nees.mean()) and r.seeds == 3
+        assert r["share_nees_above_99.9_pct"] == pytest.approx((ru.nees > 51.18).mean() * 100)
+        assert r.seconds_per_run > 0 and r.failed_runs == 0
+    assert summ.loc[summ.estimator == "iekf", "linearisations_per_update"].iloc[0] > 1
+    assert summ.loc[summ.estimator == "ekf1", "linearisations_per_update"].iloc[0] == 1
+    assert st.nees_bound(24) == pytest.approx(51.18, abs=0.01)
+    # §15 item 4: the verdict follows the spec's bounds (a row at the bounds passes, beyond fails)
+    row = {"scheme": "S8", "sigma_a_ug": 5.0, "estimator": "ekf1", "seeds": 20, "gyro_max_rel_err_median_pct": 1.5,
+           "gyro_max_rel_err_worst_pct": 2.5, "accel_max_rel_err_worst_pct": 0.2, "mean_nees_24": 35.0}
+    ok = st.item4_lines(pd.DataFrame([row]), ("S8", 5.0, "ekf1"))[0]
+    assert "item 4: reproduced" in ok
+    bad = st.item4_lines(pd.DataFrame([{**row, "mean_nees_24": 35.5}]), ("S8", 5.0, "ekf1"))[0]
+    assert "NOT reproduced (mean NEES" in bad
+    assert "not checked" in st.item4_lines(pd.DataFrame([row]), ("S8", 5.0, None))[0]
+    assert st.spec_cell(load_config(cfg)) == ("S8", 5.0, "ekf1")

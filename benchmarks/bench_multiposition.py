@@ -12,8 +12,6 @@ simulation, EKF, tidy tables) for the same replicates.
 import argparse
 import time
 
-import numpy as np
-
 from platcal.rig import get_rig
 from platcal.rigs.multiposition.config import load_config
 from platcal.rigs.multiposition.filter import nees, run_ekf, simulate

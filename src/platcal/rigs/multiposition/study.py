@@ -261,6 +261,12 @@ def estimator_lines(summ: pd.DataFrame) -> list[str]:
             "iterated update does not.", ""]
 
 
+def summary_formats(summ: pd.DataFrame) -> dict[str, str]:
+    """Three significant digits for the summary's statistics, linearisations and seconds."""
+    return {c: ".3g" for c in summ.columns if c.endswith("pct") or c.startswith("mean")
+            or c in ("linearisations_per_update", "seconds_per_run")}
+
+
 def item4_lines(summ: pd.DataFrame, cell: tuple[str, float, str | None]) -> list[str]:
     """Report paragraph: spec §15 item 4 (S8, 5 ug, the one-pass EKF, 20 seeds) checked against
     its bounds on the sweep's cell, or why it cannot be."""
@@ -302,7 +308,7 @@ def write_report(out: Path, rf, summ, design, ext_ranks, ef, seconds_note: str =
              f"({nees_bound(24):.1f}); seconds per run is the cell's wall time (simulation and filter) per replicate "
              "at the job's threads. Every cell is a job of the generic Monte Carlo runner; replicate r of a scheme "
              "and noise level is the same record for every estimator (docs/multiposition-1g.md §16).", "",
-             frame_markdown(summ, {c: ".3g" for c in summ.columns if c.endswith("pct") or c.startswith("mean")}), "",
+             frame_markdown(summ, summary_formats(summ)), "",
              "![Monte Carlo](figures/montecarlo.png) ![NEES](figures/nees.png)", ""]
     lines += item4_lines(summ, item4_cell)
     lines += estimator_lines(summ)
@@ -333,7 +339,7 @@ def save_tables(outdir: Path, rf, summ, design, ext_ranks, ef) -> None:
     write_table(rf, outdir / "ranks", "Scheme check: Lie ranks, static rank, covariance-only sigma, verdict",
                 "docs/multiposition-1g.md §8, §15", {"max sigma/|truth| %": ".3g"})
     write_table(summ, outdir / "montecarlo_summary", "Monte Carlo summary", "largest |relative error| per seed",
-                {c: ".3g" for c in summ.columns if c.endswith("pct") or c.startswith("mean")})
+                summary_formats(summ))
     write_table(design, outdir / "design", "A-optimal GA design vs S8 and TET4", "covariance-only at 0.1 s")
     write_table(ext_ranks.drop(columns=["static_null_vectors"]), outdir / "extension_ranks",
                 "Section 13 ranks (order 1)", "static (Omega = 0) and exact, at x = 0")

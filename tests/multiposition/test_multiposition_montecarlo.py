@@ -81,6 +81,10 @@ def test_replicates_bit_identical_whatever_batch_and_threads(mc):
             assert np.array_equal(coef[col].to_numpy(), ref_coef[col].to_numpy()), (kw, col)
         for col in ("nees", "mean_nis", "failed_updates", "linearisations"):
             assert np.array_equal(runs[col].to_numpy(), ref_runs[col].to_numpy()), (kw, col)
+    a, ra, _ = run_cell(rig, cfg, case, 20.0, "iekf", threads=1, batch=8)
+    b, rb, _ = run_cell(rig, cfg, case, 20.0, "iekf", threads=2, batch=3)
+    assert np.array_equal(a["estimate"].to_numpy(), b["estimate"].to_numpy())
+    assert np.array_equal(ra["linearisations"].to_numpy(), rb["linearisations"].to_numpy())
     # replicates differ from each other, and the noise level is part of the key
     est = ref_coef.pivot(index="replicate", columns="name", values="estimate")
     assert len(np.unique(est.to_numpy().round(12), axis=0)) == 8

@@ -1,6 +1,7 @@
 """Estimators of the multiposition rig compared (issue 9 item 5; docs/multiposition-1g.md §16).
 
-For each scheme (default S8, T1, TET4) at sigma_a = 5 ug and seeds 0..N-1 (default 20): the EKF
+For each scheme (default S8, T1, TET4) at sigma_a = 5 ug and replicates 0..N-1 (default 20; the
+SeedSequences of the study's cells, so the statistics equal the study's table): the EKF
 of §9 with one and two passes and the Gauss-Newton iterated EKF (config defaults of
 ``filter.iekf``), on the same simulated records. Prints, per scheme and estimator: mean NEES of
 the 24 coefficients (24 expected) and the share above the chi-square(24) 99.9 % bound (51.2),

@@ -56,6 +56,8 @@ by giving ``montecarlo``, an object with (see :class:`MonteCarloHooks`):
 - ``run_batch(cfg, case, noise, estimator, seeds) -> ReplicateBatch``: simulate and identify
   one replicate per ``numpy.random.SeedSequence`` (the runner derives the seeds:
   ``platcal.study.montecarlo.replicate_seed``), bit-identical whatever the batch size.
+- optional ``requires(cfg) -> list[str]``: files under ``results/<rig>/``, made by the rig's own
+  rules, that every cell waits for (e.g. a job compiling the rig's kernels once).
 
 The runner turns the batches into the tidy tables (one row per run x quantity, one row per run)
 that :mod:`platcal.study.stats` and :mod:`platcal.study.plots` work on. The centrifuge's hooks
@@ -114,7 +116,8 @@ class ReplicateBatch:
     ``quantities``: the n identified quantities, one row each with ``name``, ``group``, ``unit``
     and ``truth`` (as in ``Rig.catalogue()``); ``estimate`` and ``sigma`` (B, n) in their units;
     ``nees`` (B,) of the n errors (``nees_dof`` = n), ``mean_nis`` (B,), ``failed_updates``
-    (B,) and the number of filter ``passes``.
+    (B,) and the number of filter ``passes``; ``extra``: further per-run columns (B,) of the
+    rig's, added to the runs table after the standard ones (e.g. linearisations per update).
     """
 
     quantities: pd.DataFrame
@@ -125,6 +128,7 @@ class ReplicateBatch:
     mean_nis: np.ndarray
     failed_updates: np.ndarray
     passes: int
+    extra: Mapping[str, np.ndarray] = field(default_factory=dict)
 
 
 class MonteCarloHooks(Protocol):

@@ -15,6 +15,8 @@ def _rel(est, truth):
 
 @pytest.mark.slow
 def test_monte_carlo_s8_20_seeds(cfg):
+    """§15 item 4 on the study's cell (S8, 5 ug, one pass): replicates 0-19 are the generic
+    runner's SeedSequences (``simulate`` with replicate numbers), the spec's bounds unchanged."""
     s8 = cfg.scheme("S8")
     t, _, z = fl.simulate(cfg, s8, list(range(20)))
     c, P, nis = fl.run_ekf(cfg, s8.angles_deg, t, z, passes=1)

@@ -11,6 +11,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 SNAKEFILE = """configfile: "config/config.yaml"
+include: "workflow/rules/common.smk"
+include: "workflow/rules/montecarlo.smk"
 include: "workflow/rules/multiposition.smk"
 rule all:
     input: MULTIPOSITION_TARGETS
@@ -29,9 +31,12 @@ def _tree(tmp_path: Path) -> Path:
     (d / "workflow/rules").mkdir(parents=True)
     (d / "workflow/scripts").mkdir(parents=True)
     (d / "config").mkdir()
-    shutil.copy(ROOT / "workflow/rules/multiposition.smk", d / "workflow/rules")
+    for rules in ("common", "montecarlo", "multiposition"):  # the rig's own rules and the generic Monte Carlo
+        shutil.copy(ROOT / f"workflow/rules/{rules}.smk", d / "workflow/rules")
     shutil.copytree(ROOT / "workflow/envs", d / "workflow/envs")
-    for p in (ROOT / "workflow/scripts").glob("multiposition_*.py"):
+    shutil.copytree(ROOT / "workflow/schemas", d / "workflow/schemas")
+    for p in [*(ROOT / "workflow/scripts").glob("multiposition_*.py"), ROOT / "workflow/scripts/montecarlo_cell.py",
+              ROOT / "workflow/scripts/collect.py"]:
         shutil.copy(p, d / "workflow/scripts")
     (d / "Snakefile").write_text(SNAKEFILE)
     (d / "config/config.yaml").write_text("rigs: {multiposition: config/multiposition.yaml}\n")
@@ -63,7 +68,7 @@ def test_tiny_study_end_to_end(tmp_path):
 def test_no_rig_key_defines_no_targets(tmp_path):
     pytest.importorskip("snakemake")
     d = _tree(tmp_path)
-    (d / "config/config.yaml").write_text("rigs: {}\n")
+    (d / "config/config.yaml").write_text("rigs: {multiposition: null}\n")
     r = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "1", "-n"], cwd=d,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]

@@ -58,6 +58,12 @@ def mc_case_input(w):
     return f"results/{w.rig}/{f}" if f else []
 
 
+def mc_requires_input(w):
+    """Files of the rig's own rules that every cell waits for (optional hook ``requires``)."""
+    req = getattr(MC_HOOKS[w.rig], "requires", None)
+    return [f"results/{w.rig}/{f}" for f in req(MC_CONFIG[w.rig])] if req else []
+
+
 def mc_cell_params(w):
     """Exactly what the cell's numbers depend on (the rig says): a change reruns that cell only."""
     return MC_HOOKS[w.rig].cell_params(

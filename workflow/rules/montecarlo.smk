@@ -15,6 +15,7 @@ wildcard_constraints:
 rule montecarlo_cell:
     input:
         case=mc_case_input,
+        requires=mc_requires_input,
     output:
         coef="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/coef.parquet",
         runs="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/runs.parquet",

@@ -1,6 +1,8 @@
 # Rig 2, the 1 g multi-position self-test (docs/multiposition-1g.md): scheme check of every named
-# scheme, GA design, Monte Carlo over seeds x schemes x noise x EKF passes, the section 13
-# comparison with the centrifuge's Table 1; tables, figures and report under results/multiposition/.
+# scheme, GA design, the section 13 comparison with the centrifuge's Table 1; tables, figures and
+# report under results/multiposition/. Its Monte Carlo (schemes x sigma_a x estimators x seeds) is
+# the generic stage of workflow/rules/montecarlo.smk (rules montecarlo_cell and collect; hooks
+# platcal.rigs.multiposition.montecarlo.MultipositionMonteCarlo), whose tidy tables the report reads.
 # The rig's config is config["rigs"]["multiposition"] (the centrifuge's config["rigs"]["centrifuge"]);
 # without it MULTIPOSITION_TARGETS is empty. Set-up: platcal.rigs.multiposition.study.WorkflowSetup.
 from platcal.errors import InputError as _MPInputError
@@ -12,6 +14,21 @@ try:  # the rig config is validated (field named) before any job runs
 except _MPInputError as exc:
     raise _MPWorkflowError(f"invalid multiposition config: {exc.field}: {exc.message}")
 MULTIPOSITION_TARGETS = MP_SETUP.targets()
+
+
+rule multiposition_kernels:
+    output:
+        "results/multiposition/kernels.json",
+    priority: 20  # every Monte Carlo cell waits for it (MultipositionMonteCarlo.requires)
+    params:
+        config=MP_SETUP.config,
+        code=MP_SETUP.compute_code,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/multiposition/logs/kernels.log",
+    script:
+        "../scripts/multiposition_kernels.py"
 
 
 rule multiposition_lie_cache:
@@ -31,6 +48,7 @@ rule multiposition_lie_cache:
 rule multiposition_observability:
     input:
         "results/multiposition/lie_cache.json",
+        "results/multiposition/kernels.json",
     output:
         MP_SETUP.observability(),
     params:
@@ -47,6 +65,8 @@ rule multiposition_observability:
 
 
 rule multiposition_design:
+    input:
+        "results/multiposition/kernels.json",
     output:
         expand("results/multiposition/design/GA{k}.yaml", k=MP_SETUP.design_k),
         ga="results/multiposition/design/GA.yaml",
@@ -63,29 +83,10 @@ rule multiposition_design:
         "../scripts/multiposition_design.py"
 
 
-rule multiposition_montecarlo:
-    input:
-        "results/multiposition/lie_cache.json",
-        lambda w: MP_SETUP.design_input(w.scheme),
-    output:
-        "results/multiposition/runs/{scheme}/sa{sigma}.parquet",
-    wildcard_constraints:
-        scheme=r"[A-Za-z0-9_.-]+",
-        sigma=r"[0-9][0-9.e+-]*",
-    params:
-        config=MP_SETUP.config,
-        code=MP_SETUP.code,
-    conda:
-        "../envs/platcal.yaml"
-    log:
-        "results/multiposition/logs/montecarlo_{scheme}_sa{sigma}.log",
-    script:
-        "../scripts/multiposition_montecarlo.py"
-
-
 rule multiposition_extension:
     input:
         "results/multiposition/lie_cache.json",
+        "results/multiposition/kernels.json",
     output:
         ranks="results/multiposition/extension/ranks.json",
         sigma="results/multiposition/extension/sigma.csv",
@@ -118,7 +119,9 @@ rule multiposition_centrifuge_table1:
 rule multiposition_report:
     input:
         obs=MP_SETUP.observability(),
-        cells=MP_SETUP.cells(),
+        coef="results/multiposition/montecarlo/coef.parquet",
+        runs="results/multiposition/montecarlo/runs.parquet",
+        timing="results/multiposition/montecarlo/timing.csv",
         design="results/multiposition/design/compare.csv",
         ext_ranks="results/multiposition/extension/ranks.json",
         ext_sigma="results/multiposition/extension/sigma.csv",
@@ -134,12 +137,12 @@ rule multiposition_report:
             report(f, category="Rig 2: multiposition")
             for f in expand(
                 "results/multiposition/figures/{fig}.png",
-                fig=["ranks", "montecarlo", "extension"],
+                fig=["ranks", "montecarlo", "nees", "extension"],
             )
         ],
-        coef="results/multiposition/montecarlo/coef.parquet",
         report="results/multiposition/report.md",
     params:
+        config=MP_SETUP.config,
         code=MP_SETUP.code,
     conda:
         "../envs/platcal.yaml"

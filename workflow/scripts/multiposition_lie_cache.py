@@ -1,16 +1,14 @@
-"""Build (or load) the cached symbolic Lie-derivative Jacobians and the numba kernels once, before the other jobs."""
+"""Build (or load) the cached symbolic Lie-derivative Jacobians once, before the jobs that use them."""
 import json, time  # noqa: E401
 
 from platcal.io import atomic_write_text
 from platcal.log import job_logger
 from platcal.rigs.multiposition.lie import observability_function
-from platcal.rigs.multiposition.study import load, warm_kernels
+from platcal.rigs.multiposition.study import load
 
 log = job_logger(snakemake.log[0])  # noqa: F821
 cfg, t0 = load(snakemake.params.config), time.perf_counter()  # noqa: F821
 for ext, order in ((0, cfg.lie_order), (1, 1), (2, 1)):
     observability_function(ext, order)
     log.info(f"Lie Jacobian ext {ext} order {order} ready, {time.perf_counter() - t0:.1f} s")
-warm_kernels(cfg)
-log.info(f"numba kernels ready, {time.perf_counter() - t0:.1f} s")
 atomic_write_text(snakemake.output[0], json.dumps({"seconds": time.perf_counter() - t0}) + "\n")  # noqa: F821

@@ -17,7 +17,8 @@ threads or joblib workers, or the job order.
 Tidy tables
 -----------
 ``coef``: one row per run x identified quantity, columns :data:`COEF_COLUMNS`; ``runs``: one
-row per run, :data:`RUN_COLUMNS`. The case column is called ``scheme`` and the noise column
+row per run, :data:`RUN_COLUMNS` and then the rig's own per-run columns
+(``ReplicateBatch.extra``), if any. The case column is called ``scheme`` and the noise column
 ``noise`` (in the rig's ``NoiseAxis.unit``) whatever the rig.
 """
 
@@ -89,6 +90,8 @@ def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> t
         "mean_nis": batch.mean_nis, "failed_updates": np.asarray(batch.failed_updates).astype(np.int64),
     })
     runs["failed"] = failed_runs(batch)
+    for name, values in batch.extra.items():  # the rig's own per-run columns, after the standard ones
+        runs[name] = np.asarray(values)
     return coef, runs
 
 
@@ -152,7 +155,7 @@ def run_cell(rig: Rig, cfg: dict, case, level: float, estimator: str, *, replica
               "replicates": R, "threads": threads, "backend": backend, "batch": batch,
               "wall_s": wall, "wall_s_per_run": wall / max(R, 1),
               "compute_s": float(sum(r[2] for r in results))}
-    return coef[COEF_COLUMNS], runs[RUN_COLUMNS], timing
+    return coef[COEF_COLUMNS], runs[RUN_COLUMNS + [c for c in runs.columns if c not in RUN_COLUMNS]], timing
 
 
 def _collect_progress(gen, total: int, t0: float, progress) -> list:

@@ -13,6 +13,7 @@ from .config import load_config
 from .estimators import ESTIMATORS
 from .filter import position_information
 from .model import coef_names, group_of, truth_vector, unit_of
+from .montecarlo import MultipositionMonteCarlo
 
 
 def catalogue() -> pd.DataFrame:
@@ -24,4 +25,5 @@ def catalogue() -> pd.DataFrame:
 
 RIG = Rig(name="multiposition", title="1 g multi-position self-test, 27-state EKF with gimbal angle sensors",
           spec="multiposition-1g.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
-          estimators=tuple(ESTIMATORS), extras={"information": position_information})
+          estimators=tuple(ESTIMATORS), extras={"information": position_information},
+          montecarlo=MultipositionMonteCarlo())

@@ -1,5 +1,10 @@
 """``platcal simulate | identify | observability`` for ``rig: multiposition``.
 
+``platcal simulate --seed N`` writes replicate N (default 0) of the study's Monte Carlo cell of
+that scheme at the config's ``noise.sigma_a_ug``: the same ``SeedSequence(seed, spawn_key=
+(stable_key(scheme), round(1000 sigma_a), N))`` as the generic runner's (docs/multiposition-1g.md
+§16), so a record can be identified alone and compared with the study's replicate.
+
 Every option and input is checked (InputError naming the field, exit status 2) before any
 work starts or any file is written; outputs are written atomically.
 """
@@ -17,8 +22,9 @@ from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
 from .estimators import estimate, variant_choice
-from .filter import nees, simulate
+from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
+from .observability import evaluate
 from .record import read_record, to_frame, write_record
 
 
@@ -36,14 +42,16 @@ def cmd_simulate(cfg, args) -> int:
     scheme = cfg.scheme(args.scheme)
     if args.seed is not None and args.seed < 0:
         raise InputError("--seed", "must be a whole number >= 0")
-    seed = cfg.seed if args.seed is None else int(args.seed)
+    replicate = 0 if args.seed is None else int(args.seed)
     check_writable(args.out, "--out")
     t0 = time.perf_counter()
-    t, phi, z = simulate(cfg, scheme, [seed], noise_free=bool(args.noise_free))
+    # --seed N is replicate N of the study's cell (this scheme, noise.sigma_a_ug): the same SeedSequence
+    t, phi, z = simulate(cfg, scheme, replicate_seeds(cfg, scheme.name, [replicate]), noise_free=bool(args.noise_free))
     write_record(to_frame(scheme, t, phi[0], z[0]), args.out)
+    what = "noise-free" if args.noise_free else (f"replicate {replicate} of the Monte Carlo cell {scheme.name}, "
+                                                 f"sigma_a {cfg.sigma_a_ug:g} ug (root seed {cfg.seed})")
     print(f"platcal simulate: multiposition scheme {scheme.name!r}, {scheme.n_positions} positions x "
-          f"{scheme.dwell_s:g} s, {'noise-free' if args.noise_free else f'seed {seed}'} -> {args.out} "
-          f"({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
+          f"{scheme.dwell_s:g} s, {what} -> {args.out} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
     return 0
 
 
@@ -118,8 +126,6 @@ def cmd_identify(cfg, args) -> int:
 
 
 def cmd_observability(cfg, args) -> int:
-    from .observability import evaluate
-
     _refuse(args, ("arw", "rate", "doo", "replicates"))
     scheme = cfg.scheme(args.scheme)
     check_writable(args.out, "--out", folder=True)

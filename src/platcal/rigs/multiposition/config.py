@@ -8,7 +8,7 @@ mapping (InputError naming the field) and returns a :class:`Config`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -90,7 +90,6 @@ class Config:
         return choice_from_filter({**self.raw["filter"], "estimator": self.estimator, "passes": self.passes})
 
     def with_noise(self, **kw) -> "Config":
-        from dataclasses import replace
         return replace(self, **kw)
 
 
@@ -114,14 +113,22 @@ def make_scheme(name: str, positions, dwell_s: float, beta_max_deg: float, where
                   dwell_s=float(dwell_s))
 
 
-def load_config(raw) -> Config:
-    """Validate a raw config mapping (every default filled) into a :class:`Config`."""
-    cfg = validate(raw, load_schema("platcal.rigs.multiposition", "data/config.schema.yaml"))
+def scheme_table(cfg: dict) -> dict[str, Scheme]:
+    """The schemes of a validated config mapping: the built-in §11 schemes inside the gimbal
+    range, then the config's ``schemes:`` (which replace built-ins of the same name)."""
     bmax = float(cfg["gimbal"]["beta_max_deg"])
     schemes = {n: make_scheme(n, p, 60.0, bmax, where="(built-in scheme)") for n, p in NAMED_POSITIONS.items()
                if all(abs(q[1]) <= bmax for q in p)}
     for n, s in cfg["schemes"].items():
         schemes[n] = make_scheme(n, s["positions"], s["dwell_s"], bmax)
+    return schemes
+
+
+def load_config(raw) -> Config:
+    """Validate a raw config mapping (every default filled) into a :class:`Config`."""
+    cfg = validate(raw, load_schema("platcal.rigs.multiposition", "data/config.schema.yaml"))
+    bmax = float(cfg["gimbal"]["beta_max_deg"])
+    schemes = scheme_table(cfg)
     names = set(coef_names(2))
     for k in cfg["truth"]:
         if k not in names:

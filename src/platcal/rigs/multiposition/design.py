@@ -17,6 +17,13 @@ Reproducible: pymoo's seed is drawn from ``SeedSequence(design.seed or the confi
 from __future__ import annotations
 
 import numpy as np
+from pymoo.algorithms.soo.nonconvex.ga import GA
+from pymoo.core.problem import Problem
+from pymoo.operators.crossover.sbx import SBX
+from pymoo.operators.mutation.pm import PM
+from pymoo.operators.repair.rounding import RoundingRepair
+from pymoo.operators.sampling.rnd import IntegerRandomSampling
+from pymoo.optimize import minimize
 
 from ...scheme import Scheme
 from .filter import position_information, scheme_covariance_from_info
@@ -42,14 +49,6 @@ def a_criterion(cfg, info_sum: np.ndarray) -> np.ndarray:
 
 def run_design(cfg, n_positions: int, log=None) -> dict:
     """GA over ``n_positions`` grid positions; returns the best scheme and its history."""
-    from pymoo.algorithms.soo.nonconvex.ga import GA
-    from pymoo.core.problem import Problem
-    from pymoo.operators.crossover.sbx import SBX
-    from pymoo.operators.mutation.pm import PM
-    from pymoo.operators.repair.rounding import RoundingRepair
-    from pymoo.operators.sampling.rnd import IntegerRandomSampling
-    from pymoo.optimize import minimize
-
     d = cfg.raw["design"]
     cand = grid(cfg)
     info = position_information(cfg, cand, d["dwell_s"], step_s=d["info_step_s"])

@@ -94,8 +94,13 @@ def choice_from_filter(filter_section: dict) -> FilterChoice:
 def variant_choice(cfg, name: str, field: str = "--estimator") -> FilterChoice:
     """A study variant (a key of ``study.estimators``: overrides of ``filter``) or a registered
     estimator name (the config's ``filter`` with ``estimator`` replaced)."""
-    variants = cfg.raw["study"]["estimators"]
-    f = dict(cfg.raw["filter"])
+    return raw_variant_choice(cfg.raw, name, field)
+
+
+def raw_variant_choice(raw: dict, name: str, field: str = "--estimator") -> FilterChoice:
+    """:func:`variant_choice` of a validated config mapping."""
+    variants = raw["study"]["estimators"]
+    f = dict(raw["filter"])
     if name in variants:
         v = dict(variants[name])
         for k, val in v.items():

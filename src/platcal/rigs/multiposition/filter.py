@@ -2,9 +2,16 @@
 
 **Simulator** (§12): per position phi(0) ~ N(0, sigma_set^2) per angle; RK4 of §4 at ts
 (``n_sub`` substeps) with the gyro white rate held constant over each sample step
-(N(0, ARW^2/ts)); ``z = h(x) + v`` at t = 0, ts, ..., dwell. Replicate r draws from
-``numpy.random.default_rng(1000 + seed_r)`` (§14): all setting errors, then all ARW, then all
-sensor noise, so a replicate's numbers do not depend on the batch it runs in.
+(N(0, ARW^2/ts)); ``z = h(x) + v`` at t = 0, ts, ..., dwell.
+
+**Seeds** (docs/multiposition-1g.md §14, §16): each replicate draws from its own
+``numpy.random.SeedSequence``, in §14's order of use: all setting errors, then all ARW, then all
+sensor noise, from one ``default_rng`` of that sequence. Replicate r of scheme S at
+accelerometer noise sigma_a is ``SeedSequence(seed, spawn_key=(stable_key(S), round(1000 sigma_a),
+r))`` (:func:`replicate_seeds`, the generic runner's
+:func:`platcal.study.montecarlo.replicate_seed`; ``seed`` is the config's root ``seed``), so a
+replicate's numbers do not depend on the batch it runs in, the thread count or the job order,
+and ``platcal simulate --seed r`` draws replicate r of the study's cell of that scheme and noise.
 
 **EKF** (§9): state propagated by RK4 of §4 over each sample interval, ``Phi = I + F dt +
 F^2 dt^2/2`` with F analytic (:func:`model.rate_k`; the spec allows central differences for the
@@ -30,9 +37,11 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from numba import njit
 
-from ...model.frames import ARCSEC, DEG
+from ...errors import InputError
 from ...estimation.iterated import gauss_newton_point, make_iterated_scratch
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse
+from ...model.frames import ARCSEC, DEG
+from ...study.montecarlo import replicate_seed
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
 
 
@@ -85,14 +94,39 @@ def _threaded(fn, n: int, threads: int | None, *args) -> None:
         list(pool.map(lambda i: fn(int(bounds[i]), int(bounds[i + 1]), *args), range(threads)))
 
 
-def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=None, threads: int | None = None):
-    """Simulate replicates of ``scheme`` (§12). ``seeds``: list of ints (rng 1000 + seed).
+def replicate_seeds(cfg, scheme_name: str, replicates) -> list[np.random.SeedSequence]:
+    """The SeedSequences of replicates ``replicates`` (ints >= 0) of the Monte Carlo cell of
+    scheme ``scheme_name`` at the config's accelerometer noise ``cfg.sigma_a_ug``, under the
+    config's root ``seed`` (:func:`platcal.study.montecarlo.replicate_seed`)."""
+    return [replicate_seed(cfg.seed, scheme_name, cfg.sigma_a_ug, int(r)) for r in replicates]
 
+
+def draw_noise(cfg, seeds, K: int, ns: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Random inputs of each replicate (§12, §14 order of use): setting errors phi(0) (R, K, 3)
+    rad, ARW rates (R, K, ns - 1, 3) rad/s held over each sample step, sensor noise (R, K, ns, 6)
+    ug / arcsec. Replicate r draws only from ``default_rng(seeds[r])``."""
+    R = len(seeds)
+    sig = np.array([cfg.sigma_a_ug] * 3 + [cfg.sigma_an_arcsec] * 3)
+    init = np.empty((R, K, 3))
+    w = np.empty((R, K, ns - 1, 3))
+    v = np.empty((R, K, ns, 6))
+    for r, ss in enumerate(seeds):
+        rng = np.random.default_rng(ss)
+        init[r] = rng.standard_normal((K, 3)) * cfg.sigma_set_rad
+        w[r] = rng.standard_normal((K, ns - 1, 3)) * (cfg.arw_rad / math.sqrt(cfg.ts))
+        v[r] = rng.standard_normal((K, ns, 6)) * sig
+    return init, w, v
+
+
+def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=None, threads: int | None = None):
+    """Simulate replicates of ``scheme`` (§12), one per entry of ``seeds``.
+
+    ``seeds``: ``numpy.random.SeedSequence`` objects (the generic Monte Carlo runner's), or
+    replicate numbers (ints >= 0): r stands for replicate r of the study's cell of this scheme
+    at the config's ``sigma_a_ug`` (:func:`replicate_seeds`). Ignored when ``noise_free``.
     Returns ``(t (n,), phi (R, K, n, 3) rad, z (R, K, n, 6) ug / arcsec)``; z includes noise.
     Raises InputError if beta leaves the gimbal range (+ margin) during a dwell (§3).
     """
-    from ...errors import InputError
-
     ts = cfg.ts
     ns = int(round(scheme.dwell_s / ts)) + 1
     t = np.arange(ns) * ts
@@ -104,16 +138,13 @@ def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=N
     R = len(seeds)
     phi = np.empty((R, K, ns, 3))
     z = np.empty((R, K, ns, 6))
-    sig = np.array([cfg.sigma_a_ug] * 3 + [cfg.sigma_an_arcsec] * 3)
-    init = np.zeros((R, K, 3))
-    w = np.zeros((R, K, ns - 1, 3))
-    v = np.zeros((R, K, ns, 6))
-    if not noise_free:
-        for r, sd in enumerate(seeds):
-            rng = np.random.default_rng(1000 + int(sd))
-            init[r] = rng.standard_normal((K, 3)) * cfg.sigma_set_rad
-            w[r] = rng.standard_normal((K, ns - 1, 3)) * (cfg.arw_rad / math.sqrt(ts))
-            v[r] = rng.standard_normal((K, ns, 6)) * sig
+    if noise_free:
+        init, w, v = np.zeros((R, K, 3)), np.zeros((R, K, ns - 1, 3)), np.zeros((R, K, ns, 6))
+    else:
+        if any(not isinstance(s, np.random.SeedSequence) for s in seeds):
+            seeds = [s if isinstance(s, np.random.SeedSequence) else replicate_seeds(cfg, scheme.name, [s])[0]
+                     for s in seeds]
+        init, w, v = draw_noise(cfg, seeds, K, ns)
     _threaded(_simulate_range, R, threads, phi0s, coef, lay, wn, wu, ts, cfg.n_sub, init, w, phi, z)
     z += v
     beta = np.abs(phi0s[None, :, None, 1] + phi[..., 1]) / DEG

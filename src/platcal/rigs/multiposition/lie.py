@@ -24,6 +24,7 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+import sympy as sp
 
 from ...model.frames import ARCSEC, DEG, DEG_PER_HOUR
 from ...model.instruments import GYRO_AXES
@@ -38,8 +39,6 @@ _GYRO_REG = {"DF": lambda I, O, S: 1, "DI": lambda I, O, S: I, "DS": lambda I, O
 def symbolic_model(ext: int = 0):
     """``(x, p, f, h)``: state symbols, parameters (alpha0, beta0, gamma0, Omega_N, Omega_U),
     the phi rows of the drift field (3, rad/s) and the output (6: ug, arcsec), §4-7."""
-    import sympy as sp
-
     names = state_names(ext)
     x = sp.symbols(" ".join(n.replace("theta_", "th_") for n in names), real=True)
     a0, b0, g0, wn, wu = sp.symbols("alpha0 beta0 gamma0 Omega_N Omega_U", real=True)
@@ -76,8 +75,6 @@ def symbolic_model(ext: int = 0):
 
 
 def _build_source(ext: int, order: int) -> str:
-    import sympy as sp
-
     x, p, f, h = symbolic_model(ext)
     rows = [sp.Matrix(h)]
     L = sp.Matrix(h)

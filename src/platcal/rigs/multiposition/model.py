@@ -27,7 +27,8 @@ import numpy as np
 from numba import njit
 
 from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into
-from ...model.instruments import GYRO_AXES
+from ...model.instruments import GYRO_AXES, INDEX
+from ..centrifuge.catalogue import load_catalogue
 
 AXES = ("x", "y", "z")
 BASE_GYRO = ("DF", "DI", "DS", "DO")
@@ -117,9 +118,6 @@ def layout_index(ext: int) -> np.ndarray:
 
 def truth_vector(ext: int = 0, overrides: dict | None = None) -> np.ndarray:
     """True coefficients (§10; §13 extension from CM Table 2, DOO = 0), then ``overrides``."""
-    from ...model.instruments import INDEX
-    from ..centrifuge.catalogue import load_catalogue
-
     cat = load_catalogue()
     vals = {}
     for t, v in BASE_TRUTH.items():

@@ -9,6 +9,10 @@ import pandas as pd
 import pytest
 
 from platcal.cli import main
+from platcal.rigs.centrifuge.config import load_config
+from platcal.rigs.centrifuge.record import sim_to_frame
+from platcal.rigs.centrifuge.simulate import simulate
+from platcal.study.montecarlo import replicate_seed
 
 SMALL = """
 site: {latitude_deg: 28.2}
@@ -219,3 +223,25 @@ def test_bad_data_exits_2_naming_the_field(case, small, tmp_path):
     assert r.returncode == 2, r.stderr
     assert DATA_CASES[case] in r.stderr
     assert not out.exists()
+
+
+def test_simulate_seed_is_replicate_of_the_study_cell(tmp_path, small):
+    """``platcal simulate --seed 3`` writes replicate 3 of the Monte Carlo cell of that scheme at
+    the config's sigma_a (the runner's SeedSequence), so a run of the study can be written out;
+    without --seed, replicate 0."""
+    cfg, rec = small
+    study = load_config(cfg)
+    scheme = study.schemes["short"]
+    params = study.centrifuge.scheme_params(scheme)
+    for r, path in ((3, rec), (0, tmp_path / "r0.csv")):
+        if r == 0:
+            assert main(["simulate", "--config", str(cfg), "--scheme", "short", "--out", str(path)]) == 0
+        sim = simulate(study.truth, scheme, params, study.noise,
+                       [replicate_seed(study.seed, "short", study.noise.sigma_a_ug, r)], sample_s=study.sample_s)
+        want = sim_to_frame(sim, scheme)
+        got = pd.read_csv(path)
+        assert list(got.columns) == list(want.columns)
+        np.testing.assert_array_equal(got.to_numpy(float), want.to_numpy(float))
+    other = simulate(study.truth, scheme, params, study.noise,
+                     [replicate_seed(study.seed, "short", study.noise.sigma_a_ug, 4)], sample_s=study.sample_s)
+    assert not np.allclose(pd.read_csv(rec)[["Ax"]].to_numpy().ravel(), sim_to_frame(other, scheme)["Ax"].to_numpy())

@@ -37,7 +37,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("simulate", help="simulate a test of the config's rig and write its test record")
     s.add_argument("--config", required=True, help=CONFIG_HELP)
-    s.add_argument("--seed", type=int, default=None, help="seed of this run (default: the config's seed)")
+    s.add_argument("--seed", type=int, default=None,
+                   help="which run: the centrifuge and multiposition write replicate N of the study's Monte Carlo "
+                        "cell for this scheme and the config's noise (default 0); the sled and the low-precision "
+                        "centrifuge write seed N of their studies (default: the config's seed)")
     s.add_argument("--noise-free", action="store_true", help="no sensor noise and no setting error")
     s.add_argument("--out", required=True, help="test record to write (.csv or .parquet)")
 

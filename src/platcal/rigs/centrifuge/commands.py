@@ -12,11 +12,10 @@ import copy
 import sys
 import time
 
-import numpy as np
-
 from ...errors import InputError
 from ...io import check_writable
-from ...study.montecarlo import cell_job
+from ...scheme import resolve_scheme
+from ...study.montecarlo import cell_job, replicate_seed
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
@@ -25,7 +24,6 @@ from .identify import (consistency_warning, identify_input, record_input, run_pr
 from .observability import write_observability
 from .record import read_record, sim_to_frame, write_record
 from .report import report_from_results
-from ...scheme import resolve_scheme
 from .simulate import simulate
 
 UNUSED = {"simulate": ("platform", "run"), "identify": ("method",)}
@@ -51,13 +49,16 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
     if args.seed is not None and args.seed < 0:
         raise InputError("--seed", "must be a whole number >= 0")
     check_writable(args.out, "--out")
-    seeds = None if args.noise_free else [np.random.SeedSequence(study.seed if args.seed is None else args.seed)]
+    replicate = 0 if args.seed is None else int(args.seed)
+    # replicate N of the Monte Carlo cell (this scheme, the config's sigma_a): a run of the study
+    # can be written out and identified on its own
+    seeds = None if args.noise_free else [replicate_seed(study.seed, scheme.name, study.noise.sigma_a_ug, replicate)]
     t0 = time.perf_counter()
     sim = simulate(study.truth, scheme, study.centrifuge.scheme_params(scheme), study.noise, seeds,
                    sample_s=study.sample_s)
     write_record(sim_to_frame(sim, scheme), args.out)
     print(f"platcal simulate: scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s, "
-          f"{'noise-free' if seeds is None else 'seed ' + str(args.seed if args.seed is not None else study.seed)}"
+          f"{'noise-free' if seeds is None else f'replicate {replicate} of the cell (seed {study.seed})'}"
           f" -> {args.out} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
     return 0
 

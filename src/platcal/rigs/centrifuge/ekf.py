@@ -39,7 +39,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from ...estimation.kalman import cholesky_inverse, joseph_update_sparse, propagate_sparse
+from ...estimation.kalman import cholesky_inverse, innovation_covariance, joseph_update_sparse, propagate_sparse
 from ...model.attitude import (GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc,
                                rk4_jac_sc)
 from ...model.frames import ARCSEC, DEG
@@ -382,26 +382,10 @@ def _gain_step(P, hcols, hnnz, hval, innov, r_var, U, S, Sinv, nu, w, x_pred, x_
     """``x_out = x_pred + K innov`` with ``K = P H^T (H P H^T + R)^-1`` for the sparse H of
     :func:`platcal.estimation.kalman.joseph_update_sparse`, P untouched (an inner iteration of
     the iterated EKF). Returns False if S is not positive definite."""
-    n = P.shape[0]
-    for r in range(3):
-        ur = U[r]
-        for j in range(n):
-            ur[j] = 0.0
-        for k in range(hnnz[r]):
-            c = hval[r, k]
-            prow = P[hcols[r, k]]
-            for j in range(n):
-                ur[j] += c * prow[j]
-    for r in range(3):
-        for c in range(r + 1):
-            v = 0.0
-            for k in range(hnnz[c]):
-                v += U[r, hcols[c, k]] * hval[c, k]
-            S[r, c] = v
-            S[c, r] = v
-        S[r, r] += r_var[r]
+    innovation_covariance(P, hcols, hnnz, hval, r_var, U, S)
     if not cholesky_inverse(S, Sinv, nu, innov):
         return False
+    n = P.shape[0]
     for r in range(3):
         w[r] = Sinv[r, 0] * innov[0] + Sinv[r, 1] * innov[1] + Sinv[r, 2] * innov[2]
     for j in range(n):

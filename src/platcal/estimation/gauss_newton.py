@@ -147,14 +147,10 @@ def solve_map(evaluate: Evaluate, theta0: np.ndarray, prior_mean: np.ndarray, pr
             theta[b] = pending[b]
             cost[b], data_cost[b] = new_cost, float(c[i])
             A_cur[b], b_cur[b] = A, bb
-            try:
-                cf = cho_factor(A, lower=True)
-            except np.linalg.LinAlgError:
+            solved = _newton_solve(A, bb, sig[b])
+            if solved is None:
                 continue
-            du = cho_solve(cf, bb)
-            dec[b] = float(np.sqrt(max(du @ A @ du, 0.0)))
-            Ainv = cho_solve(cf, np.eye(n))
-            cov[b] = 0.5 * (Ainv + Ainv.T) * (sig[b][:, None] * sig[b][None, :])
+            cf, _, dec[b], cov[b] = solved
             if dec[b] < tol:
                 converged[b] = True
                 continue
@@ -165,6 +161,19 @@ def solve_map(evaluate: Evaluate, theta0: np.ndarray, prior_mean: np.ndarray, pr
         active = np.array(still, dtype=np.int64)
     return GNResult(theta=theta, cov=cov, steps=steps, evaluations=evals, converged=converged, cost=cost,
                     data_cost=data_cost, decrement=dec)
+
+
+def _newton_solve(A, b, sigma):
+    """Newton step of the normalised normal equations ``A du = b``: ``(cho_factor(A), du, Newton
+    decrement sqrt(du^T A du), covariance A^-1 in the states' units (symmetrised))``, or None when
+    A is not positive definite."""
+    try:
+        cf = cho_factor(A, lower=True)
+    except np.linalg.LinAlgError:
+        return None
+    du = cho_solve(cf, b)
+    Ainv = cho_solve(cf, np.eye(A.shape[0]))
+    return cf, du, float(np.sqrt(max(du @ A @ du, 0.0))), 0.5 * (Ainv + Ainv.T) * (sigma[:, None] * sigma[None, :])
 
 
 def _step(A, b, theta, sigma, lam, damping, cf=None):
@@ -198,14 +207,10 @@ def one_step(N: np.ndarray, g: np.ndarray, c: np.ndarray, theta: np.ndarray, pri
     for b in range(B):
         A, bb, u = _normalised(N[b], g[b], theta[b], mu[b], sig[b])
         cost[b] = float(c[b] + u @ u)
-        try:
-            cf = cho_factor(A, lower=True)
-        except np.linalg.LinAlgError:
+        solved = _newton_solve(A, bb, sig[b])
+        if solved is None:
             continue
-        du = cho_solve(cf, bb)
-        dec[b] = float(np.sqrt(max(du @ A @ du, 0.0)))
-        Ainv = cho_solve(cf, np.eye(n))
-        cov[b] = 0.5 * (Ainv + Ainv.T) * (sig[b][:, None] * sig[b][None, :])
+        _, du, dec[b], cov[b] = solved
         out[b] = theta[b] + sig[b] * du
         ok[b] = True
     return GNResult(theta=out, cov=cov, steps=ok.astype(np.int64), evaluations=np.ones(B, dtype=np.int64),

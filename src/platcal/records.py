@@ -114,7 +114,7 @@ def read_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     if extra:
         raise InputError(f"{field} column {extra[0]}", f"unexpected column; allowed: {list(required + optional)}")
     if len(df) < min_rows:
-        raise InputError(field, f"the record has {len(df)} rows; {what} needs at least {min_rows}")
+        raise InputError(field, f"the record has {len(df) or 'no'} rows; {what} needs at least {min_rows}")
     for c in cols:
         if c in text:
             continue

@@ -16,9 +16,9 @@ import pandas as pd
 
 from ...errors import InputError
 from ...io import atomic_to_csv, atomic_to_parquet
-from ...records import (PARQUET_MAGIC, TIME_TOL, UNIT_FACTOR, check_gap, check_increasing,  # noqa: F401
-                        check_time_unit, grid_origin, nearest_samples, read_frame)
-from ...records import num as _num, shown as _shown  # noqa: F401
+from ...records import (UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
+                        nearest_samples, read_table)
+from ...records import num as _num
 from ...model.frames import DEG
 from ...scheme import Scheme
 
@@ -73,32 +73,11 @@ def read_record(path: str | os.PathLike) -> pd.DataFrame:
     Raises InputError naming the column (and row) on missing or extra columns, non-numeric,
     NaN or infinite values.
     """
-    df = read_frame(path, "--data", "a test record")
-    cols = list(df.columns)
-    missing = [c for c in LOG_COLUMNS if c not in cols]
-    if missing:
-        hint = ""
-        if len(cols) == 1 and any(sep in str(cols[0]) for sep in ";\t|"):
-            hint = f"; the header {str(cols[0])[:60]!r} is not comma-separated: a CSV record uses ','"
-        raise InputError(f"--data column {missing[0]}", f"missing; a test record has columns {list(LOG_COLUMNS)} "
-                         f"(and optionally {list(TRUTH_COLUMNS)}){hint}")
-    extra = [c for c in cols if c not in LOG_COLUMNS + TRUTH_COLUMNS]
-    if extra:
-        raise InputError(f"--data column {extra[0]}", f"unexpected column; allowed: {list(LOG_COLUMNS + TRUTH_COLUMNS)}")
-    present_truth = [c for c in TRUTH_COLUMNS if c in cols]
+    df = read_table(path, LOG_COLUMNS, TRUTH_COLUMNS)
+    present_truth = [c for c in TRUTH_COLUMNS if c in df.columns]
     if present_truth and len(present_truth) != 3:
-        raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in cols][0]}",
+        raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in df.columns][0]}",
                          "the true angles come as all three of alpha, beta, gamma or not at all")
-    if len(df) == 0:
-        raise InputError("--data", "the record has no rows")
-    for c in cols:
-        values = pd.to_numeric(df[c], errors="coerce")
-        bad = ~np.isfinite(values.to_numpy(float))
-        if bad.any():
-            row = int(np.argmax(bad))
-            raise InputError(f"--data column {c}, row {row + 2}",
-                             f"value {_shown(df[c].iloc[row])} is not a finite number (NaN, infinite or text)")
-        df[c] = values
     return df
 
 

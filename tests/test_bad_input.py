@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 
 from platcal.cli import main
+from file_snapshot import snapshot
 
 SCHEME = [[45, 0, 167], [350, 0, 325], [209, 0, 182]]
 BASE = """
@@ -52,18 +53,6 @@ def with_section(text: str) -> str:
         if not skip:
             out.append(line)
     return "\n".join(out) + "\n" + text + "\n"
-
-
-def snapshot(folder) -> dict:
-    """Every file and folder under ``folder`` with its bytes (None for folders)."""
-    out = {}
-    for root, dirs, files in os.walk(folder):
-        for d in dirs:
-            out[os.path.relpath(os.path.join(root, d), folder)] = None
-        for f in files:
-            p = os.path.join(root, f)
-            out[os.path.relpath(p, folder)] = open(p, "rb").read()
-    return out
 
 
 # ---- configs: (config text, command, expected field) --------------------------------------------

@@ -8,13 +8,13 @@ spoiled per case; a case that is not refused before the work starts shows up as 
 assertion on the exit status or on the folder, not as a pass.
 """
 
-import os
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from platcal.cli import main
+from file_snapshot import snapshot
 
 G = 9.80665
 
@@ -47,18 +47,6 @@ def records(tmp_path_factory):
     assert main(["simulate", "--config", str(cfg), "--platform", "P1", "--run", "traditional", "--seed", "1",
                  "--out", str(rec)]) == 0
     out["lowprec_traditional"] = pd.read_csv(rec)
-    return out
-
-
-def snapshot(folder) -> dict:
-    """Every file and folder under ``folder`` with its bytes (None for folders)."""
-    out = {}
-    for root, dirs, files in os.walk(folder):
-        for d in dirs:
-            out[os.path.relpath(os.path.join(root, d), folder)] = None
-        for f in files:
-            p = os.path.join(root, f)
-            out[os.path.relpath(p, folder)] = open(p, "rb").read()
     return out
 
 
@@ -157,21 +145,28 @@ RECORDS = {
 }
 
 
-@pytest.mark.parametrize("case", sorted(RECORDS))
-def test_bad_record(case, records, tmp_path, capsys):
-    key, spoil, extra, field = RECORDS[case]
-    rig = "lowprec_centrifuge" if key == "lowprec_traditional" else key
-    cfg = tmp_path / "c.yaml"
-    cfg.write_text(CONFIGS[rig])
+def _identify_refused(tmp_path, capsys, cfg, record, rig, opts, field) -> None:
+    """``platcal identify`` on ``record`` (written as CSV) with the rig's options (plus ``opts``;
+    ``opts`` alone when they name the scheme) exits 2 naming ``field``, with no traceback and
+    nothing written."""
     data = tmp_path / "rec.csv"
-    spoil(records[key].copy()).to_csv(data, index=False)
-    opts = extra if "--scheme" in extra else IDENTIFY[rig] + extra
+    record.to_csv(data, index=False)
+    opts = opts if "--scheme" in opts else IDENTIFY[rig] + opts
     before = snapshot(tmp_path)
     assert main(["identify", "--config", str(cfg), "--data", str(data), *opts, "--out", str(tmp_path / "id")]) == 2
     err = capsys.readouterr().err
     assert f"error: {field}" in err, err
     assert "np." not in err and "Traceback" not in err
     assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("case", sorted(RECORDS))
+def test_bad_record(case, records, tmp_path, capsys):
+    key, spoil, extra, field = RECORDS[case]
+    rig = "lowprec_centrifuge" if key == "lowprec_traditional" else key
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(CONFIGS[rig])
+    _identify_refused(tmp_path, capsys, cfg, spoil(records[key].copy()), rig, extra, field)
 
 
 # ---- record files that are not UTF-8 CSV / Parquet (one rig each, by how it is spoilt) ------------
@@ -260,15 +255,7 @@ def test_bad_config_or_option(case, records, tmp_path, capsys):
     rig, extra, opts, field = CASES[case]
     cfg = tmp_path / "c.yaml"
     cfg.write_text(_config(rig, extra))
-    data = tmp_path / "rec.csv"
-    records[rig].to_csv(data, index=False)
-    opts = opts if "--scheme" in opts else IDENTIFY[rig] + opts
-    before = snapshot(tmp_path)
-    assert main(["identify", "--config", str(cfg), "--data", str(data), *opts, "--out", str(tmp_path / "id")]) == 2
-    err = capsys.readouterr().err
-    assert f"error: {field}" in err, err
-    assert "np." not in err and "Traceback" not in err
-    assert snapshot(tmp_path) == before
+    _identify_refused(tmp_path, capsys, cfg, records[rig], rig, opts, field)
 
 
 # ---- output paths: under a file, an existing file as the output folder ---------------------------

@@ -555,7 +555,6 @@ def drive_passes(run_pass, x: np.ndarray, P: np.ndarray, z: list | None, t: list
                     mean_nis=nis / max(int(offs[-1]), 1), failed_updates=n_bad)
 
 
-
 def run_ekf(
     z: list[np.ndarray],
     t: list[np.ndarray],

@@ -19,6 +19,36 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, inline="always")
+def add_row_combinations(coef, P, rows, count, out):
+    """``out[r] += sum_{k < count} coef[r, k] P[rows[k]]`` for every r (``coef`` (d, >= count)).
+
+    Rows of a symmetric P are its columns, so this is ``coef P[:, rows]^T`` as axpys over
+    contiguous rows (vectorisable); with d = 3 (an attitude, a 3-axis output) one pass over each
+    row of P feeds all three.
+    """
+    n = P.shape[0]
+    d = out.shape[0]
+    if d == 3:
+        w0, w1, w2 = out[0], out[1], out[2]
+        for k in range(count):
+            prow = P[rows[k]]
+            c0, c1, c2 = coef[0, k], coef[1, k], coef[2, k]
+            for j in range(n):
+                p = prow[j]
+                w0[j] += c0 * p
+                w1[j] += c1 * p
+                w2[j] += c2 * p
+    else:
+        for k in range(count):
+            prow = P[rows[k]]
+            for r in range(d):
+                c = coef[r, k]
+                wr = out[r]
+                for j in range(n):
+                    wr[j] += c * prow[j]
+
+
 @njit(cache=True)
 def propagate_sparse(P, dyn, cols, phi, q, W, blk):
     """``P <- Phi P Phi^T + Q`` where Phi is the identity except for the rows ``dyn``, and those
@@ -39,27 +69,7 @@ def propagate_sparse(P, dyn, cols, phi, q, W, blk):
     d = dyn.shape[0]
     m = cols.shape[0]
     W[:, :] = 0.0
-    # rows of P are columns of P (symmetric): W[r] = sum_k phi[r, k] P[cols[k]] as axpys,
-    # contiguous and vectorisable; with three dynamic states (attitude) one pass over each row
-    # of P feeds all three
-    if d == 3:
-        w0, w1, w2 = W[0], W[1], W[2]
-        for k in range(m):
-            prow = P[cols[k]]
-            c0, c1, c2 = phi[0, k], phi[1, k], phi[2, k]
-            for j in range(n):
-                p = prow[j]
-                w0[j] += c0 * p
-                w1[j] += c1 * p
-                w2[j] += c2 * p
-    else:
-        for k in range(m):
-            prow = P[cols[k]]
-            for r in range(d):
-                c = phi[r, k]
-                wr = W[r]
-                for j in range(n):
-                    wr[j] += c * prow[j]
+    add_row_combinations(phi, P, cols, m, W)
     # the dyn-dyn block, Phi P Phi^T restricted to dyn, before P's rows are overwritten
     for r in range(d):
         for c in range(r + 1):

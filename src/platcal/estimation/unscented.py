@@ -49,7 +49,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .kalman import _correct, _correct3, cholesky_inverse
+from .kalman import _correct, _correct3, add_row_combinations, cholesky_inverse
 
 
 def ut_spread(n: int, alpha: float, beta: float, kappa: float) -> tuple[float, float]:
@@ -199,26 +199,7 @@ def regression_cross_into(P, idx, R, Dp, Dm, h, Y, C):
         cr = C[r]
         for j in range(n):
             cr[j] = 0.0
-    # rows of P are its columns (symmetric): axpys over contiguous rows; for q = 3 one pass
-    # over each row feeds the three outputs
-    if q == 3:
-        c0, c1, c2 = C[0], C[1], C[2]
-        for k in range(nl):
-            y0, y1, y2 = Y[k, 0], Y[k, 1], Y[k, 2]
-            prow = P[idx[k]]
-            for j in range(n):
-                p = prow[j]
-                c0[j] += y0 * p
-                c1[j] += y1 * p
-                c2[j] += y2 * p
-    else:
-        for k in range(nl):
-            prow = P[idx[k]]
-            for r in range(q):
-                y = Y[k, r]
-                cr = C[r]
-                for j in range(n):
-                    cr[j] += y * prow[j]
+    add_row_combinations(Y.T, P, idx, nl, C)
 
 
 @njit(cache=True)

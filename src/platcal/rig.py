@@ -115,6 +115,8 @@ class ReplicateBatch:
 
     ``quantities``: the n identified quantities, one row each with ``name``, ``group``, ``unit``
     and ``truth`` (as in ``Rig.catalogue()``); ``estimate`` and ``sigma`` (B, n) in their units;
+    ``truth`` (B, n), optional: the truth of each replicate, for a rig that draws its truth per
+    replicate (per seed, per platform); None: every replicate has ``quantities["truth"]``;
     ``nees`` (B,) of the n errors (``nees_dof`` = n), ``mean_nis`` (B,), ``failed_updates``
     (B,) and the number of filter ``passes``; ``extra``: further per-run columns (B,) of the
     rig's, added to the runs table after the standard ones (e.g. linearisations per update).
@@ -129,6 +131,7 @@ class ReplicateBatch:
     failed_updates: np.ndarray
     passes: int
     extra: Mapping[str, np.ndarray] = field(default_factory=dict)
+    truth: np.ndarray | None = None
 
 
 class MonteCarloHooks(Protocol):

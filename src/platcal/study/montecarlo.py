@@ -79,7 +79,7 @@ def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> t
     coef = pd.DataFrame({
         "scheme": case, "noise": float(level), "estimator": estimator,
         "replicate": np.repeat(reps, n), "name": list(q["name"]) * B, "group": list(q["group"]) * B,
-        "unit": list(q["unit"]) * B, "truth": np.tile(q["truth"].to_numpy(float), B),
+        "unit": list(q["unit"]) * B, "truth": batch_truth(batch).ravel(),
         "estimate": np.asarray(batch.estimate).ravel(), "sigma": np.asarray(batch.sigma).ravel(),
     })
     coef["error"] = coef["estimate"] - coef["truth"]
@@ -93,6 +93,15 @@ def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> t
     for name, values in batch.extra.items():  # the rig's own per-run columns, after the standard ones
         runs[name] = np.asarray(values)
     return coef, runs
+
+
+def batch_truth(batch) -> np.ndarray:
+    """(B, n) truth of every replicate: the batch's own per-replicate truth, else the
+    quantities' truth repeated."""
+    B = len(np.asarray(batch.nees))
+    if batch.truth is not None:
+        return np.asarray(batch.truth, float).reshape(B, len(batch.quantities))
+    return np.tile(batch.quantities["truth"].to_numpy(float), (B, 1))
 
 
 def failed_runs(batch) -> np.ndarray:

@@ -10,12 +10,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
-import yaml
 
 from .errors import InputError
-from .io import read_yaml
+from .io import read_config
 from .rig import rig_of
 
 RIG_OPTIONS = {
@@ -91,25 +89,6 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--results", default="results/centrifuge",
                    help="the rig's results folder (default: results/centrifuge)")
     return p
-
-
-def read_config(path) -> dict:
-    """The raw mapping of a config file (InputError naming ``--config`` if it cannot be read)."""
-    try:
-        return read_yaml(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("--config", f"no such file: {path}") from None
-    except IsADirectoryError:
-        raise InputError("--config", f"{path} is a folder; give a YAML config file") from None
-    except UnicodeDecodeError as exc:
-        raise InputError("--config", f"{path} is not UTF-8 text (byte {exc.start} cannot be decoded); "
-                         "a config is a UTF-8 YAML file") from None
-    except (ValueError, yaml.YAMLError) as exc:
-        where = getattr(exc, "problem_mark", None)
-        at = f" at line {where.line + 1}, column {where.column + 1}" if where is not None else ""
-        problem = getattr(exc, "problem", None)
-        raise InputError("--config", f"{path} is not valid YAML{at} ({problem or exc.__class__.__name__}); "
-                         "a config is a UTF-8 YAML file") from None
 
 
 def run(args: argparse.Namespace) -> int:

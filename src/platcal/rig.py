@@ -71,14 +71,13 @@ import copy
 import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 import pandas as pd
 
 from .errors import InputError
-from .io import normalise_numbers, read_yaml
+from .io import normalise_numbers, read_config
 
 DEFAULT_RIG = "centrifuge"
 RIG_MODULES = ("centrifuge", "multiposition", "sled", "lowprec_centrifuge")
@@ -183,10 +182,7 @@ def rig_config(index: dict, name: str) -> dict:
     entry = (index.get("rigs") or {}).get(name) if isinstance(index, dict) else None
     field_ = f"rigs.{name}"
     if isinstance(entry, str):
-        try:
-            raw = read_yaml(Path(entry).read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise InputError(field_, f"cannot read the rig's config {entry!r}: {exc.strerror}") from None
+        raw = read_config(entry, field_)
     elif isinstance(entry, dict):  # inline in the index: Snakemake's YAML 1.1 reader left '1e4' as text
         raw = normalise_numbers(copy.deepcopy(entry))
     else:

@@ -22,6 +22,11 @@ def checked(rig, fn, raw=None):
         raise WorkflowError(f"invalid configuration: {exc.field}: {exc.message} (rigs.{rig})")
 
 
+# ---- every rig's config content, read once through the one config path (a path or an inline
+# mapping in the index give the same mapping); rules take their params from it, never a path
+RAW = {r: checked(r, lambda raw: raw) for r in RIGS}
+
+
 # ---- the rigs with Monte Carlo hooks: their checked configs, noise labels and code hashes
 MC_HOOKS = {r: get_rig(r).montecarlo for r in RIGS if get_rig(r).montecarlo is not None}
 MC_CONFIG = {r: checked(r, h.check) for r, h in MC_HOOKS.items()}

@@ -4,24 +4,16 @@
 # One job per study case (6- vs 7-state, realtime vs post, misalignment 0, paper tuning), one
 # for the rank table, one for the summary (Table-1 analogue, checks, figures, report.md).
 
-from snakemake.exceptions import WorkflowError as _SledWorkflowError
-
-from platcal.errors import InputError as _SledInputError
-from platcal.cli import read_config as _sled_read_config
 from platcal.rigs.sled.config import load_config as _sled_load_config
 from platcal.rigs.sled.study import case_config as _sled_case_config
 from platcal.study.montecarlo import package_code_hash as _sled_code_hash
 
 SLED_TARGETS = []
-_SLED_CFG_PATH = config.get("rigs", {}).get("sled")
-if _SLED_CFG_PATH:
-    try:
-        SLED_RAW = _sled_read_config(_SLED_CFG_PATH)   # UTF-8 YAML, else InputError naming the file
-        _SLED_STUDY = _sled_load_config(SLED_RAW).study
-        for _sled_case in _SLED_STUDY["cases"]:   # every case's config (base + overrides) before any job
-            _sled_case_config(SLED_RAW, _sled_case)
-    except _SledInputError as exc:
-        raise _SledWorkflowError(f"invalid configuration: {_SLED_CFG_PATH}: {exc.field}: {exc.message}")
+if "sled" in RAW:
+    SLED_RAW = RAW["sled"]  # the one config path (common.smk): a file or an inline mapping
+    _SLED_STUDY = checked("sled", _sled_load_config).study
+    for _sled_case in _SLED_STUDY["cases"]:  # every case's config (base + overrides) before any job
+        checked("sled", lambda raw: _sled_case_config(raw, _sled_case))
     SLED_CASES = list(_SLED_STUDY["cases"])
     SLED_CODE = _sled_code_hash("platcal.rigs.sled")
     SLED_TARGETS = [
@@ -39,7 +31,7 @@ if _SLED_CFG_PATH:
             metrics="results/sled/cases/{case}/metrics.csv",
             series="results/sled/cases/{case}/series.csv",
         params:
-            raw=SLED_RAW,
+            raw={k: v for k, v in SLED_RAW.items() if k != "study"},  # a case reads no study key but seeds
             seeds=_SLED_STUDY["seeds"],
             code=SLED_CODE,
         wildcard_constraints:
@@ -58,7 +50,7 @@ if _SLED_CFG_PATH:
             "results/sled/rank_table.md",
             "results/sled/rank_table.html",
         params:
-            raw=SLED_RAW,
+            raw={k: SLED_RAW[k] for k in ("rig", "site", "trajectory") if k in SLED_RAW},  # what the ranks read
             code=SLED_CODE,
         conda:
             "../envs/platcal.yaml"

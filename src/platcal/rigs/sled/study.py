@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ...io import atomic_path, atomic_to_csv, atomic_write_text, read_yaml  # noqa: E402
+from ...io import atomic_path, atomic_to_csv, atomic_write_text  # noqa: E402
 from ...log import eta_line, job_logger  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
 from .config import ARCSEC, SledConfig, load_config  # noqa: E402
@@ -47,10 +47,6 @@ def merge(base: dict, over: dict) -> dict:
     for k, v in over.items():
         out[k] = merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else copy.deepcopy(v)
     return out
-
-
-def read_config(path: str | Path) -> dict:
-    return read_yaml(Path(path).read_text(encoding="utf-8"))
 
 
 def case_config(raw: dict, case: str) -> SledConfig:

@@ -87,6 +87,21 @@ Command = Callable[[object, argparse.Namespace], int]
 
 
 @dataclass(frozen=True)
+class Option:
+    """A command-line option a rig declares for one of its sub-commands: the ``flags`` (e.g.
+    ``("--scheme",)``) and the keyword arguments of :meth:`argparse.ArgumentParser.add_argument`
+    (``help`` says what it is for this rig). ``platcal <command> --config X --help`` lists the
+    options of X's rig; any other option is refused by the parser (exit 2)."""
+
+    flags: tuple[str, ...]
+    kwargs: Mapping[str, object] = field(default_factory=dict)
+
+
+def option(*flags: str, **kwargs) -> Option:
+    return Option(tuple(flags), dict(kwargs))
+
+
+@dataclass(frozen=True)
 class NoiseAxis:
     """The noise level a rig's Monte Carlo sweeps: ``name`` in its config and tables (e.g.
     ``sigma_a_ug``), ``unit`` (e.g. ``ug``) and ``label`` (an axis label with the unit)."""
@@ -173,6 +188,8 @@ class Rig:
     """Optional capabilities by name (e.g. ``information`` for covariance-only analysis)."""
     montecarlo: MonteCarloHooks | None = None
     """The Monte Carlo hooks (optional; see the module docstring)."""
+    options: Mapping[str, tuple[Option, ...]] = field(default_factory=dict)
+    """The rig's own options per sub-command, beyond the common ones of :mod:`platcal.cli`."""
 
 
 def rig_config(index: dict, name: str) -> dict:

@@ -18,18 +18,8 @@ from .record import check_out_path, read_record, record_arrays, record_truth, sa
 from .simulate import simulate
 
 
-def refuse(args, names: tuple[str, ...]) -> None:
-    """InputError for any option of another rig that was given (not None / False / 0)."""
-    for name in names:
-        val = getattr(args, name, None)
-        if val not in (None, False, 0):
-            raise InputError(f"--{name.replace('_', '-')}", "not used by rig sled (its trajectory is the config's); "
-                             "leave it out")
-
-
 def cmd_simulate(cfg: SledConfig, args) -> int:
     """One simulated record (+ ``.truth.json``) of seed ``--seed`` (default: the config's ``seed``)."""
-    refuse(args, ("scheme", "platform", "run"))
     seed = cfg.seed if args.seed is None else args.seed
     if seed < 0:
         raise InputError("--seed", "must be a whole number >= 0")
@@ -46,7 +36,6 @@ def cmd_simulate(cfg: SledConfig, args) -> int:
 
 def cmd_identify(cfg: SledConfig, args) -> int:
     """INS, run and stop filters and X compensation of a record -> estimates.csv, metrics.json."""
-    refuse(args, ("scheme", "estimator", "method"))
     check_writable(args.out, "--out", folder=True)
     traj, df, t = read_record(args.data, cfg)
     truth = None if args.no_truth else record_truth(args.data, df)
@@ -82,7 +71,6 @@ def cmd_identify(cfg: SledConfig, args) -> int:
 
 def cmd_observability(cfg: SledConfig, args) -> int:
     """The rank table of §8/§11 -> OUT/rank_table.{csv,md,html}."""
-    refuse(args, ("scheme", "arw", "rate", "doo", "replicates"))
     check_writable(args.out, "--out", folder=True)
     tab = rank_table(cfg)
     write_table(tab, Path(args.out) / "rank_table", "Sled observability ranks (docs/rocket-sled.md §8)",

@@ -26,6 +26,14 @@ include: "workflow/rules/lowprec_centrifuge.smk"
 include: "workflow/rules/report.smk"
 
 
+RIG_TARGETS = {
+    "centrifuge": CENTRIFUGE_TARGETS,
+    "multiposition": MULTIPOSITION_TARGETS,
+    "sled": SLED_TARGETS,
+    "lowprec_centrifuge": LOWPREC_CENTRIFUGE_TARGETS,
+}
+
+
 rule all:
     default_target: True
     input:
@@ -33,4 +41,5 @@ rule all:
         MULTIPOSITION_TARGETS,
         SLED_TARGETS,
         LOWPREC_CENTRIFUGE_TARGETS,
+        LEDGER,
         INDEX_REPORT,

@@ -1,14 +1,58 @@
-# results/report.md: the index of the study, one section per rig linking its report.
+# The claims ledger (every paper claim computed from the study, platcal.study.claims) and
+# results/report.md, the index of the study: it opens on the ledger of every rig, then one
+# section per rig linking its report.
 
 
 INDEX_REPORT = "results/report.md"
+LEDGER = expand("results/claims.{ext}", ext=["csv", "md", "html"])
+
+
+def claims_config(rig):
+    """The rig's config content the claims read (checked, defaults filled, where the rig checks it)."""
+    return MC_CONFIG.get(rig, RAW.get(rig))
+
+
+rule claims:
+    input:
+        lambda w: RIG_TARGETS[w.ledger_rig],
+    output:
+        expand("results/{{ledger_rig}}/claims.{ext}", ext=["csv", "md", "html"]),
+    wildcard_constraints:
+        ledger_rig="|".join(RIGS) or "(?!)",
+    params:
+        config=lambda w: claims_config(w.ledger_rig),
+        code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/{ledger_rig}/logs/claims.log",
+    script:
+        "../scripts/claims.py"
+
+
+rule ledger:
+    input:
+        expand("results/{rig}/claims.csv", rig=RIGS),
+    output:
+        LEDGER[0],
+        LEDGER[1],
+        report(LEDGER[2], caption="../report/ledger.rst", category="0. Claims ledger"),
+    params:
+        code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/logs/ledger.log",
+    script:
+        "../scripts/ledger.py"
 
 
 rule report_index:
     input:
-        [f"results/{r}/report.md" for r in RIGS],
+        reports=[f"results/{r}/report.md" for r in RIGS],
+        ledger=LEDGER[0],
     output:
-        report(INDEX_REPORT, caption="../report/index.rst", category="Study"),
+        report(INDEX_REPORT, caption="../report/index.rst", category="0. Claims ledger"),
     params:
         rigs=RIGS,
         code=CODE_ALL,

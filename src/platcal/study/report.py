@@ -10,8 +10,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import pandas as pd
+
 from ..io import atomic_write_text
 from ..rig import get_rig
+from .claims import ledger_markdown, ledger_note
 
 
 def _sections(md: Path) -> tuple[str, list[str]]:
@@ -31,12 +34,20 @@ def _anchor(heading: str) -> str:
     return keep.replace(" ", "-")
 
 
-def write_index(rigs: list[str], reports: list, out_path) -> None:
-    """``results/report.md``: for each rig, its title, spec and a link to each section of its report."""
+def write_index(rigs: list[str], reports: list, out_path, ledger=None) -> None:
+    """``results/report.md``: the claims ledger (``ledger``, the CSV of every rig's claims) first,
+    then for each rig its title, spec and a link to each section of its report."""
     out = Path(out_path)
     lines = ["# platcal: identification studies, one section per test rig", "",
              "Written by the Snakemake workflow (`snakemake --cores 2`). Each rig's report holds its "
              "tables inline and links its figures; every number comes from this run's result files.", ""]
+    if ledger is not None:
+        rows = pd.read_csv(ledger)
+        lines += ["## The claims ledger", "", ledger_note(rows), ""]
+        for name in rigs:
+            part = rows[rows["rig"] == name]
+            if len(part):
+                lines += [f"### {name}", "", ledger_markdown(part)]
     for name, md in zip(rigs, reports):
         rig = get_rig(name)
         rel = os.path.relpath(md, out.parent)

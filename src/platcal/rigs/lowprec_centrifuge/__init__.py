@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ...rig import Rig
+from . import claims
 from .commands import OPTIONS, identify, simulate
 from .config import COEFFS, load_config
 
@@ -27,4 +28,4 @@ RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
           spec="lowprec-centrifuge.md", load_config=load_config,
           commands={"simulate": simulate, "identify": identify}, catalogue=catalogue,
-          estimators=("proposed", "traditional"), options=OPTIONS)
+          extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS)

@@ -11,6 +11,7 @@ estimate it and the along-track (X) error is compensated open loop. Modules: :mo
 import pandas as pd
 
 from ...rig import Rig
+from . import claims
 from .commands import COMMANDS
 from .config import load_config
 
@@ -24,4 +25,4 @@ def catalogue() -> pd.DataFrame:
 
 RIG = Rig(name="sled", title="rocket-sled one-dimensional motion constraint, 6/7-state run + ZUPT filters",
           spec="rocket-sled.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
-          estimators=("run6", "run7"))
+          extras={"claims": claims}, estimators=("run6", "run7"))

@@ -51,9 +51,13 @@ def test_tiny_study_runs_and_reports(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     res = d / "results" / "lowprec_centrifuge"
     rep = (res / "report.md").read_text()
-    for s in ("Which of the paper's claims are reproduced", "not reproduced", "figures/velocity_trace.png",
-              "Table-1 analogue"):
+    for s in ("The paper's claims", "| proposed_effect_velocity |", "figures/velocity_trace.png", "Table-1 analogue"):
         assert s in rep
+    ledger = pd.read_csv(res / "claims.csv")
+    assert set(ledger["verdict"]) <= {"reproduced", "not reproduced", "inconclusive"}
+    row = ledger.set_index("claim").loc["proposed_effect_velocity"]
+    # the verdict follows the numbers: the interval against the criterion (>= 75 %)
+    assert (row["verdict"] == "reproduced") == (row["ci_low"] >= 75)
     for f in ("effect_vs_imprecision", "velocity_trace", "windows_heading"):
         assert (res / "figures" / f"{f}.png").stat().st_size > 10_000
     cross = pd.read_csv(res / "tables" / "cross_validation.csv")

@@ -69,6 +69,8 @@ from __future__ import annotations
 import argparse
 import copy
 import importlib
+import importlib.metadata
+import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -76,12 +78,26 @@ from typing import Protocol
 import numpy as np
 import pandas as pd
 
+from . import rigs as _rigs_package
 from .errors import InputError
 from .io import normalise_numbers, read_config
 
 DEFAULT_RIG = "centrifuge"
-RIG_MODULES = ("centrifuge", "multiposition", "sled", "lowprec_centrifuge")
-"""Rig subpackages under ``platcal.rigs`` (import name = value of ``rig:``)."""
+ENTRY_POINT_GROUP = "platcal.rigs"
+"""Entry-point group of rigs installed by other packages: ``name = "package.module"``, a module
+whose ``RIG`` is a :class:`Rig` (``[project.entry-points."platcal.rigs"]`` in its pyproject)."""
+
+
+def rig_modules() -> dict[str, str]:
+    """Every rig found: the subpackages of ``platcal.rigs`` (a scan, no list to edit) and the
+    entry points of :data:`ENTRY_POINT_GROUP`, name -> module. Found afresh at each call, so a rig
+    installed (or put on the path) after import is seen."""
+    found = {m.name: f"platcal.rigs.{m.name}" for m in pkgutil.iter_modules(_rigs_package.__path__)
+             if m.ispkg and not m.name.startswith("_")}
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        found.setdefault(ep.name, ep.value)
+    return dict(sorted(found.items(), key=lambda kv: (kv[1].startswith("platcal.") is False, kv[0])))
+
 
 Command = Callable[[object, argparse.Namespace], int]
 
@@ -190,6 +206,9 @@ class Rig:
     """The Monte Carlo hooks (optional; see the module docstring)."""
     options: Mapping[str, tuple[Option, ...]] = field(default_factory=dict)
     """The rig's own options per sub-command, beyond the common ones of :mod:`platcal.cli`."""
+    rules: str | None = None
+    """Path of the rig's own Snakemake rules file, when it ships one outside the project's
+    ``workflow/rules/<name>.smk``; a rig with Monte Carlo hooks needs none."""
 
 
 def rig_config(index: dict, name: str) -> dict:
@@ -213,14 +232,16 @@ def rig_config(index: dict, name: str) -> dict:
 
 
 def rig_names() -> tuple[str, ...]:
-    return RIG_MODULES
+    """The names of every rig found (:func:`rig_modules`)."""
+    return tuple(rig_modules())
 
 
 def get_rig(name: str) -> Rig:
     """The registered rig ``name``; InputError (field ``rig``) naming the known rigs otherwise."""
-    if name not in RIG_MODULES:
-        raise InputError("rig", f"unknown rig {name!r}; use one of {list(RIG_MODULES)}")
-    return importlib.import_module(f"platcal.rigs.{name}").RIG
+    modules = rig_modules()
+    if name not in modules:
+        raise InputError("rig", f"unknown rig {name!r}; use one of {list(modules)}")
+    return importlib.import_module(modules[name]).RIG
 
 
 def rig_of(raw) -> Rig:
@@ -229,5 +250,5 @@ def rig_of(raw) -> Rig:
         raise InputError("(top level)", "a configuration is a YAML mapping")
     name = raw.get("rig", DEFAULT_RIG)
     if not isinstance(name, str):
-        raise InputError("rig", f"must be a rig name, one of {list(RIG_MODULES)}")
+        raise InputError("rig", f"must be a rig name, one of {list(rig_names())}")
     return get_rig(name)

@@ -20,6 +20,7 @@ pytestmark = [pytest.mark.slow,
 SNAKEFILE = """\
 configfile: "config/config.yaml"
 
+include: "workflow/rules/common.smk"
 include: "workflow/rules/sled.smk"
 
 rule all:
@@ -44,7 +45,9 @@ def make(tmp_path: Path, sled_yaml: str) -> Path:
     d = tmp_path / "wf"
     (d / "workflow" / "rules").mkdir(parents=True)
     (d / "config").mkdir()
-    shutil.copy(ROOT / "workflow" / "rules" / "sled.smk", d / "workflow" / "rules")
+    for f in ("common.smk", "sled.smk"):  # common.smk: the one config path (RAW, checked)
+        shutil.copy(ROOT / "workflow" / "rules" / f, d / "workflow" / "rules")
+    shutil.copytree(ROOT / "workflow" / "schemas", d / "workflow" / "schemas")
     shutil.copytree(ROOT / "workflow" / "scripts", d / "workflow" / "scripts",
                     ignore=lambda _, names: [n for n in names if not n.startswith("sled_")])
     shutil.copytree(ROOT / "workflow" / "envs", d / "workflow" / "envs")
@@ -84,6 +87,6 @@ def test_sled_study_bad_config_stops_before_any_job(tmp_path):
 
 def test_no_sled_key_no_targets(tmp_path):
     d = make(tmp_path, "rig: sled\n")
-    (d / "config" / "config.yaml").write_text("rigs: {}\n")
+    (d / "config" / "config.yaml").write_text("rigs: {sled: null}\n")
     r = run(d, "--cores", "1", "-n", timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]

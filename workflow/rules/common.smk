@@ -1,6 +1,8 @@
 # The study index, each rig's validated config (field named before any job runs), code hashes,
 # and the input and param functions of the rules (pypsa-eur's config_provider pattern: each
 # rule's params hold exactly the config it depends on).
+import os
+
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
@@ -78,3 +80,12 @@ def mc_cell_params(w):
 
 def mc_threads(w):
     return MC_HOOKS[w.rig].settings(MC_CONFIG[w.rig]).threads
+
+
+def rig_rules(rig):
+    """The rules file of a rig: its own (Rig.rules), the project's workflow/rules/<rig>.smk, or none."""
+    path = get_rig(rig).rules or os.path.join(workflow.basedir, "workflow", "rules", f"{rig}.smk")
+    return path if os.path.exists(path) else None
+
+
+RIG_RULES = {r: rig_rules(r) for r in RIGS}

@@ -104,7 +104,6 @@ rule multiposition_centrifuge_table1:
         "results/multiposition/centrifuge_table1/observability.json",
     params:
         config=lambda w: {k: v for k, v in RAW["centrifuge"].items() if k != "study"},
-        out="results/multiposition/centrifuge_table1",
     conda:
         "../envs/platcal.yaml"
     log:

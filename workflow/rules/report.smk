@@ -7,11 +7,6 @@ INDEX_REPORT = "results/report.md"
 LEDGER = expand("results/claims.{ext}", ext=["csv", "md", "html"])
 
 
-def claims_config(rig):
-    """The rig's config content the claims read (checked, defaults filled, where the rig checks it)."""
-    return MC_CONFIG.get(rig, RAW.get(rig))
-
-
 rule claims:
     input:
         lambda w: RIG_TARGETS[w.ledger_rig],
@@ -20,7 +15,7 @@ rule claims:
     wildcard_constraints:
         ledger_rig="|".join(RIGS) or "(?!)",
     params:
-        config=lambda w: claims_config(w.ledger_rig),
+        config=lambda w: MC_CONFIG.get(w.ledger_rig, RAW.get(w.ledger_rig)),  # checked where the rig checks
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
@@ -62,3 +57,24 @@ rule report_index:
         "results/logs/report_index.log",
     script:
         "../scripts/report_index.py"
+
+
+rule generic_report:
+    """The report of a rig without rules of its own, from its Monte Carlo tidy tables."""
+    input:
+        coef="results/{generic_rig}/montecarlo/coef.parquet",
+        runs="results/{generic_rig}/montecarlo/runs.parquet",
+    output:
+        "results/{generic_rig}/report.md",
+        expand("results/{{generic_rig}}/tables/summary.{ext}", ext=["csv", "md", "html"]),
+        "results/{generic_rig}/figures/nees.png",
+    wildcard_constraints:
+        generic_rig="|".join(r for r in RIGS if not RIG_RULES[r]) or "(?!)",
+    params:
+        code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/{generic_rig}/logs/generic_report.log",
+    script:
+        "../scripts/generic_report.py"

@@ -124,13 +124,14 @@ def test_inline_config_gives_the_same_jobs(study, tmp_path):
 @pytest.mark.parametrize("edit, expected", [
     # the attitude draws: every case's cell, series, collect and summary; not the rank table
     (lambda c: c.update(alignment={"sigma_arcsec": [30, 31, 180]}),
-     {"montecarlo_cell": 2, "sled_series": 2, "collect": 1, "sled_summary": 1, "all": 1}),
+     {"montecarlo_cell": 2, "sled_series": 2, "collect": 1, "sled_summary": 1, "report_index": 1, "all": 1}),
     # the filter's states: the default case only (run7 sets them), and the rank table's filter section
     (lambda c: c.update(filter={"states": 7}),
-     {"montecarlo_cell": 1, "sled_series": 1, "collect": 1, "sled_summary": 1, "sled_observability": 1, "all": 1}),
-    # one more case: its cell and series only, then the aggregates
+     {"montecarlo_cell": 1, "sled_series": 1, "collect": 1, "sled_summary": 1, "sled_observability": 1,
+      "report_index": 1, "all": 1}),
+    # one more case: its cell and series only, then the aggregates (the study index's report too)
     (lambda c: c["study"].update(cases=c["study"]["cases"] + ["post"]),
-     {"montecarlo_cell": 1, "sled_series": 1, "collect": 1, "sled_summary": 1, "all": 1}),
+     {"montecarlo_cell": 1, "sled_series": 1, "collect": 1, "sled_summary": 1, "report_index": 1, "all": 1}),
 ])
 def test_a_changed_value_reruns_exactly_what_depends_on_it(study, edit, expected):
     cfg = tiny_sled()

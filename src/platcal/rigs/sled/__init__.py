@@ -5,8 +5,8 @@ errors measure its attitude error; a 6- (or 7-) state run filter and a ZUPT stop
 estimate it and the along-track (X) error is compensated open loop. Modules: :mod:`.config`
 (schema, §10), :mod:`.trajectory` (§2), :mod:`.sensors` (§3), :mod:`.ins` (§4),
 :mod:`.errmodel` (§5), :mod:`.filters` (§6), :mod:`.identify` (§7-8), :mod:`.observability`
-(§8), :mod:`.record` (§10), :mod:`.commands` (CLI), :mod:`.montecarlo` (the Monte Carlo hooks), :mod:`.study` (the
-study's tables, figures and report).
+(§8), :mod:`.record` (§10), :mod:`.commands` (CLI), :mod:`.montecarlo` (the Monte Carlo hooks,
+§12), :mod:`.study` (the study's tables, figures and report).
 """
 
 import pandas as pd

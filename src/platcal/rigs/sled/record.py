@@ -4,8 +4,8 @@ Columns ``t`` (s), ``fx, fy, fz`` (m/s^2), ``wx, wy, wz`` (rad/s) in the record'
 (the navigation's initial axes, see :mod:`.simulate`); a simulated record adds the
 simulation-only truth columns ``x_true``, ``vx_true`` (error-free run) and ``x_inst``
 (instrument-only run), m and m/s at the row's time. The drawn error parameters go to a side
-file ``<record>.truth.json`` (JSON: seed (the replicate's SeedSequence: entropy, spawn key), phi0, accelerometer and gyro errors in engineering
-units). CSV (``.csv``) or Parquet (``.parquet``) by suffix; both files written atomically, the
+file ``<record>.truth.json`` (JSON: seed, the replicate's SeedSequence as entropy and spawn key;
+phi0, accelerometer and gyro errors in engineering units). CSV (``.csv``) or Parquet (``.parquet``) by suffix; both files written atomically, the
 side file first, so a record never appears without its truth.
 """
 

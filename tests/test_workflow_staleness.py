@@ -90,7 +90,7 @@ EDITS = [
     ("multiposition", r"ROLL4: \{dwell_s: 60", "ROLL4: {dwell_s: 50", r"observability/ROLL4/observability\.json",
      r"/runs/|extension/|design/"),
     ("multiposition", r"^seed: 1 ", "seed: 2 ", r"/runs/S8/", r"observability/|extension/"),
-    ("sled", r"bias_ug: 50", "bias_ug: 60", r"cases/default/metrics\.csv", r"rank_table"),
+    ("sled", r"sigma_arcsec: \[30, 30, 180\]", "sigma_arcsec: [31, 30, 180]", r"runs/default/", r"rank_table"),
     ("centrifuge", r"sigma_set_arcsec: 10\}", "sigma_set_arcsec: 12}", r"/runs/table1/", r"^$"),
 ]
 

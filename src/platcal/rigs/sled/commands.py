@@ -13,24 +13,26 @@ from ...io import atomic_files, check_writable, json_text
 from ...study.tables import write_table
 from .config import SledConfig
 from .identify import estimates, identify, metrics, run_problems
+from .montecarlo import replicate_seeds
 from .observability import rank_table
 from .record import check_out_path, read_record, record_arrays, record_truth, samples_per_phase, write_record
 from .simulate import simulate
 
 
 def cmd_simulate(cfg: SledConfig, args) -> int:
-    """One simulated record (+ ``.truth.json``) of seed ``--seed`` (default: the config's ``seed``)."""
-    seed = cfg.seed if args.seed is None else args.seed
-    if seed < 0:
+    """One simulated record (+ ``.truth.json``): replicate ``--seed`` (default 0) of the study's
+    ``default`` case, the same SeedSequence as its Monte Carlo cell (:mod:`.montecarlo`)."""
+    replicate = 0 if args.seed is None else args.seed
+    if replicate < 0:
         raise InputError("--seed", "must be a whole number >= 0")
     out = check_out_path(args.out)
     check_writable(out, "--out")
     t0 = time.perf_counter()
-    sb = simulate(cfg, [seed], noise_free=bool(args.noise_free))
+    sb = simulate(cfg, replicate_seeds(cfg.raw, "default", [replicate]), noise_free=bool(args.noise_free))
     write_record(sb, out)
-    print(f"platcal simulate: sled, stop at {sb.traj.stop_time_s:.2f} s, {sb.traj.run_length_m:.1f} m, "
-          f"{'noise-free' if args.noise_free else 'seed ' + str(seed)} -> {out} ({time.perf_counter() - t0:.2f} s)",
-          file=sys.stderr)
+    what = "noise-free" if args.noise_free else f"replicate {replicate} of case default (root seed {cfg.seed})"
+    print(f"platcal simulate: sled, stop at {sb.traj.stop_time_s:.2f} s, {sb.traj.run_length_m:.1f} m, {what} "
+          f"-> {out} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
     return 0
 
 

@@ -76,7 +76,7 @@ def centrifuge(B: int, repeat: int) -> dict:
     from platcal.rigs.centrifuge.base import Centrifuge
     from platcal.rigs.centrifuge.catalogue import full_truth
     from platcal.rigs.centrifuge.ekf import FilterSettings, first_instant, run_ekf
-    from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
+    from platcal.scheme import TABLE1_POSITIONS
     from platcal.rigs.centrifuge.simulate import Noise, simulate
     from platcal.scheme import check_scheme
 

@@ -35,7 +35,7 @@ def child(dwell: float, B: int, kinds: list[str], out: str) -> None:
     from platcal.rigs.centrifuge.catalogue import full_truth
     from platcal.rigs.centrifuge.ekf import FilterSettings, first_instant
     from platcal.rigs.centrifuge.estimators import KINDS
-    from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
+    from platcal.scheme import TABLE1_POSITIONS
     from platcal.rigs.centrifuge.simulate import Noise, simulate
     from platcal.scheme import check_scheme
 

@@ -30,7 +30,7 @@ def warm_centrifuge() -> None:
     from platcal.rigs.centrifuge.catalogue import full_truth
     from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
     from platcal.rigs.centrifuge.estimators import KINDS
-    from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
+    from platcal.scheme import TABLE1_POSITIONS
     from platcal.rigs.centrifuge.simulate import Noise, simulate
     from platcal.scheme import check_scheme
 

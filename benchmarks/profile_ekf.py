@@ -24,7 +24,7 @@ from platcal.model.attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, 
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force_into
 from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.rigs.centrifuge.ekf import FilterSettings, _structure, first_instant, run_ekf
-from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
+from platcal.scheme import TABLE1_POSITIONS
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 from platcal.scheme import check_scheme
 

@@ -7,16 +7,17 @@ rig up here and call what it provides.
 
 Where do I add a rig?
 ---------------------
-1. ``src/platcal/rigs/<name>/``: its config schema (``data/config.schema.yaml``, a default for
-   every key), model, simulator, estimators, record columns and tables; ``__init__.py`` defines
+1. ``src/platcal/rigs/<name>/`` (found by a scan of ``platcal.rigs``), or a module of another
+   package declared as an entry point of group ``platcal.rigs`` (:data:`ENTRY_POINT_GROUP`): its
+   config schema (``data/config.schema.yaml``, a default for every key), model, simulator,
+   estimators, record columns, ``data/claims.yaml`` and tables; ``__init__.py`` defines
    ``RIG = Rig(...)`` below.
-2. Its name in :data:`RIG_MODULES`.
-3. ``docs/<spec>.md`` (its spec), ``config/<name>.yaml``, ``tests/<name>/``,
-   ``benchmarks/bench_<name>.py``, ``workflow/rules/<name>.smk`` (its study; results under
-   ``results/<name>/``, ending in ``results/<name>/report.md``; it reads its config with
-   :func:`rig_config` from ``config["rigs"]["<name>"]`` and defines ``<NAME>_TARGETS``, empty
-   when the rig is not in the index), its ``include:`` and targets in the ``Snakefile``, and its
-   entry in the ``rigs:`` index of ``config/config.yaml``.
+2. ``docs/<spec>.md`` (its spec), ``config/<name>.yaml``, ``tests/<name>/``,
+   ``benchmarks/bench_<name>.py``.
+3. Optionally its own stages, ``workflow/rules/<name>.smk`` (or ``Rig.rules``), defining
+   ``<NAME>_TARGETS`` under ``results/<name>/`` ending in ``results/<name>/report.md``; a rig
+   with Monte Carlo hooks and no rules file gets the generic sweep and the generic report.
+   The Snakefile includes it and collects its targets; nothing else is edited.
 
 What a rig must provide (the fields of :class:`Rig`)
 ----------------------------------------------------

@@ -16,6 +16,7 @@ import sys
 from .errors import InputError
 from .io import read_config
 from .rig import option, rig_of
+from .study import campaign
 
 CONFIG_HELP = "study configuration (YAML); its 'rig:' selects the rig"
 COMMANDS = {
@@ -40,6 +41,17 @@ COMMON = {
     "report": (option("--results", default=None, help="the rig's results folder (default: results/<rig>)"),),
 }
 """Options every rig's sub-command takes; a rig adds its own (``Rig.options``)."""
+GENERIC = {
+    "plan": ("plan a calibration campaign across rigs: the cheapest tests meeting every target",
+             (option("--campaign", required=True, help="campaign file (YAML; schema: platcal/study/data/"
+                                                       "campaign.schema.yaml)"),
+              option("--out", required=True, help="output folder (plan.csv, coefficients.csv, alternatives.csv, ...)"),
+              option("--replicates", type=int, default=None,
+                     help="Monte Carlo replicates of the plan's check (default: the campaign's; 0: none)"))),
+}
+"""Sub-commands of no one rig (no ``--config``): each asks the rigs its input names through
+their hooks (``plan``: :mod:`platcal.study.campaign`)."""
+GENERIC_RUN = {"plan": campaign.plan_command}
 
 
 class _ParseError(Exception):
@@ -66,6 +78,10 @@ def build_parser(rig=None) -> argparse.ArgumentParser:
         c = sub.add_parser(command, help=help_, description=help_, epilog=epilog)
         c.add_argument("--config", required=True, help=CONFIG_HELP)
         for opt in COMMON[command] + tuple(own):
+            c.add_argument(*opt.flags, **opt.kwargs)
+    for command, (help_, options) in GENERIC.items():
+        c = sub.add_parser(command, help=help_, description=help_)
+        for opt in options:
             c.add_argument(*opt.flags, **opt.kwargs)
     return p
 
@@ -95,6 +111,8 @@ def main(argv=None) -> int:
         raw = read_config(path) if path else None
         rig = rig_of(raw) if raw is not None else None
         args = build_parser(rig).parse_args(argv)
+        if args.command in GENERIC_RUN:
+            return GENERIC_RUN[args.command](args)
         return run(args, raw, rig)
     except _ParseError as exc:
         where = f"; 'platcal {command} --config {path} --help' lists the options of rig {rig.name!r}" if rig else ""

@@ -63,6 +63,19 @@ by giving ``montecarlo``, an object with (see :class:`MonteCarloHooks`):
 The runner turns the batches into the tidy tables (one row per run x quantity, one row per run)
 that :mod:`platcal.study.stats` and :mod:`platcal.study.plots` work on. The centrifuge's hooks
 (:class:`platcal.rigs.centrifuge.study.CentrifugeMonteCarlo`) are the worked example.
+
+Optional: the campaign hooks (field ``campaign``)
+-------------------------------------------------
+A rig that can take part in a calibration campaign (``platcal plan``,
+:mod:`platcal.study.campaign`) gives ``campaign``, an object with (see :class:`CampaignHooks`):
+
+- ``schemes(cfg) -> list[str]``: the schemes a campaign may name;
+- ``positions(cfg, scheme) -> int``: the scheme's number of positions (its rig time);
+- ``information(cfg, scheme, dwell_s, truth) -> TestInformation``: the Fisher information of one
+  test (the scheme at that dwell) about the rig's states, linearised about ``truth`` (platform
+  coefficient name -> value; names the rig does not know are ignored). States named like the
+  platform's coefficients are mapped onto them; the rest are the rig's nuisance states, which
+  the planner marginalises (Schur complement) with their prior.
 """
 
 from __future__ import annotations
@@ -165,6 +178,28 @@ class ReplicateBatch:
     truth: np.ndarray | None = None
 
 
+@dataclass(frozen=True)
+class TestInformation:
+    """What one test tells about the rig's states: ``names`` (n,), the Fisher ``information``
+    (n, n) in engineering units (1 / (unit_i unit_j)), the rig's ``prior_sigma`` (n,) (used for
+    the nuisance states only) and the test's data length ``seconds``."""
+
+    names: tuple[str, ...]
+    information: np.ndarray
+    prior_sigma: np.ndarray
+    seconds: float
+
+
+class CampaignHooks(Protocol):
+    """What a rig gives the campaign planner (see the module docstring)."""
+
+    def schemes(self, cfg) -> list[str]: ...
+
+    def positions(self, cfg, scheme: str) -> int: ...
+
+    def information(self, cfg, scheme: str, dwell_s: float, truth: Mapping[str, float]) -> TestInformation: ...
+
+
 class MonteCarloHooks(Protocol):
     """What a rig gives the generic Monte Carlo runner (see the module docstring)."""
 
@@ -207,6 +242,8 @@ class Rig:
     """The Monte Carlo hooks (optional; see the module docstring)."""
     options: Mapping[str, tuple[Option, ...]] = field(default_factory=dict)
     """The rig's own options per sub-command, beyond the common ones of :mod:`platcal.cli`."""
+    campaign: CampaignHooks | None = None
+    """The campaign hooks (optional; see the module docstring)."""
     rules: str | None = None
     """Path of the rig's own Snakemake rules file, when it ships one outside the project's
     ``workflow/rules/<name>.smk``; a rig with Monte Carlo hooks needs none."""

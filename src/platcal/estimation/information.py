@@ -91,3 +91,21 @@ def gram_singular_values(G: np.ndarray) -> np.ndarray:
 def numerical_rank(sv: np.ndarray, rtol: float = RANK_RTOL) -> int:
     """Number of singular values above ``rtol`` times the largest."""
     return int((sv > rtol * sv[0]).sum())
+
+
+def marginal_information(F: np.ndarray, keep: np.ndarray, nuisance_prior: np.ndarray) -> np.ndarray:
+    """Information about the states ``keep`` with the others marginalised (Schur complement).
+
+    ``F`` (..., n, n) information (any consistent units); ``keep`` (n,) bool; ``nuisance_prior``
+    (n,) the prior information (1 / sigma^2) of each state, used for the marginalised ones only:
+    ``F_kk - F_kn (F_nn + diag(prior_n))^-1 F_nk``. Returns (..., k, k).
+    """
+    keep = np.asarray(keep, bool)
+    drop = ~keep
+    Fkk = F[..., keep][..., keep, :]
+    if not drop.any():
+        return Fkk
+    Fkn = F[..., keep, :][..., :, drop]
+    Fnn = F[..., drop, :][..., :, drop] + np.diag(np.asarray(nuisance_prior, float)[drop])
+    out = Fkk - Fkn @ np.linalg.solve(Fnn, np.swapaxes(Fkn, -1, -2))
+    return 0.5 * (out + np.swapaxes(out, -1, -2))

@@ -8,6 +8,7 @@ sensors; a Lie-derivative rank test and a covariance check that accept or refuse
 import pandas as pd
 
 from ...rig import Rig
+from .campaign import CAMPAIGN
 from . import claims
 from .commands import COMMANDS, OPTIONS
 from .config import load_config
@@ -27,4 +28,5 @@ def catalogue() -> pd.DataFrame:
 RIG = Rig(name="multiposition", title="1 g multi-position self-test, 27-state EKF with gimbal angle sensors",
           spec="multiposition-1g.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
           estimators=tuple(ESTIMATORS), extras={"information": position_information, "claims": claims},
-          montecarlo=MultipositionMonteCarlo(), options=OPTIONS)
+          montecarlo=MultipositionMonteCarlo(), options=OPTIONS,
+          campaign=CAMPAIGN)

@@ -1,0 +1,51 @@
+"""The multiposition rig's campaign hooks: the Fisher information of one 1 g self-test.
+
+A test is a scheme of the config at a dwell per position; its information is the sum of the
+per-position informations of the covariance-only EKF (docs/multiposition-1g.md §8, §14; the
+attitude reset at each position makes them additive: :func:`.filter.position_information`),
+linearised about the campaign's platform truth. Of the 24 coefficients, those the platform model
+names (gyro DF, DI, DS, DO; accelerometer k0, k1, theta_py, theta_pz, theta_oz) map onto it;
+the other misalignments (theta_px, theta_ox, theta_oy) are nuisance states.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import replace
+
+import numpy as np
+
+from ...errors import InputError
+from ...rig import TestInformation
+from .filter import position_information
+from .model import coef_names
+
+
+class MultipositionCampaign:
+    """Campaign hooks of the 1 g multi-position self-test (see :class:`platcal.rig.CampaignHooks`)."""
+
+    def schemes(self, cfg) -> list[str]:
+        return sorted(cfg.schemes)
+
+    def scheme(self, cfg, name: str):
+        if name not in cfg.schemes:
+            raise InputError("scheme", f"unknown multiposition scheme {name!r}; use one of {self.schemes(cfg)}")
+        return cfg.schemes[name]
+
+    def positions(self, cfg, scheme: str) -> int:
+        return self.scheme(cfg, scheme).n_positions
+
+    def information(self, cfg, scheme: str, dwell_s: float, truth: Mapping[str, float]) -> TestInformation:
+        """Information of ``scheme`` at ``dwell_s`` s per position about the 24 coefficients
+        (engineering units: the normalised information scaled by the rig's P0 sigmas)."""
+        names = coef_names()
+        cfg = replace(cfg, truth_overrides={**cfg.truth_overrides,
+                                            **{n: float(truth[n]) for n in names if n in truth}})
+        F = position_information(cfg, self.scheme(cfg, scheme).angles_deg, float(dwell_s))
+        p0 = cfg.p0()
+        sch = self.scheme(cfg, scheme)
+        return TestInformation(names=names, information=F.sum(axis=0) / np.outer(p0, p0), prior_sigma=p0,
+                               seconds=float(dwell_s) * sch.n_positions)
+
+
+CAMPAIGN = MultipositionCampaign()

@@ -1,0 +1,576 @@
+"""Plan a calibration campaign across rigs: the least rig cost that meets every target (issue 23).
+
+A campaign file (schema ``study/data/campaign.schema.yaml``) names the platform (the shared
+:class:`~platcal.model.platform.PlatformModel`, truth overrides, prior sigmas), the target sigma
+of every coefficient, the rigs available (config, costs, schemes, dwells, repeats) and the
+papers' own plans to compare with. A *test* is one (rig, scheme, dwell) run; a *plan* is how
+many times each candidate test is run.
+
+Information across rigs. Each rig's campaign hook (:class:`platcal.rig.CampaignHooks`) gives
+the Fisher information of one test about its states. Tests of one rig add their information on
+the rig's states; the rig's nuisance states (not named in the platform model) are marginalised
+once per rig with their prior (Schur complement,
+:func:`platcal.estimation.information.marginal_information`), since a nuisance such as a mount
+misalignment is the same in every test on that rig. The rigs' marginal informations then add
+on the platform's names, with the platform prior::
+
+    I = P0^-1 + sum_rigs S_r(sum_{tests j on r} n_j F_j),      sigma = sqrt(diag(I^-1))
+
+so the posterior of one test is the prior of the next and the order does not change the end.
+
+Search. The counts ``n_j`` in ``0..max_repeats`` are the integer variables of a two-objective
+NSGA-II (pymoo, rounded SBX/PM): cost (tests' hours x rate, plus each used rig's set-up once)
+and the worst coefficient's sigma/target. Every evaluated plan is kept; the Pareto front is
+their non-dominated set and the chosen plan the cheapest with sigma/target <= 1 everywhere.
+The same search restricted to one rig gives the cheapest single-rig plans.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from pymoo.algorithms.moo.nsga2 import NSGA2
+from pymoo.core.problem import Problem
+from pymoo.operators.crossover.sbx import SBX
+from pymoo.operators.mutation.pm import PM
+from pymoo.operators.repair.rounding import RoundingRepair
+from pymoo.optimize import minimize
+
+from ..errors import InputError
+from ..estimation.information import marginal_information
+from ..io import atomic_to_csv, check_writable, read_config
+from ..model.platform import PlatformModel, default_platform
+from ..rig import Rig, get_rig, rig_config
+from ..schema import load_schema, validate
+from .plots import save, styled
+from .tables import write_table
+
+import matplotlib.pyplot as plt  # noqa: E402  (after .plots, which selects the Agg backend)
+
+SCHEMA = ("platcal.study", "data/campaign.schema.yaml")
+
+
+# ------------------------------------------------------------------ the campaign file
+
+@dataclass(frozen=True)
+class RigOffer:
+    """A rig of the campaign: its registry entry, typed config, costs and scheme space."""
+
+    name: str
+    rig: Rig
+    cfg: object
+    cost_per_hour: float
+    setup_hours: float
+    hours_per_test: float
+    hours_per_position: float
+    schemes: tuple[str, ...]
+    dwells: tuple[float, ...]
+    max_repeats: int
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A validated campaign: platform (truth), prior and target sigma per coefficient (units of
+    ``platform.units``), the rigs offered, reference plans, optimiser and Monte Carlo settings."""
+
+    name: str
+    platform: PlatformModel
+    prior_sigma: np.ndarray
+    target_sigma: np.ndarray
+    rigs: tuple[RigOffer, ...]
+    references: dict
+    optimiser: dict
+    montecarlo: dict
+    raw: dict
+
+    def truth(self) -> dict[str, float]:
+        return dict(zip(self.platform.names, map(float, self.platform.truth)))
+
+    def offer(self, name: str) -> RigOffer:
+        return next(r for r in self.rigs if r.name == name)
+
+
+def term_of(name: str) -> str:
+    """A coefficient's term: ``DF_x`` -> ``DF``, ``theta_py`` -> ``theta``."""
+    return name.rsplit("_", 1)[0]
+
+
+def coefficient_rule(platform: PlatformModel, rules: Mapping[str, float], field: str) -> np.ndarray:
+    """One value per coefficient from rules keyed by name, term or group (the most specific wins).
+
+    InputError naming ``field`` for a key that is none of these or a coefficient left uncovered.
+    """
+    known = set(platform.names) | {term_of(n) for n in platform.names} | set(platform.groups)
+    for key in rules:
+        if key not in known:
+            raise InputError(f"{field}.{key}", f"not a coefficient, term or group of the platform; use one of "
+                             f"{sorted(known)}")
+    out, missing = np.empty(len(platform.names)), []
+    for i, (n, g) in enumerate(zip(platform.names, platform.groups)):
+        v = rules.get(n, rules.get(term_of(n), rules.get(g)))
+        if v is None:
+            missing.append(n)
+        else:
+            out[i] = float(v)
+    if missing:
+        raise InputError(field, f"no value for {missing}; give each a value by name, term (e.g. "
+                         f"{term_of(missing[0])}) or group (e.g. {platform.groups[platform.index(missing[0])]})")
+    return out
+
+
+def _offer(name: str, entry: dict) -> RigOffer:
+    rig = get_rig(name)
+    field = f"rigs.{name}"
+    if rig.campaign is None:
+        raise InputError(field, f"rig {name!r} has no campaign hooks (its tests tell nothing about the platform's "
+                         "coefficient names); remove it from the campaign")
+    cfg = rig.load_config(rig_config({"rigs": {name: entry["config"]}}, name))
+    known = rig.campaign.schemes(cfg)
+    for i, s in enumerate(entry["schemes"]):
+        if s not in known:
+            raise InputError(f"{field}.schemes[{i}]", f"unknown scheme {s!r} of rig {name!r}; use one of {known}")
+    return RigOffer(name=name, rig=rig, cfg=cfg, cost_per_hour=float(entry["cost_per_hour"]),
+                    setup_hours=float(entry["setup_hours"]), hours_per_test=float(entry["hours_per_test"]),
+                    hours_per_position=float(entry["hours_per_position"]), schemes=tuple(entry["schemes"]),
+                    dwells=tuple(float(d) for d in entry["dwell_s"]), max_repeats=int(entry["max_repeats"]))
+
+
+def load_campaign(source) -> Campaign:
+    """Validate a campaign (a file path or a raw mapping); InputError naming the field otherwise."""
+    raw = read_config(source, "--campaign") if isinstance(source, (str, os.PathLike)) else source
+    cfg = validate(raw, load_schema(*SCHEMA))
+    base = default_platform()
+    truth = base.truth.copy()
+    for k, v in cfg["platform"]["truth"].items():
+        if k not in base.names:
+            raise InputError(f"platform.truth.{k}", f"unknown coefficient; use one of {list(base.names)}")
+        truth[base.index(k)] = float(v)
+    platform = PlatformModel(base.names, base.units, base.groups, truth)
+    rigs = tuple(_offer(n, e) for n, e in cfg["rigs"].items())
+    names = {r.name for r in rigs}
+    for ref, tests in cfg["references"].items():
+        for i, t in enumerate(tests):
+            where = f"references.{ref}[{i}]"
+            if t["rig"] not in names:
+                raise InputError(f"{where}.rig", f"rig {t['rig']!r} is not in the campaign's rigs {sorted(names)}")
+            known = next(r for r in rigs if r.name == t["rig"])
+            if t["scheme"] not in known.rig.campaign.schemes(known.cfg):
+                raise InputError(f"{where}.scheme", f"unknown scheme {t['scheme']!r} of rig {t['rig']!r}")
+    return Campaign(name=cfg["name"], platform=platform,
+                    prior_sigma=coefficient_rule(platform, cfg["platform"]["prior_sigma"], "platform.prior_sigma"),
+                    target_sigma=coefficient_rule(platform, cfg["targets"], "targets"), rigs=rigs,
+                    references=cfg["references"], optimiser=cfg["optimiser"], montecarlo=cfg["montecarlo"], raw=cfg)
+
+
+# ------------------------------------------------------------------ candidate tests and their information
+
+@dataclass(frozen=True)
+class Test:
+    """One candidate test: ``hours`` of rig time (mounting, positions, data; no set-up) and its
+    ``cost`` (hours x the rig's rate)."""
+
+    rig: str
+    scheme: str
+    dwell_s: float
+    positions: int
+    hours: float
+    cost: float
+
+
+@dataclass(frozen=True)
+class RigInformation:
+    """The candidate tests of one rig: their Fisher information ``info`` (m_r, n_r, n_r) on the
+    rig's states ``names``, normalised by ``scale`` (the platform prior sigma of a platform
+    coefficient, the rig's prior sigma of a nuisance state); ``keep`` marks the platform's
+    coefficients and ``index`` their positions in the platform model."""
+
+    rig: str
+    columns: np.ndarray
+    names: tuple[str, ...]
+    info: np.ndarray
+    scale: np.ndarray
+    keep: np.ndarray
+    index: np.ndarray
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Every candidate test of a campaign and the information of each rig's."""
+
+    tests: tuple[Test, ...]
+    rigs: tuple[RigInformation, ...]
+    setup_cost: np.ndarray
+    """(n_rigs,) set-up hours x rate of each rig, paid once by a plan that uses it."""
+    max_repeats: np.ndarray
+    n_coef: int
+
+    def index(self, rig: str, scheme: str, dwell_s: float) -> int:
+        for j, t in enumerate(self.tests):
+            if (t.rig, t.scheme) == (rig, scheme) and abs(t.dwell_s - dwell_s) < 1e-9:
+                return j
+        raise KeyError((rig, scheme, dwell_s))
+
+
+def test_of(offer: RigOffer, scheme: str, dwell_s: float) -> Test:
+    """The rig time and cost of one test (hours: per test + per position + the data)."""
+    k = offer.rig.campaign.positions(offer.cfg, scheme)
+    hours = offer.hours_per_test + k * offer.hours_per_position + k * dwell_s / 3600.0
+    return Test(offer.name, scheme, float(dwell_s), k, hours, hours * offer.cost_per_hour)
+
+
+def candidates(campaign: Campaign, extra=()) -> Candidates:
+    """The campaign's candidate tests (each rig's schemes x dwells, plus ``extra`` (rig, scheme,
+    dwell) of the reference plans) and each one's information from its rig's hook."""
+    truth = campaign.truth()
+    pl = campaign.platform
+    tests, blocks = [], []
+    for offer in campaign.rigs:
+        wanted = [(s, d) for s in offer.schemes for d in offer.dwells]
+        wanted += [(s, float(d)) for r, s, d in extra if r == offer.name and (s, float(d)) not in wanted]
+        start = len(tests)
+        infos = []
+        for s, d in wanted:
+            tests.append(test_of(offer, s, d))
+            infos.append(offer.rig.campaign.information(offer.cfg, s, d, truth))
+        names = infos[0].names
+        keep = np.array([n in pl.names for n in names])
+        if not keep.any():
+            raise InputError(f"rigs.{offer.name}", "none of the rig's states is a coefficient of the platform")
+        index = np.array([pl.index(n) for n in names if n in pl.names])
+        scale = np.asarray(infos[0].prior_sigma, float).copy()
+        scale[keep] = campaign.prior_sigma[index]
+        F = np.stack([ti.information for ti in infos]) * np.outer(scale, scale)
+        blocks.append(RigInformation(offer.name, np.arange(start, len(tests)), names, F, scale, keep, index))
+    setup = np.array([o.setup_hours * o.cost_per_hour for o in campaign.rigs])
+    reps = np.concatenate([np.full(len(b.columns), o.max_repeats) for b, o in zip(blocks, campaign.rigs)])
+    return Candidates(tuple(tests), tuple(blocks), setup, reps, len(pl.names))
+
+
+def posterior_information(cands: Candidates, counts: np.ndarray) -> np.ndarray:
+    """Normalised information (B, n, n) about the platform's coefficients (coefficient / prior
+    sigma) after plans ``counts`` (B, m): the prior (identity) plus each rig's marginal
+    information (module docstring)."""
+    counts = np.atleast_2d(np.asarray(counts, float))
+    out = np.broadcast_to(np.eye(cands.n_coef), (counts.shape[0], cands.n_coef, cands.n_coef)).copy()
+    for b in cands.rigs:
+        F = np.einsum("bj,jkl->bkl", counts[:, b.columns], b.info)
+        out[:, b.index[:, None], b.index[None, :]] += marginal_information(F, b.keep, np.ones(len(b.names)))
+    return out
+
+
+def planned_sigma(campaign: Campaign, cands: Candidates, counts: np.ndarray) -> np.ndarray:
+    """Posterior 1-sigma (B, n) of every coefficient after plans ``counts`` (B, m), its unit."""
+    info = posterior_information(cands, counts)
+    var = np.diagonal(np.linalg.inv(info), axis1=-2, axis2=-1)
+    return np.sqrt(var) * campaign.prior_sigma
+
+
+def plan_cost(cands: Candidates, counts: np.ndarray) -> np.ndarray:
+    """Cost (B,) of plans ``counts`` (B, m): the tests' costs and each used rig's set-up once."""
+    counts = np.atleast_2d(np.asarray(counts, float))
+    cost = counts @ np.array([t.cost for t in cands.tests])
+    for r, b in enumerate(cands.rigs):
+        cost = cost + (counts[:, b.columns].sum(axis=1) > 0) * cands.setup_cost[r]
+    return cost
+
+
+def worst_ratio(campaign: Campaign, sigma: np.ndarray) -> np.ndarray:
+    """The largest sigma / target over the coefficients (B,)."""
+    return (np.atleast_2d(sigma) / campaign.target_sigma).max(axis=1)
+
+
+# ------------------------------------------------------------------ search
+
+class _PlanProblem(Problem):
+    """Integer counts of the candidate tests ``cols``; objectives cost and worst sigma/target;
+    every evaluated plan archived (the Pareto front is taken over all of them)."""
+
+    def __init__(self, campaign: Campaign, cands: Candidates, cols: np.ndarray):
+        upper = cands.max_repeats[cols].astype(float)
+        super().__init__(n_var=cols.size, n_obj=2, xl=np.zeros(cols.size), xu=upper, vtype=int)
+        self.campaign, self.cands, self.cols = campaign, cands, cols
+        self.archive: list[np.ndarray] = []
+
+    def full(self, x) -> np.ndarray:
+        counts = np.zeros((len(x), len(self.cands.tests)), int)
+        counts[:, self.cols] = np.clip(np.rint(x), 0, self.xu).astype(int)
+        return counts
+
+    def _evaluate(self, x, out, *args, **kwargs):
+        counts = self.full(x)
+        self.archive.append(counts)
+        cost = plan_cost(self.cands, counts)
+        worst = worst_ratio(self.campaign, planned_sigma(self.campaign, self.cands, counts))
+        out["F"] = np.column_stack([cost, worst])
+
+
+def initial_plans(upper: np.ndarray, size: int, rng: np.random.Generator) -> np.ndarray:
+    """A start population: each allowed test alone (once and at its most repeats), then random
+    counts up to ``size`` rows (at least ``size``)."""
+    m = upper.size
+    rows = [np.zeros(m, int)]
+    for j in np.flatnonzero(upper > 0):
+        for c in sorted({1, int(upper[j])}):
+            r = np.zeros(m, int)
+            r[j] = c
+            rows.append(r)
+    while len(rows) < size:
+        rows.append(rng.integers(0, upper + 1))
+    return np.array(rows)
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """Every plan evaluated (``counts`` (E, m), ``cost``, ``worst`` (E,)), deduplicated."""
+
+    counts: np.ndarray
+    cost: np.ndarray
+    worst: np.ndarray
+
+    def cheapest_meeting(self) -> int | None:
+        """Index of the cheapest plan with worst sigma/target <= 1 (fewest tests on a tie)."""
+        ok = np.flatnonzero(self.worst <= 1.0)
+        if ok.size == 0:
+            return None
+        return int(ok[np.lexsort((self.counts[ok].sum(axis=1), self.cost[ok]))[0]])
+
+    def best(self) -> int:
+        """Index of the plan with the smallest worst sigma/target (cheapest on a tie)."""
+        return int(np.lexsort((self.cost, self.worst))[0])
+
+    def front(self) -> np.ndarray:
+        """Indices of the Pareto-optimal plans (cost, worst sigma/target), by cost."""
+        order = np.lexsort((self.worst, self.cost))
+        keep, best = [], np.inf
+        for i in order:
+            if self.worst[i] < best:
+                keep.append(i)
+                best = self.worst[i]
+        return np.array(keep, int)
+
+
+def search(campaign: Campaign, cands: Candidates, rigs: tuple[str, ...] | None = None) -> SearchResult:
+    """NSGA-II over the counts of the candidate tests of ``rigs`` (all when None)."""
+    cols = np.concatenate([b.columns for b in cands.rigs if rigs is None or b.rig in rigs])
+    opt = campaign.optimiser
+    rng = np.random.default_rng(opt["seed"])
+    problem = _PlanProblem(campaign, cands, cols)
+    start = initial_plans(cands.max_repeats[cols], opt["population"], rng)
+    algorithm = NSGA2(pop_size=len(start), sampling=start.astype(float),
+                      crossover=SBX(prob=0.9, eta=3.0, vtype=float, repair=RoundingRepair()),
+                      mutation=PM(eta=3.0, vtype=float, repair=RoundingRepair()), eliminate_duplicates=True)
+    minimize(problem, algorithm, ("n_gen", opt["generations"]), seed=opt["seed"], verbose=False)
+    counts = np.unique(np.concatenate(problem.archive), axis=0)
+    cost = plan_cost(cands, counts)
+    worst = worst_ratio(campaign, planned_sigma(campaign, cands, counts))
+    return SearchResult(counts, cost, worst)
+
+
+# ------------------------------------------------------------------ the plan and its tables
+
+def plan_sequence(campaign: Campaign, cands: Candidates, counts: np.ndarray) -> list[int]:
+    """The tests of a plan in the order they are run: the cheaper rig first (its results are the
+    prior of the dearer one), each rig's tests in candidate order, repeats side by side."""
+    rate = {o.name: o.cost_per_hour for o in campaign.rigs}
+    order = sorted(range(len(cands.tests)), key=lambda j: (rate[cands.tests[j].rig], j))
+    return [j for j in order for _ in range(int(counts[j]))]
+
+
+def describe(cands: Candidates, counts: np.ndarray) -> str:
+    """A plan in one line: ``rig:scheme@dwell_s x count`` joined by ``+``."""
+    parts = [f"{t.rig}:{t.scheme}@{t.dwell_s:g}s" + (f" x{int(c)}" if c > 1 else "")
+             for t, c in zip(cands.tests, counts) if c > 0]
+    return " + ".join(parts) or "(no test)"
+
+
+def cumulative_counts(n_tests: int, sequence: list[int]) -> np.ndarray:
+    """(S + 1, m) counts after 0, 1, ..., S tests of ``sequence``."""
+    out = np.zeros((len(sequence) + 1, n_tests), int)
+    for s, j in enumerate(sequence):
+        out[s + 1] = out[s]
+        out[s + 1, j] += 1
+    return out
+
+
+def plan_table(campaign: Campaign, cands: Candidates, sequence: list[int]) -> pd.DataFrame:
+    """plan.csv: the tests in order with their rig time and cost (a rig's set-up on its first
+    test) and the worst sigma/target once the test is done."""
+    steps = cumulative_counts(len(cands.tests), sequence)
+    worst = worst_ratio(campaign, planned_sigma(campaign, cands, steps[1:])) if sequence else np.array([])
+    rows, used = [], set()
+    for s, j in enumerate(sequence):
+        t = cands.tests[j]
+        offer = campaign.offer(t.rig)
+        setup = 0.0 if t.rig in used else offer.setup_hours
+        used.add(t.rig)
+        rows.append({"step": s + 1, "rig": t.rig, "scheme": t.scheme, "dwell_s": t.dwell_s, "positions": t.positions,
+                     "setup_hours": setup, "hours": t.hours + setup, "cost": (t.hours + setup) * offer.cost_per_hour,
+                     "worst_sigma_over_target": float(worst[s])})
+    return pd.DataFrame(rows, columns=["step", "rig", "scheme", "dwell_s", "positions", "setup_hours", "hours", "cost",
+                                       "worst_sigma_over_target"])
+
+
+def progress_table(campaign: Campaign, cands: Candidates, sequence: list[int]) -> pd.DataFrame:
+    """sigma and sigma/target of every coefficient after each test (step 0: the prior)."""
+    sig = planned_sigma(campaign, cands, cumulative_counts(len(cands.tests), sequence))
+    pl = campaign.platform
+    return pd.DataFrame([{"step": s, "name": n, "group": g, "unit": u, "sigma": float(sig[s, i]),
+                          "sigma_over_target": float(sig[s, i] / campaign.target_sigma[i])}
+                         for s in range(sig.shape[0]) for i, (n, g, u) in enumerate(zip(pl.names, pl.groups, pl.units))])
+
+
+def coefficient_table(campaign: Campaign, planned: np.ndarray, achieved_rms: np.ndarray | None = None) -> pd.DataFrame:
+    """coefficients.csv: target, prior and planned sigma, the Monte Carlo's RMS error (NaN when
+    not run) and ``meets`` (achieved_rms <= target; empty without a Monte Carlo)."""
+    pl = campaign.platform
+    ach = np.full(len(pl.names), np.nan) if achieved_rms is None else np.asarray(achieved_rms, float)
+    return pd.DataFrame({"name": pl.names, "unit": pl.units, "group": pl.groups, "target_sigma": campaign.target_sigma,
+                         "prior_sigma": campaign.prior_sigma, "planned_sigma": planned,
+                         "planned_over_target": planned / campaign.target_sigma, "achieved_rms": ach,
+                         "achieved_over_planned": ach / planned,
+                         "meets": pd.array([None if np.isnan(a) else bool(a <= t)
+                                            for a, t in zip(ach, campaign.target_sigma)], dtype="boolean")})
+
+
+def reference_counts(campaign: Campaign, cands: Candidates, tests: list[dict]) -> np.ndarray:
+    counts = np.zeros(len(cands.tests), int)
+    for t in tests:
+        counts[cands.index(t["rig"], t["scheme"], float(t["dwell_s"]))] += int(t["count"])
+    return counts
+
+
+def alternative_row(campaign: Campaign, cands: Candidates, name: str, kind: str, counts: np.ndarray) -> dict:
+    sig = planned_sigma(campaign, cands, counts)[0]
+    ratio = sig / campaign.target_sigma
+    i = int(np.argmax(ratio))
+    return {"name": name, "kind": kind, "tests": describe(cands, counts), "cost": float(plan_cost(cands, counts)[0]),
+            "meets_targets": bool(ratio.max() <= 1.0), "worst_sigma_over_target": float(ratio.max()),
+            "worst_coefficient": campaign.platform.names[i]}
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A planned campaign: the candidates, the search, the chosen counts (None: no plan meets
+    every target; then the plan with the least worst sigma/target is shown) and the tables."""
+
+    campaign: Campaign
+    cands: Candidates
+    result: SearchResult
+    counts: np.ndarray
+    meets: bool
+    sequence: list[int]
+    plan: pd.DataFrame
+    progress: pd.DataFrame
+    alternatives: pd.DataFrame
+    front: pd.DataFrame
+
+
+def make_plan(campaign: Campaign) -> Plan:
+    """Search the campaign's tests for the cheapest plan meeting every target, and the
+    alternatives (the cheapest single-rig plans, the reference plans)."""
+    extra = [(t["rig"], t["scheme"], float(t["dwell_s"])) for tests in campaign.references.values() for t in tests]
+    cands = candidates(campaign, extra)
+    res = search(campaign, cands)
+    pick = res.cheapest_meeting()
+    meets = pick is not None
+    counts = res.counts[res.best() if pick is None else pick]
+    seq = plan_sequence(campaign, cands, counts)
+    alts = [alternative_row(campaign, cands, "plan", "plan", counts)]
+    for offer in campaign.rigs:
+        single = search(campaign, cands, (offer.name,))
+        k = single.cheapest_meeting()
+        alts.append(alternative_row(campaign, cands, f"cheapest {offer.name} only" if k is not None
+                                    else f"best {offer.name} only (none meets)", "single_rig",
+                                    single.counts[single.best() if k is None else k]))
+    for name, tests in campaign.references.items():
+        alts.append(alternative_row(campaign, cands, name, "reference", reference_counts(campaign, cands, tests)))
+    idx = res.front()
+    front = pd.DataFrame({"cost": res.cost[idx], "worst_sigma_over_target": res.worst[idx],
+                          "tests": [describe(cands, res.counts[i]) for i in idx]})
+    return Plan(campaign, cands, res, counts, meets, seq, plan_table(campaign, cands, seq),
+                progress_table(campaign, cands, seq), pd.DataFrame(alts), front)
+
+
+# ------------------------------------------------------------------ figures and outputs
+
+@styled
+def front_figure(plan: Plan, path) -> None:
+    """Cost against the worst sigma/target: every plan evaluated, the Pareto front, the chosen
+    plan and the alternatives."""
+    res, alts = plan.result, plan.alternatives
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    ax.scatter(res.cost, res.worst, s=4, color="0.8", label="plans evaluated")
+    ax.step(plan.front["cost"], plan.front["worst_sigma_over_target"], where="post", color="C0", label="Pareto front")
+    for k, (marker, color) in {"single_rig": ("s", "C1"), "reference": ("^", "C2"), "plan": ("*", "C3")}.items():
+        a = alts[alts["kind"] == k]
+        ax.scatter(a["cost"], a["worst_sigma_over_target"], marker=marker, s=80 if k == "plan" else 40, color=color,
+                   zorder=3, label={"single_rig": "single-rig plans", "reference": "papers' schemes",
+                                    "plan": "chosen plan"}[k])
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    ax.set_yscale("log")
+    ax.set_xlabel("campaign cost (rig hours x rate)")
+    ax.set_ylabel("worst coefficient sigma / target")
+    ax.set_title(f"campaign {plan.campaign.name}: cost vs accuracy")
+    ax.legend(fontsize=7)
+    save(fig, path)
+
+
+@styled
+def progress_figure(plan: Plan, path) -> None:
+    """sigma/target of every coefficient after each test of the plan (log scale)."""
+    pr = plan.progress
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for i, (group, part) in enumerate(pr.groupby("group", sort=True)):
+        for j, (_, one) in enumerate(part.groupby("name", sort=False)):
+            ax.plot(one["step"], one["sigma_over_target"], color=f"C{i}", lw=0.8, alpha=0.7,
+                    label=group if j == 0 else None)
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    labels = ["prior"] + [f"{r.rig}:{r.scheme}@{r.dwell_s:g}s" for r in plan.plan.itertuples()]
+    ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=7)
+    ax.set_yscale("log")
+    ax.set_ylabel("sigma / target")
+    ax.set_title("each coefficient's sigma / target after each test")
+    ax.legend(fontsize=7)
+    save(fig, path)
+
+
+def write_plan(plan: Plan, out_dir, achieved_rms: np.ndarray | None = None, extra_md: str = "") -> pd.DataFrame:
+    """Write plan, coefficients and alternatives (csv, md, html), front.csv, progress.csv,
+    front.png, progress.png and report.md into ``out_dir``, each file atomically."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    planned = planned_sigma(plan.campaign, plan.cands, plan.counts)[0]
+    coefs = coefficient_table(plan.campaign, planned, achieved_rms)
+    total = plan.plan["cost"].sum()
+    verdict = ("meets every target" if plan.meets else
+               "NO plan found meets every target; shown: the plan with the least worst sigma/target")
+    write_table(plan.plan, out / "plan", f"Campaign {plan.campaign.name}: the plan",
+                f"{verdict}; cost {total:.6g}, {plan.plan['hours'].sum():.4g} rig hours")
+    write_table(coefs, out / "coefficients", "Planned sigma (and Monte Carlo RMS error) per coefficient",
+                "units: the unit column; meets = achieved_rms <= target_sigma")
+    write_table(plan.alternatives, out / "alternatives", "The plan and its alternatives",
+                "single-rig plans: the cheapest that meets every target, else the best it can do")
+    atomic_to_csv(plan.front, out / "front.csv", index=False)
+    atomic_to_csv(plan.progress, out / "progress.csv", index=False)
+    front_figure(plan, out / "front.png")
+    progress_figure(plan, out / "progress.png")
+    return coefs
+
+
+def plan_command(args) -> int:
+    """``platcal plan --campaign FILE --out DIR [--replicates N]``: validate (exit 2 naming the
+    field, before any work), plan, write the outputs."""
+    check_writable(args.out, "--out", folder=True)
+    camp = load_campaign(args.campaign)
+    if args.replicates is not None and args.replicates < 0:
+        raise InputError("--replicates", "must be >= 0 (0: no Monte Carlo check)")
+    plan = make_plan(camp)
+    write_plan(plan, args.out)
+    print(f"plan: {describe(plan.cands, plan.counts)}; cost {plan.plan['cost'].sum():.6g}; "
+          f"meets every target: {plan.meets}; written to {args.out}")
+    return 0

@@ -75,7 +75,11 @@ A rig that can take part in a calibration campaign (``platcal plan``,
   test (the scheme at that dwell) about the rig's states, linearised about ``truth`` (platform
   coefficient name -> value; names the rig does not know are ignored). States named like the
   platform's coefficients are mapped onto them; the rest are the rig's nuisance states, which
-  the planner marginalises (Schur complement) with their prior.
+  the planner marginalises (Schur complement) with their prior;
+- ``identify(cfg, scheme, dwell_s, truth, prior_x, prior_P, seeds) -> (x (B, n), P (B, n, n))``:
+  the test simulated once per ``numpy.random.SeedSequence`` (truth as above) and identified by
+  the rig's filter started from the estimate ``prior_x`` (B, n) and covariance ``prior_P``
+  (B, n, n) on the states of ``information``'s names (a previous test's posterior handed on).
 """
 
 from __future__ import annotations
@@ -198,6 +202,9 @@ class CampaignHooks(Protocol):
     def positions(self, cfg, scheme: str) -> int: ...
 
     def information(self, cfg, scheme: str, dwell_s: float, truth: Mapping[str, float]) -> TestInformation: ...
+
+    def identify(self, cfg, scheme: str, dwell_s: float, truth: Mapping[str, float], prior_x: np.ndarray,
+                 prior_P: np.ndarray, seeds: list[np.random.SeedSequence]) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 class MonteCarloHooks(Protocol):

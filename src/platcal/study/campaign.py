@@ -28,6 +28,7 @@ The same search restricted to one rig gives the cheapest single-rig plans.
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,6 +48,7 @@ from ..io import atomic_to_csv, check_writable, read_config
 from ..model.platform import PlatformModel, default_platform
 from ..rig import Rig, get_rig, rig_config
 from ..schema import load_schema, validate
+from .montecarlo import chunks, replicate_seed
 from .plots import save, styled
 from .tables import write_table
 
@@ -196,6 +198,8 @@ class RigInformation:
     scale: np.ndarray
     keep: np.ndarray
     index: np.ndarray
+    rig_prior: np.ndarray
+    """(n_r,) the rig's own prior sigma of its states (its nuisance states start from it)."""
 
 
 @dataclass(frozen=True)
@@ -245,7 +249,8 @@ def candidates(campaign: Campaign, extra=()) -> Candidates:
         scale = np.asarray(infos[0].prior_sigma, float).copy()
         scale[keep] = campaign.prior_sigma[index]
         F = np.stack([ti.information for ti in infos]) * np.outer(scale, scale)
-        blocks.append(RigInformation(offer.name, np.arange(start, len(tests)), names, F, scale, keep, index))
+        blocks.append(RigInformation(offer.name, np.arange(start, len(tests)), names, F, scale, keep, index,
+                                     np.asarray(infos[0].prior_sigma, float)))
     setup = np.array([o.setup_hours * o.cost_per_hour for o in campaign.rigs])
     reps = np.concatenate([np.full(len(b.columns), o.max_repeats) for b, o in zip(blocks, campaign.rigs)])
     return Candidates(tuple(tests), tuple(blocks), setup, reps, len(pl.names))
@@ -494,6 +499,93 @@ def make_plan(campaign: Campaign) -> Plan:
                           "tests": [describe(cands, res.counts[i]) for i in idx]})
     return Plan(campaign, cands, res, counts, meets, seq, plan_table(campaign, cands, seq),
                 progress_table(campaign, cands, seq), pd.DataFrame(alts), front)
+
+
+# ------------------------------------------------------------------ the Monte Carlo check
+
+def hand_on(x: np.ndarray, P: np.ndarray, index: np.ndarray, x_new: np.ndarray, P_new: np.ndarray):
+    """The platform's estimate (B, n) and covariance (B, n, n) after a test that returned the
+    posterior ``x_new`` (B, k), ``P_new`` (B, k, k) of the coefficients ``index`` (k,).
+
+    The others are updated through their prior correlation with those (the Gaussian update of
+    states the test does not see: ``G = P_ba P_aa^-1``, ``x_b += G (x_a' - x_a)``,
+    ``P_bb -= G (P_aa - P_aa') G^T``, ``P_ba' = G P_aa'``); exact for a linear Gaussian model.
+    Returns new arrays.
+    """
+    n = x.shape[1]
+    a = np.asarray(index)
+    b = np.setdiff1d(np.arange(n), a)
+    x, P = x.copy(), P.copy()
+    Paa = P[:, a[:, None], a[None, :]]
+    Pba = P[:, b[:, None], a[None, :]]
+    G = np.swapaxes(np.linalg.solve(Paa, np.swapaxes(Pba, 1, 2)), 1, 2)
+    x[:, b] += np.einsum("bij,bj->bi", G, x_new - x[:, a])
+    Pbb = P[:, b[:, None], b[None, :]] - G @ (Paa - P_new) @ np.swapaxes(G, 1, 2)
+    P[:, b[:, None], b[None, :]] = 0.5 * (Pbb + np.swapaxes(Pbb, 1, 2))
+    P[:, b[:, None], a[None, :]] = G @ P_new
+    P[:, a[:, None], b[None, :]] = np.swapaxes(G @ P_new, 1, 2)
+    P[:, a[:, None], a[None, :]] = P_new
+    x[:, a] = x_new
+    return x, P
+
+
+def run_sequence(campaign: Campaign, cands: Candidates, sequence: list[int], seeds: list[list]) -> tuple:
+    """Simulate and identify the tests of ``sequence`` in order, each rig's filter started from
+    the previous posterior (the platform's prior, mean 0, first; a rig's nuisance states from
+    its own prior, mean 0); ``seeds[s]`` the B SeedSequences of step s. Returns the platform's
+    estimate (B, n) and covariance (B, n, n), engineering units."""
+    B, n = len(seeds[0]), cands.n_coef
+    x = np.zeros((B, n))
+    P = np.broadcast_to(np.diag(campaign.prior_sigma**2), (B, n, n)).copy()
+    truth = campaign.truth()
+    blocks = {b.rig: b for b in cands.rigs}
+    for s, j in enumerate(sequence):
+        t = cands.tests[j]
+        blk = blocks[t.rig]
+        offer = campaign.offer(t.rig)
+        k, idx = blk.keep, blk.index
+        px = np.zeros((B, len(blk.names)))
+        px[:, k] = x[:, idx]
+        pP = np.broadcast_to(np.diag(blk.rig_prior**2), (B,) + (len(blk.names),) * 2).copy()
+        pP[:, np.flatnonzero(k)[:, None], np.flatnonzero(k)[None, :]] = P[:, idx[:, None], idx[None, :]]
+        xr, Pr = offer.rig.campaign.identify(offer.cfg, t.scheme, t.dwell_s, truth, px, pP, seeds[s])
+        x, P = hand_on(x, P, idx, xr[:, k], Pr[:, np.flatnonzero(k)[:, None], np.flatnonzero(k)[None, :]])
+    return x, P
+
+
+@dataclass(frozen=True)
+class Check:
+    """The Monte Carlo check of a plan: per replicate the NEES of the n coefficients
+    (``nees`` (R,), dof n), per coefficient the RMS error ``achieved_rms`` (n,) and the
+    filter's own mean sigma ``filter_sigma`` (n,)."""
+
+    replicates: int
+    nees: np.ndarray
+    achieved_rms: np.ndarray
+    filter_sigma: np.ndarray
+    seconds: float
+
+
+def check_plan(campaign: Campaign, cands: Candidates, sequence: list[int], replicates: int, label: str = "plan",
+               batch: int = 10) -> Check:
+    """Run the plan ``replicates`` times (batches of ``batch``; replicate r of step s draws from
+    the runner's ``replicate_seed(seed, '<campaign>/<label>/<s>', 0, r)``, so its numbers do not
+    depend on the batch size)."""
+    t0 = time.perf_counter()
+    seed = int(campaign.montecarlo["seed"])
+    truth = campaign.platform.truth
+    errs, nees, sig = [], [], []
+    for part in chunks(replicates, batch):
+        seeds = [[replicate_seed(seed, f"{campaign.name}/{label}/{s}", 0.0, r) for r in part]
+                 for s in range(len(sequence))]
+        x, P = run_sequence(campaign, cands, sequence, seeds)
+        e = x - truth
+        errs.append(e)
+        nees.append(np.einsum("bi,bi->b", e, np.linalg.solve(P, e[..., None])[..., 0]))
+        sig.append(np.sqrt(np.diagonal(P, axis1=1, axis2=2)))
+    e = np.concatenate(errs)
+    return Check(replicates, np.concatenate(nees), np.sqrt((e**2).mean(axis=0)), np.concatenate(sig).mean(axis=0),
+                 time.perf_counter() - t0)
 
 
 # ------------------------------------------------------------------ figures and outputs

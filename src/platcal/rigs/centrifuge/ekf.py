@@ -76,6 +76,9 @@ class FilterSettings:
     estimator : the estimator kind that runs (:mod:`platcal.rigs.centrifuge.estimators`:
         ``ekf``, ``iekf``, ...); the covariance-only runs are always the EKF's.
     estimator_options : ``(keyword, value)`` pairs passed to that kind's run function.
+    prior_x, prior_P : the start of the coefficient states, (n_coef,) or (B, n_coef) estimate and
+        (n_coef, n_coef) or (B, n_coef, n_coef) covariance (engineering units): a previous test's
+        posterior handed on (``platcal plan``'s Monte Carlo). None: 0 and ``diag(p0_sigma^2)`` (§9).
     """
 
     period_s: float = 0.02
@@ -89,6 +92,8 @@ class FilterSettings:
     update_at_reset: bool = False
     estimator: str = "ekf"
     estimator_options: tuple = ()
+    prior_x: np.ndarray | None = None
+    prior_P: np.ndarray | None = None
 
     @property
     def coef_index(self) -> np.ndarray:
@@ -511,8 +516,13 @@ def filter_start(cmd_deg: np.ndarray, centrifuge_params: np.ndarray, settings: F
         raise ValueError(f"p0_sigma has {p0.shape} entries, the filter has {nc} coefficients")
     P = np.zeros((B, nc + 3, nc + 3))
     P[:, np.arange(nc), np.arange(nc)] = p0**2
+    x = np.zeros((B, nc + 3))
+    if settings.prior_x is not None:
+        x[:, :nc] = settings.prior_x
+    if settings.prior_P is not None:
+        P[:, :nc, :nc] = settings.prior_P
     return FilterStart(
-        cmd_rad=np.ascontiguousarray(cmd * DEG), x=np.zeros((B, nc + 3)), P=P,
+        cmd_rad=np.ascontiguousarray(cmd * DEG), x=x, P=P,
         reset_var=(settings.sigma_set_arcsec * ARCSEC) ** 2, r_var=np.full(3, (settings.sigma_a_ug * 1e-6) ** 2),
         q_rate=(settings.arw_deg_rth * DEG / 60.0) ** 2,  # (rad/sqrt(s))^2
         params=broadcast_params(centrifuge_params, B, K))

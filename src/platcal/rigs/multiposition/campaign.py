@@ -17,7 +17,8 @@ import numpy as np
 
 from ...errors import InputError
 from ...rig import TestInformation
-from .filter import position_information
+from .config import make_scheme
+from .filter import position_information, run_filter, simulate
 from .model import coef_names
 
 
@@ -35,17 +36,35 @@ class MultipositionCampaign:
     def positions(self, cfg, scheme: str) -> int:
         return self.scheme(cfg, scheme).n_positions
 
+    @staticmethod
+    def with_truth(cfg, truth: Mapping[str, float]):
+        """The config with the campaign's platform values as its truth."""
+        return replace(cfg, truth_overrides={**cfg.truth_overrides,
+                                             **{n: float(truth[n]) for n in coef_names() if n in truth}})
+
     def information(self, cfg, scheme: str, dwell_s: float, truth: Mapping[str, float]) -> TestInformation:
         """Information of ``scheme`` at ``dwell_s`` s per position about the 24 coefficients
         (engineering units: the normalised information scaled by the rig's P0 sigmas)."""
         names = coef_names()
-        cfg = replace(cfg, truth_overrides={**cfg.truth_overrides,
-                                            **{n: float(truth[n]) for n in names if n in truth}})
+        cfg = self.with_truth(cfg, truth)
         F = position_information(cfg, self.scheme(cfg, scheme).angles_deg, float(dwell_s))
         p0 = cfg.p0()
         sch = self.scheme(cfg, scheme)
         return TestInformation(names=names, information=F.sum(axis=0) / np.outer(p0, p0), prior_sigma=p0,
                                seconds=float(dwell_s) * sch.n_positions)
+
+
+    def identify(self, cfg, scheme: str, dwell_s: float, truth: Mapping[str, float], prior_x: np.ndarray,
+                 prior_P: np.ndarray, seeds) -> tuple[np.ndarray, np.ndarray]:
+        """Simulate the test once per seed and identify it with the EKF of §9 (one pass, so the
+        handed-on prior is kept) started from ``prior_x`` (B, 24) and ``prior_P`` (B, 24, 24);
+        returns the 24 coefficients' estimate and covariance (engineering units)."""
+        cfg = self.with_truth(cfg, truth)
+        base = self.scheme(cfg, scheme)
+        sch = make_scheme(base.name, base.positions, float(dwell_s), cfg.beta_max_deg)
+        t, _, z = simulate(cfg, sch, list(seeds))
+        x, P = run_filter(cfg, sch.angles_deg, t, z, passes=1, prior_x=prior_x, prior_P=prior_P)[:2]
+        return x, P
 
 
 CAMPAIGN = MultipositionCampaign()

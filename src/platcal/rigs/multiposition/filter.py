@@ -317,7 +317,7 @@ def dynamic_cols(ext: int) -> np.ndarray:
 
 def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
                threads: int | None = None, sigma_a_ug: float | None = None, iterations: int = 0,
-               tolerance: float = 0.0):
+               tolerance: float = 0.0, prior_x=None, prior_P=None):
     """Identify the coefficients from outputs ``Z`` (R, K, n, 6) (ug, arcsec) at times ``t``.
 
     ``positions_deg`` (K, 3) commanded angles; ``t`` is (n,) shared by all positions, or (K, n)
@@ -326,7 +326,9 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     tolerance ``tolerance`` prior sigmas; 1 = the EKF as one 6-D update). Returns ``(coef (R, nc),
     cov (R, nc, nc), mean NIS per measurement (R,), linearisations per update (R,), updates skipped
     because S was not positive definite (R,))`` (linearisations averaged over the passes, skipped
-    updates summed). Filter R uses the config's noise (``sigma_a_ug`` overrides).
+    updates summed). Filter R uses the config's noise (``sigma_a_ug`` overrides). ``prior_x``
+    ((nc,) or (R, nc)) and ``prior_P`` ((nc, nc) or (R, nc, nc)), engineering units: the start of
+    the coefficient states (a previous test's posterior handed on); None: 0 and diag(P0^2) (§9).
     """
     Z = np.ascontiguousarray(Z, dtype=float)
     R, K, ns, _ = Z.shape
@@ -342,6 +344,10 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     X = np.zeros((R, n))
     Ps = np.zeros((R, n, n))
     Ps[:, 3:, 3:] = np.diag(p0**2)
+    if prior_x is not None:
+        X[:, 3:] = prior_x
+    if prior_P is not None:
+        Ps[:, 3:, 3:] = prior_P
     lay = layout_index(ext)
     wn, wu = cfg.site.params()
     cols = dynamic_cols(ext)

@@ -27,6 +27,7 @@ The same search restricted to one rig gives the cheapest single-rig plans.
 
 from __future__ import annotations
 
+import copy
 import os
 import time
 from collections.abc import Mapping
@@ -44,13 +45,13 @@ from pymoo.optimize import minimize
 
 from ..errors import InputError
 from ..estimation.information import marginal_information
-from ..io import atomic_to_csv, check_writable, read_config
+from ..io import atomic_to_csv, atomic_write_text, check_writable, read_config
 from ..model.platform import PlatformModel, default_platform
 from ..rig import Rig, get_rig, rig_config
 from ..schema import load_schema, validate
 from .montecarlo import chunks, replicate_seed
 from .plots import save, styled
-from .tables import write_table
+from .tables import frame_markdown, write_table
 
 import matplotlib.pyplot as plt  # noqa: E402  (after .plots, which selects the Agg backend)
 
@@ -631,13 +632,52 @@ def progress_figure(plan: Plan, path) -> None:
     save(fig, path)
 
 
-def write_plan(plan: Plan, out_dir, achieved_rms: np.ndarray | None = None, extra_md: str = "") -> pd.DataFrame:
+def check_table(name: str, check: Check, planned: np.ndarray, target: np.ndarray, names) -> dict:
+    """One row of check.csv: the Monte Carlo of a plan against its planned sigmas and targets."""
+    ratio = check.achieved_rms / planned
+    return {"name": name, "replicates": check.replicates, "mean_nees": float(check.nees.mean()),
+            "nees_dof": planned.size, "mean_nees_over_dof": float(check.nees.mean() / planned.size),
+            "share_meeting_target": float((check.achieved_rms <= target).mean()),
+            "share_rms_within_20pct_of_planned": float((np.abs(ratio - 1.0) <= 0.2).mean()),
+            "worst_rms_over_planned": float(ratio.max()),
+            "worst_rms_over_planned_coefficient": names[int(np.argmax(ratio))], "seconds": check.seconds}
+
+
+def report_markdown(plan: Plan, coefs: pd.DataFrame, checks: pd.DataFrame | None) -> str:
+    """report.md of a campaign: the plan, its cost, the alternatives, planned vs achieved per
+    coefficient, the Monte Carlo summary and the figures."""
+    camp = plan.campaign
+    lines = [f"# Calibration campaign `{camp.name}`", "",
+             "The cheapest sequence of tests, across rigs, whose planned 1-sigma meets every coefficient's "
+             "target (`platcal plan`, issue 23). Planned sigmas: the rigs' Fisher informations added on the "
+             "platform's coefficient names, nuisance states marginalised per rig; search: NSGA-II over the "
+             "test counts (cost vs worst sigma/target).", "",
+             "## The plan", "",
+             ("Meets every target (planned)." if plan.meets else
+              "**No plan found meets every target**; shown: the plan with the least worst sigma/target."),
+             f"Cost {plan.plan['cost'].sum():.6g} for {plan.plan['hours'].sum():.4g} rig hours.", "",
+             frame_markdown(plan.plan), "", "## Alternatives", "",
+             "The cheapest single-rig plans (or the best one rig can do when none meets) and the papers' own "
+             "schemes, run once as published.", "", frame_markdown(plan.alternatives), ""]
+    if checks is not None:
+        lines += ["## Monte Carlo check", "",
+                  "Each test simulated and identified on its rig in order, each filter started from the "
+                  "previous posterior; errors over the replicates against the planned sigmas.", "",
+                  frame_markdown(checks), ""]
+    lines += ["## Planned vs achieved per coefficient", "", frame_markdown(coefs), "",
+              "## Figures", "", "![cost vs accuracy](front.png)", "",
+              "![sigma/target after each test](progress.png)", ""]
+    return "\n".join(lines)
+
+
+def write_plan(plan: Plan, out_dir, check: Check | None = None) -> pd.DataFrame:
     """Write plan, coefficients and alternatives (csv, md, html), front.csv, progress.csv,
-    front.png, progress.png and report.md into ``out_dir``, each file atomically."""
+    check.csv (with a Monte Carlo), front.png, progress.png and report.md into ``out_dir``, each
+    file atomically; returns the coefficients table."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     planned = planned_sigma(plan.campaign, plan.cands, plan.counts)[0]
-    coefs = coefficient_table(plan.campaign, planned, achieved_rms)
+    coefs = coefficient_table(plan.campaign, planned, None if check is None else check.achieved_rms)
     total = plan.plan["cost"].sum()
     verdict = ("meets every target" if plan.meets else
                "NO plan found meets every target; shown: the plan with the least worst sigma/target")
@@ -647,22 +687,50 @@ def write_plan(plan: Plan, out_dir, achieved_rms: np.ndarray | None = None, extr
                 "units: the unit column; meets = achieved_rms <= target_sigma")
     write_table(plan.alternatives, out / "alternatives", "The plan and its alternatives",
                 "single-rig plans: the cheapest that meets every target, else the best it can do")
+    checks = None
+    if check is not None:
+        checks = pd.DataFrame([check_table("plan", check, planned, plan.campaign.target_sigma,
+                                            plan.campaign.platform.names)])
+        write_table(checks, out / "check", "Monte Carlo check of the plan", "NEES over the n coefficients (dof n)")
     atomic_to_csv(plan.front, out / "front.csv", index=False)
     atomic_to_csv(plan.progress, out / "progress.csv", index=False)
     front_figure(plan, out / "front.png")
     progress_figure(plan, out / "progress.png")
+    atomic_write_text(out / "report.md", report_markdown(plan, coefs, checks))
     return coefs
+
+
+def campaign_content(source) -> dict:
+    """The campaign (a file path or a mapping) with each rig's config read in (a path becomes
+    the mapping): everything its numbers depend on, as a workflow rule's param."""
+    raw = read_config(source, "--campaign") if isinstance(source, (str, os.PathLike)) else copy.deepcopy(source)
+    for name, entry in (raw.get("rigs") or {}).items() if isinstance(raw, dict) else ():
+        if isinstance(entry, dict) and "config" in entry:
+            entry["config"] = rig_config({"rigs": {name: entry["config"]}}, name)
+    return raw
+
+
+def run_campaign(source, out_dir, replicates: int | None = None) -> tuple[Plan, Check | None]:
+    """Validate the campaign (InputError naming the field, before any work), plan it, check the
+    plan by Monte Carlo (``replicates``; None: the campaign's, 0: none) and write the outputs."""
+    check_writable(out_dir, "--out", folder=True)
+    if replicates is not None and replicates < 0:
+        raise InputError("--replicates", "must be >= 0 (0: no Monte Carlo check)")
+    camp = load_campaign(source)
+    n = int(camp.montecarlo["replicates"] if replicates is None else replicates)
+    plan = make_plan(camp)
+    check = check_plan(camp, plan.cands, plan.sequence, n) if n > 0 and plan.sequence else None
+    write_plan(plan, out_dir, check)
+    return plan, check
 
 
 def plan_command(args) -> int:
     """``platcal plan --campaign FILE --out DIR [--replicates N]``: validate (exit 2 naming the
     field, before any work), plan, write the outputs."""
-    check_writable(args.out, "--out", folder=True)
-    camp = load_campaign(args.campaign)
-    if args.replicates is not None and args.replicates < 0:
-        raise InputError("--replicates", "must be >= 0 (0: no Monte Carlo check)")
-    plan = make_plan(camp)
-    write_plan(plan, args.out)
+    plan, check = run_campaign(args.campaign, args.out, args.replicates)
+    if check is not None:
+        print(f"Monte Carlo ({check.replicates} replicates): mean NEES {check.nees.mean():.4g} (dof "
+              f"{plan.cands.n_coef})")
     print(f"plan: {describe(plan.cands, plan.counts)}; cost {plan.plan['cost'].sum():.6g}; "
           f"meets every target: {plan.meets}; written to {args.out}")
     return 0

@@ -26,6 +26,7 @@ for _rules in dict.fromkeys(f for f in RIG_RULES.values() if f):
 
 
 include: "workflow/rules/report.smk"
+include: "workflow/rules/campaign.smk"
 
 
 RIG_TARGETS = {
@@ -39,3 +40,4 @@ rule all:
         [t for r in RIGS for t in RIG_TARGETS[r]],
         LEDGER if RIGS else [],
         INDEX_REPORT if RIGS else [],
+        CAMPAIGN_TARGETS,

@@ -1,0 +1,49 @@
+# The default calibration campaign (issue 23): `platcal plan` on the index's `campaign:` entry
+# (config/campaign.yaml), written to results/campaign/. The rule's param is the campaign's content
+# with each rig's config read in (platcal.study.campaign.campaign_content), never a path.
+from platcal.study.campaign import campaign_content as _campaign_content
+
+
+def _campaign_param():
+    try:
+        return _campaign_content(config["campaign"]) if config.get("campaign") else None
+    except InputError as exc:
+        raise WorkflowError(f"invalid campaign: {exc.field}: {exc.message} (campaign)")
+
+
+CAMPAIGN = _campaign_param()
+CAMPAIGN_TARGETS = (
+    [f"results/campaign/{f}" for f in ("plan.csv", "coefficients.csv", "alternatives.csv", "report.md")]
+    if CAMPAIGN
+    else []
+)
+
+
+rule campaign_plan:
+    output:
+        report(
+            "results/campaign/plan.csv", caption="../report/campaign.rst", category="9. Campaign"
+        ),
+        "results/campaign/coefficients.csv",
+        "results/campaign/alternatives.csv",
+        report(
+            "results/campaign/front.png", caption="../report/campaign.rst", category="9. Campaign"
+        ),
+        report(
+            "results/campaign/progress.png",
+            caption="../report/campaign.rst",
+            category="9. Campaign",
+        ),
+        report(
+            "results/campaign/report.md", caption="../report/campaign.rst", category="9. Campaign"
+        ),
+    params:
+        campaign=CAMPAIGN,
+        code=CODE_ALL,
+    threads: 1
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/logs/campaign_plan.log",
+    script:
+        "../scripts/campaign_plan.py"

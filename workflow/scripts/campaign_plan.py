@@ -1,0 +1,11 @@
+"""Snakemake wrapper: results/campaign/ (plan, coefficients, alternatives, check, figures, report)."""
+from pathlib import Path
+
+from platcal.log import job_logger
+from platcal.study.campaign import run_campaign
+
+sm = snakemake  # noqa: F821
+log = job_logger(sm.log[0])
+plan, check = run_campaign(sm.params.campaign, Path(sm.output[0]).parent)
+log.info("plan cost %.6g, meets every target: %s; Monte Carlo %s", plan.plan["cost"].sum(), plan.meets,
+         "off" if check is None else f"{check.replicates} replicates, mean NEES {check.nees.mean():.4g}")

@@ -1,0 +1,180 @@
+"""The campaign planner (issue 23): validation, information across rigs, the search, the
+hand-on of a posterior from one test to the next, and sequential = joint identification."""
+
+import copy
+
+import numpy as np
+import pytest
+import yaml
+
+from platcal.cli import main
+from platcal.errors import InputError
+from platcal.estimation.information import marginal_information
+from platcal.io import read_config
+from platcal.rig import get_rig, rig_config
+from platcal.rigs.multiposition.config import make_scheme
+from platcal.rigs.multiposition.filter import run_filter, simulate
+from platcal.study import campaign as cp
+from file_snapshot import snapshot
+
+MP = {"rig": "multiposition", "schemes": {"TET4": {"dwell_s": 10, "positions": [[0, 0, 0], [109.47, 0, 0],
+                                                                              [109.47, 0, 120], [109.47, 0, 240]]}}}
+CF = {"rig": "centrifuge", "schemes": {"short": {"dwell_s": 3, "positions": [[45, 0, 167], [350, 0, 325],
+                                                                            [209, 0, 182], [134, 0, 141],
+                                                                            [106, 0, 338], [142, 0, 269]]}}}
+
+
+def tiny(**over) -> dict:
+    """A small campaign: short dwells, loose targets (every coefficient's prior / 20), a small search."""
+    raw = {"name": "tiny",
+           "targets": {"DF": 0.5, "DI": 0.1, "DO": 0.1, "DS": 0.1, "DII": 0.01, "DSS": 0.01, "DIO": 0.01,
+                       "DIS": 0.01, "DOS": 0.01, "k0": 500, "k1": 100, "k2": 2.5, "k3": 0.5, "kIP": 1, "theta": 30},
+           "rigs": {"centrifuge": {"config": copy.deepcopy(CF), "cost_per_hour": 1000, "setup_hours": 8,
+                                   "schemes": ["short"], "dwell_s": [3], "max_repeats": 2},
+                    "multiposition": {"config": copy.deepcopy(MP), "cost_per_hour": 100, "setup_hours": 1,
+                                      "schemes": ["TET4"], "dwell_s": [10], "max_repeats": 2}},
+           "references": {"centrifuge_short": [{"rig": "centrifuge", "scheme": "short", "dwell_s": 3}]},
+           "optimiser": {"population": 8, "generations": 3, "seed": 1},
+           "montecarlo": {"replicates": 0}}
+    raw.update(over)
+    return raw
+
+
+@pytest.fixture(scope="module")
+def planned():
+    camp = cp.load_campaign(tiny())
+    return camp, cp.candidates(camp)
+
+
+@pytest.mark.parametrize("edit, field", [
+    (lambda r: r["targets"].pop("k2"), "targets"),
+    (lambda r: r["targets"].update(DQ=1), "targets.DQ"),
+    (lambda r: r["targets"].update(DF=-1), "targets.DF"),
+    (lambda r: r["rigs"]["centrifuge"].update(schemes=["nope"]), "rigs.centrifuge.schemes[0]"),
+    (lambda r: r["rigs"]["centrifuge"].update(cost=3), "rigs.centrifuge"),
+    (lambda r: r["rigs"].update(sled={"config": {"rig": "sled"}, "schemes": ["x"]}), "rigs.sled"),
+    (lambda r: r["references"].update(x=[{"rig": "lowprec", "scheme": "a", "dwell_s": 1}]), "references.x[0].rig"),
+    (lambda r: r["platform"].update(truth={"DF_q": 1}) if "platform" in r else r.update(platform={"truth": {"DF_q": 1}}),
+     "platform.truth.DF_q"),
+])
+def test_bad_campaign_names_the_field(edit, field):
+    raw = tiny()
+    edit(raw)
+    with pytest.raises(InputError) as exc:
+        cp.load_campaign(raw)
+    assert exc.value.field == field
+
+
+def test_cli_bad_campaign_exits_2_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    raw = tiny()
+    raw["targets"].pop("theta")
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump(raw))
+    before = snapshot(tmp_path)
+    assert main(["plan", "--campaign", "c.yaml", "--out", "out"]) == 2
+    err = capsys.readouterr().err
+    assert "error: targets:" in err and "theta_py" in err
+    assert snapshot(tmp_path) == before
+
+
+def test_marginal_information_is_the_block_of_the_posterior():
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(9, 6))
+    F = A.T @ A
+    prior = np.array([1.0, 2.0, 0.5, 1.0, 3.0, 1.0])
+    keep = np.array([True, False, True, True, False, True])
+    M = marginal_information(F, keep, prior)
+    full = np.linalg.inv(F + np.diag(prior))[np.ix_(keep, keep)]
+    assert np.allclose(np.linalg.inv(M + np.diag(prior[keep])), full, rtol=1e-10, atol=1e-12)
+
+
+def test_hand_on_equals_the_joint_posterior():
+    """Linear Gaussian: a test seeing states a only, its posterior handed on, gives the joint
+    posterior (mean and covariance) of all states."""
+    rng = np.random.default_rng(5)
+    n, a = 5, np.array([0, 2, 3])
+    L = rng.normal(size=(n, n))
+    P0 = L @ L.T + np.eye(n)
+    x0 = rng.normal(size=n)
+    H = rng.normal(size=(4, a.size))
+    z = rng.normal(size=4)
+    Hf = np.zeros((4, n))
+    Hf[:, a] = H
+    S = Hf @ P0 @ Hf.T + np.eye(4)
+    K = P0 @ Hf.T @ np.linalg.inv(S)
+    xj, Pj = x0 + K @ (z - Hf @ x0), P0 - K @ S @ K.T
+    Paa = P0[np.ix_(a, a)]
+    Sa = H @ Paa @ H.T + np.eye(4)
+    Ka = Paa @ H.T @ np.linalg.inv(Sa)
+    xa, Pa = x0[a] + Ka @ (z - H @ x0[a]), Paa - Ka @ Sa @ Ka.T
+    x, P = cp.hand_on(x0[None], P0[None], a, xa[None], Pa[None])
+    assert np.allclose(x[0], xj, atol=1e-12) and np.allclose(P[0], Pj, atol=1e-12)
+
+
+def test_information_adds_and_the_plan_meets_its_targets(planned):
+    camp, cands = planned
+    m = len(cands.tests)
+    one, two = np.zeros(m, int), np.zeros(m, int)
+    j = cands.index("multiposition", "TET4", 10)
+    one[j], two[j] = 1, 2
+    I1, I2 = cp.posterior_information(cands, np.stack([one, two]))
+    eye = np.eye(cands.n_coef)
+    # one rig's nuisance is marginalised once over all its tests, so two tests are not exactly
+    # twice one; the platform part of the multiposition's information is close to additive
+    assert np.allclose(I2 - eye, 2 * (I1 - eye), rtol=0.05, atol=1e-6 * np.abs(I1).max())
+    res = cp.search(camp, cands)
+    i = res.cheapest_meeting()
+    assert i is not None and res.worst[i] <= 1.0
+    assert res.cost[i] <= res.cost[res.worst <= 1.0].min()
+    # the 1 g self-test alone cannot see the g-squared terms: it never meets every target
+    mp = cp.search(camp, cands, ("multiposition",))
+    assert mp.cheapest_meeting() is None
+    sig = cp.planned_sigma(camp, cands, two)[0]
+    unseen = [i for i, n in enumerate(camp.platform.names) if cp.term_of(n) in ("DII", "DSS", "DIO", "DIS", "DOS",
+                                                                                "k2", "k3", "kIP")]
+    seen = [i for i in range(len(sig)) if i not in unseen]
+    assert np.allclose(sig[unseen], camp.prior_sigma[unseen])
+    assert (sig[seen] < 0.5 * camp.prior_sigma[seen]).all()
+
+
+def test_planned_sigma_is_the_centrifuge_covariance_only_run(planned):
+    """With the centrifuge's own P0 as the platform prior, one test's planned sigma is its
+    covariance-only EKF's sigma (the rig's observability analysis)."""
+    camp, cands = planned
+    rig = get_rig("centrifuge")
+    study = rig.load_config(rig_config({"rigs": {"centrifuge": copy.deepcopy(CF)}}, "centrifuge"))
+    from platcal.rigs.centrifuge.observability import direct_covariance, setup_from_study
+    setup = setup_from_study(study, 3)
+    P = direct_covariance(setup, study.schemes["short"].angles_deg)[0]
+    camp2 = cp.Campaign(camp.name, camp.platform, setup.p0[:45].copy(), camp.target_sigma, camp.rigs,
+                        camp.references, camp.optimiser, camp.montecarlo, camp.raw)
+    cands2 = cp.candidates(camp2)
+    counts = np.zeros(len(cands2.tests), int)
+    counts[cands2.index("centrifuge", "short", 3)] = 1
+    sig = cp.planned_sigma(camp2, cands2, counts)[0]
+    assert np.allclose(sig, np.sqrt(np.diag(P))[:45], rtol=1e-4)
+
+
+def test_sequential_multiposition_equals_one_filter_over_both_records():
+    """Two records in sequence, the first's posterior handed on as the second's prior, give the
+    estimate and covariance of one filter over both records (to 0.01 sigma)."""
+    cfg = get_rig("multiposition").load_config(copy.deepcopy(MP))
+    s1 = make_scheme("A", [[0, 0, 0], [109.47, 0, 0]], 10, cfg.beta_max_deg)
+    s2 = make_scheme("B", [[109.47, 0, 120], [109.47, 0, 240], [90, 0, 90]], 10, cfg.beta_max_deg)
+    seeds = [np.random.SeedSequence(11, spawn_key=(r,)) for r in range(3)]
+    t, _, z1 = simulate(cfg, s1, seeds)
+    _, _, z2 = simulate(cfg, s2, [np.random.SeedSequence(12, spawn_key=(r,)) for r in range(3)])
+    x1, P1 = run_filter(cfg, s1.angles_deg, t, z1, passes=1)[:2]
+    xs, Ps = run_filter(cfg, s2.angles_deg, t, z2, passes=1, prior_x=x1, prior_P=P1)[:2]
+    both = np.concatenate([s1.angles_deg, s2.angles_deg])
+    xj, Pj = run_filter(cfg, both, t, np.concatenate([z1, z2], axis=1), passes=1)[:2]
+    sig = np.sqrt(np.diagonal(Pj, axis1=1, axis2=2))
+    assert np.all(np.abs(xs - xj) <= 0.01 * sig)
+    assert np.all(np.abs(np.sqrt(np.diagonal(Ps, axis1=1, axis2=2)) - sig) <= 0.01 * sig)
+
+
+def test_default_campaign_is_valid():
+    camp = cp.load_campaign(cp.campaign_content("config/campaign.yaml"))
+    assert {r.name for r in camp.rigs} == {"centrifuge", "multiposition"}
+    assert (camp.target_sigma < camp.prior_sigma).all()
+    assert read_config("config/campaign.yaml")["montecarlo"]["replicates"] >= 50

@@ -2,6 +2,7 @@
 hand-on of a posterior from one test to the next, and sequential = joint identification."""
 
 import copy
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,7 +13,11 @@ from platcal.errors import InputError
 from platcal.estimation.information import marginal_information
 from platcal.io import read_config
 from platcal.rig import get_rig, rig_config
+from platcal.rigs.centrifuge.ekf import first_instant
+from platcal.rigs.centrifuge.estimators import run_estimator
+from platcal.rigs.centrifuge.simulate import simulate as simulate_centrifuge
 from platcal.rigs.multiposition.config import make_scheme
+from platcal.scheme import check_scheme
 from platcal.rigs.multiposition.filter import run_filter, simulate
 from platcal.study import campaign as cp
 from file_snapshot import snapshot
@@ -171,6 +176,34 @@ def test_sequential_multiposition_equals_one_filter_over_both_records():
     sig = np.sqrt(np.diagonal(Pj, axis1=1, axis2=2))
     assert np.all(np.abs(xs - xj) <= 0.01 * sig)
     assert np.all(np.abs(np.sqrt(np.diagonal(Ps, axis1=1, axis2=2)) - sig) <= 0.01 * sig)
+
+
+def test_sequential_centrifuge_equals_one_filter_over_both_records():
+    """The centrifuge's EKF: two records in sequence, the posterior handed on (FilterSettings
+    prior_x / prior_P), against one EKF over both records' positions (to 0.01 sigma)."""
+    study = get_rig("centrifuge").load_config(rig_config({"rigs": {"centrifuge": copy.deepcopy(CF)}}, "centrifuge"))
+    pos = CF["schemes"]["short"]["positions"]
+    s1 = check_scheme("A", {"dwell_s": 3, "positions": pos[:3]})
+    s2 = check_scheme("B", {"dwell_s": 3, "positions": pos[3:]})
+    both = check_scheme("AB", {"dwell_s": 3, "positions": pos})
+    fs = replace(study.filter, history_every_s=None)
+    i0 = first_instant(fs.update_at_reset)
+
+    def record(scheme, key):
+        seeds = [np.random.SeedSequence(21, spawn_key=(key, r)) for r in range(2)]
+        sim = simulate_centrifuge(study.truth, scheme, study.centrifuge.scheme_params(scheme), study.noise, seeds,
+                                  sample_s=study.sample_s, keep_every=study.keep_every)
+        return [sim.A[:, k, i0:] for k in range(scheme.n_positions)], [sim.t[i0:]] * scheme.n_positions
+
+    (z1, t1), (z2, t2) = record(s1, 1), record(s2, 2)
+    nc = fs.coef_index.size
+    e1 = run_estimator(z1, t1, s1.angles_deg, study.centrifuge.scheme_params(s1), fs)
+    fs2 = replace(fs, prior_x=e1.x[:, :nc], prior_P=e1.P[:, :nc, :nc])
+    es = run_estimator(z2, t2, s2.angles_deg, study.centrifuge.scheme_params(s2), fs2)
+    ej = run_estimator(z1 + z2, t1 + t2, both.angles_deg, study.centrifuge.scheme_params(both), fs)
+    sig = np.sqrt(np.diagonal(ej.P[:, :nc, :nc], axis1=1, axis2=2))
+    assert np.all(np.abs(es.x[:, :nc] - ej.x[:, :nc]) <= 0.01 * sig)
+    assert np.all(np.abs(np.sqrt(np.diagonal(es.P[:, :nc, :nc], axis1=1, axis2=2)) - sig) <= 0.01 * sig)
 
 
 def test_default_campaign_is_valid():

@@ -9,7 +9,7 @@ side does:
 
 * centrifuge: ``run_ekf`` (Table 1 scheme, 6 x 60 s, 20 ms) against
   :func:`bench_filter.filterpy_run` (``ExtendedKalmanFilter`` with the RK4 map and its exact
-  Jacobian, the model of :mod:`platcal.model.attitude`);
+  Jacobian, the model of :mod:`platcal.rigs.centrifuge.attitude`);
 * multiposition: ``run_ekf`` (scheme S8, 8 x 60 s, one pass, 27 states) against an
   ``ExtendedKalmanFilter`` with the rig's own compiled rate, RK4 and measurement functions
   (Phi = I + F dt + F^2 dt^2 / 2, Q = T T^T ARW^2 dt, the 6-D update with the angles wrapped);

@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit, prange
 
 from ...estimation.kalman import cholesky_inverse, innovation_covariance, joseph_update_sparse, propagate_sparse
-from ...model.attitude import (GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc,
+from .attitude import (GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc,
                                rk4_jac_sc)
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of

@@ -59,7 +59,7 @@ from ...errors import InputError
 from ...estimation.kalman import propagate_sparse
 from ...estimation.unscented import (check_ut_params, cholesky_upper_into, joseph_update,
                                      regression_cross_into, ut_moments_into)
-from ...model.attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch,
+from .attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch,
                                measure_scalar, rk4_jac_sc, rk4_scalar)
 from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
 from .base import specific_force_into
@@ -443,7 +443,7 @@ def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, para
 def propagation_structure(est_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(pcols, pg)``: the states where the attitude rows of the RK4 map's Jacobian may be nonzero
     (the estimated gyro coefficients, then the three angles) and, for each coefficient among
-    them, its column of the compact gyro Jacobian (:data:`platcal.model.attitude.GYRO_COLS`)."""
+    them, its column of the compact gyro Jacobian (:data:`platcal.rigs.centrifuge.attitude.GYRO_COLS`)."""
     nc = est_idx.size
     state_of = {int(f): k for k, f in enumerate(est_idx)}
     pairs = [(state_of[int(f)], q) for q, f in enumerate(GYRO_COLS) if int(f) in state_of]

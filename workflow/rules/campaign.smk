@@ -1,17 +1,7 @@
 # The default calibration campaign (issue 23): `platcal plan` on the index's `campaign:` entry
 # (config/campaign.yaml), written to results/campaign/. The rule's param is the campaign's content
 # with each rig's config read in (platcal.study.campaign.campaign_content), never a path.
-from platcal.study.campaign import campaign_content as _campaign_content
-
-
-def _campaign_param():
-    try:
-        return _campaign_content(config["campaign"]) if config.get("campaign") else None
-    except InputError as exc:
-        raise WorkflowError(f"invalid campaign: {exc.field}: {exc.message} (campaign)")
-
-
-CAMPAIGN = _campaign_param()
+CAMPAIGN = campaign_param(config.get("campaign"))
 CAMPAIGN_TARGETS = (
     [f"results/campaign/{f}" for f in ("plan.csv", "coefficients.csv", "alternatives.csv", "report.md")]
     if CAMPAIGN

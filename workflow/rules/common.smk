@@ -8,6 +8,7 @@ from snakemake.utils import validate
 
 from platcal.errors import InputError
 from platcal.rig import get_rig, rig_config
+from platcal.study.campaign import campaign_content, load_campaign
 from platcal.study.montecarlo import code_hash, compute_code_hash, noise_label
 
 # config/config.yaml is the index: rigs: {name: config path or inline mapping}
@@ -22,6 +23,18 @@ def checked(rig, fn, raw=None):
         return fn(rig_config(config, rig) if raw is None else raw)
     except InputError as exc:
         raise WorkflowError(f"invalid configuration: {exc.field}: {exc.message} (rigs.{rig})")
+
+
+def campaign_param(entry):
+    """The index's campaign (path or mapping) as content, each rig's config read in (rule
+    campaign_plan's param); None without one. An InputError stops the run here, naming the field."""
+    try:
+        content = campaign_content(entry) if entry else None
+        if content is not None:
+            load_campaign(content)  # validated (schema, rigs' configs, schemes) before any job
+        return content
+    except InputError as exc:
+        raise WorkflowError(f"invalid campaign: {exc.field}: {exc.message} (campaign)")
 
 
 # ---- every rig's config content, read once through the one config path (a path or an inline

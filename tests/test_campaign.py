@@ -59,8 +59,7 @@ def planned():
     (lambda r: r["rigs"]["centrifuge"].update(cost=3), "rigs.centrifuge"),
     (lambda r: r["rigs"].update(sled={"config": {"rig": "sled"}, "schemes": ["x"]}), "rigs.sled"),
     (lambda r: r["references"].update(x=[{"rig": "lowprec", "scheme": "a", "dwell_s": 1}]), "references.x[0].rig"),
-    (lambda r: r["platform"].update(truth={"DF_q": 1}) if "platform" in r else r.update(platform={"truth": {"DF_q": 1}}),
-     "platform.truth.DF_q"),
+    (lambda r: r.update(platform={"truth": {"DF_q": 1}}), "platform.truth.DF_q"),
 ])
 def test_bad_campaign_names_the_field(edit, field):
     raw = tiny()

@@ -427,7 +427,8 @@ def progress_table(campaign: Campaign, cands: Candidates, sequence: list[int]) -
     pl = campaign.platform
     return pd.DataFrame([{"step": s, "name": n, "group": g, "unit": u, "sigma": float(sig[s, i]),
                           "sigma_over_target": float(sig[s, i] / campaign.target_sigma[i])}
-                         for s in range(sig.shape[0]) for i, (n, g, u) in enumerate(zip(pl.names, pl.groups, pl.units))])
+                         for s in range(sig.shape[0])
+                         for i, (n, g, u) in enumerate(zip(pl.names, pl.groups, pl.units))])
 
 
 def coefficient_table(campaign: Campaign, planned: np.ndarray, achieved_rms: np.ndarray | None = None) -> pd.DataFrame:

@@ -1,7 +1,8 @@
 # The default calibration campaign (issue 23): `platcal plan` on the index's `campaign:` entry
 # (config/campaign.yaml), written to results/campaign/. The rule's param is the campaign's content
-# with each rig's config read in (platcal.study.campaign.campaign_content), never a path.
-CAMPAIGN = campaign_param(config.get("campaign"))
+# with each rig's config read in (platcal.study.campaign.campaign_content), never a path. Planned
+# only when every rig the campaign names is in the study.
+CAMPAIGN = campaign_param(config.get("campaign"), RIGS)
 CAMPAIGN_TARGETS = (
     [f"results/campaign/{f}" for f in ("plan.csv", "coefficients.csv", "alternatives.csv", "report.md")]
     if CAMPAIGN

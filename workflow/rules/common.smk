@@ -25,13 +25,15 @@ def checked(rig, fn, raw=None):
         raise WorkflowError(f"invalid configuration: {exc.field}: {exc.message} (rigs.{rig})")
 
 
-def campaign_param(entry):
+def campaign_param(entry, rigs):
     """The index's campaign (path or mapping) as content, each rig's config read in (rule
-    campaign_plan's param); None without one. An InputError stops the run here, naming the field."""
+    campaign_plan's param); None without one, or when a rig it names is not in the study
+    (``rigs``): a study of other rigs does not plan it. An InputError stops the run here."""
     try:
         content = campaign_content(entry) if entry else None
-        if content is not None:
-            load_campaign(content)  # validated (schema, rigs' configs, schemes) before any job
+        if content is None or not set(content.get("rigs") or {}) <= set(rigs):
+            return None
+        load_campaign(content)  # validated (schema, rigs' configs, schemes) before any job
         return content
     except InputError as exc:
         raise WorkflowError(f"invalid campaign: {exc.field}: {exc.message} (campaign)")

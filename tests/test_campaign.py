@@ -5,6 +5,7 @@ import copy
 from dataclasses import replace
 
 import numpy as np
+import pandas as pd
 import pytest
 import yaml
 
@@ -210,3 +211,22 @@ def test_default_campaign_is_valid():
     assert {r.name for r in camp.rigs} == {"centrifuge", "multiposition"}
     assert (camp.target_sigma < camp.prior_sigma).all()
     assert read_config("config/campaign.yaml")["montecarlo"]["replicates"] >= 50
+
+
+def test_plan_command_writes_every_output(tmp_path, capsys):
+    """``platcal plan`` end to end on the tiny campaign, 3 replicates, alternatives simulated too."""
+    raw = tiny(montecarlo={"replicates": 3, "alternatives": True})
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump(raw))
+    out = tmp_path / "plan"
+    assert main(["plan", "--campaign", str(tmp_path / "c.yaml"), "--out", str(out)]) == 0
+    plan, coefs = pd.read_csv(out / "plan.csv"), pd.read_csv(out / "coefficients.csv")
+    alts, checks = pd.read_csv(out / "alternatives.csv"), pd.read_csv(out / "check.csv")
+    assert len(coefs) == 45 and coefs["achieved_rms"].notna().all()
+    assert (coefs["meets"] == (coefs["achieved_rms"] <= coefs["target_sigma"])).all()
+    assert (coefs["planned_sigma"] <= coefs["target_sigma"]).all()
+    assert plan["cost"].sum() == pytest.approx(alts.loc[alts["name"] == "plan", "cost"].item())
+    assert set(checks["name"]) == set(alts["name"])  # every alternative has tests here
+    assert checks["replicates"].eq(3).all()
+    for f in ("front.png", "progress.png", "report.md", "front.csv", "progress.csv"):
+        assert (out / f).stat().st_size > 0
+    assert "Monte Carlo of plan" in capsys.readouterr().out

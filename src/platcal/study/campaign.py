@@ -332,11 +332,13 @@ def initial_plans(upper: np.ndarray, size: int, rng: np.random.Generator) -> np.
 
 @dataclass(frozen=True)
 class SearchResult:
-    """Every plan evaluated (``counts`` (E, m), ``cost``, ``worst`` (E,)), deduplicated."""
+    """Every plan evaluated (``counts`` (E, m), ``cost``, ``worst`` and ``mean`` sigma/target
+    over the coefficients (E,)), deduplicated."""
 
     counts: np.ndarray
     cost: np.ndarray
     worst: np.ndarray
+    mean: np.ndarray
 
     def cheapest_meeting(self) -> int | None:
         """Index of the cheapest plan with worst sigma/target <= 1 (fewest tests on a tie)."""
@@ -346,8 +348,9 @@ class SearchResult:
         return int(ok[np.lexsort((self.counts[ok].sum(axis=1), self.cost[ok]))[0]])
 
     def best(self) -> int:
-        """Index of the plan with the smallest worst sigma/target (cheapest on a tie)."""
-        return int(np.lexsort((self.cost, self.worst))[0])
+        """Index of the plan with the smallest worst sigma/target (on a tie, e.g. a coefficient
+        no plan of the search sees, the smallest mean sigma/target, then the cheapest)."""
+        return int(np.lexsort((self.cost, self.mean, self.worst))[0])
 
     def front(self) -> np.ndarray:
         """Indices of the Pareto-optimal plans (cost, worst sigma/target), by cost."""
@@ -372,9 +375,8 @@ def search(campaign: Campaign, cands: Candidates, rigs: tuple[str, ...] | None =
                       mutation=PM(eta=3.0, vtype=float, repair=RoundingRepair()), eliminate_duplicates=True)
     minimize(problem, algorithm, ("n_gen", opt["generations"]), seed=opt["seed"], verbose=False)
     counts = np.unique(np.concatenate(problem.archive), axis=0)
-    cost = plan_cost(cands, counts)
-    worst = worst_ratio(campaign, planned_sigma(campaign, cands, counts))
-    return SearchResult(counts, cost, worst)
+    ratio = planned_sigma(campaign, cands, counts) / campaign.target_sigma
+    return SearchResult(counts, plan_cost(cands, counts), ratio.max(axis=1), ratio.mean(axis=1))
 
 
 # ------------------------------------------------------------------ the plan and its tables
@@ -475,6 +477,8 @@ class Plan:
     progress: pd.DataFrame
     alternatives: pd.DataFrame
     front: pd.DataFrame
+    options: dict
+    """name -> counts (m,) of each row of ``alternatives`` (the plan's included)."""
 
 
 def make_plan(campaign: Campaign) -> Plan:
@@ -487,20 +491,21 @@ def make_plan(campaign: Campaign) -> Plan:
     meets = pick is not None
     counts = res.counts[res.best() if pick is None else pick]
     seq = plan_sequence(campaign, cands, counts)
-    alts = [alternative_row(campaign, cands, "plan", "plan", counts)]
+    options = {"plan": ("plan", counts)}
     for offer in campaign.rigs:
         single = search(campaign, cands, (offer.name,))
         k = single.cheapest_meeting()
-        alts.append(alternative_row(campaign, cands, f"cheapest {offer.name} only" if k is not None
-                                    else f"best {offer.name} only (none meets)", "single_rig",
-                                    single.counts[single.best() if k is None else k]))
+        name = f"cheapest {offer.name} only" if k is not None else f"best {offer.name} only (none meets)"
+        options[name] = ("single_rig", single.counts[single.best() if k is None else k])
     for name, tests in campaign.references.items():
-        alts.append(alternative_row(campaign, cands, name, "reference", reference_counts(campaign, cands, tests)))
+        options[name] = ("reference", reference_counts(campaign, cands, tests))
+    alts = [alternative_row(campaign, cands, name, kind, c) for name, (kind, c) in options.items()]
     idx = res.front()
     front = pd.DataFrame({"cost": res.cost[idx], "worst_sigma_over_target": res.worst[idx],
                           "tests": [describe(cands, res.counts[i]) for i in idx]})
     return Plan(campaign, cands, res, counts, meets, seq, plan_table(campaign, cands, seq),
-                progress_table(campaign, cands, seq), pd.DataFrame(alts), front)
+                progress_table(campaign, cands, seq), pd.DataFrame(alts), front,
+                {name: c for name, (_, c) in options.items()})
 
 
 # ------------------------------------------------------------------ the Monte Carlo check
@@ -671,13 +676,15 @@ def report_markdown(plan: Plan, coefs: pd.DataFrame, checks: pd.DataFrame | None
     return "\n".join(lines)
 
 
-def write_plan(plan: Plan, out_dir, check: Check | None = None) -> pd.DataFrame:
+def write_plan(plan: Plan, out_dir, checks: dict[str, Check] | None = None) -> pd.DataFrame:
     """Write plan, coefficients and alternatives (csv, md, html), front.csv, progress.csv,
     check.csv (with a Monte Carlo), front.png, progress.png and report.md into ``out_dir``, each
     file atomically; returns the coefficients table."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     planned = planned_sigma(plan.campaign, plan.cands, plan.counts)[0]
+    checks = checks or {}
+    check = checks.get("plan")
     coefs = coefficient_table(plan.campaign, planned, None if check is None else check.achieved_rms)
     total = plan.plan["cost"].sum()
     verdict = ("meets every target" if plan.meets else
@@ -688,16 +695,18 @@ def write_plan(plan: Plan, out_dir, check: Check | None = None) -> pd.DataFrame:
                 "units: the unit column; meets = achieved_rms <= target_sigma")
     write_table(plan.alternatives, out / "alternatives", "The plan and its alternatives",
                 "single-rig plans: the cheapest that meets every target, else the best it can do")
-    checks = None
-    if check is not None:
-        checks = pd.DataFrame([check_table("plan", check, planned, plan.campaign.target_sigma,
-                                            plan.campaign.platform.names)])
-        write_table(checks, out / "check", "Monte Carlo check of the plan", "NEES over the n coefficients (dof n)")
+    table = None
+    if checks:
+        camp = plan.campaign
+        table = pd.DataFrame([check_table(name, c, planned_sigma(camp, plan.cands, plan.options[name])[0],
+                                          camp.target_sigma, camp.platform.names) for name, c in checks.items()])
+        write_table(table, out / "check", "Monte Carlo check of the plan (and of its alternatives)",
+                    "NEES over the n coefficients (dof n); share_meeting_target: achieved RMS <= target")
     atomic_to_csv(plan.front, out / "front.csv", index=False)
     atomic_to_csv(plan.progress, out / "progress.csv", index=False)
     front_figure(plan, out / "front.png")
     progress_figure(plan, out / "progress.png")
-    atomic_write_text(out / "report.md", report_markdown(plan, coefs, checks))
+    atomic_write_text(out / "report.md", report_markdown(plan, coefs, table))
     return coefs
 
 
@@ -711,27 +720,34 @@ def campaign_content(source) -> dict:
     return raw
 
 
-def run_campaign(source, out_dir, replicates: int | None = None) -> tuple[Plan, Check | None]:
+def run_campaign(source, out_dir, replicates: int | None = None) -> tuple[Plan, dict[str, Check]]:
     """Validate the campaign (InputError naming the field, before any work), plan it, check the
-    plan by Monte Carlo (``replicates``; None: the campaign's, 0: none) and write the outputs."""
+    plan by Monte Carlo (``replicates``; None: the campaign's, 0: none), and its alternatives too
+    with ``montecarlo.alternatives``, and write the outputs."""
     check_writable(out_dir, "--out", folder=True)
     if replicates is not None and replicates < 0:
         raise InputError("--replicates", "must be >= 0 (0: no Monte Carlo check)")
     camp = load_campaign(source)
     n = int(camp.montecarlo["replicates"] if replicates is None else replicates)
     plan = make_plan(camp)
-    check = check_plan(camp, plan.cands, plan.sequence, n) if n > 0 and plan.sequence else None
-    write_plan(plan, out_dir, check)
-    return plan, check
+    checks = {}
+    names = list(plan.options) if camp.montecarlo["alternatives"] else ["plan"]
+    for name in names if n > 0 else []:
+        seq = plan_sequence(camp, plan.cands, plan.options[name])
+        if seq:
+            checks[name] = check_plan(camp, plan.cands, seq, n, label="plan" if name == "plan" else name)
+    write_plan(plan, out_dir, checks)
+    return plan, checks
 
 
 def plan_command(args) -> int:
     """``platcal plan --campaign FILE --out DIR [--replicates N]``: validate (exit 2 naming the
     field, before any work), plan, write the outputs."""
-    plan, check = run_campaign(args.campaign, args.out, args.replicates)
-    if check is not None:
-        print(f"Monte Carlo ({check.replicates} replicates): mean NEES {check.nees.mean():.4g} (dof "
-              f"{plan.cands.n_coef})")
+    plan, checks = run_campaign(args.campaign, args.out, args.replicates)
+    for name, check in checks.items():
+        print(f"Monte Carlo of {name} ({check.replicates} replicates): mean NEES {check.nees.mean():.4g} (dof "
+              f"{plan.cands.n_coef}); coefficients meeting their target "
+              f"{(check.achieved_rms <= plan.campaign.target_sigma).sum()}/{plan.cands.n_coef}")
     print(f"plan: {describe(plan.cands, plan.counts)}; cost {plan.plan['cost'].sum():.6g}; "
           f"meets every target: {plan.meets}; written to {args.out}")
     return 0

@@ -14,6 +14,7 @@ import time
 
 from ...errors import InputError
 from ...io import check_writable
+from ...logs.mapping import RecordMapping
 from ...scheme import resolve_scheme
 from ...study.montecarlo import cell_job, replicate_seed
 from .config import Study, check_filter, study_from_config
@@ -89,7 +90,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     check_filter(study.filter)
     scheme = _scheme(study, args)
     check_writable(args.out, "--out", folder=True)
-    df = read_record(args.data)
+    df = read_record(args.data, RecordMapping.from_config(study.config["record"], g=study.centrifuge.g))
     fin = record_input(study, scheme, df)
     est, seconds = timed(identify_input, study, scheme, fin)
     problems = run_problems(est)

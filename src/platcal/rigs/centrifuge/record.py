@@ -16,6 +16,7 @@ import pandas as pd
 
 from ...errors import InputError
 from ...io import atomic_to_csv, atomic_to_parquet
+from ...logs.mapping import RecordMapping
 from ...records import (UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
                         nearest_samples, read_table)
 from ...records import num as _num
@@ -24,6 +25,9 @@ from ...scheme import Scheme
 
 LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay", "Az")
 TRUTH_COLUMNS = ("alpha", "beta", "gamma")
+UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": "deg", "gamma_cmd": "deg",
+         "Ax": "g", "Ay": "g", "Az": "g", "alpha": "deg", "beta": "deg", "gamma": "deg"}
+"""The record's columns and their units (docs/centrifuge-model.md §13), for a config's ``record:`` mapping."""
 UNIT_FACTOR_G = 3.0
 """A record whose median specific-force magnitude is this many times larger or smaller than the
 centrifuge's is refused: its accelerations are in another unit (m/s^2 gives 9.8, mg 1000)."""
@@ -67,13 +71,14 @@ def write_record(df: pd.DataFrame, path: str | os.PathLike) -> None:
         atomic_to_csv(df, path, float_format=None)
 
 
-def read_record(path: str | os.PathLike) -> pd.DataFrame:
-    """Read a test record (CSV or Parquet) and check its columns and values.
+def read_record(path: str | os.PathLike, mapping: RecordMapping | None = None) -> pd.DataFrame:
+    """Read a test record (CSV or Parquet) and check its columns and values; a log in other
+    columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
 
     Raises InputError naming the column (and row) on missing or extra columns, non-numeric,
     NaN or infinite values.
     """
-    df = read_table(path, LOG_COLUMNS, TRUTH_COLUMNS)
+    df = read_table(path, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS)
     present_truth = [c for c in TRUTH_COLUMNS if c in df.columns]
     if present_truth and len(present_truth) != 3:
         raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in df.columns][0]}",

@@ -15,7 +15,8 @@ import numpy as np
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
-from .config import COEFFS, Study
+from ...logs.mapping import RecordMapping
+from .config import COEFFS, G0, Study
 from .proposed import identify_proposed
 from .record import (check_against_config, check_out_path, estimates_frame, read_record, record_frame, truth_json,
                      write_record)
@@ -63,7 +64,8 @@ def identify(study: Study, args) -> int:
         raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
     check_writable(args.out, "--out", folder=True)
     max_gap = float(study.raw["record"]["max_gap_s"])
-    rec = read_record(args.data, use_truth=not args.no_truth, rate_hz=study.rate_hz, max_gap_s=max_gap)
+    rec = read_record(args.data, use_truth=not args.no_truth, rate_hz=study.rate_hz, max_gap_s=max_gap,
+                      mapping=RecordMapping.from_config(study.raw["record"], g=G0))
     found = check_against_config(rec, study, method, max_gap)
     t0 = time.perf_counter()
     arm = study.centrifuge.arm_m

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ...logs.mapping import RecordMapping
 from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
 from ...records import check_times, read_table
 from .config import COEFFS, G0
@@ -30,6 +31,11 @@ NUMERIC = ("t", "VE", "VN", "pE", "pN", "heading_deg", "fE", "fN")
 TRUTH_COLUMNS = ("truth_dVE", "truth_dVN", "truth_dpE", "truth_dpN", "truth_theta_deg", "truth_phi_x",
                  "truth_phi_y", "truth_phi_z")
 """Simulation-only columns (never read by the identification)."""
+UNITS = {"t": "s", "VE": "m/s", "VN": "m/s", "pE": "m", "pN": "m", "heading_deg": "deg", "fE": "m/s^2",
+         "fN": "m/s^2", "schedule": None, "truth_dVE": "m/s", "truth_dVN": "m/s", "truth_dpE": "m", "truth_dpN": "m",
+         "truth_theta_deg": "deg", "truth_phi_x": "rad", "truth_phi_y": "rad", "truth_phi_z": "rad"}
+"""The record's columns and their units (§10; None: text), for a config's ``record:`` mapping; g
+converts by :data:`.config.G0` (9.80665 m/s^2)."""
 
 
 @dataclass(frozen=True)
@@ -95,17 +101,19 @@ def write_record(df: pd.DataFrame, meta: dict, path) -> None:
         atomic_to_csv(df, path)
 
 
-def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s: float = 0.05) -> Record:
+def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s: float = 0.05,
+                mapping: RecordMapping | None = None) -> Record:
     """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.read_table`);
     InputError naming the column (and row) of the first problem.
 
     Times as recorded (docs/lowprec-centrifuge.md §12, "Recorded times"): ``t`` must increase,
     its median step be within a factor 10 of ``1 / rate_hz`` (``profile.rate_hz``: t in seconds),
     and no gap exceed ``max_gap_s`` (``record.max_gap_s``); jitter and a constant offset are kept
-    (the windows, their integrals and the plateau spans all use the record's own times).
+    (the windows, their integrals and the plateau spans all use the record's own times). A log in
+    other columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
     """
     df = read_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
-                    text=("schedule",), what="a lowprec_centrifuge record", min_rows=3)
+                    text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping, units=UNITS)
     p = Path(path)
     t = df["t"].to_numpy(float)
     check_times(t, 1.0 / rate_hz, max_gap_s, "--data column t", f"profile.rate_hz = {rate_hz:g} Hz, a step of "

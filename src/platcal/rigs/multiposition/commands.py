@@ -21,6 +21,7 @@ import pandas as pd
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
+from ...logs.mapping import RecordMapping
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
@@ -82,7 +83,8 @@ def cmd_identify(cfg, args) -> int:
     choice = cfg.filter_choice() if args.estimator is None else variant_choice(cfg, args.estimator)
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
-    rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]))
+    rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]),
+                              mapping=RecordMapping.from_config(cfg.raw["record"]))
     t0 = time.perf_counter()
     est, P, nis, failed = identify(cfg, rec, choice)
     seconds = time.perf_counter() - t0

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ...logs.mapping import RecordMapping
 from ...model.frames import DEG
 from ...records import check_times, grid_origin, nearest_samples, num, read_table
 from ..centrifuge.record import LOG_COLUMNS, TRUTH_COLUMNS, write_record  # noqa: F401  (re-exported)
@@ -25,6 +26,11 @@ from ...scheme import Scheme
 ANGLE_COLUMNS = ("alpha_m", "beta_m", "gamma_m")
 COLUMNS = LOG_COLUMNS + ANGLE_COLUMNS
 UG = 1e-6
+UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": "deg", "gamma_cmd": "deg",
+         "Ax": "g", "Ay": "g", "Az": "g", "alpha_m": "deg", "beta_m": "deg", "gamma_m": "deg",
+         "alpha": "deg", "beta": "deg", "gamma": "deg"}
+"""The record's columns and their units (§12), for a config's ``record:`` mapping; g is standard
+gravity, 9.80665 m/s^2 (:data:`platcal.logs.mapping.STANDARD_GRAVITY`)."""
 
 
 @dataclass
@@ -76,7 +82,7 @@ def to_frame(scheme: Scheme, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> p
 
 
 def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float = 0.02,
-                max_gap_s: float = 0.1) -> tuple[Record, Scheme]:
+                max_gap_s: float = 0.1, mapping: RecordMapping | None = None) -> tuple[Record, Scheme]:
     """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.read_table`) and
     select the samples the EKF uses; InputError naming the column (and position) otherwise.
 
@@ -90,9 +96,10 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     the actual interval, so jitter enters the dynamics and a small gap drops only the instants it
     covers. With ``scheme`` the record must hold exactly its positions 1..K, with its commanded
     angles, each spanning the scheme's dwell (within ``max_gap_s``); without, the positions and
-    dwell are taken from the record (a recorded log needs no scheme file).
+    dwell are taken from the record (a recorded log needs no scheme file). A log in other columns
+    or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
     """
-    df = read_table(path, COLUMNS, TRUTH_COLUMNS, what="a multiposition record")
+    df = read_table(path, COLUMNS, TRUTH_COLUMNS, what="a multiposition record", mapping=mapping, units=UNITS)
     cols = list(df.columns)
     present_truth = [c for c in TRUTH_COLUMNS if c in cols]
     if present_truth and len(present_truth) != 3:

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ...logs.mapping import RecordMapping
 from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
 from ...records import check_times, grid_origin, num, read_table
 from .config import G, SledConfig
@@ -27,6 +28,10 @@ from .trajectory import Trajectory, build_trajectory
 
 IMU_COLUMNS = ("t", "fx", "fy", "fz", "wx", "wy", "wz")
 TRUTH_COLUMNS = ("x_true", "vx_true", "x_inst")
+UNITS = {"t": "s", "fx": "m/s^2", "fy": "m/s^2", "fz": "m/s^2", "wx": "rad/s", "wy": "rad/s", "wz": "rad/s",
+         "x_true": "m", "vx_true": "m/s", "x_inst": "m"}
+"""The record's columns and their units (§10), for a config's ``record:`` mapping; g converts by
+:data:`.config.G` (9.80665 m/s^2)."""
 
 
 def truth_path(record: str | Path) -> Path:
@@ -84,9 +89,11 @@ def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataF
     acceleration (within :data:`PHASE_TOL_G`), or a median ``fz`` that is not about 1 g in m/s^2.
     The clock may count from 0 (a first sample within ``record.max_gap_s`` of it) or from any
     origin (a constant offset, removed by :func:`platcal.records.grid_origin`); jitter is kept.
+    A log in other columns or units is read through the config's ``record:`` mapping (:data:`UNITS`).
     """
     max_gap = float(cfg.raw["record"]["max_gap_s"])
-    df = read_table(path, IMU_COLUMNS, TRUTH_COLUMNS, what="a sled record", min_rows=2)
+    df = read_table(path, IMU_COLUMNS, TRUTH_COLUMNS, what="a sled record", min_rows=2,
+                    mapping=RecordMapping.from_config(cfg.raw["record"], g=G), units=UNITS)
     traj = build_trajectory(cfg)
     t = df["t"].to_numpy(dtype=float)
     field = "--data column t"

@@ -1,0 +1,177 @@
+"""The ``record:`` mapping of a config: a vendor's log read as the rig's record (issue 21).
+
+A config may say which file column fills each of the rig's record columns and in which unit it
+is, the same block on every rig::
+
+    record:
+      columns: {t: Time_ms, Ax: acc_x}   # <rig column>: <file column>
+      units: {t: ms, Ax: m/s^2}          # <rig column>: <unit of the file column>
+      ignore_extra: true                 # drop file columns the rig does not read
+
+Units are parsed by ``pint``. ``g`` (and ``mg``, ``ug``) is the rig's gravity unit, not the gram:
+1 g = the rig's ``g`` in m/s^2 (9.80665 m/s^2, standard gravity, unless the rig's config sets
+another value; each rig's spec says which). A time column may also be ``iso`` (ISO 8601 date-times,
+read as seconds since the log's first sample). Every mapped column is converted to the rig's own
+unit before the rig's checks run, so a mapped log is refused or accepted exactly as a log written in
+the rig's units. Bad mappings are refused (InputError naming ``record.columns.<col>`` or
+``record.units.<col>``) before any work: a rig column the rig does not have, a file column the log
+does not have, a unit pint does not know, a unit of the wrong dimension, a required column that
+neither the log nor the mapping fills.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+import pandas as pd
+import pint
+
+from ..errors import InputError
+
+STANDARD_GRAVITY = 9.80665
+"""m/s^2: the value of the unit ``g`` unless a rig passes its own."""
+ISO_TIME = "iso"
+"""Unit of a time column written as ISO 8601 date-times."""
+
+SCHEMA_PROPERTIES = {
+    "columns": {"type": "object", "default": {}, "additionalProperties": {"type": "string"},
+                "description": "which column of the log fills each of the rig's record columns: "
+                               "{<rig column>: <file column>}; unmapped columns keep their names"},
+    "units": {"type": "object", "default": {}, "additionalProperties": {"type": "string"},
+              "description": "unit of each rig column in the log, parsed by pint ({<rig column>: <unit>}, e.g. "
+                             "ms, us, iso, m/s^2, g, mg, ug, rad, arcsec, deg/h, rad/s); g is the rig's gravity"},
+    "ignore_extra": {"type": "boolean", "default": False,
+                     "description": "drop columns of the log that the rig does not read (else they are refused)"},
+}
+"""The ``record:`` keys every rig's config schema holds (:func:`with_mapping_schema`)."""
+
+
+def with_mapping_schema(schema: dict) -> dict:
+    """``schema`` (a rig's config schema, modified in place and returned) with the shared
+    mapping keys :data:`SCHEMA_PROPERTIES` in its ``record`` section."""
+    record = schema["properties"].setdefault("record", {"type": "object", "additionalProperties": False,
+                                                        "default": {}, "properties": {}})
+    record.setdefault("properties", {}).update(SCHEMA_PROPERTIES)
+    return schema
+
+
+@lru_cache(maxsize=8)
+def registry(g: float) -> pint.UnitRegistry:
+    """A pint registry with ``gee`` = ``g`` m/s^2 (cached: building one takes a fraction of a second)."""
+    ureg = pint.UnitRegistry()
+    ureg.define(f"gee = {g!r} * meter / second ** 2")
+    return ureg
+
+
+_G_TOKEN = re.compile(r"(?<![A-Za-z_])([mu\u00b5]?)g(?![A-Za-z_0-9])")
+
+
+def pint_unit(ureg: pint.UnitRegistry, text: str, field_: str):
+    """The pint unit of ``text`` with ``g``/``mg``/``ug`` as gravity (InputError naming ``field_``)."""
+    spelled = _G_TOKEN.sub(lambda m: ("u" if m.group(1) == "\u00b5" else m.group(1)) + "gee", text.strip())
+    try:
+        unit = ureg.parse_units(spelled)
+    except Exception:  # pint raises several types (undefined unit, syntax, tokenizer) for a bad unit
+        raise InputError(field_, f"unknown unit {text!r}; use e.g. s, ms, us, {ISO_TIME}, m/s^2, g, mg, ug, deg, "
+                         "rad, arcsec, deg/s, rad/s, deg/h, m") from None
+    return unit
+
+
+def conversion_factor(unit: str, native: str, g: float, field_: str) -> float:
+    """Factor turning values in ``unit`` into the rig's ``native`` unit; InputError naming
+    ``field_`` for an unknown unit or one of another dimension."""
+    ureg = registry(float(g))
+    have, want = pint_unit(ureg, unit, field_), pint_unit(ureg, native, field_)
+    if have.dimensionality != want.dimensionality:
+        raise InputError(field_, f"{unit!r} is a unit of {have.dimensionality}, but the column is in {native} "
+                         f"({want.dimensionality}); give a unit of that kind")
+    return float(ureg.Quantity(1.0, have).to(want).magnitude)
+
+
+def iso_seconds(values: pd.Series, field_: str) -> np.ndarray:
+    """ISO 8601 date-times as seconds since the first one (InputError naming ``field_``)."""
+    stamps = pd.to_datetime(values, errors="coerce", utc=True, format="ISO8601")
+    bad = stamps.isna().to_numpy()
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(f"{field_}, row {i + 2}", f"{values.iloc[i]!r} is not an ISO 8601 date-time")
+    ns = (stamps - stamps.iloc[0]).to_numpy("timedelta64[ns]").astype(np.int64)  # any resolution pandas chose
+    return ns * 1e-9
+
+
+@dataclass(frozen=True)
+class RecordMapping:
+    """A config's ``record:`` mapping (:data:`SCHEMA_PROPERTIES`) and the rig's gravity ``g``
+    (m/s^2) that converts ``g``, ``mg``, ``ug``."""
+
+    columns: dict = field(default_factory=dict)
+    units: dict = field(default_factory=dict)
+    ignore_extra: bool = False
+    g: float = STANDARD_GRAVITY
+
+    @classmethod
+    def from_config(cls, record: dict, g: float = STANDARD_GRAVITY) -> "RecordMapping":
+        """The mapping of a validated config's ``record`` section."""
+        return cls(columns=dict(record.get("columns") or {}), units=dict(record.get("units") or {}),
+                   ignore_extra=bool(record.get("ignore_extra", False)), g=float(g))
+
+    @property
+    def empty(self) -> bool:
+        return not (self.columns or self.units or self.ignore_extra)
+
+    def check(self, native: dict) -> None:
+        """Refuse, before reading any log, a mapping of a column the rig's record does not have,
+        an unknown unit or one of the wrong dimension (``native``: the rig's columns and units,
+        None for a text column)."""
+        for key, what in (("columns", self.columns), ("units", self.units)):
+            for col in what:
+                if col not in native:
+                    raise InputError(f"record.{key}.{col}", f"{col!r} is not a column of this rig's record; its "
+                                     f"columns: {list(native)}")
+        for col, unit in self.units.items():
+            field_ = f"record.units.{col}"
+            if native[col] is None:
+                raise InputError(field_, f"column {col} is text; it has no unit")
+            if unit.strip() == ISO_TIME:
+                if native[col] != "s":
+                    raise InputError(field_, f"{ISO_TIME!r} (date-times) is a unit of time only; {col} is in {native[col]}")
+                continue
+            conversion_factor(unit, native[col], self.g, field_)
+
+    def apply(self, df: pd.DataFrame, native: dict, required: tuple[str, ...], source: str = "the log") -> pd.DataFrame:
+        """The log ``df`` renamed to the rig's columns and converted to its units (``native``:
+        rig column -> unit, None for text). Unmapped columns keep their names; with
+        ``ignore_extra`` the columns the rig does not read are dropped. A required column that is
+        missing afterwards is refused naming ``record.columns.<col>``."""
+        self.check(native)
+        cols = [str(c) for c in df.columns]
+        for col, src in self.columns.items():
+            if src not in cols:
+                raise InputError(f"record.columns.{col}", f"{source} has no column {src!r}; its columns: {cols}")
+        rename = {src: col for col, src in self.columns.items()}
+        taken = [c for c in cols if c in native and c not in rename and c in self.columns]
+        out = df.drop(columns=taken).rename(columns=rename) if taken else df.rename(columns=rename)
+        if self.ignore_extra:
+            out = out[[c for c in out.columns if c in native]]
+        if not self.empty:
+            for col in required:
+                if col not in out.columns:
+                    raise InputError(f"record.columns.{col}", f"the rig's record needs column {col!r}, which "
+                                     f"{source} does not have; map one of its columns {cols} to it")
+        for col, unit in self.units.items():
+            if col not in out.columns:
+                continue
+            if unit.strip() == ISO_TIME:
+                out[col] = iso_seconds(out[col], f"record.units.{col}")
+                continue
+            values = pd.to_numeric(out[col], errors="coerce").to_numpy(float)
+            factor = conversion_factor(unit, native[col], self.g, f"record.units.{col}")
+            bad = ~np.isfinite(values)
+            if bad.any():  # left for the rig's reader to report with its own message
+                out[col] = out[col].where(bad, values * factor)
+            else:
+                out[col] = values * factor
+        return out

@@ -53,6 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
         for opt, help_ in RIG_OPTIONS[name]:
             parser.add_argument(opt, default=None, help=help_)
 
+    n = sub.add_parser("inspect", help="what a log holds as the rig reads it: columns, units, rate, dwells, gaps")
+    n.add_argument("--config", required=True, help=CONFIG_HELP + "; its 'record:' maps the log's columns and units")
+    n.add_argument("--data", required=True, help="the log (.csv or .parquet)")
+
     o = sub.add_parser("observability", help="covariance-only run of a scheme: J, correlations, rank, CRB")
     o.add_argument("--config", required=True, help=CONFIG_HELP)
     o.add_argument("--scheme", default=None, help="scheme name in the config, or a scheme YAML file (rigs with schemes)")

@@ -14,6 +14,7 @@ import time
 
 from ...errors import InputError
 from ...io import check_writable
+from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from ...scheme import resolve_scheme
 from ...study.montecarlo import cell_job, replicate_seed
@@ -23,7 +24,7 @@ from .design import design_config, preset, run_design, write_design
 from .identify import (consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
                        write_identification)
 from .observability import write_observability
-from .record import read_record, sim_to_frame, write_record
+from .record import LOG_COLUMNS, TRUTH_COLUMNS, UNITS, read_record, sim_to_frame, write_record
 from .report import report_from_results
 from .simulate import simulate
 
@@ -179,5 +180,12 @@ def report_command(study: Study, args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"simulate": simulate_command, "identify": identify_command, "observability": observability_command,
+def inspect_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
+    mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
+    print(inspect_log(args.data, mapping, UNITS, LOG_COLUMNS, TRUTH_COLUMNS).text())
+    return 0
+
+
+COMMANDS = {"inspect": inspect_command, "simulate": simulate_command, "identify": identify_command, "observability": observability_command,
             "design": design_command, "montecarlo": montecarlo_command, "report": report_command}

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ...rig import Rig
-from .commands import identify, simulate
+from .commands import identify, inspect, simulate
 from .config import COEFFS, load_config
 
 
@@ -26,5 +26,5 @@ def catalogue() -> pd.DataFrame:
 RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
           spec="lowprec-centrifuge.md", load_config=load_config,
-          commands={"simulate": simulate, "identify": identify}, catalogue=catalogue,
+          commands={"inspect": inspect, "simulate": simulate, "identify": identify}, catalogue=catalogue,
           estimators=("proposed", "traditional"))

@@ -15,11 +15,12 @@ import numpy as np
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
+from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from .config import COEFFS, G0, Study
 from .proposed import identify_proposed
-from .record import (check_against_config, check_out_path, estimates_frame, read_record, record_frame, truth_json,
-                     write_record)
+from .record import (NUMERIC, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, estimates_frame,
+                     read_record, record_frame, truth_json, write_record)
 from .traditional import identify_traditional
 from .truth import simulate_batch
 
@@ -105,3 +106,11 @@ def run_problems(x: np.ndarray, P: np.ndarray | None) -> list[str]:
     """Why an identification cannot be trusted (empty if it can): non-finite estimates, a
     covariance (proposed filter) that is not finite or not positive definite."""
     return estimate_problems(x, P)
+
+
+def inspect(study: Study, args) -> int:
+    """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
+    mapping = RecordMapping.from_config(study.raw["record"], g=G0)
+    optional = tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS
+    print(inspect_log(args.data, mapping, UNITS, REQUIRED, optional, text=("schedule",)).text())
+    return 0

@@ -21,12 +21,13 @@ import pandas as pd
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
+from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
 from .observability import evaluate
-from .record import read_record, to_frame, write_record
+from .record import COLUMNS, TRUTH_COLUMNS, UNITS, read_record, to_frame, write_record
 
 
 
@@ -146,4 +147,10 @@ def cmd_observability(cfg, args) -> int:
     return 0
 
 
-COMMANDS = {"simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+def cmd_inspect(cfg, args) -> int:
+    """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
+    print(inspect_log(args.data, RecordMapping.from_config(cfg.raw["record"]), UNITS, COLUMNS, TRUTH_COLUMNS).text())
+    return 0
+
+
+COMMANDS = {"inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

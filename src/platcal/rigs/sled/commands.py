@@ -10,11 +10,13 @@ import numpy as np
 
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
+from ...logs.summary import inspect_log
+from ...logs.mapping import RecordMapping
 from ...study.tables import write_table
-from .config import SledConfig
+from .config import G, SledConfig
 from .identify import estimates, identify, metrics, run_problems
 from .observability import rank_table
-from .record import check_out_path, read_record, record_arrays, record_truth, samples_per_phase, write_record
+from .record import IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, read_record, record_arrays, record_truth, samples_per_phase, write_record
 from .simulate import simulate
 
 
@@ -91,4 +93,11 @@ def cmd_observability(cfg: SledConfig, args) -> int:
     return 0
 
 
-COMMANDS = {"simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+def cmd_inspect(cfg: SledConfig, args) -> int:
+    """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
+    mapping = RecordMapping.from_config(cfg.raw["record"], g=G)
+    print(inspect_log(args.data, mapping, UNITS, IMU_COLUMNS, TRUTH_COLUMNS).text())
+    return 0
+
+
+COMMANDS = {"inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

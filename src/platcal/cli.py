@@ -16,6 +16,7 @@ import yaml
 
 from .errors import InputError
 from .io import read_yaml
+from .logs.calibration import read_calibration
 from .rig import rig_of
 
 RIG_OPTIONS = {
@@ -56,6 +57,12 @@ def build_parser() -> argparse.ArgumentParser:
     n = sub.add_parser("inspect", help="what a log holds as the rig reads it: columns, units, rate, dwells, gaps")
     n.add_argument("--config", required=True, help=CONFIG_HELP + "; its 'record:' maps the log's columns and units")
     n.add_argument("--data", required=True, help="the log (.csv or .parquet)")
+
+    c = sub.add_parser("compensate", help="apply an identification (calibration.yaml) to a log")
+    c.add_argument("--calibration", required=True, help="calibration.yaml written by platcal identify")
+    c.add_argument("--data", required=True, help="the log (.csv or .parquet), read through the calibration's "
+                                                 "config 'record:' mapping")
+    c.add_argument("--out", required=True, help="compensated log to write (.csv or .parquet)")
 
     o = sub.add_parser("observability", help="covariance-only run of a scheme: J, correlations, rank, CRB")
     o.add_argument("--config", required=True, help=CONFIG_HELP)
@@ -118,7 +125,11 @@ def read_config(path) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     """Run a parsed command through the config's rig."""
-    raw = read_config(args.config)
+    if args.command == "compensate":  # the config is the one the calibration was identified with
+        cal = read_calibration(args.calibration)
+        raw = {**cal.config, "rig": cal.rig}
+    else:
+        raw = read_config(args.config)
     rig = rig_of(raw)
     if args.command not in rig.commands:
         raise InputError("rig", f"rig {rig.name!r} has no '{args.command}' command; it has {sorted(rig.commands)}")

@@ -21,7 +21,7 @@ from ...study.montecarlo import cell_job, replicate_seed
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
-from .identify import (consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
+from .identify import (calibration, consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
                        write_identification)
 from .observability import write_observability
 from .record import LOG_COLUMNS, TRUTH_COLUMNS, UNITS, read_record, sim_to_frame, write_record
@@ -102,7 +102,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
         return 1
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
     summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds,
-                                   samples_used=used)
+                                   samples_used=used, calibration=calibration(est, study, args.data))
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if "nees" in summary:

@@ -12,6 +12,8 @@ from scipy.stats import chi2
 
 from ...estimation.consistency import estimate_problems, nees
 from ...io import atomic_files, json_text
+from ...logs.calibration import Calibration, calibration_of, write_calibration_files
+from .catalogue import load_catalogue
 from .config import Study
 from .ekf import Estimate, FilterSettings, first_instant
 from .estimators import run_estimator
@@ -101,7 +103,8 @@ def consistency_warning(summary: dict) -> str | None:
 
 
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
-                         seconds: float | None = None, samples_used: dict[int, int] | None = None) -> dict:
+                         seconds: float | None = None, samples_used: dict[int, int] | None = None,
+                         calibration: Calibration | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
@@ -109,6 +112,7 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     The five files land together or not at all (:func:`platcal.io.atomic_files`), ``summary.json``
     last; it is strict JSON (``null`` for a number that is not finite). ``samples_used`` (position
     -> number of samples the filter used) goes into the summary as ``samples_used_per_position``.
+    With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`).
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
@@ -133,6 +137,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         covariance_frame(est.names, est.P[0]).to_csv(tmp("covariance.csv"), index=True)
         history_frame(est).to_csv(tmp("history.csv"), index=False)
         tmp("table2.md").write_text(table2_markdown(df))
+        if calibration is not None:
+            write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state
         tmp("summary.json").write_text(json_text(summary))
     return summary
 
@@ -158,3 +164,13 @@ def timed(fn, *args, **kw):
     res = fn(*args, **kw)
     return res, time.perf_counter() - t0
 
+
+
+def calibration(est: Estimate, study: Study, log_path) -> Calibration:
+    """The calibration of one identified record: the identified coefficients (Table 2 names and
+    units), their covariance, the log's hash and the config (docs/centrifuge-model.md §13)."""
+    nc = est.n_coef
+    names = list(est.names[:nc])
+    units = load_catalogue().frame().set_index("name")["unit"].reindex(names).fillna("deg/h/g^2")
+    return calibration_of("centrifuge", "centrifuge-model.md", names, units, est.coef[0], est.P[0, :nc, :nc],
+                          log_path, study.config)

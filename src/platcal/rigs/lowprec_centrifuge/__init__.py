@@ -13,14 +13,14 @@ import numpy as np
 import pandas as pd
 
 from ...rig import Rig
-from .commands import identify, inspect, simulate
+from .commands import COEFF_UNITS, identify, inspect, simulate
 from .config import COEFFS, load_config
 
 
 def catalogue() -> pd.DataFrame:
     """The identified coefficients; truth is per platform (config ``platforms``), hence NaN here."""
     return pd.DataFrame({"name": list(COEFFS), "group": ["accel"] * 4,
-                         "unit": ["ug/g", "ug/g^2", "ug/g", "ug/g^2"], "truth": [np.nan] * 4})
+                         "unit": list(COEFF_UNITS), "truth": [np.nan] * 4})
 
 
 RIG = Rig(name="lowprec_centrifuge",

@@ -15,16 +15,19 @@ import numpy as np
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
+from ...logs.calibration import calibration_of, write_calibration_files
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from .config import COEFFS, G0, Study
-from .proposed import identify_proposed
+from .proposed import K_SLICE, identify_proposed
 from .record import (NUMERIC, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, estimates_frame,
                      read_record, record_frame, truth_json, write_record)
 from .traditional import identify_traditional
 from .truth import simulate_batch
 
 METHODS = ("proposed", "traditional")
+COEFF_UNITS = ("ug/g", "ug/g^2", "ug/g", "ug/g^2")
+"""Units of :data:`.config.COEFFS` (docs/lowprec-centrifuge.md §10): asymmetry ug/g, second order ug/g^2."""
 
 
 def _refuse(args, names) -> None:
@@ -94,8 +97,11 @@ def identify(study: Study, args) -> int:
     summary = {"rig": "lowprec_centrifuge", "method": method, "samples": int(rec.t.size), **found,
                "coefficients": dict(zip(COEFFS, map(float, est))), "truth_known": truth is not None,
                "seconds": round(seconds, 3)}
-    with atomic_files(args.out) as tmp:   # both files land together, summary.json last
+    cov = res.P[0][K_SLICE, K_SLICE] if method == "proposed" else np.diag(sig ** 2)
+    cal = calibration_of("lowprec_centrifuge", "lowprec-centrifuge.md", COEFFS, COEFF_UNITS, est, cov, args.data, study.raw)
+    with atomic_files(args.out) as tmp:   # the files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
+        write_calibration_files(tmp, cal)
         tmp("summary.json").write_text(json_text(summary))
     print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {seconds:.2f} s -> {args.out}; "
           + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est)), file=sys.stderr)

@@ -21,13 +21,16 @@ import pandas as pd
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
+from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
 from .observability import evaluate
-from .record import COLUMNS, TRUTH_COLUMNS, UNITS, read_record, to_frame, write_record
+from ...records import read_table
+from .record import (COLUMNS, COMPENSATE_COLUMNS, TRUTH_COLUMNS, UNITS, compensate_frame, read_record, to_frame,
+                     write_record)
 
 
 
@@ -116,8 +119,10 @@ def cmd_identify(cfg, args) -> int:
                         "max_abs_rel_err_pct_gyro": float(df.loc[g, "rel_err_pct"].abs().max()),
                         "max_abs_rel_err_pct_accel": float(df.loc[~g, "rel_err_pct"].abs().max())})
     out = Path(args.out)
-    with atomic_files(out) as tmp:  # both files land together, summary.json last
+    cal = calibration_of("multiposition", "multiposition-1g.md", names, df["unit"], est, P, args.data, cfg.raw)
+    with atomic_files(out) as tmp:  # the files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
+        write_calibration_files(tmp, cal)
         tmp("summary.json").write_text(json_text(summary))
     msg = (f"platcal identify: multiposition 27-state {choice.label}, {min(used.values())}-"
            f"{max(used.values())} samples per position, {seconds:.2f} s -> {out}")
@@ -153,4 +158,21 @@ def cmd_inspect(cfg, args) -> int:
     return 0
 
 
-COMMANDS = {"inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+def cmd_compensate(cfg, args) -> int:
+    """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
+    errors taken out (docs/multiposition-1g.md §6), written atomically to ``--out``."""
+    coef = calibration_values(read_calibration(args.calibration), coef_names(), "multiposition")
+    if Path(args.out).suffix not in (".csv", ".parquet"):
+        raise InputError("--out", f"a compensated log is written as .csv or .parquet, got {Path(args.out).name!r}")
+    check_writable(args.out, "--out")
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    df = read_table(args.data, COMPENSATE_COLUMNS, optional, mapping=RecordMapping.from_config(cfg.raw["record"]),
+                    units=UNITS, what="a multiposition log")
+    out = compensate_frame(df, coef)
+    write_record(out, args.out)
+    print(f"platcal compensate: multiposition, {len(out)} samples, accelerometers compensated -> {args.out}",
+          file=sys.stderr)
+    return 0
+
+
+COMMANDS = {"inspect": cmd_inspect, "compensate": cmd_compensate, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

@@ -22,6 +22,7 @@ from ...model.frames import DEG
 from ...records import check_times, grid_origin, nearest_samples, num, read_table
 from ..centrifuge.record import LOG_COLUMNS, TRUTH_COLUMNS, write_record  # noqa: F401  (re-exported)
 from ...scheme import Scheme
+from .model import measure
 
 ANGLE_COLUMNS = ("alpha_m", "beta_m", "gamma_m")
 COLUMNS = LOG_COLUMNS + ANGLE_COLUMNS
@@ -156,3 +157,22 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
         dwell = max(float(t[-1]) for t in ts_used) or 1.0
         scheme = Scheme(name=f"record:{Path(path).name}", positions=tuple(map(tuple, cmd)), dwell_s=dwell)
     return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=len(present_truth) == 3, positions=present), scheme
+
+
+COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az") + ANGLE_COLUMNS
+"""What ``platcal compensate`` needs of a log: accelerometer outputs and the gimbal angle sensors."""
+
+
+def compensate_frame(df: pd.DataFrame, coef: np.ndarray) -> pd.DataFrame:
+    """``df`` with ``Ax, Ay, Az`` (g) compensated: the modelled error of §6 at the measured gimbal
+    angles (``alpha_m, beta_m, gamma_m``, deg) with coefficients ``coef`` (24, state order of
+    :func:`.model.coef_names`) is taken out, leaving the error-free output of each accelerometer
+    (the specific force along its nominal input axis, g). The angle sensors' own noise enters
+    through the modelled misalignment terms only (second order)."""
+    ang = df[list(ANGLE_COLUMNS)].to_numpy(float) * DEG
+    x_cal = np.r_[np.zeros(3), coef]
+    x_free = np.zeros_like(x_cal)
+    err = np.array([measure(a, x_cal)[0][:3] - measure(a, x_free)[0][:3] for a in ang])  # ug
+    out = df.copy()
+    out[["Ax", "Ay", "Az"]] = df[["Ax", "Ay", "Az"]].to_numpy(float) - err * UG
+    return out

@@ -10,11 +10,12 @@ import numpy as np
 
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
+from ...logs.calibration import write_calibration_files
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from ...study.tables import write_table
 from .config import G, SledConfig
-from .identify import estimates, identify, metrics, run_problems
+from .identify import calibration, estimates, identify, metrics, run_problems
 from .observability import rank_table
 from .record import IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, read_record, record_arrays, record_truth, samples_per_phase, write_record
 from .simulate import simulate
@@ -70,8 +71,9 @@ def cmd_identify(cfg: SledConfig, args) -> int:
                     "truth_known": truth is not None, "seconds": round(seconds, 3),
                     "samples": int(len(t)), "samples_used_per_phase": samples_per_phase(traj, t, cfg.dt),
                     "filter_epochs": {"run": int(idn.j_stop), "stop": int(idn.j_end - idn.j_stop)}})
-    with atomic_files(out) as tmp:  # both files land together, metrics.json last
+    with atomic_files(out) as tmp:  # the files land together, metrics.json last
         est.to_csv(tmp("estimates.csv"), index=False, float_format="%.6g")
+        write_calibration_files(tmp, calibration(idn, args.data, cfg.raw))
         tmp("metrics.json").write_text(json_text(summary))
     msg = (f"platcal identify: sled {cfg.states}-state run filter, {cfg.compensation} X compensation, "
            f"{seconds:.2f} s -> {out}; Y/Z run max {met['yz_before_max_run_cm']:.1f} cm before, "

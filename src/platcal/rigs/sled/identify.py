@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ...logs.calibration import Calibration, calibration_of
 from .config import ARCSEC, G, SledConfig
 from .errmodel import propagate_run_model
 from ...records import nearest_samples
@@ -257,3 +258,18 @@ def estimates(idn: Identification, truth: Truth | None, s: int = 0) -> pd.DataFr
     rows.append({"name": "nabla_x", "filter": "stop", "unit": "ug", "estimate": idn.nabla_x_hat[s] / G * 1e6,
                  "sigma": np.nan, "truth": nab, "effective": np.nan})
     return pd.DataFrame(rows)
+
+
+def calibration(idn: Identification, log_path, config: dict, s: int = 0) -> Calibration:
+    """The calibration of one identified run (docs/rocket-sled.md §7): the run filter's attitude
+    errors it estimates (arcsec; φ_x only with 7 states) with their covariance block, and the
+    by-product ∇̂_x (µg), whose variance is not given by the filters (NaN)."""
+    cols = phi_columns(idn.cfg.states)
+    names = list(cols) + ["nabla_x"]
+    idx = list(cols.values())
+    n = len(names)
+    cov = np.full((n, n), np.nan)
+    cov[:-1, :-1] = idn.run.P[s][np.ix_(idx, idx)] / ARCSEC ** 2
+    values = [idn.run.x[s, -1, i] / ARCSEC for i in idx] + [idn.nabla_x_hat[s] / G * 1e6]
+    return calibration_of("sled", "rocket-sled.md", names, ["arcsec"] * (n - 1) + ["ug"], values, cov, log_path,
+                          config)

@@ -15,6 +15,9 @@ import yaml
 from platcal.cli import main
 from platcal.logs.mapping import RecordMapping, conversion_factor
 from platcal.errors import InputError
+from platcal.rigs.sled.config import load_config
+from platcal.rigs.sled.identify import estimates, identify as sled_identify
+from platcal.rigs.sled.record import read_record, record_arrays
 
 G = 9.80665
 CENTRIFUGE = {"rig": "centrifuge", "noise": {"sigma_a_ug": 10, "arw_deg_rth": 0.001, "sigma_set_arcsec": 10},
@@ -33,6 +36,14 @@ def write_cfg(path, raw, record=None):
         raw["record"] = record
     path.write_text(yaml.safe_dump(raw))
     return str(path)
+
+
+def simulated(tmp_path, raw, *opts):
+    """``(config path, record path)`` of a record simulated with ``opts``."""
+    cfg = write_cfg(tmp_path / "c.yaml", raw)
+    rec = tmp_path / "rec.csv"
+    assert main(["simulate", "--config", cfg, *opts, "--out", str(rec)]) == 0
+    return cfg, rec
 
 
 def identify(cfg, data, out, *opts):
@@ -75,9 +86,7 @@ def test_iso_times_and_ignore_extra():
 
 @pytest.mark.slow
 def test_centrifuge_vendor_log(tmp_path):
-    cfg = write_cfg(tmp_path / "c.yaml", CENTRIFUGE)
-    rec = tmp_path / "rec.csv"
-    assert main(["simulate", "--config", cfg, "--scheme", "short", "--seed", "1", "--out", str(rec)]) == 0
+    cfg, rec = simulated(tmp_path, CENTRIFUGE, "--scheme", "short", "--seed", "1")
     base = identify(cfg, rec, tmp_path / "a", "--scheme", "short")
     df = pd.read_csv(rec)
     log = pd.DataFrame({"Pos": df["position"], "Time_ms": df["t"] * 1e3, "temp_C": 21.5})
@@ -96,9 +105,7 @@ def test_centrifuge_vendor_log(tmp_path):
 
 @pytest.mark.slow
 def test_multiposition_vendor_log(tmp_path):
-    cfg = write_cfg(tmp_path / "c.yaml", MULTIPOSITION)
-    rec = tmp_path / "rec.csv"
-    assert main(["simulate", "--config", cfg, "--scheme", "short", "--seed", "3", "--out", str(rec)]) == 0
+    cfg, rec = simulated(tmp_path, MULTIPOSITION, "--scheme", "short", "--seed", "3")
     base = identify(cfg, rec, tmp_path / "a", "--scheme", "short")
     df = pd.read_csv(rec).drop(columns=["alpha", "beta", "gamma"])
     log = df.rename(columns={"t": "time_us", "Ax": "ax_mg", "Ay": "ay_mg", "Az": "az_mg", "alpha_m": "enc_a",
@@ -119,13 +126,7 @@ def test_multiposition_vendor_log(tmp_path):
 
 @pytest.mark.slow
 def test_sled_vendor_log(tmp_path):
-    from platcal.rigs.sled.config import load_config
-    from platcal.rigs.sled.identify import estimates, identify as sled_identify
-    from platcal.rigs.sled.record import read_record, record_arrays
-
-    cfg = write_cfg(tmp_path / "c.yaml", SLED)
-    rec = tmp_path / "rec.csv"
-    assert main(["simulate", "--config", cfg, "--seed", "5", "--out", str(rec)]) == 0
+    cfg, rec = simulated(tmp_path, SLED, "--seed", "5")
     df = pd.read_csv(rec)
     log = pd.DataFrame({"time_ms": df["t"] * 1e3})
     for a in "xyz":
@@ -155,10 +156,7 @@ def test_sled_vendor_log(tmp_path):
 
 @pytest.mark.slow
 def test_lowprec_vendor_log(tmp_path):
-    cfg = write_cfg(tmp_path / "c.yaml", LOWPREC)
-    rec = tmp_path / "rec.csv"
-    assert main(["simulate", "--config", cfg, "--platform", "P1", "--run", "run1", "--seed", "7",
-                 "--out", str(rec)]) == 0
+    cfg, rec = simulated(tmp_path, LOWPREC, "--platform", "P1", "--run", "run1", "--seed", "7")
     base = identify(cfg, rec, tmp_path / "a")
     df = pd.read_csv(rec)
     start = pd.Timestamp("2026-03-02T08:00:00Z")

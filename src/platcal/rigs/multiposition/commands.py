@@ -22,6 +22,7 @@ from ...estimation.consistency import estimate_problems
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
+from ...logs.dwells import dwell_figure
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from .estimators import estimate, variant_choice
@@ -108,6 +109,11 @@ def cmd_identify(cfg, args) -> int:
                "positions": int(len(rec.t)), "samples": int(sum(used.values())),
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
+    if rec.segmentation is not None:
+        t_log = rec.segmentation[0]
+        summary["dwells_found"] = [{"position": d.position, "t_start": float(t_log[d.start]),
+                                    "t_end": float(t_log[d.stop - 1]), "samples": d.stop - d.start}
+                                   for d in rec.segmentation[2]]
     use_truth = rec.has_truth and not args.no_truth
     if use_truth:
         tr = cfg.truth()
@@ -123,6 +129,8 @@ def cmd_identify(cfg, args) -> int:
     with atomic_files(out) as tmp:  # the files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
         write_calibration_files(tmp, cal)
+        if rec.segmentation is not None:
+            dwell_figure(*rec.segmentation, tmp("dwells.png"))
         tmp("summary.json").write_text(json_text(summary))
     msg = (f"platcal identify: multiposition 27-state {choice.label}, {min(used.values())}-"
            f"{max(used.values())} samples per position, {seconds:.2f} s -> {out}")

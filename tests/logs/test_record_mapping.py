@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 from platcal.cli import main
+from platcal.logs.increments import sample_intervals
 from platcal.logs.mapping import RecordMapping, conversion_factor
 from platcal.errors import InputError
 from platcal.rigs.sled.config import load_config
@@ -191,3 +192,32 @@ def test_bad_mapping_exits_2(tmp_path, capsys, record, field):
     assert main(["identify", "--config", cfg, "--data", str(rec), "--scheme", "short", "--out", str(out)]) == 2
     assert f"error: {field}:" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_sled_increments(tmp_path):
+    """delta-v (m/s) and delta-theta (arcsec) per sample, converted over each sample's interval."""
+    cfg, rec = simulated(tmp_path, SLED, "--seed", "5")
+    df = pd.read_csv(rec)
+    dts = sample_intervals(df["t"].to_numpy())
+    log = pd.DataFrame({"t": df["t"]})
+    for a in "xyz":
+        log[f"dv_{a}"] = df[f"f{a}"] * dts
+        log[f"dth_{a}"] = np.rad2deg(df[f"w{a}"] * dts) * 3600.0
+    log.to_csv(tmp_path / "inc.csv", index=False)
+    record = {"kind": "increments", "columns": {**{f"f{a}": f"dv_{a}" for a in "xyz"},
+                                                **{f"w{a}": f"dth_{a}" for a in "xyz"}},
+              "units": {f"w{a}": "arcsec" for a in "xyz"}}
+    base = identify(cfg, rec, tmp_path / "a")
+    mcfg = write_cfg(tmp_path / "m.yaml", SLED, record)
+    got = identify(mcfg, tmp_path / "inc.csv", tmp_path / "b")
+    assert_same(base[base["sigma"].notna()], got[base["sigma"].notna()])
+
+
+def test_increments_refused_without_rate_columns(tmp_path, capsys):
+    cfg = write_cfg(tmp_path / "m.yaml", LOWPREC, {"kind": "increments"})
+    rec = tmp_path / "rec.csv"
+    rec.write_text("t,VE,VN,pE,pN,heading_deg,schedule\n0,0,0,0,0,0,static\n")
+    assert main(["identify", "--config", cfg, "--data", str(rec), "--out", str(tmp_path / "o")]) == 2
+    assert "error: record.kind:" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -45,6 +45,9 @@ SCHEMA_PROPERTIES = {
                              "ms, us, iso, m/s^2, g, mg, ug, rad, arcsec, deg/h, rad/s); g is the rig's gravity"},
     "ignore_extra": {"type": "boolean", "default": False,
                      "description": "drop columns of the log that the rig does not read (else they are refused)"},
+    "kind": {"type": "string", "enum": ["samples", "increments"], "default": "samples",
+             "description": "increments: the rate and specific-force columns hold delta-theta and delta-v per "
+                            "sample (platcal.logs.increments); only for a rig whose record has such columns"},
 }
 """The ``record:`` keys every rig's config schema holds (:func:`with_mapping_schema`)."""
 
@@ -111,16 +114,18 @@ class RecordMapping:
     units: dict = field(default_factory=dict)
     ignore_extra: bool = False
     g: float = STANDARD_GRAVITY
+    kind: str = "samples"
 
     @classmethod
     def from_config(cls, record: dict, g: float = STANDARD_GRAVITY) -> "RecordMapping":
         """The mapping of a validated config's ``record`` section."""
         return cls(columns=dict(record.get("columns") or {}), units=dict(record.get("units") or {}),
-                   ignore_extra=bool(record.get("ignore_extra", False)), g=float(g))
+                   ignore_extra=bool(record.get("ignore_extra", False)), g=float(g),
+                   kind=str(record.get("kind", "samples")))
 
     @property
     def empty(self) -> bool:
-        return not (self.columns or self.units or self.ignore_extra)
+        return not (self.columns or self.units or self.ignore_extra or self.kind != "samples")
 
     def check(self, native: dict) -> None:
         """Refuse, before reading any log, a mapping of a column the rig's record does not have,
@@ -141,11 +146,16 @@ class RecordMapping:
                 continue
             conversion_factor(unit, native[col], self.g, field_)
 
-    def apply(self, df: pd.DataFrame, native: dict, required: tuple[str, ...], source: str = "the log") -> pd.DataFrame:
+    def apply(self, df: pd.DataFrame, native: dict, required: tuple[str, ...], source: str = "the log",
+              increments: tuple[str, ...] = ()) -> pd.DataFrame:
         """The log ``df`` renamed to the rig's columns and converted to its units (``native``:
         rig column -> unit, None for text). Unmapped columns keep their names; with
         ``ignore_extra`` the columns the rig does not read are dropped. A required column that is
-        missing afterwards is refused naming ``record.columns.<col>``."""
+        missing afterwards is refused naming ``record.columns.<col>``. ``increments``: the columns
+        that ``kind: increments`` turns into increments (none: the rig refuses that kind)."""
+        if self.kind == "increments" and not increments:
+            raise InputError("record.kind", "this rig's record has no rate or specific-force columns, so it cannot "
+                             "be read from increments; use kind: samples")
         self.check(native)
         cols = [str(c) for c in df.columns]
         for col, src in self.columns.items():

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ...logs.calibration import Calibration, calibration_of
+from ...logs.increments import sample_intervals
 from .config import ARCSEC, G, SledConfig
 from .errmodel import propagate_run_model
 from ...records import nearest_samples
@@ -63,8 +64,7 @@ def record_epochs(t: np.ndarray, period_s: float) -> Epochs:
     ``dts = diff(t)``, the last sample covering the median step."""
     step = float(np.median(np.diff(t)))
     k = np.union1d(0, nearest_samples(t, period_s, 0.5 * step))   # epoch 0 (the prior) is the first sample
-    dts = np.r_[np.diff(t), step]
-    return Epochs(k=k, T=np.diff(t[k]), dts=dts)
+    return Epochs(k=k, T=np.diff(t[k]), dts=sample_intervals(t))
 
 
 def stop_index(t: np.ndarray, stop_time_s: float) -> int:

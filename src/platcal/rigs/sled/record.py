@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ...logs.increments import increment_units, rates_from_increments
 from ...logs.mapping import RecordMapping
 from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
 from ...records import check_times, grid_origin, num, read_table
@@ -89,16 +90,23 @@ def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataF
     acceleration (within :data:`PHASE_TOL_G`), or a median ``fz`` that is not about 1 g in m/s^2.
     The clock may count from 0 (a first sample within ``record.max_gap_s`` of it) or from any
     origin (a constant offset, removed by :func:`platcal.records.grid_origin`); jitter is kept.
-    A log in other columns or units is read through the config's ``record:`` mapping (:data:`UNITS`).
+    A log in other columns or units is read through the config's ``record:`` mapping (:data:`UNITS`);
+    with ``record.kind: increments`` the f and w columns are delta-v (m/s) and delta-theta (rad)
+    per sample, converted over each sample's interval (:mod:`platcal.logs.increments`).
     """
     max_gap = float(cfg.raw["record"]["max_gap_s"])
-    df = read_table(path, IMU_COLUMNS, TRUTH_COLUMNS, what="a sled record", min_rows=2,
-                    mapping=RecordMapping.from_config(cfg.raw["record"], g=G), units=UNITS)
+    mapping = RecordMapping.from_config(cfg.raw["record"], g=G)
+    incremental = mapping.kind == "increments"
+    df = read_table(path, IMU_COLUMNS, TRUTH_COLUMNS, what="a sled record", min_rows=2, mapping=mapping,
+                    units=increment_units(UNITS, IMU_COLUMNS[1:]) if incremental else UNITS,
+                    increments=IMU_COLUMNS[1:])
     traj = build_trajectory(cfg)
     t = df["t"].to_numpy(dtype=float)
     field = "--data column t"
     med = check_times(t, cfg.dt, max_gap, field, f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
     t = t - (0.0 if abs(t[0]) <= max_gap else grid_origin(t, med))
+    if incremental:  # delta-v, delta-theta over each sample's interval (platcal.logs.increments)
+        df[list(IMU_COLUMNS[1:])] = rates_from_increments(df[list(IMU_COLUMNS[1:])].to_numpy(float), t)
     span, want = float(t[-1] + med), traj.n * cfg.dt
     if abs(span - want) > max_gap:
         raise InputError(field, f"the record lasts {span:g} s ({len(df)} rows from t = {num(t[0])} s), but the "

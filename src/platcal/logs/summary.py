@@ -42,7 +42,7 @@ class LogSummary:
             lines.append(f"dwells: {len(self.dwells)}")
             lines += [f"  position {p}: t = {a:.6g} .. {b:.6g} s, {n} samples" for p, a, b, n in self.dwells]
         else:
-            lines.append("dwells: none marked (no position column)")
+            lines.append("dwells: none marked (no position column; a rig that can finds them in identify)")
         return "\n".join(lines)
 
 

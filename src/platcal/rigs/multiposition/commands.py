@@ -30,7 +30,7 @@ from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
 from .observability import evaluate
 from ...records import read_table
-from .record import (COLUMNS, COMPENSATE_COLUMNS, TRUTH_COLUMNS, UNITS, compensate_frame, read_record, to_frame,
+from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, TRUTH_COLUMNS, UNITS, compensate_frame, read_record, to_frame,
                      write_record)
 
 
@@ -162,7 +162,10 @@ def cmd_observability(cfg, args) -> int:
 
 def cmd_inspect(cfg, args) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
-    print(inspect_log(args.data, RecordMapping.from_config(cfg.raw["record"]), UNITS, COLUMNS, TRUTH_COLUMNS).text())
+    # a continuous log (no position column) is read too: identify finds its dwells
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in CONTINUOUS_COLUMNS)
+    summary = inspect_log(args.data, RecordMapping.from_config(cfg.raw["record"]), UNITS, CONTINUOUS_COLUMNS, optional)
+    print(summary.text())
     return 0
 
 

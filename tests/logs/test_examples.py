@@ -1,0 +1,34 @@
+"""examples/multiposition (issue 21, item 5): the vendor log made and run through the commands
+of its README (inspect, identify, compensate)."""
+
+import json
+import runpy
+import shutil
+from pathlib import Path
+
+import pandas as pd
+
+from platcal.cli import main
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "multiposition"
+
+
+def test_multiposition_example(tmp_path, monkeypatch, capsys):
+    for name in ("config.yaml", "make_log.py"):
+        shutil.copy(EXAMPLE / name, tmp_path / name)
+    monkeypatch.chdir(tmp_path)
+    runpy.run_path("make_log.py", run_name="__main__")
+    assert main(["inspect", "--config", "config.yaml", "--data", "vendor_log.csv"]) == 0
+    assert "gaps (> 1.5 steps): 0" in capsys.readouterr().out
+    assert main(["identify", "--config", "config.yaml", "--data", "vendor_log.csv", "--scheme", "short",
+                 "--out", "id"]) == 0
+    assert main(["identify", "--config", "simulated.yaml", "--data", "simulated.csv", "--scheme", "short",
+                 "--out", "labelled"]) == 0
+    assert main(["compensate", "--calibration", "id/calibration.yaml", "--data", "vendor_log.csv",
+                 "--out", "compensated.csv"]) == 0
+    summary = json.loads(Path("id/summary.json").read_text())
+    assert [d["position"] for d in summary["dwells_found"]] == list(range(1, 9))
+    a, b = pd.read_csv("labelled/estimates.csv"), pd.read_csv("id/estimates.csv")
+    assert ((a["estimate"] - b["estimate"]).abs() <= 0.1 * a["sigma"]).all()
+    assert Path("id/dwells.png").stat().st_size > 0
+    assert len(pd.read_csv("compensated.csv")) == len(pd.read_csv("vendor_log.csv"))

@@ -13,9 +13,10 @@ STEP_S = 0.02
 COLUMNS = ("t", "Ax", "Ay", "Az", "alpha_m", "beta_m", "gamma_m")
 
 
-def continuous(df: pd.DataFrame) -> pd.DataFrame:
-    """The labelled record on one clock with the slews in, without position and commanded angles."""
-    parts, clock = [], 0.0
+def continuous(df: pd.DataFrame, clock: float = 0.0, missing: tuple[int, ...] = ()) -> pd.DataFrame:
+    """The labelled record on one clock from ``clock`` s with the slews in, without position and
+    commanded angles; the slews after the positions in ``missing`` are left out of the log (gaps)."""
+    parts = []
     ks = sorted(df["position"].unique())
     for i, k in enumerate(ks):
         dwell = df.loc[df["position"] == k, list(COLUMNS)].copy()
@@ -29,7 +30,8 @@ def continuous(df: pd.DataFrame) -> pd.DataFrame:
             s = np.arange(1, n + 1)[:, None] / (n + 1)
             slew = pd.DataFrame(a + s * (b - a), columns=list(COLUMNS[1:]))
             slew.insert(0, "t", clock + STEP_S * np.arange(n))
-            parts.append(slew)
+            if k not in missing:
+                parts.append(slew)
             clock += n * STEP_S
     return pd.concat(parts, ignore_index=True)
 

@@ -88,3 +88,59 @@ def test_bad_declarations_name_the_field(edit, field):
 def test_unknown_measure_is_named():
     with pytest.raises(InputError, match="unknown measure"):
         evaluate(load_claims("toy", YAML), {"errors": measures([1.0])["errors"]}, None, {"k": 1}, seed=0)
+
+
+# ---- verdicts are computed: one input changed, the verdict follows (issue 20 item 5)
+
+def _centrifuge_ledger(tmp_path, sigma_a):
+    """table2_gyro on a small real study: 6 replicates of Table 1 at the config's sigma_a."""
+    from pathlib import Path
+
+    from platcal.io import read_yaml
+    from platcal.rigs.centrifuge import RIG, study as mc
+    from platcal.study import montecarlo as smc
+    from platcal.study.claims import evaluate_rig
+
+    raw = read_yaml((Path(__file__).resolve().parents[1] / "config" / "centrifuge.yaml").read_text())
+    raw["noise"]["sigma_a_ug"] = sigma_a
+    raw["study"].update({"schemes": ["table1"], "sigma_a_ug": [sigma_a], "replicates": 6, "batch": 6})
+    cfg = mc.check_study(raw)
+    case = RIG.montecarlo.case(cfg, "table1")
+    est = next(iter(cfg["study"]["estimators"]))
+    coef, runs, _ = smc.run_cell(RIG, cfg, case, sigma_a, est)
+    (tmp_path / "montecarlo").mkdir(parents=True)
+    coef.to_parquet(tmp_path / "montecarlo" / "coef.parquet")
+    runs.to_parquet(tmp_path / "montecarlo" / "runs.parquet")
+    return evaluate_rig(RIG, tmp_path, cfg).set_index("claim")
+
+
+@pytest.mark.slow
+def test_centrifuge_table2_gyro_verdict_follows_the_noise(tmp_path):
+    quiet = _centrifuge_ledger(tmp_path / "a", 10.0)
+    loud = _centrifuge_ledger(tmp_path / "b", 200.0)
+    assert loud.loc["table2_gyro", "verdict"] == NOT_REPRODUCED
+    assert "sigma_a 200 ug" in loud.loc["table2_gyro", "settings"]
+    assert quiet.loc["table2_gyro", "verdict"] != NOT_REPRODUCED
+    assert quiet.loc["table2_accel", "verdict"] == REPRODUCED
+
+
+@pytest.mark.slow
+def test_lowprec_effect_verdict_follows_the_instrument_noise(tmp_path):
+    from platcal.rigs.lowprec_centrifuge import RIG
+    from platcal.rigs.lowprec_centrifuge.config import load_config
+    from platcal.rigs.lowprec_centrifuge.study import run_scenario, study_seeds
+    from platcal.study.claims import evaluate_rig
+
+    def ledger(folder, noise):
+        study = load_config({"rig": "lowprec_centrifuge", "study": {"seeds": 2},
+                             "residuals": {"accel_noise_ug_rthz": noise}})
+        res = run_scenario(study, study_seeds(study))
+        (folder / "scenarios" / "default").mkdir(parents=True)
+        res["cross"].to_csv(folder / "scenarios" / "default" / "cross.csv", index=False)
+        return evaluate_rig(RIG, folder, study.raw).set_index("claim")
+
+    clean, noisy = ledger(tmp_path / "a", 10.0), ledger(tmp_path / "b", 20000.0)
+    assert clean.loc["proposed_effect_velocity", "verdict"] == REPRODUCED
+    assert noisy.loc["proposed_effect_velocity", "verdict"] == NOT_REPRODUCED
+    assert noisy.loc["proposed_effect_velocity", "measured"] < 75
+    assert noisy.loc["insensitive_to_centrifuge", "verdict"] == INCONCLUSIVE  # those scenarios were not run

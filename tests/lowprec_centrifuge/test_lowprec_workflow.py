@@ -28,15 +28,22 @@ def setup(tmp_path: Path, rigs: bool = True) -> Path:
     (d / "workflow" / "rules").mkdir(parents=True)
     (d / "workflow" / "scripts").mkdir()
     (d / "config").mkdir()
-    shutil.copy(ROOT / "workflow" / "rules" / "lowprec_centrifuge.smk", d / "workflow" / "rules")
-    for s in (ROOT / "workflow" / "scripts").glob("lowprec_*.py"):
+    for f in ("common.smk", "lowprec_centrifuge.smk", "report.smk"):  # the one config path; the ledger
+        shutil.copy(ROOT / "workflow" / "rules" / f, d / "workflow" / "rules")
+    shutil.copytree(ROOT / "workflow" / "schemas", d / "workflow" / "schemas")
+    shutil.copytree(ROOT / "workflow" / "report", d / "workflow" / "report")
+    for s in [*(ROOT / "workflow" / "scripts").glob("lowprec_*.py"),
+              *(ROOT / "workflow" / "scripts" / f for f in ("claims.py", "ledger.py", "report_index.py"))]:
         shutil.copy(s, d / "workflow" / "scripts")
     shutil.copytree(ROOT / "workflow" / "envs", d / "workflow" / "envs")
     (d / "config" / "lp.yaml").write_text(yaml.safe_dump(TINY))
-    (d / "config" / "config.yaml").write_text("rigs: {lowprec_centrifuge: config/lp.yaml}\n" if rigs else "{}\n")
+    (d / "config" / "config.yaml").write_text("rigs: {lowprec_centrifuge: %s}\n" % ("config/lp.yaml" if rigs else "null"))
     (d / "Snakefile").write_text('configfile: "config/config.yaml"\n'
+                                 'include: "workflow/rules/common.smk"\n'
                                  'include: "workflow/rules/lowprec_centrifuge.smk"\n'
-                                 "rule all:\n    input: LOWPREC_CENTRIFUGE_TARGETS\n")
+                                 'include: "workflow/rules/report.smk"\n'
+                                 'RIG_TARGETS = {"lowprec_centrifuge": LOWPREC_CENTRIFUGE_TARGETS}\n'
+                                 "rule all:\n    input: LOWPREC_CENTRIFUGE_TARGETS, LEDGER if RIGS else []\n")
     return d
 
 
@@ -51,9 +58,13 @@ def test_tiny_study_runs_and_reports(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     res = d / "results" / "lowprec_centrifuge"
     rep = (res / "report.md").read_text()
-    for s in ("Which of the paper's claims are reproduced", "not reproduced", "figures/velocity_trace.png",
-              "Table-1 analogue"):
+    for s in ("The paper's claims", "| proposed_effect_velocity |", "figures/velocity_trace.png", "Table-1 analogue"):
         assert s in rep
+    ledger = pd.read_csv(res / "claims.csv")
+    assert set(ledger["verdict"]) <= {"reproduced", "not reproduced", "inconclusive"}
+    row = ledger.set_index("claim").loc["proposed_effect_velocity"]
+    # the verdict follows the numbers: the interval against the criterion (>= 75 %)
+    assert (row["verdict"] == "reproduced") == (row["ci_low"] >= 75)
     for f in ("effect_vs_imprecision", "velocity_trace", "windows_heading"):
         assert (res / "figures" / f"{f}.png").stat().st_size > 10_000
     cross = pd.read_csv(res / "tables" / "cross_validation.csv")

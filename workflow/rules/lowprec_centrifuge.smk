@@ -1,23 +1,20 @@
 # Rig 4, low-precision centrifuge (docs/lowprec-centrifuge.md): the default scenario and the
 # centrifuge-imprecision sweep of section 2, one job per scenario, then tables, figures, report.
-# Reads its config from config["rigs"]["lowprec_centrifuge"]; without that key it defines no target.
+# Reads its config (path or inline) from config["rigs"]["lowprec_centrifuge"] through RAW
+# (common.smk); without that key it defines no target. Each scenario job's param is the
+# scenario's own config (study.scenario_config): an edit reruns exactly the scenarios it changes.
 import re as _lp_re
 
 LOWPREC_CENTRIFUGE_TARGETS = []
-if config.get("rigs", {}).get("lowprec_centrifuge"):
-    from platcal.errors import InputError as _LpInputError
-    from platcal.cli import read_config as _lp_read_config
+if "lowprec_centrifuge" in RAW:
     from platcal.rigs.lowprec_centrifuge.config import load_config as _lp_load
+    from platcal.rigs.lowprec_centrifuge.study import scenario_config as _lp_scenario_config
     from platcal.rigs.lowprec_centrifuge.study import scenarios as _lp_scenarios
     from platcal.study.montecarlo import package_code_hash as _lp_code_hash
-    from snakemake.exceptions import WorkflowError as _LpWorkflowError
 
-    LOWPREC_CFG = config["rigs"]["lowprec_centrifuge"]
-    try:
-        _LP_STUDY = _lp_load(_lp_read_config(LOWPREC_CFG))   # UTF-8 YAML, else InputError
-    except _LpInputError as exc:
-        raise _LpWorkflowError(f"invalid configuration {LOWPREC_CFG}: {exc.field}: {exc.message}")
+    _LP_STUDY = checked("lowprec_centrifuge", _lp_load)
     LOWPREC_SCENARIOS = list(_lp_scenarios(_LP_STUDY))
+    LOWPREC_SCENARIO_CONFIG = {s: _lp_scenario_config(_LP_STUDY, s) for s in LOWPREC_SCENARIOS}
     LOWPREC_CODE = _lp_code_hash("platcal.rigs.lowprec_centrifuge")  # a code edit reruns the jobs
     LOWPREC_FILES = expand(
         "results/lowprec_centrifuge/tables/{t}.{ext}",
@@ -37,7 +34,7 @@ if config.get("rigs", {}).get("lowprec_centrifuge"):
         wildcard_constraints:
             scen="|".join(_lp_re.escape(s) for s in LOWPREC_SCENARIOS),
         params:
-            config=LOWPREC_CFG,
+            config=lambda w: LOWPREC_SCENARIO_CONFIG[w.scen],
             code=LOWPREC_CODE,
         threads: 1
         conda:
@@ -59,7 +56,7 @@ if config.get("rigs", {}).get("lowprec_centrifuge"):
                 for f in LOWPREC_FILES
             ],
         params:
-            config=LOWPREC_CFG,
+            config=_LP_STUDY.raw,
             names=LOWPREC_SCENARIOS,
             code=LOWPREC_CODE,
         conda:

@@ -21,7 +21,7 @@ import yaml
 
 from .. import __version__
 from ..errors import InputError
-from ..io import json_safe, read_yaml
+from ..io import json_safe, read_config
 
 KEYS = ("rig", "model_version", "names", "units", "values", "covariance", "log_sha256", "config")
 
@@ -80,12 +80,7 @@ def covariance_frame(names, P) -> pd.DataFrame:
 def read_calibration(path: str | os.PathLike, field: str = "--calibration") -> Calibration:
     """A ``calibration.yaml`` read back; InputError naming ``field`` (and the key) otherwise."""
     path = Path(path)
-    try:
-        raw = read_yaml(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(field, f"no such file: {path}") from None
-    except (OSError, UnicodeDecodeError, ValueError, yaml.YAMLError) as exc:
-        raise InputError(field, f"cannot read {path} as a calibration file ({exc.__class__.__name__})") from None
+    raw = read_config(path, field)
     if not isinstance(raw, dict):
         raise InputError(field, f"{path} is not a calibration file (a YAML mapping written by platcal identify)")
     missing = [k for k in KEYS if k not in raw]

@@ -218,3 +218,19 @@ def verdict_counts(df: pd.DataFrame) -> str:
     """'n reproduced, m not reproduced, k inconclusive' of a ledger."""
     counts = df["verdict"].value_counts()
     return ", ".join(f"{int(counts.get(v, 0))} {v}" for v in VERDICTS)
+
+
+def evaluate_rig(rig, results: Path, cfg: dict) -> pd.DataFrame:
+    """The ledger rows of a rig's declared claims (``rig.extras["claims"]``: a module-like object
+    with ``claims()`` and ``MEASURES``) on its results folder and config; no rows when it has none."""
+    spec = rig.extras.get("claims")
+    if spec is None:
+        return pd.DataFrame(columns=LEDGER_COLUMNS)
+    return evaluate(spec.claims(), spec.MEASURES, Path(results), cfg, seed=int(cfg.get("seed", 0) or 0))
+
+
+def ledger_note(df: pd.DataFrame) -> str:
+    """One paragraph on how the verdicts were reached, with the counts."""
+    return (f"{len(df)} claims: {verdict_counts(df)}. Measured: the statistic over the study's replicates, with its "
+            "95 % percentile-bootstrap interval; reproduced when the whole interval meets the criterion, not reproduced "
+            "when none of it does, inconclusive when it straddles the criterion or the study did not run the cells.")

@@ -13,7 +13,8 @@ import numpy as np
 import pandas as pd
 
 from ...rig import Rig
-from .commands import COEFF_UNITS, identify, inspect, simulate
+from . import claims
+from .commands import OPTIONS, identify, inspect, simulate
 from .config import COEFFS, load_config
 
 
@@ -27,4 +28,4 @@ RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
           spec="lowprec-centrifuge.md", load_config=load_config,
           commands={"inspect": inspect, "simulate": simulate, "identify": identify}, catalogue=catalogue,
-          estimators=("proposed", "traditional"))
+          extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS)

@@ -14,6 +14,7 @@ import numpy as np
 
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
+from ...rig import option
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, write_calibration_files
 from ...logs.summary import inspect_log
@@ -30,15 +31,7 @@ COEFF_UNITS = ("ug/g", "ug/g^2", "ug/g", "ug/g^2")
 """Units of :data:`.config.COEFFS` (docs/lowprec-centrifuge.md §10): asymmetry ug/g, second order ug/g^2."""
 
 
-def _refuse(args, names) -> None:
-    for name in names:
-        val = getattr(args, name.lstrip("-").replace("-", "_"), None)
-        if val not in (None, False):
-            raise InputError(name, "not used by rig lowprec_centrifuge; remove it")
-
-
 def simulate(study: Study, args) -> int:
-    _refuse(args, ("--scheme",))
     if args.platform is None:
         raise InputError("--platform", f"required: one of {study.platform_names()}")
     if args.platform not in study.platforms:
@@ -62,7 +55,6 @@ def simulate(study: Study, args) -> int:
 
 
 def identify(study: Study, args) -> int:
-    _refuse(args, ("--scheme", "--estimator"))
     method = args.method or "proposed"
     if method not in METHODS:
         raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
@@ -120,3 +112,11 @@ def inspect(study: Study, args) -> int:
     optional = tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS
     print(inspect_log(args.data, mapping, UNITS, REQUIRED, optional, text=("schedule",)).text())
     return 0
+
+
+OPTIONS = {
+    "simulate": (option("--platform", default=None, help="platform name of the config (required)"),
+                 option("--run", default=None, help="run name of the platform, or traditional (required)")),
+    "identify": (option("--method", default=None, help="proposed (default) or traditional"),),
+}
+"""The rig's own options (``--seed`` of simulate: seed N of the study)."""

@@ -11,6 +11,7 @@ and the §11 acceptance checks from those.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -63,6 +64,18 @@ def scenarios(study: Study) -> dict[str, dict]:
         add("gross", cen.with_imprecision(g.get("rate_error"), g.get("arm_error_mm")), "extreme")
         add("gross-neg", cen.with_imprecision(-g.get("rate_error", 0.0), -g.get("arm_error_mm", 0.0)), "extreme")
     return out
+
+
+def scenario_config(study: Study, name: str) -> dict:
+    """The raw config of scenario ``name`` alone: the study's config with the scenario's
+    centrifuge in ``centrifuge`` and, of ``study``, only what one scenario's run reads (the seeds;
+    the sweep lists emptied). It is the scenario job's Snakemake param: an edit reruns exactly the
+    scenarios whose numbers it changes, and ``load_config`` of it runs the scenario."""
+    raw = dict(study.raw)
+    raw["centrifuge"] = dataclasses.asdict(scenarios(study)[name]["centrifuge"])
+    raw["study"] = {"seeds": study.study["seeds"], "first_seed": study.study["first_seed"],
+                    "rate_errors": [], "arm_errors_mm": [], "worst": {}, "gross": {}}
+    return raw
 
 
 def study_seeds(study: Study) -> np.ndarray:

@@ -119,7 +119,7 @@ def lag1_autocorrelation(e: np.ndarray, segment: np.ndarray | None = None) -> np
 
 
 def fit_check(innov: np.ndarray, s_var: np.ndarray, names, *, predicted: np.ndarray | None = None,
-              t: np.ndarray | None = None, segment: np.ndarray | None = None,
+              nominal: np.ndarray | None = None, t: np.ndarray | None = None, segment: np.ndarray | None = None,
               tolerance: FitTolerance = FitTolerance()) -> FitCheck:
     """Per-channel fit statistics and the verdict of one run.
 
@@ -127,9 +127,12 @@ def fit_check(innov: np.ndarray, s_var: np.ndarray, names, *, predicted: np.ndar
     ``s_var`` (N, m): their predicted variances (the diagonal of S; a batch estimator: the
     residual variances); rows with a non-finite or non-positive variance (skipped updates) are
     left out. ``names`` (m,): the channels. ``predicted`` (N, m), ``t`` (N,) s and ``segment``
-    (N,) labels (e.g. position) are optional: with ``predicted`` the failed check is diagnosed
-    (:func:`diagnose`), with ``t`` too a clock error can be recognised; ``segment`` keeps the
-    autocorrelation and the time derivative within a segment.
+    (N,) labels (e.g. position) are optional: with ``predicted`` (the filter's prediction, so the
+    measurement is ``innov + predicted``) the failed check is diagnosed (:func:`diagnose`), with
+    ``t`` too a clock error can be recognised; ``segment`` keeps the autocorrelation and the time
+    derivative within a segment. ``nominal`` (N, m): the model's output with the nominal (prior)
+    coefficients, which the diagnosis regresses the measurement on instead of ``predicted``: a
+    filter fed data that do not fit diverges, and its predictions then follow the data.
     """
     innov = np.asarray(innov, float)
     s_var = np.asarray(s_var, float)
@@ -158,8 +161,9 @@ def fit_check(innov: np.ndarray, s_var: np.ndarray, names, *, predicted: np.ndar
     diagnosis = ()
     if not passed and predicted is not None:
         pred = np.asarray(predicted, float)[ok]
-        diagnosis = tuple(diagnose(innov + pred, pred, s_var, names, None if t is None else np.asarray(t)[ok], seg,
-                                   tol.detect))
+        ref = pred if nominal is None else np.asarray(nominal, float)[ok]
+        diagnosis = tuple(diagnose(innov + pred, ref, s_var, names, None if t is None else np.asarray(t)[ok], seg,
+                                   tol.detect, innov))
     return FitCheck(channels, n, float(nis_c.mean()) if n else float("nan"), nis_bound, mean_bound, lag1_bound,
                     tol, passed, worst, diagnosis)
 
@@ -189,7 +193,7 @@ def scale_meaning(a: float, rel: float = 0.05) -> str | None:
 
 
 def diagnose(z: np.ndarray, predicted: np.ndarray, s_var: np.ndarray, names, t: np.ndarray | None = None,
-             segment: np.ndarray | None = None, detect: float = 8.0) -> list[str]:
+             segment: np.ndarray | None = None, detect: float = 8.0, innov: np.ndarray | None = None) -> list[str]:
     """What is wrong with the channels of a record that does not fit, from its measurements ``z``
     and the model's predictions ``predicted`` (N, m), their variances ``s_var`` (N, m), the
     instants ``t`` (N,) s (for a clock) and segment labels.
@@ -199,7 +203,8 @@ def diagnose(z: np.ndarray, predicted: np.ndarray, s_var: np.ndarray, names, t: 
     unit, near -1 a sign, near +-1 on another channel's prediction with its own near 0 a swap.
     Otherwise the innovation is regressed on the prediction's time derivative: a significant
     slope (|t| > ``detect``) is a clock offset, a significant growth of the squared innovation
-    with the squared derivative a timestamp jitter (its RMS in s).
+    with the squared derivative a timestamp jitter (its RMS in s). ``innov`` (N, m): the filter's
+    innovations for the clock test (default ``z - predicted``).
     """
     names = [str(n) for n in names]
     m = z.shape[1]
@@ -221,10 +226,12 @@ def diagnose(z: np.ndarray, predicted: np.ndarray, s_var: np.ndarray, names, t: 
         if meaning is not None:
             out.append(f"{names[i]}: {meaning} (regression coefficient {own:.5g})")
             explained.add(i)
-    if t is None:
+    if t is None or explained:
+        # a filter fed a unit, sign or swap error diverges and every channel's innovation with
+        # it: a clock is looked for only when nothing grosser was found
         return out
     d = time_derivative(predicted, t, segment)
-    innov = z - predicted
+    innov = z - predicted if innov is None else innov
     for i in range(m):
         if i in explained:
             continue

@@ -19,8 +19,8 @@ from ...study.montecarlo import cell_job, replicate_seed
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
-from .identify import (consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
-                       write_identification)
+from .identify import (consistency_warning, identify_input, record_fit, record_input, run_problems, timed,
+                       truth_known, write_identification)
 from .observability import write_observability
 from .record import read_record, sim_to_frame, write_record
 from .report import report_from_results
@@ -99,8 +99,9 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
               "config's noise and filter settings.", file=sys.stderr)
         return 1
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
+    fit = record_fit(est, fin, study, scheme)
     summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds,
-                                   samples_used=used)
+                                   samples_used=used, fit=fit)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if "nees" in summary:
@@ -110,7 +111,17 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     warning = consistency_warning(summary)
     if warning:
         print(f"platcal identify: warning: {warning}", file=sys.stderr)
-    return 0
+    return fit_status(fit, args)
+
+
+def fit_status(fit, args: argparse.Namespace) -> int:
+    """Exit status of ``identify`` from its fit check: 0 fitted (or no check), 3 (with the worst
+    channels and the diagnosis on stderr) when the record does not fit the model."""
+    if fit is None or fit.passed:
+        return 0
+    print(f"platcal identify: error: --data {args.data}: {fit.message()}. The outputs in {args.out} are written "
+          "and marked 'fit: failed' in summary.json.", file=sys.stderr)
+    return 3
 
 
 def observability_command(study: Study, args: argparse.Namespace) -> int:

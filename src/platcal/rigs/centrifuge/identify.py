@@ -11,6 +11,7 @@ import pandas as pd
 from scipy.stats import chi2
 
 from ...estimation.consistency import estimate_problems, nees
+from ...estimation.fit import FitCheck, fit_check
 from ...io import atomic_files, json_text
 from .config import Study
 from .ekf import Estimate, FilterSettings, first_instant
@@ -59,9 +60,33 @@ def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
 
 def identify_input(study: Study, scheme: Scheme, fin: FilterInput) -> Estimate:
     """Run the study's estimator (``filter.estimator``) over the selected samples of a record (one
-    run: a batch of one)."""
+    run: a batch of one), keeping the innovations for the fit check (EKF, IEKF)."""
     params = study.centrifuge.scheme_params(scheme)[np.array(fin.positions) - 1]
-    return run_estimator(fin.z, fin.t, fin.cmd_deg, params, study.filter)
+    return run_estimator(fin.z, fin.t, fin.cmd_deg, params, replace(study.filter, innovations=True))
+
+
+FIT_CHANNELS = ("Ax", "Ay", "Az")
+
+
+def record_fit(est: Estimate, fin: FilterInput, study: Study, scheme: Scheme) -> FitCheck | None:
+    """The fit check (:func:`platcal.estimation.fit.fit_check`) of one run from the last pass's
+    innovations of Ax, Ay, Az (g) and their predicted variances (docs/centrifuge-model.md §9);
+    the diagnosis regresses the record on the noise-free output of the nominal instrument
+    (all coefficients 0) at the commanded angles. None for an estimator that keeps no
+    innovations (UKF, ML)."""
+    if est.innovations is None:
+        return None
+    rec = est.innovations[0]
+    z = np.concatenate(fin.z, axis=1)[0]
+    innov = rec[:, :3]
+    params = study.centrifuge.scheme_params(scheme)
+    nominal_run = simulate(np.zeros_like(study.truth), scheme, params, study.noise, None, sample_s=study.sample_s)
+    nominal = np.concatenate([nominal_run.A[0, k - 1, np.clip(np.rint(tk / study.sample_s).astype(int), 0,
+                                                                nominal_run.t.size - 1)]
+                              for k, tk in zip(fin.positions, fin.t)])
+    segment = np.concatenate([np.full(len(tk), k) for k, tk in zip(fin.positions, fin.t)])
+    return fit_check(innov, rec[:, 3:], FIT_CHANNELS, predicted=z - innov, nominal=nominal, t=np.concatenate(fin.t),
+                     segment=segment)
 
 
 def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:
@@ -101,14 +126,16 @@ def consistency_warning(summary: dict) -> str | None:
 
 
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
-                         seconds: float | None = None, samples_used: dict[int, int] | None = None) -> dict:
+                         seconds: float | None = None, samples_used: dict[int, int] | None = None,
+                         fit: FitCheck | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
     first pass), each state's estimate and its 1-sigma (``<name>_sigma``), angles in rad.
     The five files land together or not at all (:func:`platcal.io.atomic_files`), ``summary.json``
     last; it is strict JSON (``null`` for a number that is not finite). ``samples_used`` (position
-    -> number of samples the filter used) goes into the summary as ``samples_used_per_position``.
+    -> number of samples the filter used) goes into the summary as ``samples_used_per_position``;
+    ``fit`` (:func:`record_fit`) as its ``fit`` block (``verdict: not available`` when None).
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
@@ -120,6 +147,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         summary["samples_used_per_position"] = {str(k): int(v) for k, v in samples_used.items()}
     if seconds is not None:
         summary["seconds"] = seconds
+    summary["fit"] = fit.as_dict() if fit is not None else {
+        "verdict": "not available", "reason": f"estimator {study.filter.estimator!r} keeps no innovations"}
     if truth is not None:
         idx = study.filter.coef_index
         summary["nees"] = float(nees(est.coef, est.P[:, :nc, :nc], truth[idx][None])[0])

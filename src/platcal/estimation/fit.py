@@ -23,10 +23,14 @@ derivative: an offset, or a jitter that inflates it in proportion). Nothing here
 
 from __future__ import annotations
 
+import sys
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from scipy import stats as sps
+
+EXIT_DOES_NOT_FIT = 3
+"""Exit status of ``platcal identify`` when the record does not fit the model (0 fitted, 2 refused)."""
 
 UNIT_SCALES = ((9.80665, "m/s^2 vs g"), (180.0 / np.pi, "deg vs rad"), (1000.0, "a factor 1000 (milli/kilo)"),
                (3600.0, "per hour vs per second"))
@@ -253,3 +257,14 @@ def diagnose(z: np.ndarray, predicted: np.ndarray, s_var: np.ndarray, names, t: 
             out.append(f"clock: {names[i]}'s innovation grows with the prediction's rate of change, a timestamp "
                        f"jitter of about {np.sqrt(jit2):.3g} s RMS")
     return out
+
+
+def fit_exit_status(fit: FitCheck | None, data, out) -> int:
+    """The exit status of ``platcal identify`` from its fit check: 0 when the record fits (or no
+    check ran), else :data:`EXIT_DOES_NOT_FIT` after one line on stderr naming the record
+    ``data``, the worst channels and the diagnosis, and the folder ``out`` written anyway."""
+    if fit is None or fit.passed:
+        return 0
+    print(f"platcal identify: error: --data {data}: {fit.message()}. The outputs in {out} are written and marked "
+          "'fit: failed' in summary.json.", file=sys.stderr)
+    return EXIT_DOES_NOT_FIT

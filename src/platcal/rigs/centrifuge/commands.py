@@ -13,6 +13,7 @@ import sys
 import time
 
 from ...errors import InputError
+from ...estimation.fit import fit_exit_status
 from ...io import check_writable
 from ...scheme import resolve_scheme
 from ...study.montecarlo import cell_job, replicate_seed
@@ -111,17 +112,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     warning = consistency_warning(summary)
     if warning:
         print(f"platcal identify: warning: {warning}", file=sys.stderr)
-    return fit_status(fit, args)
-
-
-def fit_status(fit, args: argparse.Namespace) -> int:
-    """Exit status of ``identify`` from its fit check: 0 fitted (or no check), 3 (with the worst
-    channels and the diagnosis on stderr) when the record does not fit the model."""
-    if fit is None or fit.passed:
-        return 0
-    print(f"platcal identify: error: --data {args.data}: {fit.message()}. The outputs in {args.out} are written "
-          "and marked 'fit: failed' in summary.json.", file=sys.stderr)
-    return 3
+    return fit_exit_status(fit, args.data, args.out)
 
 
 def observability_command(study: Study, args: argparse.Namespace) -> int:

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ...estimation.consistency import estimate_problems
+from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
 from .estimators import estimate, variant_choice
@@ -55,12 +56,40 @@ def cmd_simulate(cfg, args) -> int:
     return 0
 
 
-def identify(cfg, rec, choice=None):
+def identify(cfg, rec, choice=None, innovations=None):
     """``(estimate (nc,), covariance (nc, nc), mean NIS, skipped updates)`` of one record with the
-    estimator of ``choice`` (:class:`.estimators.FilterChoice`; default the config's ``filter``)."""
+    estimator of ``choice`` (:class:`.estimators.FilterChoice`; default the config's ``filter``);
+    ``innovations`` (1, K, n, 12) receives the last pass's innovations (:func:`.filter.run_filter`)."""
     tk, Z, nk = rec.packed()
-    r = estimate(cfg, choice or cfg.filter_choice(), rec.cmd_deg, tk, Z, nk=nk)
+    r = estimate(cfg, choice or cfg.filter_choice(), rec.cmd_deg, tk, Z, nk=nk, innovations=innovations)
     return r.coef[0], r.cov[0], float(r.mean_nis[0]), int(r.failed_updates[0])
+
+
+FIT_CHANNELS = ("Ax", "Ay", "Az", "alpha_m", "beta_m", "gamma_m")
+
+
+def innovation_buffer(rec) -> np.ndarray:
+    """The (1, K, n, 12) array :func:`identify` fills with innovations for :func:`record_fit`."""
+    tk, _, _ = rec.packed()
+    return np.zeros((1,) + tk.shape + (12,))
+
+
+def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
+    """The fit check (:func:`platcal.estimation.fit.fit_check`) of one run from its innovations of
+    Ax, Ay, Az (ug) and the angle sensors (arcsec) (docs/multiposition-1g.md §9); the diagnosis
+    regresses the record on the noise-free output of the nominal instrument (coefficients 0) at
+    the commanded angles."""
+    nk = [len(t) for t in rec.t]
+    buf = innovations[0]
+    rows = np.concatenate([buf[k, :n] for k, n in enumerate(nk)])
+    z = np.concatenate(rec.z)
+    t = np.concatenate(rec.t)
+    tn, _, zn = simulate(cfg, scheme, [0], noise_free=True, truth=np.zeros_like(cfg.truth()))
+    nominal = np.concatenate([zn[0, k, np.clip(np.rint(tk / cfg.ts).astype(int), 0, tn.size - 1)]
+                              for k, tk in enumerate(rec.t)])
+    segment = np.repeat(np.arange(len(nk)), nk)
+    innov = rows[:, :6]
+    return fit_check(innov, rows[:, 6:], FIT_CHANNELS, predicted=z - innov, nominal=nominal, t=t, segment=segment)
 
 
 def run_problems(est: np.ndarray, P: np.ndarray, nis: float, failed_updates: int = 0) -> list[str]:
@@ -84,7 +113,8 @@ def cmd_identify(cfg, args) -> int:
     check_writable(args.out, "--out", folder=True)
     rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]))
     t0 = time.perf_counter()
-    est, P, nis, failed = identify(cfg, rec, choice)
+    innovations = innovation_buffer(rec)
+    est, P, nis, failed = identify(cfg, rec, choice, innovations)
     seconds = time.perf_counter() - t0
     problems = run_problems(est, P, nis, failed)
     if problems:
@@ -102,6 +132,8 @@ def cmd_identify(cfg, args) -> int:
                "positions": int(len(rec.t)), "samples": int(sum(used.values())),
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
+    fit = record_fit(cfg, scheme, rec, innovations)
+    summary["fit"] = fit.as_dict()
     use_truth = rec.has_truth and not args.no_truth
     if use_truth:
         tr = cfg.truth()
@@ -122,7 +154,7 @@ def cmd_identify(cfg, args) -> int:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.3f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.4f} %, NEES {summary['nees']:.1f} (dof 24)")
     print(msg, file=sys.stderr)
-    return 0
+    return fit_exit_status(fit, args.data, out)
 
 
 def cmd_observability(cfg, args) -> int:

@@ -37,7 +37,26 @@ def centrifuge_fits(config: str, seeds: range):
         yield n, record_fit(identify_input(study, scheme, fin), fin, study, scheme)
 
 
-RIGS = {"centrifuge": (centrifuge_fits, "config/centrifuge.yaml")}
+def multiposition_fits(config: str, seeds: range):
+    """The fit check of each seed's record of the study's first scheme (``platcal simulate``'s default)."""
+    from platcal.rigs.multiposition.commands import identify, innovation_buffer, record_fit
+    from platcal.rigs.multiposition.filter import replicate_seeds, simulate
+    from platcal.rigs.multiposition.record import read_record, to_frame
+
+    cfg = get_rig("multiposition").load_config(read_config(config))
+    scheme = cfg.scheme(None)
+    for n in seeds:
+        t, phi, z = simulate(cfg, scheme, replicate_seeds(cfg, scheme.name, [n]))
+        path = f"/tmp/fit_false_alarm_multiposition_{n}.parquet"
+        to_frame(scheme, t, phi[0], z[0]).to_parquet(path)
+        rec, sch = read_record(path, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]))
+        buf = innovation_buffer(rec)
+        identify(cfg, rec, None, buf)
+        yield n, record_fit(cfg, sch, rec, buf)
+
+
+RIGS = {"centrifuge": (centrifuge_fits, "config/centrifuge.yaml"),
+        "multiposition": (multiposition_fits, "config/multiposition.yaml")}
 
 
 def main() -> None:

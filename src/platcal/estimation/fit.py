@@ -196,40 +196,46 @@ def scale_meaning(a: float, rel: float = 0.05) -> str | None:
     return None
 
 
-def diagnose(z: np.ndarray, predicted: np.ndarray, s_var: np.ndarray, names, t: np.ndarray | None = None,
-             segment: np.ndarray | None = None, detect: float = 8.0, innov: np.ndarray | None = None) -> list[str]:
-    """What is wrong with the channels of a record that does not fit, from its measurements ``z``
-    and the model's predictions ``predicted`` (N, m), their variances ``s_var`` (N, m), the
-    instants ``t`` (N,) s (for a clock) and segment labels.
-
-    Each channel's measurement is regressed on every channel's prediction (and a constant):
-    a coefficient near one of :data:`UNIT_SCALES` (or its inverse) on its own prediction is a
-    unit, near -1 a sign, near +-1 on another channel's prediction with its own near 0 a swap.
-    Otherwise the innovation is regressed on the prediction's time derivative: a significant
-    slope (|t| > ``detect``) is a clock offset, a significant growth of the squared innovation
-    with the squared derivative a timestamp jitter (its RMS in s). ``innov`` (N, m): the filter's
-    innovations for the clock test (default ``z - predicted``).
-    """
+def gross_errors(z: np.ndarray, predicted: np.ndarray, names) -> list[tuple[int, str]]:
+    """``(channel, what)`` for each channel of ``z`` (N, m) that is a recognisable transform of the
+    model's ``predicted`` (N, m): regressed on every channel's prediction and a constant, a
+    coefficient near one of :data:`UNIT_SCALES` (or its inverse) on its own prediction is a
+    unit, near -1 a sign, near +-1 on another channel's prediction with its own near 0 a swap."""
     names = [str(n) for n in names]
     m = z.shape[1]
     out = []
     X = np.column_stack([predicted, np.ones(len(z))])
     coef, *_ = np.linalg.lstsq(X, z, rcond=None)  # (m + 1, m): column i explains channel i
-    explained = set()
     for i in range(m):
         a = coef[:m, i]
         own = a[i]
         others = [j for j in range(m) if j != i and abs(abs(a[j]) - 1.0) < 0.2]
         if abs(own) < 0.2 and others:
             j = others[0]
-            out.append(f"swap: {names[i]} follows the prediction of {names[j]} (coefficient {a[j]:+.3g}; "
-                       f"its own {own:+.3g})")
-            explained.add(i)
+            out.append((i, f"swap: {names[i]} follows the prediction of {names[j]} (coefficient {a[j]:+.3g}; "
+                           f"its own {own:+.3g})"))
             continue
         meaning = scale_meaning(own)
         if meaning is not None:
-            out.append(f"{names[i]}: {meaning} (regression coefficient {own:.5g})")
-            explained.add(i)
+            out.append((i, f"{names[i]}: {meaning} (regression coefficient {own:.5g})"))
+    return out
+
+
+def diagnose(z: np.ndarray, predicted: np.ndarray, s_var: np.ndarray, names, t: np.ndarray | None = None,
+             segment: np.ndarray | None = None, detect: float = 8.0, innov: np.ndarray | None = None) -> list[str]:
+    """What is wrong with the channels of a record that does not fit, from its measurements ``z``
+    and the model's predictions ``predicted`` (N, m), their variances ``s_var`` (N, m), the
+    instants ``t`` (N,) s (for a clock) and segment labels.
+
+    Units, signs and swaps as :func:`gross_errors` finds them. Otherwise the innovation is
+    regressed on the prediction's time derivative: a significant slope (|t| > ``detect``) is a clock offset, a significant growth of the squared innovation
+    with the squared derivative a timestamp jitter (its RMS in s). ``innov`` (N, m): the filter's
+    innovations for the clock test (default ``z - predicted``).
+    """
+    m = z.shape[1]
+    found = gross_errors(z, predicted, names)
+    out = [text for _, text in found]
+    explained = {i for i, _ in found}
     if t is None or explained:
         # a filter fed a unit, sign or swap error diverges and every channel's innovation with
         # it: a clock is looked for only when nothing grosser was found
@@ -237,8 +243,6 @@ def diagnose(z: np.ndarray, predicted: np.ndarray, s_var: np.ndarray, names, t: 
     d = time_derivative(predicted, t, segment)
     innov = z - predicted if innov is None else innov
     for i in range(m):
-        if i in explained:
-            continue
         di, ri, si = d[:, i], innov[:, i], s_var[:, i]
         dd = float(np.sum(di * di))
         if dd <= 0:

@@ -20,8 +20,8 @@ from ...study.montecarlo import cell_job, replicate_seed
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
-from .identify import (consistency_warning, identify_input, record_fit, record_input, run_problems, timed,
-                       truth_known, write_identification)
+from .identify import (clock_finding, consistency_warning, identify_input, record_fit, record_input, run_problems,
+                       timed, truth_known, write_identification)
 from .observability import write_observability
 from .record import read_record, sim_to_frame, write_record
 from .report import report_from_results
@@ -100,7 +100,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
               "config's noise and filter settings.", file=sys.stderr)
         return 1
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
-    fit = record_fit(est, fin, study, scheme)
+    fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
     summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds,
                                    samples_used=used, fit=fit)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "

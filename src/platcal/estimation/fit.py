@@ -198,26 +198,39 @@ def scale_meaning(a: float, rel: float = 0.05) -> str | None:
 
 def gross_errors(z: np.ndarray, predicted: np.ndarray, names) -> list[tuple[int, str]]:
     """``(channel, what)`` for each channel of ``z`` (N, m) that is a recognisable transform of the
-    model's ``predicted`` (N, m): regressed on every channel's prediction and a constant, a
-    coefficient near one of :data:`UNIT_SCALES` (or its inverse) on its own prediction is a
-    unit, near -1 a sign, near +-1 on another channel's prediction with its own near 0 a swap."""
+    model's ``predicted`` (N, m): regressed on every channel's prediction (no constant: a bias is
+    small beside a unit, a sign or a swap), a coefficient near one of :data:`UNIT_SCALES` (or its
+    inverse) on its own prediction is a unit, near -1 a sign, near +-1 on another channel's
+    prediction with its own near 0 a swap. Only channels whose prediction is not negligible (RMS
+    above 5 % of the largest) are judged or used as regressors; when their predictions are
+    collinear each channel is compared with its own prediction only (no swap)."""
     names = [str(n) for n in names]
     m = z.shape[1]
+    rms = np.sqrt(np.mean(predicted * predicted, axis=0))
+    active = np.flatnonzero(rms > 0.05 * rms.max()) if rms.max() > 0 else np.array([], int)
+    if active.size == 0:
+        return []
+    X = predicted[:, active]
+    coef = np.zeros((m, m))  # coef[:, i] explains channel i
+    sol, _, rank, _ = np.linalg.lstsq(X, z, rcond=None)
+    if rank == active.size:
+        coef[active] = sol
+    else:
+        for i in active:
+            coef[i, i] = float(np.dot(z[:, i], predicted[:, i]) / np.dot(predicted[:, i], predicted[:, i]))
     out = []
-    X = np.column_stack([predicted, np.ones(len(z))])
-    coef, *_ = np.linalg.lstsq(X, z, rcond=None)  # (m + 1, m): column i explains channel i
-    for i in range(m):
-        a = coef[:m, i]
+    for i in active:
+        a = coef[:, i]
         own = a[i]
-        others = [j for j in range(m) if j != i and abs(abs(a[j]) - 1.0) < 0.2]
+        others = [j for j in active if j != i and abs(abs(a[j]) - 1.0) < 0.2]
         if abs(own) < 0.2 and others:
             j = others[0]
-            out.append((i, f"swap: {names[i]} follows the prediction of {names[j]} (coefficient {a[j]:+.3g}; "
-                           f"its own {own:+.3g})"))
+            out.append((int(i), f"swap: {names[i]} follows the prediction of {names[j]} (coefficient {a[j]:+.3g}; "
+                                f"its own {own:+.3g})"))
             continue
         meaning = scale_meaning(own)
         if meaning is not None:
-            out.append((i, f"{names[i]}: {meaning} (regression coefficient {own:.5g})"))
+            out.append((int(i), f"{names[i]}: {meaning} (regression coefficient {own:.5g})"))
     return out
 
 

@@ -22,11 +22,12 @@ from ...estimation.consistency import estimate_problems
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...errors import InputError
 from ...io import atomic_files, check_writable, json_text
+from ...plausibility import refuse_recognised
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
 from .observability import evaluate
-from .record import read_record, to_frame, write_record
+from .record import UG, read_record, to_frame, write_record
 
 
 
@@ -74,6 +75,25 @@ def innovation_buffer(rec) -> np.ndarray:
     return np.zeros((1,) + tk.shape + (12,))
 
 
+def nominal_output(cfg, scheme, rec) -> np.ndarray:
+    """(M, 6) ug, arcsec: the noise-free output of the nominal instrument (every coefficient 0)
+    at the commanded angles and the record's filter instants (docs/multiposition-1g.md §7)."""
+    tn, _, zn = simulate(cfg, scheme, [0], noise_free=True, truth=np.zeros_like(cfg.truth()))
+    return np.concatenate([zn[0, k, np.clip(np.rint(tk / cfg.ts).astype(int), 0, tn.size - 1)]
+                           for k, tk in enumerate(rec.t)])
+
+
+def check_plausible(cfg, scheme, rec) -> None:
+    """Refuse (InputError naming the column) a record whose accelerometers are a unit, sign or
+    swap of what the nominal instrument reads at the commanded angles (a static platform reads
+    |f| = 1 g; :func:`platcal.plausibility.refuse_recognised`). The angle sensors are left to the
+    fit check: a log may wrap them differently from the commanded angles (+-180 deg)."""
+    z = np.concatenate(rec.z)
+    nominal = nominal_output(cfg, scheme, rec)
+    refuse_recognised(z[:, :3] * UG, nominal[:, :3] * UG, FIT_CHANNELS[:3], "g",
+                      "Ax, Ay, Az must be the x, y, z accelerometers in g (a static platform reads |f| = 1 g)")
+
+
 def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
     """The fit check (:func:`platcal.estimation.fit.fit_check`) of one run from its innovations of
     Ax, Ay, Az (ug) and the angle sensors (arcsec) (docs/multiposition-1g.md §9); the diagnosis
@@ -84,11 +104,11 @@ def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
     rows = np.concatenate([buf[k, :n] for k, n in enumerate(nk)])
     z = np.concatenate(rec.z)
     t = np.concatenate(rec.t)
-    tn, _, zn = simulate(cfg, scheme, [0], noise_free=True, truth=np.zeros_like(cfg.truth()))
-    nominal = np.concatenate([zn[0, k, np.clip(np.rint(tk / cfg.ts).astype(int), 0, tn.size - 1)]
-                              for k, tk in enumerate(rec.t)])
     segment = np.repeat(np.arange(len(nk)), nk)
     innov = rows[:, :6]
+    nominal = nominal_output(cfg, scheme, rec)
+    # the angle sensors against the filter's own (wrapped) prediction: a log may wrap +-180 deg
+    nominal[:, 3:] = z[:, 3:] - innov[:, 3:]
     return fit_check(innov, rows[:, 6:], FIT_CHANNELS, predicted=z - innov, nominal=nominal, t=t, segment=segment)
 
 
@@ -112,6 +132,7 @@ def cmd_identify(cfg, args) -> int:
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
     rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]))
+    check_plausible(cfg, scheme, rec)
     t0 = time.perf_counter()
     innovations = innovation_buffer(rec)
     est, P, nis, failed = identify(cfg, rec, choice, innovations)

@@ -19,7 +19,7 @@ CONFIGS = {
                    "noise: {sigma_a_ug: 10, arw_deg_rth: 0.001, sigma_set_arcsec: 10}\n"
                    "schemes:\n  short: {dwell_s: 6, positions: [[45, 0, 167], [350, 0, 325], [209, 0, 182]]}\n"),
     "multiposition": ("rig: multiposition\nschemes: {small: {dwell_s: 6, positions: [[0, 0, 0], [90, 30, 0], "
-                      "[180, -30, 90], [270, 60, 180], [45, 0, 270]]}}\n"),
+                      "[180, -30, 90], [270, 20, 180], [45, 0, 270]]}}\n"),
 }
 SCHEME = {"centrifuge": "short", "multiposition": "small"}
 

@@ -10,7 +10,8 @@ convention is the same on every rig: NIS **per degree of freedom** (1 expected),
 over all channels.
 
 The verdict fails a channel when any of its three figures is beyond its bound by more than the
-model tolerance (:class:`FitTolerance`): a filter is not exactly consistent (linearisation,
+model tolerance (:class:`FitTolerance`; the lag-1 figure weighted by min(1, NIS per dof), so that
+the correlated but negligible innovations of a noise-free record do not count): a filter is not exactly consistent (linearisation,
 the first updates of every reset), so a clean record is judged with a margin, and the false-alarm
 rate of the whole check is measured, not assumed (``benchmarks/fit_false_alarm.py``).
 
@@ -155,8 +156,10 @@ def fit_check(innov: np.ndarray, s_var: np.ndarray, names, *, predicted: np.ndar
     mean = e.mean(axis=0) if n else np.zeros(m)
     nis_c = (e * e).mean(axis=0) if n else np.zeros(m)
     lag1 = lag1_autocorrelation(e, seg) if n > 2 else np.zeros(m)
+    # innovations far smaller than predicted (a noise-free record) are correlated but harmless:
+    # the lag-1 figure counts in proportion to their share of the predicted variance
     score = np.maximum.reduce([nis_c / (nis_bound * (1 + tol.nis)), np.abs(mean) / (mean_bound + tol.mean),
-                               np.abs(lag1) / (lag1_bound + tol.lag1)])
+                               np.abs(lag1) * np.minimum(1.0, nis_c) / (lag1_bound + tol.lag1)])
     channels = tuple(ChannelFit(str(nm), n, float(mean[i]), float(np.sqrt(nis_c[i])), float(nis_c[i]),
                                 float(lag1[i]), float(score[i])) for i, nm in enumerate(names))
     passed = bool(n > 0 and np.all(score <= 1.0))

@@ -7,10 +7,10 @@ passed ``fit`` block; each row of the issue's table exits 2 (refused before the 
 import json
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from platcal.cli import main
+from clean_records import simulated_records
 
 G = 9.80665
 
@@ -27,15 +27,8 @@ SCHEME = {"centrifuge": "short", "multiposition": "small"}
 @pytest.fixture(scope="module")
 def clean(tmp_path_factory):
     """(config path, clean record frame) per rig: seed 3 of the small scheme."""
-    d = tmp_path_factory.mktemp("fit")
-    out = {}
-    for rig, text in CONFIGS.items():
-        cfg = d / f"{rig}.yaml"
-        cfg.write_text(text)
-        rec = d / f"{rig}.csv"
-        assert main(["simulate", "--config", str(cfg), "--scheme", SCHEME[rig], "--seed", "3", "--out", str(rec)]) == 0
-        out[rig] = (cfg, pd.read_csv(rec))
-    return out
+    return simulated_records(tmp_path_factory.mktemp("fit"), CONFIGS, {rig: ["--scheme", s] for rig, s in SCHEME.items()},
+                             3)
 
 
 def identify(tmp_path, rig, clean, df, capsys):

@@ -30,16 +30,6 @@ def refuse_recognised(z: np.ndarray, nominal: np.ndarray, columns, unit: str, fi
                      f"model at the commanded angles; {what}; {fix}")
 
 
-def check_level(value: float, expected: float, rel_tol: float, column: str, what: str, unit: str, fix: str,
-                field: str = "--data") -> None:
-    """InputError unless ``value`` (e.g. a median |f| of a static segment) is within ``rel_tol``
-    of ``expected`` (the sled's fz pattern): names ``column``, both values in ``unit`` and ``fix``."""
-    if np.isfinite(value) and abs(value - expected) <= rel_tol * abs(expected):
-        return
-    raise InputError(f"{field} column {column}",
-                     f"{what} = {value:.4g} {unit}, expected about {expected:.4g} {unit}; {fix}")
-
-
 def timestamp_jitter(t: np.ndarray, step: float) -> float:
     """RMS deviation, s, of the instants ``t`` (s, increasing) from the regular grid of period
     ``step`` that fits them best (missing samples keep their grid slot)."""

@@ -3,8 +3,8 @@
 Each check compares what the record holds with what the rig's model says it must hold and, when
 they disagree, raises :class:`~platcal.errors.InputError` naming the column, the measured value,
 the expected one and the fix (``platcal`` exits 2, before any output is written). The rigs
-supply the physics (the nominal output at the commanded angles, the earth rate, the arm); the
-checks here name no rig.
+supply the physics (the nominal output at the commanded angles, a clock tolerance); the checks
+here name no rig.
 """
 
 from __future__ import annotations

@@ -13,6 +13,7 @@ import sys
 import time
 
 from ...errors import InputError
+from ...estimation.fit import fit_exit_status
 from ...rig import option
 from ...io import check_writable
 from ...logs.summary import inspect_log
@@ -22,8 +23,8 @@ from ...study.montecarlo import cell_job, replicate_seed
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
-from .identify import (calibration, consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
-                       write_identification)
+from .identify import (calibration, clock_finding, consistency_warning, identify_input, record_fit, record_input,
+                       run_problems, timed, truth_known, write_identification)
 from .observability import write_observability
 from .record import LOG_COLUMNS, TRUTH_COLUMNS, UNITS, read_record, sim_to_frame, write_record
 from .report import report_from_results
@@ -91,8 +92,9 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
               "config's noise and filter settings.", file=sys.stderr)
         return 1
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
+    fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
     summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds,
-                                   samples_used=used, calibration=calibration(est, study, args.data))
+                                   samples_used=used, calibration=calibration(est, study, args.data), fit=fit)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if "nees" in summary:
@@ -102,7 +104,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     warning = consistency_warning(summary)
     if warning:
         print(f"platcal identify: warning: {warning}", file=sys.stderr)
-    return 0
+    return fit_exit_status(fit, args.data, args.out)
 
 
 def observability_command(study: Study, args: argparse.Namespace) -> int:

@@ -27,7 +27,7 @@ def refuse_recognised(z: np.ndarray, nominal: np.ndarray, columns, unit: str, fi
     rms = lambda a: float(np.sqrt(np.mean(a * a)))  # noqa: E731
     raise InputError(f"{field} column {columns[i]}",
                      f"RMS {rms(z[:, i]):.4g} {unit}, expected about {rms(nominal[:, i]):.4g} {unit} from the rig's "
-                     f"model at the commanded angles; {what}; {fix}")
+                     f"error-free model of this test; {what}; {fix}")
 
 
 def timestamp_jitter(t: np.ndarray, step: float) -> float:

@@ -279,12 +279,13 @@ def diagnose(z: np.ndarray, predicted: np.ndarray, s_var: np.ndarray, names, t: 
     return out
 
 
-def fit_exit_status(fit: FitCheck | None, data, out) -> int:
+def fit_exit_status(fit: FitCheck | None, data, out, summary_file: str = "summary.json") -> int:
     """The exit status of ``platcal identify`` from its fit check: 0 when the record fits (or no
     check ran), else :data:`EXIT_DOES_NOT_FIT` after one line on stderr naming the record
-    ``data``, the worst channels and the diagnosis, and the folder ``out`` written anyway."""
+    ``data``, the worst channels and the diagnosis, and the folder ``out`` written anyway (its
+    ``summary_file`` holds the fit block)."""
     if fit is None or fit.passed:
         return 0
     print(f"platcal identify: error: --data {data}: {fit.message()}. The outputs in {out} are written and marked "
-          "'fit: failed' in summary.json.", file=sys.stderr)
+          f"'fit: failed' in {summary_file}.", file=sys.stderr)
     return EXIT_DOES_NOT_FIT

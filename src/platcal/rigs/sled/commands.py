@@ -9,16 +9,18 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
+from ...estimation.fit import fit_exit_status
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import write_calibration_files
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from ...study.tables import write_table
 from .config import G, SledConfig
-from .identify import calibration, estimates, identify, metrics, run_problems
+from .identify import calibration, estimates, identify, metrics, record_fit, run_problems
 from .montecarlo import replicate_seeds
 from .observability import rank_table
-from .record import IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, read_record, record_arrays, record_truth, samples_per_phase, write_record
+from .record import (IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, check_plausible, read_record, record_arrays,
+                     record_truth, samples_per_phase, write_record)
 from .simulate import simulate
 
 
@@ -46,6 +48,7 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     truth = None if args.no_truth else record_truth(args.data, df)
     t0 = time.perf_counter()
     f, w = record_arrays(df)
+    check_plausible(cfg, traj, f[0], w[0], t)
     idn = identify(cfg, traj, f, w, t=t)
     problems = run_problems(idn)
     if problems:
@@ -62,6 +65,8 @@ def cmd_identify(cfg: SledConfig, args) -> int:
                     "truth_known": truth is not None, "seconds": round(seconds, 3),
                     "samples": int(len(t)), "samples_used_per_phase": samples_per_phase(traj, t, cfg.dt),
                     "filter_epochs": {"run": int(idn.j_stop), "stop": int(idn.j_end - idn.j_stop)}})
+    fit = record_fit(idn)
+    summary["fit"] = fit.as_dict()
     with atomic_files(out) as tmp:  # the files land together, metrics.json last
         est.to_csv(tmp("estimates.csv"), index=False, float_format="%.6g")
         write_calibration_files(tmp, calibration(idn, args.data, cfg.raw))
@@ -72,7 +77,7 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     if truth is not None:
         msg += f"; X at stop naive {met['x_naive_stop_cm']:.1f} cm, constrained {met['x_constrained_stop_cm']:.1f} cm"
     print(msg, file=sys.stderr)
-    return 0
+    return fit_exit_status(fit, args.data, out, "metrics.json")
 
 
 def cmd_observability(cfg: SledConfig, args) -> int:

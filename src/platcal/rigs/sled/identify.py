@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ...estimation.fit import FitCheck, fit_check
 from ...logs.calibration import Calibration, calibration_of
 from ...logs.increments import sample_intervals
 from .config import ARCSEC, G, SledConfig
@@ -276,3 +277,19 @@ def calibration(idn: Identification, log_path, config: dict, s: int = 0) -> Cali
     values = [idn.run.x[s, -1, i] / ARCSEC for i in idx] + [idn.nabla_x_hat[s] / G * 1e6]
     return calibration_of("sled", "rocket-sled.md", names, ["arcsec"] * (n - 1) + ["ug"], values, cov, log_path,
                           config)
+
+
+RUN_CHANNELS = ("run v_y", "run r_y", "run v_z", "run r_z")
+"""The run filter's measured channels (docs/rocket-sled.md §6.1): the navigation's lateral
+velocity (m/s) and position (m), y and z, whose true values are 0 on the track."""
+
+
+def record_fit(idn: Identification, s: int = 0) -> FitCheck:
+    """The fit check (:func:`platcal.estimation.fit.fit_check`) of seed slot ``s``'s run filter
+    (docs/rocket-sled.md §6.1): its innovations of v_y, r_y, v_z, r_z and their predicted variances
+    at the epochs up to the stop, with the epochs' times for a clock diagnosis. The stop filter
+    is left out: its measurements restart at the stop and its few epochs add little."""
+    k = idn.epochs.k[1:idn.j_stop + 1]
+    z = np.stack([idn.v[s, k, 1], idn.r[s, k, 1], idn.v[s, k, 2], idn.r[s, k, 2]], axis=-1)
+    innov = idn.run.innov[s]
+    return fit_check(innov, idn.run.s_var[s], RUN_CHANNELS, predicted=z - innov, t=idn.t[k])

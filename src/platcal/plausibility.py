@@ -16,18 +16,19 @@ from .estimation.fit import gross_errors
 
 
 def refuse_recognised(z: np.ndarray, nominal: np.ndarray, columns, unit: str, fix: str,
-                      field: str = "--data") -> None:
+                      field: str = "--data", source: str = "the rig's error-free model of this test") -> None:
     """InputError when a column of the record ``z`` (N, m) is a unit, sign or swap of the nominal
     model's output ``nominal`` (N, m) in the same unit (:func:`platcal.estimation.fit.gross_errors`):
-    the first such column is named with its RMS, the RMS the model expects and ``fix``."""
+    the first such column is named with its RMS, the RMS ``nominal`` has (``source`` says where
+    it comes from) and ``fix``."""
     found = gross_errors(z, nominal, columns)
     if not found:
         return
     i, what = found[0]
     rms = lambda a: float(np.sqrt(np.mean(a * a)))  # noqa: E731
     raise InputError(f"{field} column {columns[i]}",
-                     f"RMS {rms(z[:, i]):.4g} {unit}, expected about {rms(nominal[:, i]):.4g} {unit} from the rig's "
-                     f"error-free model of this test; {what}; {fix}")
+                     f"RMS {rms(z[:, i]):.4g} {unit}, expected about {rms(nominal[:, i]):.4g} {unit} from {source}; "
+                     f"{what}; {fix}")
 
 
 def timestamp_jitter(t: np.ndarray, step: float) -> float:

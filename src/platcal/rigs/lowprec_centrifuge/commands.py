@@ -14,6 +14,7 @@ import numpy as np
 
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
+from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, write_calibration_files
@@ -21,7 +22,8 @@ from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from .config import COEFFS, G0, Study
 from .proposed import K_SLICE, identify_proposed
-from .record import (NUMERIC, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, estimates_frame,
+from .record import (NUMERIC, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, check_plausible,
+                     estimates_frame,
                      read_record, record_frame, truth_json, write_record)
 from .traditional import identify_traditional
 from .truth import simulate_batch
@@ -63,11 +65,14 @@ def identify(study: Study, args) -> int:
     rec = read_record(args.data, use_truth=not args.no_truth, rate_hz=study.rate_hz, max_gap_s=max_gap,
                       mapping=RecordMapping.from_config(study.raw["record"], g=G0))
     found = check_against_config(rec, study, method, max_gap)
-    t0 = time.perf_counter()
     arm = study.centrifuge.arm_m
+    check_plausible(rec, arm)
+    t0 = time.perf_counter()
+    fit = None
     if method == "proposed":
         res = identify_proposed(rec.t, rec.v[None], rec.p[None], rec.psi[None], rec.f, rec.schedule, arm,
-                                study.latitude_deg)
+                                study.latitude_deg, keep_innovations=True)
+        fit = record_fit(res)
         est, sig = res.coeffs[0], res.sigmas[0]
         extra = f"{int(res.n_windows[0])} windows"
         problems = run_problems(res.x[0], res.P[0])
@@ -88,7 +93,9 @@ def identify(study: Study, args) -> int:
     df = estimates_frame(COEFFS, est, sig, truth)
     summary = {"rig": "lowprec_centrifuge", "method": method, "samples": int(rec.t.size), **found,
                "coefficients": dict(zip(COEFFS, map(float, est))), "truth_known": truth is not None,
-               "seconds": round(seconds, 3)}
+               "seconds": round(seconds, 3),
+               "fit": fit.as_dict() if fit is not None else {
+                   "verdict": "not available", "reason": "the traditional method (eq. (2)) has no innovations"}}
     cov = res.P[0][K_SLICE, K_SLICE] if method == "proposed" else np.diag(sig ** 2)
     cal = calibration_of("lowprec_centrifuge", "lowprec-centrifuge.md", COEFFS, COEFF_UNITS, est, cov, args.data, study.raw)
     with atomic_files(args.out) as tmp:   # the files land together, summary.json last
@@ -97,7 +104,21 @@ def identify(study: Study, args) -> int:
         tmp("summary.json").write_text(json_text(summary))
     print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {seconds:.2f} s -> {args.out}; "
           + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est)), file=sys.stderr)
-    return 0
+    return fit_exit_status(fit, args.data, args.out)
+
+
+FIT_CHANNELS = ("zVE", "zVN", "zPE", "zPN")
+"""The proposed filter's window observations (docs/lowprec-centrifuge.md §7): mean velocity
+error (m/s) and mean position error about the arm (m), east and north."""
+
+
+def record_fit(res) -> FitCheck:
+    """The fit check (:func:`platcal.estimation.fit.fit_check`) of one record's proposed filter
+    from its window innovations and their predicted variances (:func:`.proposed.run_filter`). No
+    diagnosis: the windows observe the INS's errors, not the instrument's output, so a unit, sign
+    or swap is recognised before the filter (:func:`.record.check_plausible`)."""
+    buf = res.innovations[0]
+    return fit_check(buf[:, :4], buf[:, 4:], FIT_CHANNELS)
 
 
 def run_problems(x: np.ndarray, P: np.ndarray | None) -> list[str]:

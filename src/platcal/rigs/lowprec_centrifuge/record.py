@@ -21,9 +21,11 @@ import pandas as pd
 from ...errors import InputError
 from ...logs.mapping import RecordMapping
 from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
+from ...plausibility import refuse_recognised
 from ...records import check_times, read_table
 from .config import COEFFS, G0
 from .profile import HOLD, SCHEDULE_NAMES, SPINNING, STATIC
+from .proposed import cumtrap
 from .truth import RunBatch
 
 REQUIRED = ("t", "VE", "VN", "pE", "pN", "heading_deg", "schedule")
@@ -208,6 +210,29 @@ def check_against_config(rec: Record, study, method: str, max_gap_s: float) -> d
                          f"proposed run of the config (runs: {runs}); add the run to the config or check arm_m")
     return {"levels_g": [round(g, 4) for g in got], "matches_runs": match, "samples_per_phase": found,
             "samples_per_spin": [s[3] for s in spins]}
+
+
+def nominal_velocity(rec: Record, arm_m: float) -> np.ndarray:
+    """(N, 2) m/s: the error-free velocity (VE, VN) of a platform on an arm of ``arm_m`` turned to
+    the record's heading (docs/lowprec-centrifuge.md §7: d/dt arm (cos psi, sin psi))."""
+    psi = np.unwrap(rec.psi)
+    return np.gradient(arm_m * np.stack([np.cos(psi), np.sin(psi)], axis=-1), rec.t, axis=0)
+
+
+def check_plausible(rec: Record, arm_m: float) -> None:
+    """Refuse (InputError naming the column, exit 2, before the filter) a record whose velocities
+    are a unit, sign or swap of the motion the config's arm and the record's heading imply
+    (:func:`nominal_velocity`), or whose positions are one of the integral of its velocities
+    (the INS's own position drifts by hundreds of metres on a spinning arm, its integral of
+    velocity with it; :func:`platcal.plausibility.refuse_recognised`): e.g. pE, pN in km are
+    1/1000 of the integrated VE, VN."""
+    refuse_recognised(rec.v, nominal_velocity(rec, arm_m), ("VE", "VN"), "m/s",
+                      f"VE, VN must be the INS's east and north velocities in m/s (on the arm of {arm_m:g} m: "
+                      "arm x heading rate)")
+    refuse_recognised(rec.p - rec.p[0], cumtrap(rec.t, rec.v), ("pE", "pN"), "m",
+                      "pE, pN must be the INS's east and north positions in m (the integral of VE, VN); map "
+                      "lat/lon or other units through the config's record.units",
+                      source="the integral of the record's VE, VN")
 
 
 def estimates_frame(names, est, sigma, truth: dict | None) -> pd.DataFrame:

@@ -287,9 +287,8 @@ velocity (m/s) and position (m), y and z, whose true values are 0 on the track."
 def record_fit(idn: Identification, s: int = 0) -> FitCheck:
     """The fit check (:func:`platcal.estimation.fit.fit_check`) of seed slot ``s``'s run filter
     (docs/rocket-sled.md §6.1): its innovations of v_y, r_y, v_z, r_z and their predicted variances
-    at the epochs up to the stop, with the epochs' times for a clock diagnosis. The stop filter
-    is left out: its measurements restart at the stop and its few epochs add little."""
-    k = idn.epochs.k[1:idn.j_stop + 1]
-    z = np.stack([idn.v[s, k, 1], idn.r[s, k, 1], idn.v[s, k, 2], idn.r[s, k, 2]], axis=-1)
-    innov = idn.run.innov[s]
-    return fit_check(innov, idn.run.s_var[s], RUN_CHANNELS, predicted=z - innov, t=idn.t[k])
+    at the epochs up to the stop. The stop filter is left out: its measurements restart at the
+    stop and its few epochs add little. No diagnosis: the filter predicts the navigation's error,
+    not the IMU's output, so a unit, sign or swap is recognised before the filters
+    (:func:`.record.check_plausible`), and a clock cannot be told from a drift here."""
+    return fit_check(idn.run.innov[s], idn.run.s_var[s], RUN_CHANNELS)

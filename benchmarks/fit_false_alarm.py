@@ -5,7 +5,10 @@ Each seed is the record ``platcal simulate --seed N`` writes (the Monte Carlo ce
 kept in memory instead of a file. Prints one line per flagged seed, the largest channel score
 (1 = the limit) over the seeds and the rate with its 95 % upper confidence bound.
 
-    python benchmarks/fit_false_alarm.py --rig centrifuge [--seeds 100]
+    python benchmarks/fit_false_alarm.py --rig centrifuge|multiposition|sled|lowprec_centrifuge [--seeds 100]
+
+The sled and the low-precision centrifuge simulate and identify their seeds in batches (the
+same filters as ``platcal identify``, on the clean grid instead of a record file).
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import time
 import numpy as np
 from scipy import stats as sps
 
-from platcal.cli import read_config
+from platcal.io import read_config
 from platcal.rig import get_rig
 
 
@@ -55,8 +58,45 @@ def multiposition_fits(config: str, seeds: range):
         yield n, record_fit(cfg, sch, rec, buf)
 
 
+def sled_fits(config: str, seeds: range, batch: int = 10):
+    """The fit check of each seed's record of the default case (``platcal simulate --seed N``)."""
+    from platcal.rigs.sled.identify import identify, record_fit
+    from platcal.rigs.sled.montecarlo import replicate_seeds
+    from platcal.rigs.sled.simulate import simulate
+
+    cfg = get_rig("sled").load_config(read_config(config))
+    for a in range(seeds.start, seeds.stop, batch):
+        ns = list(range(a, min(a + batch, seeds.stop)))
+        sb = simulate(cfg, replicate_seeds(cfg.raw, "default", ns))
+        idn = identify(cfg, sb.traj, sb.f, sb.w)
+        for s, n in enumerate(ns):
+            yield n, record_fit(idn, s)
+
+
+def lowprec_fits(config: str, seeds: range, batch: int = 5):
+    """The fit check of each seed's record of the config's first platform and its first run
+    (``platcal simulate --platform P --run R --seed N``), proposed method."""
+    from platcal.rigs.lowprec_centrifuge.commands import record_fit
+    from platcal.rigs.lowprec_centrifuge.proposed import FilterResult, identify_proposed
+    from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
+
+    study = get_rig("lowprec_centrifuge").load_config(read_config(config))
+    platform = study.platform_names()[0]
+    run = study.run_names(platform)[0]
+    for a in range(seeds.start, seeds.stop, batch):
+        ns = list(range(a, min(a + batch, seeds.stop)))
+        rb = simulate_batch(study, platform, run, ns)
+        fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
+                               study.centrifuge.arm_m, study.latitude_deg, keep_innovations=True)
+        for s, n in enumerate(ns):
+            yield n, record_fit(FilterResult(fr.x[s:s + 1], fr.P[s:s + 1], fr.n_windows[s:s + 1],
+                                             fr.innovations[s:s + 1]))
+
+
 RIGS = {"centrifuge": (centrifuge_fits, "config/centrifuge.yaml"),
-        "multiposition": (multiposition_fits, "config/multiposition.yaml")}
+        "multiposition": (multiposition_fits, "config/multiposition.yaml"),
+        "sled": (sled_fits, "config/sled.yaml"),
+        "lowprec_centrifuge": (lowprec_fits, "config/lowprec_centrifuge.yaml")}
 
 
 def main() -> None:

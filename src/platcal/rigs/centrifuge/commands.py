@@ -16,6 +16,8 @@ from ...errors import InputError
 from ...estimation.fit import fit_exit_status
 from ...rig import option
 from ...io import check_writable
+from ...logs.calibration import read_calibration
+from ...logs.compensate import compensate_log, read_mapped
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from ...scheme import resolve_scheme
@@ -26,7 +28,8 @@ from .design import design_config, preset, run_design, write_design
 from .identify import (calibration, clock_finding, consistency_warning, identify_input, record_fit, record_input,
                        run_problems, timed, truth_known, write_identification)
 from .observability import write_observability
-from .record import LOG_COLUMNS, TRUTH_COLUMNS, UNITS, read_record, sim_to_frame, write_record
+from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, compensate_frame, full_coefficients,
+                     read_record, sim_to_frame, write_record)
 from .report import report_from_results
 from .simulate import simulate
 
@@ -179,8 +182,22 @@ def inspect_command(study: Study, args: argparse.Namespace) -> int:
     return 0
 
 
+def compensate_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
+    errors taken out (docs/centrifuge-model.md §5: the specific force whose modelled outputs are
+    the recorded ones), written atomically to ``--out`` in the record's columns and units. The
+    gyros are not in the record (they are seen through the platform's attitude), so only the
+    accelerometers are compensated."""
+    coef = full_coefficients(read_calibration(args.calibration), "centrifuge")
+    mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
+    optional = tuple(c for c in LOG_COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    return compensate_log(args, "centrifuge", read_mapped("centrifuge", mapping, UNITS, COMPENSATE_COLUMNS, optional),
+                          lambda df: compensate_frame(df, coef), "accelerometers compensated")
+
+
 COMMANDS = {"inspect": inspect_command, "simulate": simulate_command, "identify": identify_command, "observability": observability_command,
-            "design": design_command, "montecarlo": montecarlo_command, "report": report_command}
+            "design": design_command, "montecarlo": montecarlo_command, "report": report_command,
+            "compensate": compensate_command}
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
 OPTIONS = {

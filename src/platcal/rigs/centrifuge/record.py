@@ -19,7 +19,9 @@ from ...logs.mapping import RecordMapping
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
                         nearest_samples, read_table, write_record)  # noqa: F401 (write_record re-exported)
 from ...records import num as _num
+from ...logs.calibration import Calibration
 from ...model.frames import DEG
+from ...model.instruments import FULL_NAMES, INDEX, N_FULL, compensate_accelerometers
 from ...scheme import Scheme
 
 UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": "deg", "gamma_cmd": "deg",
@@ -207,3 +209,32 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
         ts.append(t[keep])
         zs.append(rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep][None])
     return FilterInput(positions=present, t=ts, z=zs, cmd_deg=cmd[np.array(present) - 1])
+
+
+COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az")
+"""The columns ``platcal compensate`` needs; the record's others pass through unchanged."""
+
+
+def full_coefficients(cal: Calibration, rig: str) -> np.ndarray:
+    """(48,) the full coefficient vector of :mod:`platcal.model.instruments` (its units) from a
+    calibration: the identified coefficients by name, 0 for those it does not hold (DOO, or a
+    filter without them). InputError naming ``--calibration`` for another rig's file or an
+    unknown name."""
+    if cal.rig != rig:
+        raise InputError("--calibration", f"is a calibration of rig {cal.rig!r}, not {rig!r}")
+    unknown = [n for n in cal.names if n not in INDEX]
+    if unknown:
+        raise InputError("--calibration key names", f"{unknown[0]!r} is not a coefficient of the {rig} model "
+                         f"({', '.join(FULL_NAMES[:3])}, ...)")
+    coef = np.zeros(N_FULL)
+    coef[[INDEX[n] for n in cal.names]] = cal.values
+    return coef
+
+
+def compensate_frame(df: pd.DataFrame, coef: np.ndarray) -> pd.DataFrame:
+    """``df`` with ``Ax, Ay, Az`` (g) compensated with ``coef`` (48,): each sample replaced by
+    the error-free output, the specific force in p whose modelled outputs are the recorded ones
+    (:func:`platcal.model.instruments.compensate_accelerometers`, docs/centrifuge-model.md §5)."""
+    out = df.copy()
+    out[["Ax", "Ay", "Az"]] = compensate_accelerometers(df[["Ax", "Ay", "Az"]].to_numpy(float), coef)
+    return out

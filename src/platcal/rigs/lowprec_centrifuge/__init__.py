@@ -14,7 +14,7 @@ import pandas as pd
 
 from ...rig import Rig
 from . import claims
-from .commands import OPTIONS, identify, inspect, simulate
+from .commands import OPTIONS, compensate, identify, inspect, simulate
 from .config import COEFFS, load_config
 
 
@@ -27,5 +27,5 @@ def catalogue() -> pd.DataFrame:
 RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
           spec="lowprec-centrifuge.md", load_config=load_config,
-          commands={"inspect": inspect, "simulate": simulate, "identify": identify}, catalogue=catalogue,
+          commands={"inspect": inspect, "simulate": simulate, "identify": identify, "compensate": compensate}, catalogue=catalogue,
           extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS)

@@ -17,13 +17,14 @@ from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option
 from ...io import atomic_files, check_writable, json_text
-from ...logs.calibration import calibration_of, write_calibration_files
+from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
+from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from .config import COEFFS, G0, Study
 from .proposed import K_SLICE, identify_proposed
 from .record import (NUMERIC, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, check_plausible,
-                     estimates_frame,
+                     compensated_frame, estimates_frame,
                      read_record, record_frame, truth_json, write_record)
 from .traditional import identify_traditional
 from .truth import simulate_batch
@@ -133,6 +134,18 @@ def inspect(study: Study, args) -> int:
     optional = tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS
     print(inspect_log(args.data, mapping, UNITS, REQUIRED, optional, text=("schedule",)).text())
     return 0
+
+
+def compensate(study: Study, args) -> int:
+    """``platcal compensate``: the log's velocities and positions with the errors the
+    calibration's coefficients cause taken out (docs/lowprec-centrifuge.md §8), written
+    atomically to ``--out`` in the record's columns and units."""
+    coeffs = calibration_values(read_calibration(args.calibration), COEFFS, "lowprec_centrifuge")
+    mapping = RecordMapping.from_config(study.raw["record"], g=G0)
+    read = lambda path: read_record(path, use_truth=False, rate_hz=study.rate_hz,  # noqa: E731
+                                    max_gap_s=float(study.raw["record"]["max_gap_s"]), mapping=mapping)
+    return compensate_log(args, "lowprec_centrifuge", read, lambda rec: compensated_frame(rec, coeffs, study.latitude_deg),
+                          "velocity and position compensated")
 
 
 OPTIONS = {

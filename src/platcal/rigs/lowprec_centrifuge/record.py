@@ -26,6 +26,7 @@ from ...records import check_times, read_table
 from .config import COEFFS, G0
 from .profile import HOLD, SCHEDULE_NAMES, SPINNING, STATIC
 from .proposed import cumtrap
+from .truth import _integrate
 from .truth import RunBatch
 
 REQUIRED = ("t", "VE", "VN", "pE", "pN", "heading_deg", "schedule")
@@ -233,6 +234,32 @@ def check_plausible(rec: Record, arm_m: float) -> None:
                       "pE, pN must be the INS's east and north positions in m (the integral of VE, VN); map "
                       "lat/lon or other units through the config's record.units",
                       source="the integral of the record's VE, VN")
+
+
+def coefficient_responses(rec: Record, lat_deg: float) -> np.ndarray:
+    """(4, N, 4): the INS errors (dVE, dVN m/s, pE, pN m) a unit (1 ug/g or ug/g^2) of each
+    coefficient kA_x, k2_x, kA_y, k2_y causes along the record, from its own specific force
+    (docs/lowprec-centrifuge.md §5, §8: the error model integrated at the record's median step)."""
+    lat = np.radians(lat_deg)
+    dt = float(np.median(np.diff(rec.t)))
+    out = np.empty((len(COEFFS), rec.t.size, 4))
+    for j in range(len(COEFFS)):
+        coef = np.zeros(8)
+        coef[4 + j] = 1e-6
+        _integrate(dt, np.ascontiguousarray(rec.f, dtype=float), coef, np.zeros(3), np.zeros(7), np.zeros((0, 2)),
+                   np.zeros((0, 3)), np.sin(lat), np.cos(lat), np.tan(lat), out[j], np.zeros((0, 3)))
+    return out
+
+
+def compensated_frame(rec: Record, coeffs: np.ndarray, lat_deg: float) -> pd.DataFrame:
+    """The record (``t, VE, VN, pE, pN, heading_deg, fE, fN, schedule``, its units) with the
+    velocity and position errors the coefficients ``coeffs`` (kA_x, k2_x, kA_y, k2_y; ug/g,
+    ug/g^2) cause taken out (§8: e_after = e - sum_k c_k S_k(t), :func:`coefficient_responses`)."""
+    err = np.einsum("k,kni->ni", np.asarray(coeffs, float), coefficient_responses(rec, lat_deg))
+    return pd.DataFrame({"t": rec.t, "VE": rec.v[:, 0] - err[:, 0], "VN": rec.v[:, 1] - err[:, 1],
+                         "pE": rec.p[:, 0] - err[:, 2], "pN": rec.p[:, 1] - err[:, 3],
+                         "heading_deg": np.mod(np.degrees(rec.psi), 360.0), "fE": rec.f[:, 0], "fN": rec.f[:, 1],
+                         "schedule": np.asarray(SCHEDULE_NAMES)[rec.schedule]})
 
 
 def estimates_frame(names, est, sigma, truth: dict | None) -> pd.DataFrame:

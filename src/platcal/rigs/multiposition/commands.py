@@ -24,6 +24,7 @@ from ...errors import InputError
 from ...rig import option
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
+from ...logs.compensate import compensate_log, read_mapped
 from ...logs.dwells import dwell_figure
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
@@ -32,7 +33,6 @@ from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
 from .observability import evaluate
-from ...records import read_table
 from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, TRUTH_COLUMNS, UG, UNITS, compensate_frame,
                      read_record, to_frame, write_record)
 
@@ -216,17 +216,11 @@ def cmd_compensate(cfg, args) -> int:
     """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
     errors taken out (docs/multiposition-1g.md §6), written atomically to ``--out``."""
     coef = calibration_values(read_calibration(args.calibration), coef_names(), "multiposition")
-    if Path(args.out).suffix not in (".csv", ".parquet"):
-        raise InputError("--out", f"a compensated log is written as .csv or .parquet, got {Path(args.out).name!r}")
-    check_writable(args.out, "--out")
     optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
-    df = read_table(args.data, COMPENSATE_COLUMNS, optional, mapping=RecordMapping.from_config(cfg.raw["record"]),
-                    units=UNITS, what="a multiposition log")
-    out = compensate_frame(df, coef)
-    write_record(out, args.out)
-    print(f"platcal compensate: multiposition, {len(out)} samples, accelerometers compensated -> {args.out}",
-          file=sys.stderr)
-    return 0
+    read = read_mapped("multiposition", RecordMapping.from_config(cfg.raw["record"]), UNITS, COMPENSATE_COLUMNS,
+                       optional)
+    return compensate_log(args, "multiposition", read, lambda df: compensate_frame(df, coef),
+                          "accelerometers compensated")
 
 
 COMMANDS = {"inspect": cmd_inspect, "compensate": cmd_compensate, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

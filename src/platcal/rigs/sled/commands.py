@@ -11,12 +11,14 @@ import numpy as np
 from ...errors import InputError
 from ...estimation.fit import fit_exit_status
 from ...io import atomic_files, check_writable, json_text
-from ...logs.calibration import write_calibration_files
+from ...logs.calibration import read_calibration, write_calibration_files
+from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from ...study.tables import write_table
 from .config import G, SledConfig
-from .identify import calibration, estimates, identify, metrics, record_fit, run_problems
+from .identify import (calibration, compensated_track, estimates, identify, metrics, phi_from_calibration, record_fit,
+                       run_problems)
 from .montecarlo import replicate_seeds
 from .observability import rank_table
 from .record import (IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, check_plausible, read_record, record_arrays,
@@ -97,4 +99,18 @@ def cmd_inspect(cfg: SledConfig, args) -> int:
     return 0
 
 
-COMMANDS = {"inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+def cmd_compensate(cfg: SledConfig, args) -> int:
+    """``platcal compensate``: the record's along-track X(t), V(t) navigated and compensated with
+    the calibration's attitude errors (docs/rocket-sled.md §7), written atomically to ``--out``."""
+    phi = phi_from_calibration(read_calibration(args.calibration))
+
+    def apply(rec):
+        _, df, t = rec
+        f, w = record_arrays(df)
+        return compensated_track(cfg, f[0], w[0], t, phi)
+
+    return compensate_log(args, "sled", lambda path: read_record(path, cfg), apply,
+                          "along-track X(t), V(t) navigated and compensated")
+
+
+COMMANDS = {"compensate": cmd_compensate, "inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

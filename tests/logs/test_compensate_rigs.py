@@ -115,11 +115,31 @@ def test_lowprec_compensate(tmp_path):
         assert np.abs(ident[col] - (df[col] - df[err])).max() < 0.2 * np.abs(df[err]).max()
 
 
-def test_compensate_refuses_another_rigs_calibration(tmp_path, capsys):
-    cal = tmp_path / "cal.yaml"
-    cal.write_text(yaml.safe_dump({"rig": "sled", "model_version": "x", "names": ["kA_x"], "units": ["ug/g"],
-                                   "values": [1.0], "covariance": [[1.0]], "log_sha256": "0", "config": {"rig": "sled"}}))
+def _calibration(path, rig, names):
+    n = len(names)
+    path.write_text(yaml.safe_dump({"rig": rig, "model_version": "x", "names": names, "units": ["u"] * n,
+                                    "values": [1.0] * n, "covariance": np.eye(n).tolist(), "log_sha256": "0",
+                                    "config": CENTRIFUGE if rig == "centrifuge" else {"rig": rig}}))
+    return path
+
+
+@pytest.mark.parametrize("rig, names, named", [
+    ("sled", ["kA_x"], "lacks 'phi_y'"),                       # not a sled calibration's names
+    ("centrifuge", ["DF_x", "kA_x"], "'kA_x' is not a coefficient"),
+    ("lowprec_centrifuge", ["kA_x"], "lacks 'k2_x'"),
+])
+def test_compensate_refuses_calibration_names(tmp_path, capsys, rig, names, named):
     out = tmp_path / "out.csv"
-    assert main(["compensate", "--calibration", str(cal), "--data", "x.csv", "--out", str(out)]) == 2
-    assert "--calibration key names" in capsys.readouterr().err
+    code = main(["compensate", "--calibration", str(_calibration(tmp_path / "cal.yaml", rig, names)),
+                 "--data", "x.csv", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "--calibration key names" in err and named in err
     assert not out.exists()
+
+
+def test_compensate_refuses_out_suffix(tmp_path, capsys):
+    cal = _calibration(tmp_path / "cal.yaml", "centrifuge", ["k0_x"])
+    code = main(["compensate", "--calibration", str(cal), "--data", "x.csv", "--out", str(tmp_path / "out.txt")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--out" in err and ".csv or .parquet" in err

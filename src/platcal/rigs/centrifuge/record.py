@@ -218,10 +218,8 @@ COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az")
 def full_coefficients(cal: Calibration, rig: str) -> np.ndarray:
     """(48,) the full coefficient vector of :mod:`platcal.model.instruments` (its units) from a
     calibration: the identified coefficients by name, 0 for those it does not hold (DOO, or a
-    filter without them). InputError naming ``--calibration`` for another rig's file or an
-    unknown name."""
-    if cal.rig != rig:
-        raise InputError("--calibration", f"is a calibration of rig {cal.rig!r}, not {rig!r}")
+    filter without them). InputError naming ``--calibration key names`` for a name the model
+    does not have (``rig`` names the model in the message)."""
     unknown = [n for n in cal.names if n not in INDEX]
     if unknown:
         raise InputError("--calibration key names", f"{unknown[0]!r} is not a coefficient of the {rig} model "

@@ -303,10 +303,8 @@ def calibration(idn: Identification, log_path, config: dict, s: int = 0) -> Cali
 
 def phi_from_calibration(cal: Calibration) -> np.ndarray:
     """(3,) rad: the attitude errors [φ_x, φ_y, φ_z] of a sled calibration (:func:`calibration`;
-    φ_x 0 when the 6-state filter did not estimate it). InputError naming ``--calibration`` for
-    another rig's file or one without φ_y, φ_z."""
-    if cal.rig != "sled":
-        raise InputError("--calibration", f"is a calibration of rig {cal.rig!r}, not 'sled'")
+    φ_x 0 when the 6-state filter did not estimate it). InputError naming ``--calibration key
+    names`` for one without φ_y, φ_z."""
     missing = [n for n in ("phi_y", "phi_z") if n not in cal.names]
     if missing:
         raise InputError("--calibration key names", f"lacks {missing[0]!r}; a sled calibration holds phi_y, phi_z "

@@ -13,6 +13,7 @@ from ...estimation.fit import fit_exit_status
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log
+from ...logs.increments import increment_units
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from ...study.tables import write_table
@@ -95,7 +96,8 @@ def cmd_observability(cfg: SledConfig, args) -> int:
 def cmd_inspect(cfg: SledConfig, args) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     mapping = RecordMapping.from_config(cfg.raw["record"], g=G)
-    print(inspect_log(args.data, mapping, UNITS, IMU_COLUMNS, TRUTH_COLUMNS).text())
+    units = increment_units(UNITS, IMU_COLUMNS[1:]) if mapping.kind == "increments" else UNITS
+    print(inspect_log(args.data, mapping, units, IMU_COLUMNS, TRUTH_COLUMNS, increments=IMU_COLUMNS[1:]).text())
     return 0
 
 

@@ -10,9 +10,9 @@ from platcal.cli import main
 G = 9.80665  # the centrifuge's g (centrifuge.g), which converts g to m/s^2
 
 if __name__ == "__main__":
-    plain = yaml.safe_load(open("config.yaml"))
-    plain.pop("record")
-    open("simulated.yaml", "w").write(yaml.safe_dump(plain))
+    # the same test in platcal's own layout: the config without its record mapping
+    config = yaml.safe_load(open("config.yaml"))
+    open("simulated.yaml", "w").write(yaml.safe_dump({k: v for k, v in config.items() if k != "record"}))
     assert main(["simulate", "--config", "simulated.yaml", "--scheme", "short", "--seed", "1",
                  "--out", "simulated.csv"]) == 0
     df = pd.read_csv("simulated.csv")

@@ -10,9 +10,9 @@ from platcal.cli import main
 from platcal.logs.increments import sample_intervals
 
 if __name__ == "__main__":
-    plain = yaml.safe_load(open("config.yaml"))
-    plain.pop("record")
-    open("simulated.yaml", "w").write(yaml.safe_dump(plain))
+    # the same test in platcal's own layout: the config without its record mapping
+    config = yaml.safe_load(open("config.yaml"))
+    open("simulated.yaml", "w").write(yaml.safe_dump({k: v for k, v in config.items() if k != "record"}))
     assert main(["simulate", "--config", "simulated.yaml", "--seed", "1", "--out", "simulated.csv"]) == 0
     df = pd.read_csv("simulated.csv")
     dts = sample_intervals(df["t"].to_numpy())

@@ -9,6 +9,7 @@ import json
 
 import numpy as np
 import pandas as pd
+import pymap3d
 import pytest
 import yaml
 
@@ -221,3 +222,42 @@ def test_increments_refused_without_rate_columns(tmp_path, capsys):
     assert main(["identify", "--config", cfg, "--data", str(rec), "--out", str(tmp_path / "o")]) == 2
     assert "error: record.kind:" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def _geodetic_log(df, lat0=40.0, lon0=116.0, h0=50.0):
+    """The record with pE, pN as WGS84 latitude, longitude (deg) and height (m) of an INS."""
+    lat, lon, h = pymap3d.enu2geodetic(df["pE"].to_numpy(), df["pN"].to_numpy(), np.zeros(len(df)), lat0, lon0, h0)
+    return df.drop(columns=["pE", "pN"]).assign(lat_deg=lat, lon_deg=lon, alt_m=h)
+
+
+@pytest.mark.slow
+def test_lowprec_geodetic_log(tmp_path):
+    """Latitude, longitude and height in, local east/north positions out (issue 21, item 2)."""
+    cfg, rec = simulated(tmp_path, LOWPREC, "--platform", "P1", "--run", "run1", "--seed", "7")
+    df = pd.read_csv(rec)
+    # the geodetic log's positions start at its first sample; the simulated first sample carries noise
+    df[["pE", "pN"]] -= df[["pE", "pN"]].iloc[0]
+    df.to_csv(tmp_path / "rec0.csv", index=False)
+    base = identify(cfg, tmp_path / "rec0.csv", tmp_path / "a")
+    _geodetic_log(df).to_csv(tmp_path / "geo.csv", index=False)
+    record = {"geodetic": {"lat": "lat_deg", "lon": "lon_deg", "height": "alt_m"}}
+    mcfg = write_cfg(tmp_path / "m.yaml", LOWPREC, record)
+    assert_same(base, identify(mcfg, tmp_path / "geo.csv", tmp_path / "b"))
+
+
+GEODETIC_BAD = [(CENTRIFUGE, {"lat": "lat_deg", "lon": "lon_deg"}, "record.geodetic"),  # a rig without positions
+                (LOWPREC, {"lat": "latitude", "lon": "lon_deg"}, "record.geodetic.lat"),  # no such column
+                (LOWPREC, {"lat": "lon_deg", "lon": "lat_deg"}, "record.geodetic.lat")]  # 116 deg: not a latitude
+
+
+@pytest.mark.parametrize("raw, geodetic, field", GEODETIC_BAD)
+def test_bad_geodetic_mapping_exits_2(tmp_path, capsys, raw, geodetic, field):
+    n = 10
+    pd.DataFrame({"t": np.arange(n) * 0.01, "VE": 0.0, "VN": 0.0, "heading_deg": 0.0, "schedule": "static",
+                  "lat_deg": 40.0, "lon_deg": 116.0}).to_csv(tmp_path / "geo.csv", index=False)
+    cfg = write_cfg(tmp_path / "m.yaml", raw, {"geodetic": geodetic, "ignore_extra": True})
+    out = tmp_path / "out"
+    opts = ["--scheme", "short"] if raw is CENTRIFUGE else []
+    assert main(["identify", "--config", cfg, "--data", str(tmp_path / "geo.csv"), *opts, "--out", str(out)]) == 2
+    assert f"error: {field}" in capsys.readouterr().err
+    assert not out.exists()

@@ -28,6 +28,7 @@ from functools import lru_cache
 import numpy as np
 import pandas as pd
 import pint
+import pymap3d
 
 from ..errors import InputError
 
@@ -48,6 +49,12 @@ SCHEMA_PROPERTIES = {
     "kind": {"type": "string", "enum": ["samples", "increments"], "default": "samples",
              "description": "increments: the rate and specific-force columns hold delta-theta and delta-v per "
                             "sample (platcal.logs.increments); only for a rig whose record has such columns"},
+    "geodetic": {"type": "object", "additionalProperties": False, "required": ["lat", "lon"],
+                 "properties": {"lat": {"type": "string"}, "lon": {"type": "string"}, "height": {"type": "string"},
+                                "angles": {"type": "string", "enum": ["deg", "rad"], "default": "deg"}},
+                 "description": "the log's latitude, longitude (and height, m) columns, converted to the rig's "
+                                "local east/north positions from the first sample (WGS84, pymap3d); only for "
+                                "a rig whose record holds positions"},
 }
 """The ``record:`` keys every rig's config schema holds (:func:`with_mapping_schema`)."""
 
@@ -105,6 +112,38 @@ def iso_seconds(values: pd.Series, field_: str) -> np.ndarray:
     return ns * 1e-9
 
 
+def geodetic_positions(df: pd.DataFrame, geodetic: dict, positions: tuple[str, ...], source: str) -> pd.DataFrame:
+    """``df`` with its latitude, longitude (and height, m) columns named in ``geodetic`` replaced
+    by the local east and north positions ``positions`` (m) from the first sample, on the WGS84
+    ellipsoid (pymap3d.geodetic2enu); InputError naming ``record.geodetic.<key>`` for a column
+    the log lacks or a value that is not a finite number."""
+    cols = [str(c) for c in df.columns]
+    deg = geodetic.get("angles", "deg") == "deg"
+    values = {}
+    for key in ("lat", "lon", "height"):
+        if key not in geodetic:
+            continue
+        src = geodetic[key]
+        if src not in cols:
+            raise InputError(f"record.geodetic.{key}", f"{source} has no column {src!r}; its columns: {cols}")
+        v = pd.to_numeric(df[src], errors="coerce").to_numpy(float)
+        if not np.all(np.isfinite(v)):
+            row = int(np.argmax(~np.isfinite(v)))
+            raise InputError(f"record.geodetic.{key}, row {row + 2}", f"value {df[src].iloc[row]!r} of column "
+                             f"{src!r} is not a finite number")
+        values[key] = v
+    lat, lon = values["lat"], values["lon"]
+    limit = 90.0 if deg else np.pi / 2
+    if np.abs(lat).max() > limit:
+        raise InputError("record.geodetic.lat", f"column {geodetic['lat']!r} reaches {np.abs(lat).max():g}, beyond "
+                         f"+-{limit:g}: not a latitude in {'deg' if deg else 'rad'} (record.geodetic.angles)")
+    h = values.get("height", np.zeros_like(lat))
+    e, n, _ = pymap3d.geodetic2enu(lat, lon, h, lat[0], lon[0], h[0], deg=deg)
+    out = df.drop(columns=[geodetic[k] for k in values])
+    out[positions[0]], out[positions[1]] = np.asarray(e, float), np.asarray(n, float)
+    return out
+
+
 @dataclass(frozen=True)
 class RecordMapping:
     """A config's ``record:`` mapping (:data:`SCHEMA_PROPERTIES`) and the rig's gravity ``g``
@@ -115,17 +154,18 @@ class RecordMapping:
     ignore_extra: bool = False
     g: float = STANDARD_GRAVITY
     kind: str = "samples"
+    geodetic: dict = field(default_factory=dict)
 
     @classmethod
     def from_config(cls, record: dict, g: float = STANDARD_GRAVITY) -> "RecordMapping":
         """The mapping of a validated config's ``record`` section."""
         return cls(columns=dict(record.get("columns") or {}), units=dict(record.get("units") or {}),
                    ignore_extra=bool(record.get("ignore_extra", False)), g=float(g),
-                   kind=str(record.get("kind", "samples")))
+                   kind=str(record.get("kind", "samples")), geodetic=dict(record.get("geodetic") or {}))
 
     @property
     def empty(self) -> bool:
-        return not (self.columns or self.units or self.ignore_extra or self.kind != "samples")
+        return not (self.columns or self.units or self.ignore_extra or self.kind != "samples" or self.geodetic)
 
     def check(self, native: dict) -> None:
         """Refuse, before reading any log, a mapping of a column the rig's record does not have,
@@ -147,16 +187,23 @@ class RecordMapping:
             conversion_factor(unit, native[col], self.g, field_)
 
     def apply(self, df: pd.DataFrame, native: dict, required: tuple[str, ...], source: str = "the log",
-              increments: tuple[str, ...] = ()) -> pd.DataFrame:
+              increments: tuple[str, ...] = (), positions: tuple[str, ...] = ()) -> pd.DataFrame:
         """The log ``df`` renamed to the rig's columns and converted to its units (``native``:
         rig column -> unit, None for text). Unmapped columns keep their names; with
         ``ignore_extra`` the columns the rig does not read are dropped. A required column that is
         missing afterwards is refused naming ``record.columns.<col>``. ``increments``: the columns
-        that ``kind: increments`` turns into increments (none: the rig refuses that kind)."""
+        that ``kind: increments`` turns into increments (none: the rig refuses that kind).
+        ``positions``: the rig's east and north position columns (m) a ``geodetic`` mapping fills
+        (:func:`geodetic_positions`; none: the rig refuses it)."""
         if self.kind == "increments" and not increments:
             raise InputError("record.kind", "this rig's record has no rate or specific-force columns, so it cannot "
                              "be read from increments; use kind: samples")
+        if self.geodetic and not positions:
+            raise InputError("record.geodetic", "this rig's record has no position columns, so it cannot be read "
+                             "from latitude and longitude; remove record.geodetic")
         self.check(native)
+        if self.geodetic:
+            df = geodetic_positions(df, self.geodetic, positions, source)
         cols = [str(c) for c in df.columns]
         for col, src in self.columns.items():
             if src not in cols:

@@ -83,9 +83,12 @@ def summarise(df: pd.DataFrame, units: dict) -> LogSummary:
 
 
 def inspect_log(path, mapping, units: dict, required: tuple[str, ...], optional: tuple[str, ...] = (),
-                text: tuple[str, ...] = (), increments: tuple[str, ...] = ()) -> LogSummary:
+                text: tuple[str, ...] = (), increments: tuple[str, ...] = (),
+                positions: tuple[str, ...] = ()) -> LogSummary:
     """Read ``path`` as the rig's record (:func:`platcal.records.read_table` with the config's
     ``mapping``; InputError naming the field) and summarise it; ``increments``: the columns a
-    ``kind: increments`` mapping reads as increments (shown as such, in ``units``)."""
-    df = read_table(path, required, optional, text=text, mapping=mapping, units=units, increments=increments)
+    ``kind: increments`` mapping reads as increments (shown as such, in ``units``); ``positions``:
+    the east and north columns a ``geodetic`` mapping fills."""
+    df = read_table(path, required, optional, text=text, mapping=mapping, units=units, increments=increments,
+                    positions=positions)
     return summarise(df, units)

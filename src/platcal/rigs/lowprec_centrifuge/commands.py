@@ -23,7 +23,7 @@ from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from .config import COEFFS, G0, Study
 from .proposed import K_SLICE, identify_proposed
-from .record import (NUMERIC, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, check_plausible,
+from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, check_plausible,
                      compensated_frame, estimates_frame,
                      read_record, record_frame, truth_json, write_record)
 from .traditional import identify_traditional
@@ -132,7 +132,7 @@ def inspect(study: Study, args) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     mapping = RecordMapping.from_config(study.raw["record"], g=G0)
     optional = tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS
-    print(inspect_log(args.data, mapping, UNITS, REQUIRED, optional, text=("schedule",)).text())
+    print(inspect_log(args.data, mapping, UNITS, REQUIRED, optional, text=("schedule",), positions=POSITIONS).text())
     return 0
 
 

@@ -39,6 +39,8 @@ UNITS = {"t": "s", "VE": "m/s", "VN": "m/s", "pE": "m", "pN": "m", "heading_deg"
          "truth_theta_deg": "deg", "truth_phi_x": "rad", "truth_phi_y": "rad", "truth_phi_z": "rad"}
 """The record's columns and their units (§10; None: text), for a config's ``record:`` mapping; g
 converts by :data:`.config.G0` (9.80665 m/s^2)."""
+POSITIONS = ("pE", "pN")
+"""The east and north positions a ``record.geodetic`` mapping fills from latitude and longitude."""
 
 
 @dataclass(frozen=True)
@@ -116,7 +118,8 @@ def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s:
     other columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
     """
     df = read_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
-                    text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping, units=UNITS)
+                    text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping, units=UNITS,
+                    positions=POSITIONS)
     p = Path(path)
     t = df["t"].to_numpy(float)
     check_times(t, 1.0 / rate_hz, max_gap_s, "--data column t", f"profile.rate_hz = {rate_hz:g} Hz, a step of "

@@ -247,14 +247,15 @@ def test_lowprec_geodetic_log(tmp_path):
 
 GEODETIC_BAD = [(CENTRIFUGE, {"lat": "lat_deg", "lon": "lon_deg"}, "record.geodetic"),  # a rig without positions
                 (LOWPREC, {"lat": "latitude", "lon": "lon_deg"}, "record.geodetic.lat"),  # no such column
-                (LOWPREC, {"lat": "lon_deg", "lon": "lat_deg"}, "record.geodetic.lat")]  # 116 deg: not a latitude
+                (LOWPREC, {"lat": "lon_deg", "lon": "lat_deg"}, "record.geodetic.lat"),  # 116 deg: not a latitude
+                (LOWPREC, {"lat": "lat_text", "lon": "lon_deg"}, "record.geodetic.lat, row 2")]  # not a number
 
 
 @pytest.mark.parametrize("raw, geodetic, field", GEODETIC_BAD)
 def test_bad_geodetic_mapping_exits_2(tmp_path, capsys, raw, geodetic, field):
     n = 10
     pd.DataFrame({"t": np.arange(n) * 0.01, "VE": 0.0, "VN": 0.0, "heading_deg": 0.0, "schedule": "static",
-                  "lat_deg": 40.0, "lon_deg": 116.0}).to_csv(tmp_path / "geo.csv", index=False)
+                  "lat_deg": 40.0, "lon_deg": 116.0, "lat_text": "north"}).to_csv(tmp_path / "geo.csv", index=False)
     cfg = write_cfg(tmp_path / "m.yaml", raw, {"geodetic": geodetic, "ignore_extra": True})
     out = tmp_path / "out"
     opts = ["--scheme", "short"] if raw is CENTRIFUGE else []

@@ -146,7 +146,7 @@ rule multiposition_report:
             report(f, category="Rig 2: multiposition", subcategory="figures")
             for f in expand(
                 "results/multiposition/figures/{fig}.png",
-                fig=["ranks", "montecarlo", "nees", "extension"],
+                fig=["ranks", "montecarlo", "nees", "extension", "extension_draws"],
             )
         ],
         report="results/multiposition/report.md",

@@ -173,13 +173,45 @@ def fig_extension(ef: pd.DataFrame, path) -> None:
     save_figure(fig, path)
 
 
-def save_figures(outdir: Path, rf: pd.DataFrame, coef: pd.DataFrame, runs: pd.DataFrame, ef: pd.DataFrame) -> None:
-    """``ranks.png``, ``montecarlo.png``, ``nees.png`` (NEES against chi-square(24), per estimator)
-    and ``extension.png`` (PNG without metadata, written atomically)."""
+def fig_extension_draws(spread: pd.DataFrame, path) -> None:
+    """§13's covariance-only sigma/|truth| ranges as a distribution over the study's random draws
+    (``extension/spread.csv``: one row per draw and group, ``min_pct``, ``max_pct``, %): per
+    group, each draw's two endpoints against the spec's one-draw range and its +-20 % band
+    (docs/multiposition-1g.md §13, §15 item 6, §16)."""
+    groups = list(SPEC_RANGES)
+    fig, axes = plt.subplots(1, len(groups), figsize=(12, 4))
+    jitter = np.random.default_rng(0).uniform(-0.08, 0.08, len(spread))  # fixed: identical bytes on rerun
+    for ax, g in zip(axes, groups):
+        d = spread[spread["group"] == g]
+        j = jitter[: len(d)]
+        ax.scatter(np.zeros(len(d)) + j, d["min_pct"], s=14, color="tab:blue", label="min over the group, per draw")
+        ax.scatter(np.ones(len(d)) + j, d["max_pct"], s=14, color="tab:orange", label="max over the group, per draw")
+        for x, v in zip((0, 1), SPEC_RANGES[g]):
+            ax.fill_between([x - 0.3, x + 0.3], 0.8 * v, 1.2 * v, color="grey", alpha=0.25,
+                            label="spec's endpoint +-20 %" if x == 0 else None)
+            ax.hlines(v, x - 0.3, x + 0.3, color="k", lw=1.2, label="spec's endpoint (one draw)" if x == 0 else None)
+        ax.set_xticks([0, 1], ["min", "max"])
+        ax.set_xlabel("endpoint of the range")
+        ax.set_title(g)
+    axes[0].set_ylabel("covariance-only sigma/|truth| (%)")
+    axes[-1].legend(fontsize=7, loc="best")
+    n = spread["draw"].nunique()
+    fig.suptitle(f"§13 sigma ranges over {n} random draws of 24 positions (each dot one draw)")
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def save_figures(outdir: Path, rf: pd.DataFrame, coef: pd.DataFrame, runs: pd.DataFrame, ef: pd.DataFrame,
+                 spread: pd.DataFrame | None = None) -> None:
+    """``ranks.png``, ``montecarlo.png``, ``nees.png`` (NEES against chi-square(24), per estimator),
+    ``extension.png`` and, with ``spread``, ``extension_draws.png`` (§13 over the draws; PNG without
+    metadata, written atomically)."""
     fig_ranks(rf, outdir / "ranks.png")
     fig_montecarlo(coef, outdir / "montecarlo.png")
     nees_histogram(runs, outdir / "nees.png")
     fig_extension(ef, outdir / "extension.png")
+    if spread is not None:
+        fig_extension_draws(spread, outdir / "extension_draws.png")
 
 
 # ------------------------------------------------------------------ report
@@ -233,7 +265,8 @@ def spread_lines(spread: list[dict] | None) -> list[str]:
             f"the spec's endpoints (largest deviation: {sm['largest_median_dev'][0]} {sm['largest_median_dev'][1]:+.0%}). "
             "The spec's ranges are one unstated draw's and the spread is the draw's: the ledger judges section 15 "
             "item 6 on the medians over the draws (claims ext_*_min, ext_*_max) and on the share of single draws "
-            "(ext_draws_within_20pct) (docs/multiposition-1g.md §16).", ""]
+            "(ext_draws_within_20pct) (docs/multiposition-1g.md §16).", "",
+            "![the §13 sigma ranges over the draws](figures/extension_draws.png)", ""]
 
 
 def estimator_lines(summ: pd.DataFrame) -> list[str]:
@@ -351,8 +384,9 @@ def report_job(inp, out_report, config: dict, log=print) -> None:
     ext_ranks = pd.DataFrame(json.loads(Path(inp.ext_ranks).read_text()))
     ef = extension_frame(pd.read_csv(inp.ext_sigma).to_dict("records"), inp.centrifuge[0] if len(inp.centrifuge) else None)
     save_tables(out / "tables", rf, summ, design, ext_ranks, ef)
-    save_figures(out / "figures", rf, coef, runs, ef)
-    write_report(out_report, rf, summ, design, ext_ranks, ef, spread=pd.read_csv(inp.ext_spread).to_dict("records"),
+    spread = pd.read_csv(inp.ext_spread)
+    save_figures(out / "figures", rf, coef, runs, ef, spread)
+    write_report(out_report, rf, summ, design, ext_ranks, ef, spread=spread.to_dict("records"),
                  item4_cell=spec_cell(cfg), claims=read_ledger(inp.claims))
     log(f"report -> {out_report} ({len(runs)} Monte Carlo runs in {len(summ)} cells)")
 
@@ -433,4 +467,5 @@ class WorkflowSetup:
         r = self.R
         return [f"{r}tables/ranks.csv", f"{r}tables/montecarlo_summary.csv", f"{r}tables/design.csv",
                 f"{r}tables/extension_sigma.csv", f"{r}figures/ranks.png", f"{r}figures/montecarlo.png",
-                f"{r}figures/nees.png", f"{r}figures/extension.png", f"{r}montecarlo/coef.parquet", f"{r}report.md"]
+                f"{r}figures/nees.png", f"{r}figures/extension.png",
+                f"{r}figures/extension_draws.png", f"{r}montecarlo/coef.parquet", f"{r}report.md"]

@@ -136,20 +136,27 @@ def _table1_covariance(cfg: dict, dwell_s: float | None = None):
     return ev, s.angles_deg[None], g, dwell, settings
 
 
+def _not_at(cfg: dict, at: dict | None) -> Evidence | None:
+    """Why a covariance-only claim stated at settings ``at`` (``dwell_s`` s of Table 1,
+    ``sigma_a_ug`` ug, ``arw_deg_rth`` deg/sqrt(h), ``sigma_set_arcsec`` arcsec) was not run by a
+    study at other settings (the numbers depend on them, §11); None when the study is at ``at``."""
+    scheme = cfg.get("schemes", {}).get("table1") or {}
+    own = {"dwell_s": float(scheme.get("dwell_s", 60)),
+           **{k: float(cfg["noise"][k]) for k in ("sigma_a_ug", "arw_deg_rth", "sigma_set_arcsec")}}
+    off = [k for k, v in (at or {}).items() if not np.isclose(own[k], float(v))]
+    if not off:
+        return None
+    return Evidence(np.array([]), "not run: the study has " + ", ".join(f"{k} {own[k]:g}" for k in off)
+                    + ", the claim holds at " + ", ".join(f"{k} {float(at[k]):g}" for k in off))
+
+
 def table1_criterion(results: Path, cfg: dict, criterion: str = "J", at: dict | None = None) -> Evidence | None:
     """J (eq. 27, the sum of |correlation| over the 45 coefficient pairs) or another design
-    criterion of Table 1's scheme, covariance-only at the study's settings (one value).
-
-    ``at``: the settings the paper's number holds at (``dwell_s`` s, ``sigma_a_ug`` ug,
-    ``arw_deg_rth`` deg/sqrt(h), ``sigma_set_arcsec`` arcsec); a study at other settings did not
-    run that cell (J depends on them, §11), so no value."""
-    scheme = cfg.get("schemes", {}).get("table1")
-    own = {"dwell_s": float((scheme or {}).get("dwell_s", cfg.get("dwell_s", 60))),
-           **{k: float(cfg["noise"][k]) for k in ("sigma_a_ug", "arw_deg_rth", "sigma_set_arcsec")}}
-    off = {k: own[k] for k, v in (at or {}).items() if not np.isclose(own[k], float(v))}
-    if off:
-        return Evidence(np.array([]), "not run: the study has " + ", ".join(f"{k} {v:g}" for k, v in off.items())
-                        + ", the claim holds at " + ", ".join(f"{k} {float(at[k]):g}" for k in off))
+    criterion of Table 1's scheme, covariance-only at the study's settings (one value); not run
+    when the study is not at the claim's settings ``at`` (:func:`_not_at`)."""
+    skipped = _not_at(cfg, at)
+    if skipped is not None:
+        return skipped
     found = _table1_covariance(cfg)
     if found is None:
         return None
@@ -157,9 +164,13 @@ def table1_criterion(results: Path, cfg: dict, criterion: str = "J", at: dict | 
     return Evidence(np.array([float(ev.evaluate(ang, g)[criterion][0])]), settings)
 
 
-def table1_shrink(results: Path, cfg: dict) -> Evidence | None:
+def table1_shrink(results: Path, cfg: dict, at: dict | None = None) -> Evidence | None:
     """The smallest P0 sigma / final sigma over the 45 coefficients of Table 1's scheme,
-    covariance-only at the study's settings (docs/centrifuge-model.md §11: at least 280-fold)."""
+    covariance-only at the study's settings (docs/centrifuge-model.md §11: at least 280-fold at
+    the defaults); not run when the study is not at the claim's settings ``at``."""
+    skipped = _not_at(cfg, at)
+    if skipped is not None:
+        return skipped
     found = _table1_covariance(cfg)
     if found is None:
         return None

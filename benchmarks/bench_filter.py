@@ -92,6 +92,20 @@ def filter_flops_per_step(n_coef: int = N_IDENTIFIED) -> int:
     return prop + upd
 
 
+def table1_case(B: int, dwell: float = 60.0):
+    """This benchmark's case for other scripts: the Table 1 scheme, 6 x ``dwell`` s, B replicates
+    (seeds ``[2017, i]``) simulated at the default noise. Returns ``(scheme, params, settings, z,
+    t)`` with ``z`` K arrays (B, M, 3) g and ``t`` K arrays (M,) s, as ``run_ekf`` takes them."""
+    settings = FilterSettings()
+    scheme = check_scheme("table1", {"dwell_s": dwell, "positions": [list(p) for p in TABLE1_POSITIONS]})
+    params = Centrifuge().scheme_params(scheme)
+    seeds = [np.random.SeedSequence([2017, i]) for i in range(B)]
+    data = simulate(full_truth(), scheme, params, Noise(), seeds, keep_every=int(round(settings.period_s / 0.005)))
+    i0 = first_instant(settings.update_at_reset)
+    K = scheme.n_positions
+    return scheme, params, settings, [data.A[:, k, i0:] for k in range(K)], [data.t[i0:]] * K
+
+
 def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):
     """FilterPy's EKF over every position, driven step by step with the platcal model.
 

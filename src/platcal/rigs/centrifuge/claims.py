@@ -154,12 +154,9 @@ def table1_criterion(results: Path, cfg: dict, criterion: str = "J", at: dict | 
     """J (eq. 27, the sum of |correlation| over the 45 coefficient pairs) or another design
     criterion of Table 1's scheme, covariance-only at the study's settings (one value); not run
     when the study is not at the claim's settings ``at`` (:func:`_not_at`)."""
-    skipped = _not_at(cfg, at)
-    if skipped is not None:
-        return skipped
-    found = _table1_covariance(cfg)
-    if found is None:
-        return None
+    found = _not_at(cfg, at) or _table1_covariance(cfg)
+    if not isinstance(found, tuple):
+        return found
     ev, ang, g, dwell, settings = found
     return Evidence(np.array([float(ev.evaluate(ang, g)[criterion][0])]), settings)
 
@@ -168,12 +165,9 @@ def table1_shrink(results: Path, cfg: dict, at: dict | None = None) -> Evidence 
     """The smallest P0 sigma / final sigma over the 45 coefficients of Table 1's scheme,
     covariance-only at the study's settings (docs/centrifuge-model.md §11: at least 280-fold at
     the defaults); not run when the study is not at the claim's settings ``at``."""
-    skipped = _not_at(cfg, at)
-    if skipped is not None:
-        return skipped
-    found = _table1_covariance(cfg)
-    if found is None:
-        return None
+    found = _not_at(cfg, at) or _table1_covariance(cfg)
+    if not isinstance(found, tuple):
+        return found
     ev, ang, g, dwell, settings = found
     sig = np.sqrt(np.diag(ev.covariance(ang, g)[0]))
     return Evidence(np.array([float(np.min(ev.setup.p0 / sig))]), settings)

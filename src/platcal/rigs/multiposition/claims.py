@@ -59,7 +59,10 @@ def _item4_cell(results: Path, cfg: dict, table: str):
     if est is None:
         return pd.DataFrame(), f"scheme {scheme}, sigma_a {level:g} ug: no one-pass EKF in study.estimators"
     cell = select_cell(pd.read_parquet(path), scheme, level, est)
-    return cell, f"scheme {scheme}, sigma_a {level:g} ug, estimator {est}, {cell['replicate'].nunique()} seeds"
+    settings = f"scheme {scheme}, sigma_a {level:g} ug, estimator {est}"
+    if cell.empty:
+        return cell, settings + ": not in this study's sweep (study.schemes, study.sigma_a_ug)"
+    return cell, f"{settings}, {cell['replicate'].nunique()} seeds"
 
 
 def max_rel_err(results: Path, cfg: dict, group: str) -> Evidence | None:
@@ -69,9 +72,10 @@ def max_rel_err(results: Path, cfg: dict, group: str) -> Evidence | None:
     if found is None:
         return None
     cell, settings = found
-    g = cell[cell["group"] == group] if not cell.empty else cell
-    per = g.assign(a=g["rel_err_pct"].abs()).groupby("replicate")["a"].max() if not g.empty else pd.Series([], float)
-    return Evidence(per.to_numpy(float), settings)
+    if cell.empty:  # the study did not run the cell: no samples, the settings say why
+        return Evidence(np.array([]), settings)
+    g = cell[cell["group"] == group]
+    return Evidence(g.assign(a=g["rel_err_pct"].abs()).groupby("replicate")["a"].max().to_numpy(float), settings)
 
 
 def nees(results: Path, cfg: dict) -> Evidence | None:
@@ -80,7 +84,7 @@ def nees(results: Path, cfg: dict) -> Evidence | None:
     if found is None:
         return None
     cell, settings = found
-    return Evidence(cell["nees"].to_numpy(float) if not cell.empty else np.array([]), settings)
+    return Evidence(cell["nees"].to_numpy(float) if "nees" in cell else np.array([]), settings)
 
 
 def noise_free_error(results: Path, cfg: dict, passes: int, truth: dict) -> Evidence | None:

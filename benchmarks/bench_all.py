@@ -9,7 +9,7 @@ side does:
 
 * centrifuge: ``run_ekf`` (Table 1 scheme, 6 x 60 s, 20 ms) against
   :func:`bench_filter.filterpy_run` (``ExtendedKalmanFilter`` with the RK4 map and its exact
-  Jacobian, the model of :mod:`platcal.model.attitude`);
+  Jacobian, the model of :mod:`platcal.rigs.centrifuge.attitude`);
 * multiposition: ``run_ekf`` (scheme S8, 8 x 60 s, one pass, 27 states) against an
   ``ExtendedKalmanFilter`` with the rig's own compiled rate, RK4 and measurement functions
   (Phi = I + F dt + F^2 dt^2 / 2, Q = T T^T ARW^2 dt, the 6-D update with the angles wrapped);
@@ -180,10 +180,11 @@ def sled(B: int, repeat: int) -> dict:
     from platcal.rigs.sled import filters
     from platcal.rigs.sled.config import load_config
     from platcal.rigs.sled.identify import identify
+    from platcal.rigs.sled.montecarlo import replicate_seeds
     from platcal.rigs.sled.simulate import simulate
 
     cfg = load_config({"rig": "sled"})
-    sb = simulate(cfg, range(B))
+    sb = simulate(cfg, replicate_seeds(cfg.raw, "default", range(B)))
     identify(cfg, sb.traj, sb.f[:1], sb.w[:1])
     tp, idn = best_time(lambda: identify(cfg, sb.traj, sb.f, sb.w), repeat)
 
@@ -193,6 +194,7 @@ def sled(B: int, repeat: int) -> dict:
         scale = np.ones(J) if tun.per_step or T_nominal is None else T / T_nominal
         Phis = filters.discretise(Fs, T)
         xs, sig, Pout = np.empty((S, J + 1, n)), np.empty((S, J + 1, n)), np.empty((S, n, n))
+        nis = np.zeros(S)
         for s in range(S):
             kf = KalmanFilter(dim_x=n, dim_z=4)
             kf.x = x0[s].reshape(n, 1).copy()
@@ -203,10 +205,11 @@ def sled(B: int, repeat: int) -> dict:
             for j in range(J):
                 kf.predict(F=Phis[s, j], Q=np.asarray(tun.Qd, float) * scale[j])
                 kf.update(z[s, j].reshape(4, 1))
+                nis[s] += float(kf.y[:, 0] @ kf.SI @ kf.y[:, 0]) / J
                 kf.P = 0.5 * (kf.P + kf.P.T)
                 xs[s, j + 1], sig[s, j + 1] = kf.x[:, 0], np.sqrt(np.maximum(np.diag(kf.P), 0.0))
             Pout[s] = kf.P
-        return filters.FilterOut(xs, sig, Pout)
+        return filters.FilterOut(xs, sig, Pout, nis, np.zeros(S, dtype=np.int64))
 
     with Clock() as clock, mock.patch.object(filters, "kalman", kalman_fp):
         fp = identify(cfg, sb.traj, sb.f[:1], sb.w[:1])

@@ -6,7 +6,7 @@ default noise and filter settings), this script times:
 * platcal ``simulate`` and ``run_ekf`` for batches of B = 1, 8, 64 replicates (per replicate,
   amortised over the batch; numba threads as set by ``--threads``);
 * a baseline: FilterPy's ``ExtendedKalmanFilter`` driven step by step in Python with the same
-  model functions (``platcal.model.attitude.rk4`` and ``platcal.model.attitude.measure``), on replicate 0;
+  model functions (``platcal.rigs.centrifuge.attitude.rk4`` and ``platcal.rigs.centrifuge.attitude.measure``), on replicate 0;
 * the covariance-only run (observability / GA objective) over a population of random schemes;
 * every estimator kind of the registry (:data:`platcal.rigs.centrifuge.estimators.KINDS`, default
   options) at the largest batch, so that a newly registered kind appears here;
@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from platcal.model import attitude as platform
+from platcal.rigs.centrifuge import attitude as platform
 from platcal.model.frames import ARCSEC, DEG
 from platcal.model.instruments import N_FULL, N_IDENTIFIED
 from platcal.parallel import get_threads, set_threads

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from platcal.estimation.kalman import joseph_update_sparse, propagate_sparse
-from platcal.model.attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
+from platcal.rigs.centrifuge.attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from platcal.rigs.centrifuge.base import specific_force_into
 from platcal.rigs.centrifuge.ekf import _structure, run_ekf
 

@@ -219,6 +219,7 @@ class FilterResult:
     x: np.ndarray        # (S, 14) final estimate
     P: np.ndarray        # (S, 14, 14) final covariance
     n_windows: np.ndarray  # (S,)
+    innovations: np.ndarray | None = None  # (S, W, 8) innovations and diag(S), when kept
 
     @property
     def coeffs(self) -> np.ndarray:
@@ -229,8 +230,12 @@ class FilterResult:
         return np.sqrt(np.diagonal(self.P, axis1=1, axis2=2)[:, K_SLICE])
 
 
-def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float) -> FilterResult:
+def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float,
+               keep_innovations: bool = False) -> FilterResult:
     """The Kalman filter over padded window arrays (S, W), batched over seeds: predict with Phi, Joseph update.
+
+    ``keep_innovations``: the result's ``innovations`` (S, W, 8) holds each window's innovation
+    (zVE, zVN m/s, zPE, zPN m) and its predicted variance diag(S) (NaN for padding), for the fit check.
 
     [D] numpy rather than numba: a numba kernel of this loop ran ~2x faster but took 20-30 s to
     compile on the shared machine.
@@ -242,6 +247,7 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     P = np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)).copy()
     R = np.diag(R_DIAG)
     Fw = f_matrix(lat_rad, m)                    # (S, W, 14, 14)
+    innovations = np.full((nb, nw, 8), np.nan) if keep_innovations else None
     for w in range(nw):
         ok = valid[:, w]
         Tw = np.where(ok, T[:, w], 0.0)
@@ -252,17 +258,22 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
         S = H @ PHt + R
         K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, 1, 2)), 1, 2)
         innov = z[:, w] - np.einsum("bij,bj->bi", H, xp)
+        if innovations is not None:
+            innovations[:, w, :4] = innov
+            innovations[:, w, 4:] = np.where(ok[:, None], np.diagonal(S, axis1=1, axis2=2), np.nan)
         xn = xp + np.einsum("bij,bj->bi", K, innov)
         ikh = eye - K @ H
         Pn = ikh @ Pp @ np.swapaxes(ikh, 1, 2) + K @ R @ np.swapaxes(K, 1, 2)
         Pn = 0.5 * (Pn + np.swapaxes(Pn, 1, 2))
         x = np.where(ok[:, None], xn, x)
         P = np.where(ok[:, None, None], Pn, P)
-    return FilterResult(x=x, P=P, n_windows=valid.sum(axis=1))
+    return FilterResult(x=x, P=P, n_windows=valid.sum(axis=1), innovations=innovations)
 
 
-def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float) -> FilterResult:
-    """Proposed method on S records: t (N,), v, p_rel (S, N, 2), psi (S, N) rad, f (N, 2) or (S, N, 2)."""
+def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float,
+                      keep_innovations: bool = False) -> FilterResult:
+    """Proposed method on S records: t (N,), v, p_rel (S, N, 2), psi (S, N) rad, f (N, 2) or (S, N, 2);
+    ``keep_innovations`` as :func:`run_filter`."""
     nb = v.shape[0]
     per = []
     common = force_terms(t, f) if f.ndim == 2 else None
@@ -277,4 +288,4 @@ def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: floa
     for s, (tt, zz, mm) in enumerate(per):
         k = len(tt)
         T[s, :k], z[s, :k], m[s, :k], valid[s, :k] = tt, zz, mm, True
-    return run_filter(T, z, m, valid, np.radians(lat_deg))
+    return run_filter(T, z, m, valid, np.radians(lat_deg), keep_innovations)

@@ -1,15 +1,10 @@
-"""Snakemake wrapper: tables, figures and report.md of the lowprec_centrifuge study."""
+"""Snakemake wrapper: tables, figures and report.md of the lowprec_centrifuge study from its tidy tables."""
 from pathlib import Path
 
-from platcal.io import read_yaml
 from platcal.log import job_logger
-from platcal.rigs.lowprec_centrifuge.config import load_config
 from platcal.rigs.lowprec_centrifuge.report import write_study
-from platcal.rigs.lowprec_centrifuge.study import scenarios
 
 sm = snakemake  # noqa: F821
 log = job_logger(sm.log[0])
-study = load_config(read_yaml(Path(sm.params.config).read_text()))
-dirs = {n: Path(p).parent for n, p in zip(sm.params.names, sm.input.cross)}
-write_study(dirs, scenarios(study), Path(sm.input.trace), Path(sm.output.report).parent, study.study["seeds"])
-log.info(f"report of {len(dirs)} scenarios -> {sm.output.report}")
+write_study(dict(sm.params.cfg), sm.input.coef, sm.input.runs, sm.input.trace, Path(sm.output.report).parent)
+log.info(f"report -> {sm.output.report}")

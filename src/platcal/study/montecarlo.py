@@ -91,8 +91,8 @@ def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> t
         "mean_nis": batch.mean_nis, "failed_updates": np.asarray(batch.failed_updates).astype(np.int64),
     })
     runs["failed"] = failed_runs(batch)
-    for name, values in batch.extra.items():  # the rig's own per-run columns, after the standard ones
-        runs[name] = np.asarray(values)
+    if batch.extra:  # the rig's own per-run columns, after the standard ones (joined at once: there may be many)
+        runs = pd.concat([runs, pd.DataFrame({k: np.asarray(v) for k, v in batch.extra.items()})], axis=1)
     return coef, runs
 
 

@@ -5,7 +5,8 @@ platform INS by a variable-period Kalman filter, against the traditional two-lev
 Modules: ``config`` (schema, :class:`Study`), ``profile`` (run profiles, kinematics), ``truth``
 (residual draws, INS error model, 5 lock-step variants), ``record`` (the test record),
 ``proposed`` (windows, observations, 14-state filter), ``traditional`` (eq. 2), ``metrics``
-(compensation, effect), ``study`` (Monte Carlo scenarios, tables, figures, report),
+(compensation, effect), ``study`` (scenarios, tables from the tidy Monte Carlo tables), ``montecarlo`` (the
+hooks of the generic Monte Carlo runner), ``report`` (tables, figures, report),
 ``commands`` (the CLI).
 """
 
@@ -15,6 +16,7 @@ import pandas as pd
 from ...rig import Rig
 from .commands import identify, simulate
 from .config import COEFFS, load_config
+from .montecarlo import LowprecMonteCarlo
 
 
 def catalogue() -> pd.DataFrame:
@@ -27,4 +29,4 @@ RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
           spec="lowprec-centrifuge.md", load_config=load_config,
           commands={"simulate": simulate, "identify": identify}, catalogue=catalogue,
-          estimators=("proposed", "traditional"))
+          estimators=("proposed", "traditional"), montecarlo=LowprecMonteCarlo())

@@ -1,6 +1,6 @@
 """Tables, figures and the Markdown report of the rig's study (docs/lowprec-centrifuge.md §8, §11).
 
-:func:`write_study` reads the per-scenario outputs of :func:`~.study.run_scenario` and writes,
+:func:`write_study` reads the study's tidy Monte Carlo tables (:mod:`.montecarlo`) and writes,
 under one folder, ``tables/`` (CSV + Markdown + HTML), ``figures/`` (PNG, byte-stable) and
 ``report.md`` (tables inline, figures linked relatively, the §11 checks and the paper's claims).
 """
@@ -18,8 +18,10 @@ import pandas as pd  # noqa: E402
 
 from ...io import atomic_path, atomic_write_text  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
+from .config import load_config  # noqa: E402
+from .montecarlo import study_frames  # noqa: E402
 from .study import (PAPER_TRADITIONAL_RESIDUAL_PCT, acceptance, coefficient_table, degradation_table,  # noqa: E402
-                    drop_failed, pooled, table1, y_table)
+                    drop_failed, pooled, scenarios, table1, y_table)
 
 FMT = {"before": ".3f", "after": ".3f", "VE_before": ".2f", "VE_after": ".3f", "pE_before": ".0f", "pE_after": ".1f",
        "truth": "g", "mean": ".3f", "sd": ".3f", "mean_error": "+.3f", "mean_sigma": ".3f", "rms_z": ".2f"}
@@ -94,27 +96,25 @@ def fig_windows(tr: dict, path: Path) -> None:
     _savefig(fig, path)
 
 
-def load_scenarios(scen_dirs: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
-    cross, coeffs = [], []
-    for name, d in scen_dirs.items():
-        c = pd.read_csv(Path(d) / "cross.csv")
-        c.insert(0, "scenario", name)
-        k = pd.read_csv(Path(d) / "coeffs.csv")
-        k.insert(0, "scenario", name)
-        cross.append(c)
-        coeffs.append(k)
-    return pd.concat(cross, ignore_index=True), pd.concat(coeffs, ignore_index=True)
-
-
 def load_trace(path) -> dict:
     with np.load(path, allow_pickle=False) as z:
         return {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
 
 
-def write_study(scen_dirs: dict, meta: dict, trace_path, out: Path, seeds: int) -> None:
-    """All tables, figures and report.md of the study under ``out``."""
+def write_trace(trace: dict, path) -> None:
+    """The figures' traces (:func:`.montecarlo.study_trace`) as an ``.npz``, atomically."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **trace)
+
+
+def write_study(cfg: dict, coef_path, runs_path, trace_path, out: Path) -> None:
+    """All tables, figures and report.md of the study under ``out``, from the tidy Monte Carlo
+    tables (``coef.parquet``, ``runs.parquet``) and the traces of :func:`write_trace`."""
     out = Path(out)
-    cross_all, coeffs_all = load_scenarios(scen_dirs)
+    study = load_config(cfg)
+    meta = scenarios(study)
+    seeds = int(study.study["seeds"])
+    cross_all, coeffs_all = study_frames(study, list(meta), pd.read_parquet(coef_path), pd.read_parquet(runs_path))
     cross_all, coeffs_all, n_failed = drop_failed(cross_all, coeffs_all)
     cross = cross_all[cross_all["scenario"] == "default"].drop(columns="scenario")
     coeffs = coeffs_all[coeffs_all["scenario"] == "default"].drop(columns="scenario")

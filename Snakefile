@@ -3,9 +3,9 @@
 #   snakemake --cores 2 --configfile FILE      another study (e.g. config/test.yaml, merged over it)
 #   snakemake --report results/report.html     the HTML report, after a run
 # The science lives in the installed package `platcal`; rules and scripts are thin wrappers.
-# Each rig's rules file reads its config from config["rigs"][<rig>] and defines <RIG>_TARGETS
-# (empty when the rig is not in the index); the generic Monte Carlo rules serve every rig with
-# Monte Carlo hooks (platcal.rig).
+# Rigs are found, not listed (platcal.rig.rig_modules): each rig of the index gets the generic
+# Monte Carlo rules when it has Monte Carlo hooks, its own rules file when it has one
+# (workflow/rules/<rig>.smk or Rig.rules, defining <RIG>_TARGETS), else the generic report.
 from snakemake.utils import min_version
 
 min_version("9.0")
@@ -19,18 +19,23 @@ report: "workflow/report/workflow.rst"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/montecarlo.smk"
-include: "workflow/rules/centrifuge.smk"
-include: "workflow/rules/multiposition.smk"
-include: "workflow/rules/sled.smk"
-include: "workflow/rules/lowprec_centrifuge.smk"
+
+
+for _rules in dict.fromkeys(f for f in RIG_RULES.values() if f):
+    include: _rules
+
+
 include: "workflow/rules/report.smk"
+
+
+RIG_TARGETS = {
+    r: globals()[f"{r.upper()}_TARGETS"] if RIG_RULES[r] else [f"results/{r}/report.md"] for r in RIGS
+}
 
 
 rule all:
     default_target: True
     input:
-        CENTRIFUGE_TARGETS,
-        MULTIPOSITION_TARGETS,
-        SLED_TARGETS,
-        LOWPREC_CENTRIFUGE_TARGETS,
-        INDEX_REPORT,
+        [t for r in RIGS for t in RIG_TARGETS[r]],
+        LEDGER if RIGS else [],
+        INDEX_REPORT if RIGS else [],

@@ -43,7 +43,7 @@ from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.rigs.centrifuge.ekf import FilterSettings, _structure, first_instant, run_ekf
 from platcal.rigs.centrifuge.estimators import KINDS
 from platcal.scheme import check_scheme
-from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
+from platcal.scheme import TABLE1_POSITIONS
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 

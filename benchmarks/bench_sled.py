@@ -15,12 +15,13 @@ import time
 
 from platcal.rigs.sled.config import load_config
 from platcal.rigs.sled.identify import identify, metrics
+from platcal.rigs.sled.montecarlo import replicate_seeds
 from platcal.rigs.sled.simulate import simulate
 
 
 def once(cfg, seeds: int) -> tuple[float, float]:
     t0 = time.perf_counter()
-    sb = simulate(cfg, range(seeds))
+    sb = simulate(cfg, replicate_seeds(cfg.raw, "default", range(seeds)))
     t1 = time.perf_counter()
     metrics(identify(cfg, sb.traj, sb.f, sb.w), sb.truth)
     return t1 - t0, time.perf_counter() - t1

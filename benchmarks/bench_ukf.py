@@ -27,7 +27,7 @@ from platcal.rigs.centrifuge.base import Centrifuge
 from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
 from platcal.scheme import check_scheme
-from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
+from platcal.scheme import TABLE1_POSITIONS
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 from platcal.rigs.centrifuge.ukf import run_ukf
 

@@ -12,7 +12,7 @@ from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
 from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.parallel import get_threads, max_threads, set_threads, threads
 from platcal.scheme import check_scheme
-from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
+from platcal.scheme import TABLE1_POSITIONS
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 CEN = Centrifuge()

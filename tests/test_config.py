@@ -9,7 +9,7 @@ from platcal.rigs.centrifuge.config import load_config, study_from_config, valid
 from platcal.errors import InputError
 from platcal.model.instruments import INDEX
 from platcal.rigs.centrifuge.catalogue import load_catalogue
-from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
+from platcal.scheme import TABLE1_POSITIONS
 
 ROOT = Path(__file__).resolve().parents[1]
 ONE = {"schemes": {"s": {"dwell_s": 1, "positions": [[0, 0, 0]]}}}

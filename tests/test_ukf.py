@@ -23,7 +23,7 @@ from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.rigs.centrifuge.ekf import FilterSettings
 from platcal.scheme import check_scheme
-from platcal.rigs.centrifuge.scheme import TABLE1_POSITIONS
+from platcal.scheme import TABLE1_POSITIONS
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 
 CEN = Centrifuge()

@@ -193,6 +193,28 @@ _Loader.add_implicit_resolver(
 )
 
 
+def read_config(path, field: str = "--config") -> dict:
+    """The raw mapping of a YAML config file; InputError naming ``field`` (the option or the
+    index entry that gave the path) if it cannot be read or parsed. The one config reader."""
+    try:
+        return read_yaml(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(field, f"no such file: {path}") from None
+    except IsADirectoryError:
+        raise InputError(field, f"{path} is a folder; give a YAML config file") from None
+    except OSError as exc:
+        raise InputError(field, f"cannot read {path}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(field, f"{path} is not UTF-8 text (byte {exc.start} cannot be decoded); "
+                         "a config is a UTF-8 YAML file") from None
+    except (ValueError, yaml.YAMLError) as exc:
+        where = getattr(exc, "problem_mark", None)
+        at = f" at line {where.line + 1}, column {where.column + 1}" if where is not None else ""
+        problem = getattr(exc, "problem", None)
+        raise InputError(field, f"{path} is not valid YAML{at} ({problem or exc.__class__.__name__}); "
+                         "a config is a UTF-8 YAML file") from None
+
+
 def read_yaml(text: str):
     """Parse YAML text, with floats such as ``1e4`` read as numbers."""
     return yaml.load(text, Loader=_Loader)

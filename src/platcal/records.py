@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError
+from .io import atomic_to_csv, atomic_to_parquet
 
 PARQUET_MAGIC = b"PAR1"
 """The first (and last) four bytes of every Parquet file."""
@@ -27,6 +28,11 @@ UNIT_FACTOR = 10.0
 sample period is refused: its ``t`` is in another unit (ms for s gives a factor of 1000)."""
 TIME_TOL = 1e-6
 """Tolerance (s) when matching sample times to filter instants."""
+LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay", "Az")
+"""Columns of a positioned-platform test log (docs/centrifuge-model.md §13, docs/multiposition-1g.md
+§12): position number, time s, commanded gimbal angles deg, accelerometer outputs g."""
+TRUTH_COLUMNS = ("alpha", "beta", "gamma")
+"""The true gimbal angles (deg) of a simulated positioned-platform log."""
 
 
 def num(v) -> int | float:
@@ -205,3 +211,11 @@ def nearest_samples(t: np.ndarray, period_s: float, tol_s: float, first: int | N
         j = np.where(np.abs(t[j - 1] - want) <= np.abs(t[j] - want), j - 1, j)
     ok = np.abs(t[j] - want) <= tol_s + TIME_TOL
     return np.unique(j[ok])
+
+
+def write_record(df: pd.DataFrame, path: str | os.PathLike) -> None:
+    """Write a test record atomically: ``.parquet`` as Parquet, anything else as CSV."""
+    if str(path).endswith(".parquet"):
+        atomic_to_parquet(df, path)
+    else:
+        atomic_to_csv(df, path, float_format=None)

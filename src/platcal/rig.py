@@ -7,16 +7,17 @@ rig up here and call what it provides.
 
 Where do I add a rig?
 ---------------------
-1. ``src/platcal/rigs/<name>/``: its config schema (``data/config.schema.yaml``, a default for
-   every key), model, simulator, estimators, record columns and tables; ``__init__.py`` defines
+1. ``src/platcal/rigs/<name>/`` (found by a scan of ``platcal.rigs``), or a module of another
+   package declared as an entry point of group ``platcal.rigs`` (:data:`ENTRY_POINT_GROUP`): its
+   config schema (``data/config.schema.yaml``, a default for every key), model, simulator,
+   estimators, record columns, ``data/claims.yaml`` and tables; ``__init__.py`` defines
    ``RIG = Rig(...)`` below.
-2. Its name in :data:`RIG_MODULES`.
-3. ``docs/<spec>.md`` (its spec), ``config/<name>.yaml``, ``tests/<name>/``,
-   ``benchmarks/bench_<name>.py``, ``workflow/rules/<name>.smk`` (its study; results under
-   ``results/<name>/``, ending in ``results/<name>/report.md``; it reads its config with
-   :func:`rig_config` from ``config["rigs"]["<name>"]`` and defines ``<NAME>_TARGETS``, empty
-   when the rig is not in the index), its ``include:`` and targets in the ``Snakefile``, and its
-   entry in the ``rigs:`` index of ``config/config.yaml``.
+2. ``docs/<spec>.md`` (its spec), ``config/<name>.yaml``, ``tests/<name>/``,
+   ``benchmarks/bench_<name>.py``.
+3. Optionally its own stages, ``workflow/rules/<name>.smk`` (or ``Rig.rules``), defining
+   ``<NAME>_TARGETS`` under ``results/<name>/`` ending in ``results/<name>/report.md``; a rig
+   with Monte Carlo hooks and no rules file gets the generic sweep and the generic report.
+   The Snakefile includes it and collects its targets; nothing else is edited.
 
 What a rig must provide (the fields of :class:`Rig`)
 ----------------------------------------------------
@@ -71,22 +72,52 @@ from __future__ import annotations
 import argparse
 import copy
 import importlib
+import importlib.metadata
+import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 import pandas as pd
 
+from . import rigs as _rigs_package
 from .errors import InputError
-from .io import normalise_numbers, read_yaml
+from .io import normalise_numbers, read_config
 
 DEFAULT_RIG = "centrifuge"
-RIG_MODULES = ("centrifuge", "multiposition", "sled", "lowprec_centrifuge")
-"""Rig subpackages under ``platcal.rigs`` (import name = value of ``rig:``)."""
+ENTRY_POINT_GROUP = "platcal.rigs"
+"""Entry-point group of rigs installed by other packages: ``name = "package.module"``, a module
+whose ``RIG`` is a :class:`Rig` (``[project.entry-points."platcal.rigs"]`` in its pyproject)."""
+
+
+def rig_modules() -> dict[str, str]:
+    """Every rig found: the subpackages of ``platcal.rigs`` (a scan, no list to edit) and the
+    entry points of :data:`ENTRY_POINT_GROUP`, name -> module. Found afresh at each call, so a rig
+    installed (or put on the path) after import is seen."""
+    found = {m.name: f"platcal.rigs.{m.name}" for m in pkgutil.iter_modules(_rigs_package.__path__)
+             if m.ispkg and not m.name.startswith("_")}
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        found.setdefault(ep.name, ep.value)
+    return dict(sorted(found.items(), key=lambda kv: (kv[1].startswith("platcal.") is False, kv[0])))
+
 
 Command = Callable[[object, argparse.Namespace], int]
+
+
+@dataclass(frozen=True)
+class Option:
+    """A command-line option a rig declares for one of its sub-commands: the ``flags`` (e.g.
+    ``("--scheme",)``) and the keyword arguments of :meth:`argparse.ArgumentParser.add_argument`
+    (``help`` says what it is for this rig). ``platcal <command> --config X --help`` lists the
+    options of X's rig; any other option is refused by the parser (exit 2)."""
+
+    flags: tuple[str, ...]
+    kwargs: Mapping[str, object] = field(default_factory=dict)
+
+
+def option(*flags: str, **kwargs) -> Option:
+    return Option(tuple(flags), dict(kwargs))
 
 
 @dataclass(frozen=True)
@@ -179,6 +210,11 @@ class Rig:
     """Optional capabilities by name (e.g. ``information`` for covariance-only analysis)."""
     montecarlo: MonteCarloHooks | None = None
     """The Monte Carlo hooks (optional; see the module docstring)."""
+    options: Mapping[str, tuple[Option, ...]] = field(default_factory=dict)
+    """The rig's own options per sub-command, beyond the common ones of :mod:`platcal.cli`."""
+    rules: str | None = None
+    """Path of the rig's own Snakemake rules file, when it ships one outside the project's
+    ``workflow/rules/<name>.smk``; a rig with Monte Carlo hooks needs none."""
 
 
 def rig_config(index: dict, name: str) -> dict:
@@ -188,10 +224,7 @@ def rig_config(index: dict, name: str) -> dict:
     entry = (index.get("rigs") or {}).get(name) if isinstance(index, dict) else None
     field_ = f"rigs.{name}"
     if isinstance(entry, str):
-        try:
-            raw = read_yaml(Path(entry).read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise InputError(field_, f"cannot read the rig's config {entry!r}: {exc.strerror}") from None
+        raw = read_config(entry, field_)
     elif isinstance(entry, dict):  # inline in the index: Snakemake's YAML 1.1 reader left '1e4' as text
         raw = normalise_numbers(copy.deepcopy(entry))
     else:
@@ -205,14 +238,16 @@ def rig_config(index: dict, name: str) -> dict:
 
 
 def rig_names() -> tuple[str, ...]:
-    return RIG_MODULES
+    """The names of every rig found (:func:`rig_modules`)."""
+    return tuple(rig_modules())
 
 
 def get_rig(name: str) -> Rig:
     """The registered rig ``name``; InputError (field ``rig``) naming the known rigs otherwise."""
-    if name not in RIG_MODULES:
-        raise InputError("rig", f"unknown rig {name!r}; use one of {list(RIG_MODULES)}")
-    return importlib.import_module(f"platcal.rigs.{name}").RIG
+    modules = rig_modules()
+    if name not in modules:
+        raise InputError("rig", f"unknown rig {name!r}; use one of {list(modules)}")
+    return importlib.import_module(modules[name]).RIG
 
 
 def rig_of(raw) -> Rig:
@@ -221,5 +256,5 @@ def rig_of(raw) -> Rig:
         raise InputError("(top level)", "a configuration is a YAML mapping")
     name = raw.get("rig", DEFAULT_RIG)
     if not isinstance(name, str):
-        raise InputError("rig", f"must be a rig name, one of {list(RIG_MODULES)}")
+        raise InputError("rig", f"must be a rig name, one of {list(rig_names())}")
     return get_rig(name)

@@ -27,6 +27,10 @@ from .io import atomic_write_text, read_yaml
 BETA_MARGIN_DEG = 1.0
 """Closest a position's beta may come to +-90 deg."""
 
+TABLE1_POSITIONS = ((45, 0, 167), (350, 0, 325), (209, 0, 182), (134, 0, 141), (106, 0, 338), (142, 0, 269))
+"""The optimal 6-position scheme of Xu & Zhang's Table 1 (docs/centrifuge-model.md §7), deg: the
+centrifuge's default scheme and a named scheme the 1 g test compares with (docs/multiposition-1g.md §11)."""
+
 @dataclass(frozen=True)
 class Scheme:
     """An ordered list of positions (deg) and the dwell time per position (s)."""

@@ -15,13 +15,7 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
-SNAKEFILE = """configfile: "config/config.yaml"
-include: "workflow/rules/common.smk"
-include: "workflow/rules/montecarlo.smk"
-include: "workflow/rules/lowprec_centrifuge.smk"
-rule all:
-    input: LOWPREC_CENTRIFUGE_TARGETS
-"""
+OTHERS = ("centrifuge", "multiposition", "sled")
 
 pytestmark = [pytest.mark.slow,
               pytest.mark.skipif(subprocess.run(SNAKEMAKE + ["--version"], capture_output=True).returncode != 0,
@@ -35,21 +29,16 @@ TINY_TEXT = "# the tiny study\n" + yaml.safe_dump(TINY)
 
 
 def setup(tmp_path: Path, rigs: bool = True, inline: bool = False) -> Path:
+    """A copy of the whole workflow whose index names this rig alone (path or inline) or no rig."""
     d = tmp_path / "wf"
-    (d / "workflow" / "rules").mkdir(parents=True)
-    (d / "workflow" / "scripts").mkdir()
-    (d / "config").mkdir()
-    for rules in ("common", "montecarlo", "lowprec_centrifuge"):
-        shutil.copy(ROOT / "workflow" / "rules" / f"{rules}.smk", d / "workflow" / "rules")
-    for s in [*(ROOT / "workflow" / "scripts").glob("lowprec_*.py"), ROOT / "workflow/scripts/montecarlo_cell.py",
-              ROOT / "workflow/scripts/collect.py"]:
-        shutil.copy(s, d / "workflow" / "scripts")
-    shutil.copytree(ROOT / "workflow" / "envs", d / "workflow" / "envs")
-    shutil.copytree(ROOT / "workflow" / "schemas", d / "workflow" / "schemas")
+    d.mkdir(parents=True)
+    shutil.copy(ROOT / "Snakefile", d)
+    shutil.copytree(ROOT / "workflow", d / "workflow")
+    shutil.copytree(ROOT / "config", d / "config")
     (d / "config" / "lp.yaml").write_text(TINY_TEXT)
-    index = {"rigs": {"lowprec_centrifuge": TINY if inline else "config/lp.yaml"}} if rigs else {"rigs": {"x": None}}
-    (d / "config" / "config.yaml").write_text(yaml.safe_dump(index))
-    (d / "Snakefile").write_text(SNAKEFILE)
+    entry = (TINY if inline else "config/lp.yaml") if rigs else None
+    (d / "config" / "config.yaml").write_text(yaml.safe_dump({"rigs": {**{r: None for r in OTHERS},
+                                                                        "lowprec_centrifuge": entry}}))
     return d
 
 
@@ -98,12 +87,22 @@ def done(tmp_path_factory):
     return d
 
 
+AFTER = {"claims": 1, "ledger": 1, "report_index": 1, "all": 1}
+"""The jobs after the rig's report: its ledger rows, the ledger, the index report."""
+
+
 def test_tiny_study_runs_and_reports(done):
     res = done / "results" / "lowprec_centrifuge"
     rep = (res / "report.md").read_text()
-    for s in ("Which of the paper's claims are reproduced", "Spec §11 checks", "figures/velocity_trace.png",
+    for s in ("The paper's claims", "| proposed_effect_velocity |", "Spec §11 checks", "figures/velocity_trace.png",
               "Table-1 analogue"):
         assert s in rep
+    ledger = pd.read_csv(res / "claims.csv")
+    assert set(ledger["verdict"]) <= {"reproduced", "not reproduced", "inconclusive"}
+    row = ledger.set_index("claim").loc["proposed_effect_velocity"]
+    # the verdict follows the numbers: the interval against the criterion (>= 75 %)
+    assert (row["verdict"] == "reproduced") == (row["ci_low"] >= 75)
+    assert (done / "results" / "claims.csv").exists()
     for f in ("effect_vs_imprecision", "velocity_trace", "windows_heading"):
         assert (res / "figures" / f"{f}.png").stat().st_size > 10_000
     cross = pd.read_csv(res / "tables" / "cross_validation.csv")
@@ -126,18 +125,18 @@ def test_editing_a_value_reruns_its_jobs_and_a_comment_nothing(done, tmp_path):
     assert jobs(dry(d)) == {}
     text = (d / "config" / "lp.yaml").read_text()
     edit(d, residuals__k0_ug=25)      # every cell (both methods, every scenario), the trace, the report
-    assert jobs(dry(d)) == {"montecarlo_cell": 6, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, "all": 1}
+    assert jobs(dry(d)) == {"montecarlo_cell": 6, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
     (d / "config" / "lp.yaml").write_text(text)
     edit(d, platforms__P1__kA_x=-41)
-    assert jobs(dry(d)) == {"montecarlo_cell": 6, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, "all": 1}
+    assert jobs(dry(d)) == {"montecarlo_cell": 6, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
     (d / "config" / "lp.yaml").write_text(text)
     # the default scenario's rate: default and the scenarios that keep the default rate (not perfect, worst)
     edit(d, centrifuge__rate_error=4e-4)
-    assert jobs(dry(d)) == {"montecarlo_cell": 2, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, "all": 1}
+    assert jobs(dry(d)) == {"montecarlo_cell": 2, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
     (d / "config" / "lp.yaml").write_text(text)
     edit(d, traditional__hold_s=31)   # the traditional cells, the trace, the report; no proposed cell
     out = dry(d)
-    assert jobs(out) == {"montecarlo_cell": 3, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, "all": 1}
+    assert jobs(out) == {"montecarlo_cell": 3, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
     cells = [o for o in re.findall(r"output: (\S+)", out) if "/runs/" in o]   # the cells' first outputs
     assert len(cells) == 3 and all("/traditional/" in o for o in cells)
 
@@ -163,3 +162,4 @@ def test_bad_rig_config_stops_before_jobs(tmp_path):
     r = smk(d, "--cores", "1")
     assert r.returncode != 0
     assert "centrifuge.arm_m" in r.stderr + r.stdout
+    assert not (d / "results").exists()

@@ -4,6 +4,7 @@ import pytest
 import yaml
 
 from platcal.errors import InputError
+from platcal.rig import rig_config
 from platcal.rigs.multiposition.study import WorkflowSetup
 
 
@@ -14,7 +15,7 @@ def test_unknown_scheme_name_is_refused_before_any_job(tmp_path, key):
     path = tmp_path / "mp.yaml"
     path.write_text(yaml.safe_dump(cfg))
     with pytest.raises(InputError) as exc:
-        WorkflowSetup({"rigs": {"multiposition": str(path)}})
+        WorkflowSetup(rig_config({"rigs": {"multiposition": str(path)}}, "multiposition"))
     assert exc.value.field == f"study.{key}[1]"
     assert "nope" in str(exc.value) and "GA" in str(exc.value)
 
@@ -23,12 +24,12 @@ def test_config_that_is_not_utf8_is_refused(tmp_path):
     path = tmp_path / "mp.yaml"
     path.write_bytes(b"rig: multiposition\n\xff\xfe\x00")
     with pytest.raises(InputError) as exc:
-        WorkflowSetup({"rigs": {"multiposition": str(path)}})
-    assert exc.value.field == "--config"
+        WorkflowSetup(rig_config({"rigs": {"multiposition": str(path)}}, "multiposition"))
+    assert exc.value.field == "rigs.multiposition"
 
 
 def test_default_config_passes():
-    assert WorkflowSetup({"rigs": {"multiposition": "config/multiposition.yaml"}}).active
+    assert WorkflowSetup(rig_config({"rigs": {"multiposition": "config/multiposition.yaml"}}, "multiposition")).active
 
 
 def test_skipped_updates_make_a_run_fail():

@@ -8,6 +8,7 @@ from platcal.rigs.sled.config import G, load_config
 from platcal.rigs.sled.errmodel import run_F, skew, stop_F
 from platcal.rigs.sled.filters import discretise
 from platcal.rigs.sled.ins import mechanise
+from platcal.rigs.sled.montecarlo import replicate_seeds
 from platcal.rigs.sled.observability import rank
 from platcal.rigs.sled.simulate import record_rotation, simulate
 from platcal.rigs.sled.trajectory import build_trajectory, true_imu
@@ -98,7 +99,7 @@ def test_true_specific_force_and_truth_run_stays_on_track():
 def test_record_axes_equal_the_spec_initial_attitude():
     """INS of R f̃, R ω̃ from I equals INS of f̃, ω̃ from Ĉ_0 = exp(−[φ0×]) (module simulate)."""
     cfg = load_config({"rig": "sled", "trajectory": {"static_after_s": 5}})
-    sb = simulate(cfg, [1, 2])
+    sb = simulate(cfg, replicate_seeds(cfg.raw, "default", [1, 2]))
     R = record_rotation(sb.truth.params.phi0)
     fm = np.einsum("sji,snj->sni", R, sb.f)
     wm = np.einsum("sji,snj->sni", R, sb.w)
@@ -110,14 +111,14 @@ def test_record_axes_equal_the_spec_initial_attitude():
 
 def test_seed_draws_do_not_depend_on_the_batch():
     cfg = load_config({"rig": "sled", "trajectory": {"static_after_s": 2}})
-    a = simulate(cfg, [4])
-    b = simulate(cfg, [2, 3, 4])
+    a = simulate(cfg, replicate_seeds(cfg.raw, "default", [4]))
+    b = simulate(cfg, replicate_seeds(cfg.raw, "default", [2, 3, 4]))
     assert np.array_equal(a.f[0], b.f[2]) and np.array_equal(a.truth.x_inst[0], b.truth.x_inst[2])
     assert not np.array_equal(b.f[0], b.f[1])
 
 
 def test_noise_free_record_has_no_errors():
     cfg = load_config({"rig": "sled", "trajectory": {"static_after_s": 2}})
-    sb = simulate(cfg, [0], noise_free=True)
+    sb = simulate(cfg, replicate_seeds(cfg.raw, "default", [0]), noise_free=True)
     f, w = true_imu(sb.traj, cfg.omega_ie)
     assert np.array_equal(sb.f[0], f) and np.array_equal(sb.truth.x_inst, sb.truth.x_true)

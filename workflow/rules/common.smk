@@ -1,6 +1,8 @@
 # The study index, each rig's validated config (field named before any job runs), code hashes,
 # and the input and param functions of the rules (pypsa-eur's config_provider pattern: each
 # rule's params hold exactly the config it depends on).
+import os
+
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
@@ -20,6 +22,11 @@ def checked(rig, fn, raw=None):
         return fn(rig_config(config, rig) if raw is None else raw)
     except InputError as exc:
         raise WorkflowError(f"invalid configuration: {exc.field}: {exc.message} (rigs.{rig})")
+
+
+# ---- every rig's config content, read once through the one config path (a path or an inline
+# mapping in the index give the same mapping); rules take their params from it, never a path
+RAW = {r: checked(r, lambda raw: raw) for r in RIGS}
 
 
 # ---- the rigs with Monte Carlo hooks: their checked configs, noise labels and code hashes
@@ -73,3 +80,12 @@ def mc_cell_params(w):
 
 def mc_threads(w):
     return MC_HOOKS[w.rig].settings(MC_CONFIG[w.rig]).threads
+
+
+def rig_rules(rig):
+    """The rules file of a rig: its own (Rig.rules), the project's workflow/rules/<rig>.smk, or none."""
+    path = get_rig(rig).rules or os.path.join(workflow.basedir, "workflow", "rules", f"{rig}.smk")
+    return path if os.path.exists(path) else None
+
+
+RIG_RULES = {r: rig_rules(r) for r in RIGS}

@@ -3,16 +3,13 @@
 # report under results/multiposition/. Its Monte Carlo (schemes x sigma_a x estimators x seeds) is
 # the generic stage of workflow/rules/montecarlo.smk (rules montecarlo_cell and collect; hooks
 # platcal.rigs.multiposition.montecarlo.MultipositionMonteCarlo), whose tidy tables the report reads.
-# The rig's config is config["rigs"]["multiposition"] (the centrifuge's config["rigs"]["centrifuge"]);
+# The rig's config is RAW["multiposition"] (common.smk; the centrifuge's RAW["centrifuge"]);
 # without it MULTIPOSITION_TARGETS is empty. Set-up: platcal.rigs.multiposition.study.WorkflowSetup.
-from platcal.errors import InputError as _MPInputError
 from platcal.rigs.multiposition.study import WorkflowSetup as _MPSetup
-from snakemake.exceptions import WorkflowError as _MPWorkflowError
 
-try:  # the rig config is validated (field named) before any job runs
-    MP_SETUP = _MPSetup(config)
-except _MPInputError as exc:
-    raise _MPWorkflowError(f"invalid multiposition config: {exc.field}: {exc.message}")
+# the rig config (path or inline, RAW of common.smk) is validated, field named, before any job runs
+MP_SETUP = (checked("multiposition", lambda raw: _MPSetup(raw, centrifuge="centrifuge" in RAW))
+            if "multiposition" in RAW else _MPSetup(None))
 MULTIPOSITION_TARGETS = MP_SETUP.targets()
 
 
@@ -21,7 +18,7 @@ rule multiposition_kernels:
         "results/multiposition/kernels.json",
     priority: 20  # every Monte Carlo cell waits for it (MultipositionMonteCarlo.requires)
     params:
-        config=MP_SETUP.config,
+        config=MP_SETUP.rule_config("kernels"),
         code=MP_SETUP.compute_code,
     conda:
         "../envs/platcal.yaml"
@@ -35,7 +32,7 @@ rule multiposition_lie_cache:
     output:
         "results/multiposition/lie_cache.json",
     params:
-        config=MP_SETUP.config,
+        config=MP_SETUP.rule_config("lie_cache"),
         code=MP_SETUP.code,
     conda:
         "../envs/platcal.yaml"
@@ -52,7 +49,7 @@ rule multiposition_observability:
     output:
         MP_SETUP.observability(),
     params:
-        config=MP_SETUP.config,
+        config=MP_SETUP.rule_config("observability"),
         code=MP_SETUP.code,
         schemes=MP_SETUP.study["rank_schemes"],
         outdirs=[f"results/multiposition/observability/{s}" for s in MP_SETUP.study["rank_schemes"]],
@@ -73,7 +70,7 @@ rule multiposition_design:
         compare="results/multiposition/design/compare.csv",
     priority: 10  # the GA scheme's Monte Carlo cells wait for it: start it first
     params:
-        config=MP_SETUP.config,
+        config=MP_SETUP.rule_config("design"),
         code=MP_SETUP.code,
     conda:
         "../envs/platcal.yaml"
@@ -92,7 +89,7 @@ rule multiposition_extension:
         sigma="results/multiposition/extension/sigma.csv",
         spread="results/multiposition/extension/spread.csv",
     params:
-        config=MP_SETUP.config,
+        config=MP_SETUP.rule_config("extension"),
         code=MP_SETUP.code,
     conda:
         "../envs/platcal.yaml"
@@ -106,14 +103,13 @@ rule multiposition_centrifuge_table1:
     output:
         "results/multiposition/centrifuge_table1/observability.json",
     params:
-        config=MP_SETUP.centrifuge,
+        config=lambda w: {k: v for k, v in RAW["centrifuge"].items() if k != "study"},
     conda:
         "../envs/platcal.yaml"
     log:
         "results/multiposition/logs/centrifuge_table1.log",
-    shell:
-        "platcal observability --config {params.config} --scheme table1 "
-        "--out results/multiposition/centrifuge_table1 > {log} 2>&1"
+    script:
+        "../scripts/observability_of_config.py"
 
 
 rule multiposition_report:

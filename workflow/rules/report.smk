@@ -1,14 +1,53 @@
-# results/report.md: the index of the study, one section per rig linking its report.
+# The claims ledger (every paper claim computed from the study, platcal.study.claims) and
+# results/report.md, the index of the study: it opens on the ledger of every rig, then one
+# section per rig linking its report.
 
 
 INDEX_REPORT = "results/report.md"
+LEDGER = expand("results/claims.{ext}", ext=["csv", "md", "html"])
+
+
+rule claims:
+    input:
+        lambda w: RIG_TARGETS[w.ledger_rig],
+    output:
+        expand("results/{{ledger_rig}}/claims.{ext}", ext=["csv", "md", "html"]),
+    wildcard_constraints:
+        ledger_rig="|".join(RIGS) or "(?!)",
+    params:
+        config=lambda w: MC_CONFIG.get(w.ledger_rig, RAW.get(w.ledger_rig)),  # checked where the rig checks
+        code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/{ledger_rig}/logs/claims.log",
+    script:
+        "../scripts/claims.py"
+
+
+rule ledger:
+    input:
+        expand("results/{rig}/claims.csv", rig=RIGS),
+    output:
+        LEDGER[0],
+        LEDGER[1],
+        report(LEDGER[2], caption="../report/ledger.rst", category="0. Claims ledger"),
+    params:
+        code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/logs/ledger.log",
+    script:
+        "../scripts/ledger.py"
 
 
 rule report_index:
     input:
-        [f"results/{r}/report.md" for r in RIGS],
+        reports=[f"results/{r}/report.md" for r in RIGS],
+        ledger=LEDGER[0],
     output:
-        report(INDEX_REPORT, caption="../report/index.rst", category="Study"),
+        report(INDEX_REPORT, caption="../report/index.rst", category="0. Claims ledger"),
     params:
         rigs=RIGS,
         code=CODE_ALL,
@@ -18,3 +57,24 @@ rule report_index:
         "results/logs/report_index.log",
     script:
         "../scripts/report_index.py"
+
+
+rule generic_report:
+    """The report of a rig without rules of its own, from its Monte Carlo tidy tables."""
+    input:
+        coef="results/{generic_rig}/montecarlo/coef.parquet",
+        runs="results/{generic_rig}/montecarlo/runs.parquet",
+    output:
+        "results/{generic_rig}/report.md",
+        expand("results/{{generic_rig}}/tables/summary.{ext}", ext=["csv", "md", "html"]),
+        "results/{generic_rig}/figures/nees.png",
+    wildcard_constraints:
+        generic_rig="|".join(r for r in RIGS if not RIG_RULES[r]) or "(?!)",
+    params:
+        code=CODE_ALL,
+    conda:
+        "../envs/platcal.yaml"
+    log:
+        "results/{generic_rig}/logs/generic_report.log",
+    script:
+        "../scripts/generic_report.py"

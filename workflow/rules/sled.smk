@@ -1,28 +1,18 @@
 # Rig 3, the rocket-sled one-dimensional motion constraint (docs/rocket-sled.md; issue 11).
-# Reads its config from config["rigs"]["sled"]; defines SLED_TARGETS (results/sled/..., ending
-# with results/sled/report.md), or an empty list when the key is absent.
-# One job per study case (6- vs 7-state, realtime vs post, misalignment 0, paper tuning), one
-# for the rank table, one for the summary (Table-1 analogue, checks, figures, report.md).
+# Its config is config["rigs"]["sled"] (a path or an inline mapping), checked once in common.smk
+# (MC_CONFIG["sled"]); defines SLED_TARGETS (results/sled/..., ending with results/sled/report.md),
+# or an empty list when the rig is not in the index.
+# The cases' replicates run as generic Monte Carlo cells (montecarlo.smk; hooks in
+# platcal.rigs.sled.montecarlo) collected into results/sled/montecarlo/{coef,runs}.parquet. Here:
+# the rank table, each case's replicate 0 as time series for the figures, and the summary
+# (Table-1 analogue, checks, figures, report.md). Each rule's params are the config it reads.
 
-from snakemake.exceptions import WorkflowError as _SledWorkflowError
-
-from platcal.errors import InputError as _SledInputError
-from platcal.cli import read_config as _sled_read_config
-from platcal.rigs.sled.config import load_config as _sled_load_config
-from platcal.rigs.sled.study import case_config as _sled_case_config
+from platcal.rigs.sled.montecarlo import case_params as _sled_case_params
 from platcal.study.montecarlo import package_code_hash as _sled_code_hash
 
 SLED_TARGETS = []
-_SLED_CFG_PATH = config.get("rigs", {}).get("sled")
-if _SLED_CFG_PATH:
-    try:
-        SLED_RAW = _sled_read_config(_SLED_CFG_PATH)   # UTF-8 YAML, else InputError naming the file
-        _SLED_STUDY = _sled_load_config(SLED_RAW).study
-        for _sled_case in _SLED_STUDY["cases"]:   # every case's config (base + overrides) before any job
-            _sled_case_config(SLED_RAW, _sled_case)
-    except _SledInputError as exc:
-        raise _SledWorkflowError(f"invalid configuration: {_SLED_CFG_PATH}: {exc.field}: {exc.message}")
-    SLED_CASES = list(_SLED_STUDY["cases"])
+if "sled" in MC_CONFIG:
+    SLED_CASES = MC_HOOKS["sled"].cases(MC_CONFIG["sled"])
     SLED_CODE = _sled_code_hash("platcal.rigs.sled")
     SLED_TARGETS = [
         "results/sled/table1.md",
@@ -34,23 +24,20 @@ if _SLED_CFG_PATH:
         "results/sled/report.md",
     ]
 
-    rule sled_case:
+    rule sled_series:
         output:
-            metrics="results/sled/cases/{case}/metrics.csv",
-            series="results/sled/cases/{case}/series.csv",
+            "results/sled/series/{case}.csv",
         params:
-            raw=SLED_RAW,
-            seeds=_SLED_STUDY["seeds"],
+            case=lambda w: _sled_case_params(MC_CONFIG["sled"], w.case),
             code=SLED_CODE,
         wildcard_constraints:
             case="|".join(SLED_CASES),
-        threads: 1
         conda:
             "../envs/platcal.yaml"
         log:
-            "results/logs/sled/case_{case}.log",
+            "results/sled/logs/series_{case}.log",
         script:
-            "../scripts/sled_case.py"
+            "../scripts/sled_series.py"
 
     rule sled_observability:
         output:
@@ -58,19 +45,20 @@ if _SLED_CFG_PATH:
             "results/sled/rank_table.md",
             "results/sled/rank_table.html",
         params:
-            raw=SLED_RAW,
+            # the rank table reads the site, the trajectory, the IMU rate and the filter period
+            cfg=config_provider("sled", "rig", "site", "trajectory", "imu", "filter"),
             code=SLED_CODE,
         conda:
             "../envs/platcal.yaml"
         log:
-            "results/logs/sled/observability.log",
+            "results/sled/logs/observability.log",
         script:
             "../scripts/sled_observability.py"
 
     rule sled_summary:
         input:
-            metrics=expand("results/sled/cases/{case}/metrics.csv", case=SLED_CASES),
-            series=expand("results/sled/cases/{case}/series.csv", case=SLED_CASES),
+            runs="results/sled/montecarlo/runs.parquet",
+            series=expand("results/sled/series/{case}.csv", case=SLED_CASES),
             ranks="results/sled/rank_table.csv",
         output:
             "results/sled/table1.md",
@@ -80,12 +68,12 @@ if _SLED_CFG_PATH:
             report("results/sled/figures/attitude.png", category="Rig 3: sled"),
             report="results/sled/report.md",
         params:
-            raw=SLED_RAW,
-            cases=SLED_CASES,
+            # the report prints the whole config
+            cfg=lambda w: MC_CONFIG["sled"],
             code=SLED_CODE,
         conda:
             "../envs/platcal.yaml"
         log:
-            "results/logs/sled/summary.log",
+            "results/sled/logs/summary.log",
         script:
             "../scripts/sled_summary.py"

@@ -8,7 +8,7 @@ from platcal.rigs.multiposition.study import load
 log = job_logger(snakemake.log[0])  # noqa: F821
 cfg = load(snakemake.params.config)  # noqa: F821
 for scheme, out in zip(snakemake.params.schemes, snakemake.params.outdirs):  # noqa: F821
-    args = SimpleNamespace(config=snakemake.params.config, out=out, scheme=scheme, arw=None, rate=None,  # noqa: F821
+    args = SimpleNamespace(config=None, out=out, scheme=scheme, arw=None, rate=None,  # noqa: F821
                            doo=False, replicates=None)
     cmd_observability(cfg, args)
     log.info(f"{scheme} -> {out}")

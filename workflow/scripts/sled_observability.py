@@ -8,7 +8,7 @@ from platcal.study.tables import write_table
 
 sm = snakemake  # noqa: F821
 log = job_logger(sm.log[0], "platcal.sled")
-tab = rank_table(load_config(dict(sm.params.raw)))
+tab = rank_table(load_config(dict(sm.params.cfg)))
 write_table(tab, Path(sm.output[0]).with_suffix(""), "Sled observability ranks (docs/rocket-sled.md §8)",
             note="states scaled 1 m/s, 1 m, 1 mrad; rank = #(sigma_i/sigma_1 > 1e-9); f = [a_x, 0, g] per phase")
 log.info(f"sled rank table: {len(tab)} rows -> {sm.output[0]}")

@@ -6,7 +6,7 @@ from platcal.rigs.sled.study import summarise
 
 sm = snakemake  # noqa: F821
 log = job_logger(sm.log[0], "platcal.sled")
-cases = list(sm.params.cases)
-summarise(dict(zip(cases, sm.input.metrics)), dict(zip(cases, sm.input.series)), sm.input.ranks,
-          Path(sm.output.report).parent, dict(sm.params.raw))
+cfg = dict(sm.params.cfg)
+cases = list(cfg["study"]["cases"])
+summarise(sm.input.runs, dict(zip(cases, sm.input.series)), sm.input.ranks, Path(sm.output.report).parent, cfg)
 log.info(f"sled summary of {len(cases)} cases -> {sm.output.report}")

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import importlib.util
 import json
 import os
 import time
@@ -237,7 +238,11 @@ def _package_root() -> Path:
 
 
 def _module_file(module: str) -> Path | None:
-    """The source file of a dotted ``platcal`` module name (None when it is not a module)."""
+    """The source file of a dotted module name: a ``platcal`` module, or the module of a rig
+    installed by another package (None when it is not a module)."""
+    if module.split(".")[0] != "platcal":
+        spec = importlib.util.find_spec(module) if module else None
+        return Path(spec.origin) if spec is not None and spec.origin and spec.origin.endswith(".py") else None
     path = _package_root().parent.joinpath(*module.split("."))
     for f in (path.with_suffix(".py"), path / "__init__.py"):
         if f.is_file():
@@ -281,16 +286,21 @@ def code_hash(modules=None, data=()) -> str:
         files = [p for p in root.rglob("*") if p.suffix in (".py", ".csv", ".yaml") and p.is_file()]
     else:
         files = [_module_file(m) for m in modules] + [root / d for d in data]
+    def key(p: Path) -> str:  # package-relative, or the file's own path for a rig of another package
+        return p.relative_to(root).as_posix() if p.is_relative_to(root) else p.as_posix()
+
     h = hashlib.sha256()
-    for p in sorted(set(files), key=lambda p: p.relative_to(root).as_posix()):
-        h.update(p.relative_to(root).as_posix().encode() + b"\0" + p.read_bytes() + b"\0")
+    for p in sorted({f for f in files if f is not None}, key=key):
+        h.update(key(p).encode() + b"\0" + p.read_bytes() + b"\0")
     return h.hexdigest()[:16]
 
 
 def _package_data(package: str) -> list[str]:
     """Package-relative paths of a subpackage's ``data/*.csv|yaml`` (config schema, tables)."""
-    pkg = _module_file(package).parent
-    return [p.relative_to(_package_root()).as_posix() for p in sorted((pkg / "data").glob("*"))
+    f = _module_file(package)
+    if f is None or not f.is_relative_to(_package_root()):
+        return []
+    return [p.relative_to(_package_root()).as_posix() for p in sorted((f.parent / "data").glob("*"))
             if p.suffix in (".csv", ".yaml")]
 
 
@@ -299,7 +309,8 @@ def compute_code_hash(rig: Rig) -> str:
     module and of this runner, and the rig's package data (config schema, tables). Edits to its
     figures, reports or design code leave the cells alone."""
     hooks_module = type(rig.montecarlo).__module__
-    return code_hash(module_closure([hooks_module, __name__]), _package_data(hooks_module.rpartition(".")[0]))
+    return code_hash(module_closure([hooks_module, __name__]),
+                     _package_data(hooks_module.rpartition(".")[0] or hooks_module))
 
 
 def package_code_hash(package: str) -> str:

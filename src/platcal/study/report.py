@@ -10,8 +10,14 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import pandas as pd
+
 from ..io import atomic_write_text
 from ..rig import get_rig
+from .claims import ledger_markdown, ledger_note
+from .plots import nees_histogram
+from .stats import summary
+from .tables import frame_markdown, write_table
 
 
 def _sections(md: Path) -> tuple[str, list[str]]:
@@ -31,12 +37,20 @@ def _anchor(heading: str) -> str:
     return keep.replace(" ", "-")
 
 
-def write_index(rigs: list[str], reports: list, out_path) -> None:
-    """``results/report.md``: for each rig, its title, spec and a link to each section of its report."""
+def write_index(rigs: list[str], reports: list, out_path, ledger=None) -> None:
+    """``results/report.md``: the claims ledger (``ledger``, the CSV of every rig's claims) first,
+    then for each rig its title, spec and a link to each section of its report."""
     out = Path(out_path)
     lines = ["# platcal: identification studies, one section per test rig", "",
              "Written by the Snakemake workflow (`snakemake --cores 2`). Each rig's report holds its "
              "tables inline and links its figures; every number comes from this run's result files.", ""]
+    if ledger is not None:
+        rows = pd.read_csv(ledger)
+        lines += ["## The claims ledger", "", ledger_note(rows), ""]
+        for name in rigs:
+            part = rows[rows["rig"] == name]
+            if len(part):
+                lines += [f"### {name}", "", ledger_markdown(part)]
     for name, md in zip(rigs, reports):
         rig = get_rig(name)
         rel = os.path.relpath(md, out.parent)
@@ -44,3 +58,20 @@ def write_index(rigs: list[str], reports: list, out_path) -> None:
         lines += [f"## {name}: {rig.title}", "", f"Spec: `docs/{rig.spec}`. Report: [{title or rel}]({rel})", ""]
         lines += [f"- [{s}]({rel}#{_anchor(s)})" for s in sections] + [""]
     atomic_write_text(out, "\n".join(lines))
+
+
+def write_generic_report(rig_name: str, coef_path, runs_path, out_dir) -> None:
+    """The report of a rig that has no report of its own: from its Monte Carlo tidy tables, the
+    summary per cell (:func:`platcal.study.stats.summary`: largest and median RMS relative error
+    per group, NEES) as CSV/Markdown/HTML, the NEES histogram and ``report.md``."""
+    rig = get_rig(rig_name)
+    out = Path(out_dir)
+    coef, runs = pd.read_parquet(coef_path), pd.read_parquet(runs_path)
+    summ = summary(coef, runs)
+    write_table(summ, out / "tables" / "summary", f"{rig.name}: Monte Carlo summary",
+                "per case x noise level x estimator: RMS relative error (%) per group, NEES", {})
+    nees_histogram(runs, out / "figures" / "nees.png")
+    lines = [f"# {rig.name}: {rig.title}", "", f"Spec: `docs/{rig.spec}`. {len(runs)} Monte Carlo runs "
+             f"({runs['replicate'].nunique()} replicates per cell).", "", "## Monte Carlo summary", "",
+             frame_markdown(summ), "", "## Figures", "", "![NEES histogram](figures/nees.png)", ""]
+    atomic_write_text(out / "report.md", "\n".join(lines))

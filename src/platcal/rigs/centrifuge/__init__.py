@@ -2,7 +2,7 @@
 (``docs/centrifuge-model.md``, seed 000; Xu & Zhang 2017).
 
 Modules: :mod:`.base` (the centrifuge's specific force), :mod:`.catalogue` (Table 2),
-:mod:`.config` (schema and typed study), :mod:`.scheme`, :mod:`.record`, :mod:`.simulate`,
+:mod:`.config` (schema and typed study), :mod:`.record`, :mod:`.simulate`,
 :mod:`.ekf` (EKF and iterated EKF), :mod:`.estimators` (the registry of estimator kinds), :mod:`.identify` (the one simulate -> identify path), :mod:`.observability`
 (covariance-only kernel), :mod:`.design` (GA), :mod:`.design_study`, :mod:`.study` (its Monte
 Carlo hooks), :mod:`.tables` and :mod:`.report` (Table 2, figures, report section),
@@ -10,12 +10,13 @@ Carlo hooks), :mod:`.tables` and :mod:`.report` (Table 2, figures, report sectio
 """
 
 from ...rig import Rig
+from . import claims
 from .catalogue import load_catalogue
-from .commands import COMMANDS
+from .commands import COMMANDS, OPTIONS
 from .config import study_from_config
 from .estimators import kind_names
 from .study import CentrifugeMonteCarlo
 
 RIG = Rig(name="centrifuge", title="precision centrifuge, 48-state EKF", spec="centrifuge-model.md",
           load_config=study_from_config, commands=COMMANDS, catalogue=lambda: load_catalogue().frame(),
-          estimators=kind_names(), montecarlo=CentrifugeMonteCarlo())
+          extras={"claims": claims}, estimators=kind_names(), montecarlo=CentrifugeMonteCarlo(), options=OPTIONS)

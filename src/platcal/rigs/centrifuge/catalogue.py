@@ -1,7 +1,7 @@
 """The centrifuge's coefficient catalogue: Table 2 of Xu & Zhang (2017) (docs/centrifuge-model.md §7).
 
-The names, units and groups of the 48 coefficients are those of the instrument error model
-(:mod:`platcal.model.instruments`); this module adds the paper's truth and results, shipped in
+The names, units, groups and truths of the 45 coefficients are the shared platform model's
+(:mod:`platcal.model.platform`); this module adds the paper's results, shipped in
 ``platcal/rigs/centrifuge/data/table2.csv``.
 """
 
@@ -13,7 +13,7 @@ from importlib import resources
 import numpy as np
 import pandas as pd
 
-from ...model.instruments import INDEX, NAMES, N_FULL, N_IDENTIFIED, group_of
+from ...model.platform import default_platform
 
 
 @dataclass(frozen=True)
@@ -48,16 +48,18 @@ class Catalogue:
 
 
 def load_catalogue() -> Catalogue:
-    """Read Table 2 of the paper (shipped in ``platcal/rigs/centrifuge/data/table2.csv``) into a Catalogue."""
+    """The platform model (:func:`platcal.model.platform.default_platform`: names, units, groups,
+    truth) with the paper's Table 2 results (``platcal/rigs/centrifuge/data/table2.csv``)."""
+    platform = default_platform()
     with resources.files(__package__).joinpath("data/table2.csv").open() as fh:
         df = pd.read_csv(fh)
-    if tuple(df["name"]) != NAMES:
+    if tuple(df["name"]) != platform.names:
         raise RuntimeError("platcal/rigs/centrifuge/data/table2.csv is not in Table 2's order")
     return Catalogue(
-        names=NAMES,
-        units=tuple(df["unit"]),
-        groups=tuple(group_of(n) for n in NAMES),
-        truth=df["truth"].to_numpy(float),
+        names=platform.names,
+        units=platform.units,
+        groups=platform.groups,
+        truth=platform.truth,
         paper_estimate=df["paper_estimate"].to_numpy(float),
         paper_error=df["paper_error"].to_numpy(float),
         paper_rel_err_pct=df["paper_rel_err_pct"].to_numpy(float),
@@ -69,10 +71,4 @@ def full_truth(overrides: dict[str, float] | None = None) -> np.ndarray:
 
     Raises ``KeyError`` naming an unknown coefficient.
     """
-    c = np.zeros(N_FULL)
-    c[:N_IDENTIFIED] = load_catalogue().truth
-    for name, value in (overrides or {}).items():
-        if name not in INDEX:
-            raise KeyError(name)
-        c[INDEX[name]] = float(value)
-    return c
+    return default_platform().full_truth(overrides)

@@ -13,6 +13,7 @@ import sys
 import time
 
 from ...errors import InputError
+from ...rig import option
 from ...io import check_writable
 from ...scheme import resolve_scheme
 from ...study.montecarlo import cell_job, replicate_seed
@@ -26,18 +27,7 @@ from .record import read_record, sim_to_frame, write_record
 from .report import report_from_results
 from .simulate import simulate
 
-UNUSED = {"simulate": ("platform", "run"), "identify": ("method",)}
-"""Options of the shared parser that the centrifuge does not use (refused when given)."""
-
-
-def _refuse_unused(args: argparse.Namespace) -> None:
-    for opt in UNUSED.get(args.command, ()):
-        if getattr(args, opt, None) not in (None, False):
-            raise InputError(f"--{opt}", f"rig centrifuge has no use for --{opt}; drop it")
-
-
 def _scheme(study: Study, args: argparse.Namespace):
-    _refuse_unused(args)
     if not args.scheme:
         raise InputError("--scheme", "required for rig centrifuge: a scheme name of the config or a scheme YAML file")
     return resolve_scheme(args.scheme, study.schemes)
@@ -180,3 +170,31 @@ def report_command(study: Study, args: argparse.Namespace) -> int:
 
 COMMANDS = {"simulate": simulate_command, "identify": identify_command, "observability": observability_command,
             "design": design_command, "montecarlo": montecarlo_command, "report": report_command}
+
+SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
+OPTIONS = {
+    "simulate": (SCHEME,),
+    "identify": (SCHEME, option("--estimator", default=None,
+                                help="estimator kind or study.estimators name (default: filter.estimator)")),
+    "observability": (SCHEME,
+                      option("--arw", type=float, default=None, help="override the filter's ARW, deg/sqrt(h)"),
+                      option("--rate", type=float, default=None, help="override the centrifuge rate, deg/s (0: static 1 g)"),
+                      option("--doo", action="store_true", help="51-state filter with DOO_x/y/z as states"),
+                      option("--replicates", type=int, default=0,
+                             help="also run this many Monte Carlo replicates to compare with the CRB")),
+    "design": (option("--criterion", choices=("J", "A", "D", "maxrel"), default=None, help="override design.criterion"),
+               option("--positions", type=int, default=None, help="override design.positions"),
+               option("--population", type=int, default=None, help="override design.population"),
+               option("--generations", type=int, default=None, help="override design.generations"),
+               option("--seed", type=int, default=None, help="override design.seed"),
+               option("--name", default=None, help="override design.name"),
+               option("--preset", default=None, help="a named design of the workflow (e.g. ga_A, ga_J_n8, ga_doo)"),
+               option("-v", "--verbose", action="store_true", help="log every generation")),
+    "montecarlo": (option("--scheme", required=True, help="scheme name (config, classical, random_<i>, or generated)"),
+                   option("--scheme-file", default=None, help="scheme file of a generated scheme"),
+                   option("--noise", "--sigma-a", dest="noise", type=float, default=None,
+                          help="sigma_a, ug per sample (default: the config's noise.sigma_a_ug)"),
+                   option("--estimator", required=True, help="a key of study.estimators")),
+}
+"""The centrifuge's own options (``--seed`` of simulate: replicate N of the study's Monte Carlo cell
+for the scheme and the config's noise, default 0)."""

@@ -11,13 +11,11 @@ from __future__ import annotations
 import copy
 import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ...errors import InputError
-from ...io import read_yaml
+from ...io import read_config
 from ...model.instruments import INDEX, term_of
 from ...schema import load_schema, validate
 from .base import Centrifuge
@@ -152,13 +150,5 @@ def study_from_config(cfg: dict) -> Study:
 
 def load_config(path: str | os.PathLike) -> Study:
     """Read, validate and type a YAML configuration file."""
-    path = Path(path)
-    try:
-        raw = read_yaml(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(str(path), f"cannot read the config file: {exc.strerror}") from exc
-    except UnicodeDecodeError as exc:
-        raise InputError(str(path), f"is not UTF-8 text (byte {exc.start}); a config is a UTF-8 YAML file") from None
-    except yaml.YAMLError as exc:
-        raise InputError(str(path), f"is not valid YAML: {exc}") from exc
+    raw = read_config(path, str(path))
     return study_from_config(raw)

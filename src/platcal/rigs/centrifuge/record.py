@@ -15,15 +15,12 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
-from ...io import atomic_to_csv, atomic_to_parquet
-from ...records import (UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
-                        nearest_samples, read_table)
+from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
+                        nearest_samples, read_table, write_record)  # noqa: F401 (write_record re-exported)
 from ...records import num as _num
 from ...model.frames import DEG
 from ...scheme import Scheme
 
-LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay", "Az")
-TRUTH_COLUMNS = ("alpha", "beta", "gamma")
 UNIT_FACTOR_G = 3.0
 """A record whose median specific-force magnitude is this many times larger or smaller than the
 centrifuge's is refused: its accelerations are in another unit (m/s^2 gives 9.8, mg 1000)."""
@@ -57,14 +54,6 @@ def sim_to_frame(sim, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
         "beta": sim.angles[replicate, :, :, 1].ravel() / DEG,
         "gamma": sim.angles[replicate, :, :, 2].ravel() / DEG,
     })
-
-
-def write_record(df: pd.DataFrame, path: str | os.PathLike) -> None:
-    """Write a test record atomically: ``.parquet`` as Parquet, anything else as CSV."""
-    if str(path).endswith(".parquet"):
-        atomic_to_parquet(df, path)
-    else:
-        atomic_to_csv(df, path, float_format=None)
 
 
 def read_record(path: str | os.PathLike) -> pd.DataFrame:

@@ -14,7 +14,8 @@ import numpy as np
 import pandas as pd
 
 from ...rig import Rig
-from .commands import identify, simulate
+from . import claims
+from .commands import OPTIONS, identify, simulate
 from .config import COEFFS, load_config
 from .montecarlo import LowprecMonteCarlo
 
@@ -29,4 +30,5 @@ RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
           spec="lowprec-centrifuge.md", load_config=load_config,
           commands={"simulate": simulate, "identify": identify}, catalogue=catalogue,
-          estimators=("proposed", "traditional"), montecarlo=LowprecMonteCarlo())
+          extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS,
+          montecarlo=LowprecMonteCarlo())

@@ -16,6 +16,7 @@ import numpy as np
 
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
+from ...rig import option
 from ...io import atomic_files, check_writable, json_text
 from ...study.montecarlo import replicate_seed
 from .config import COEFFS, Study
@@ -29,15 +30,7 @@ from .truth import simulate_batch
 METHODS = ("proposed", "traditional")
 
 
-def _refuse(args, names) -> None:
-    for name in names:
-        val = getattr(args, name.lstrip("-").replace("-", "_"), None)
-        if val not in (None, False):
-            raise InputError(name, "not used by rig lowprec_centrifuge; remove it")
-
-
 def simulate(study: Study, args) -> int:
-    _refuse(args, ("--scheme",))
     if args.platform is None:
         raise InputError("--platform", f"required: one of {study.platform_names()}")
     if args.platform not in study.platforms:
@@ -64,7 +57,6 @@ def simulate(study: Study, args) -> int:
 
 
 def identify(study: Study, args) -> int:
-    _refuse(args, ("--scheme", "--estimator"))
     method = args.method or "proposed"
     if method not in METHODS:
         raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
@@ -110,3 +102,10 @@ def run_problems(x: np.ndarray, P: np.ndarray | None) -> list[str]:
     """Why an identification cannot be trusted (empty if it can): non-finite estimates, a
     covariance (proposed filter) that is not finite or not positive definite."""
     return estimate_problems(x, P)
+
+OPTIONS = {
+    "simulate": (option("--platform", default=None, help="platform name of the config (required)"),
+                 option("--run", default=None, help="run name of the platform, or traditional (required)")),
+    "identify": (option("--method", default=None, help="proposed (default) or traditional"),),
+}
+"""The rig's own options (``--seed`` of simulate: seed N of the study)."""

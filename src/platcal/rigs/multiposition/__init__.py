@@ -8,7 +8,8 @@ sensors; a Lie-derivative rank test and a covariance check that accept or refuse
 import pandas as pd
 
 from ...rig import Rig
-from .commands import COMMANDS
+from . import claims
+from .commands import COMMANDS, OPTIONS
 from .config import load_config
 from .estimators import ESTIMATORS
 from .filter import position_information
@@ -25,5 +26,5 @@ def catalogue() -> pd.DataFrame:
 
 RIG = Rig(name="multiposition", title="1 g multi-position self-test, 27-state EKF with gimbal angle sensors",
           spec="multiposition-1g.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
-          estimators=tuple(ESTIMATORS), extras={"information": position_information},
-          montecarlo=MultipositionMonteCarlo())
+          estimators=tuple(ESTIMATORS), extras={"information": position_information, "claims": claims},
+          montecarlo=MultipositionMonteCarlo(), options=OPTIONS)

@@ -20,6 +20,7 @@ import pandas as pd
 
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
+from ...rig import option
 from ...io import atomic_files, check_writable, json_text
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
@@ -29,16 +30,7 @@ from .record import read_record, to_frame, write_record
 
 
 
-def _refuse(args, names):
-    """Refuse options this rig has no use for (given, i.e. not None / False / 0)."""
-    for n in names:
-        v = getattr(args, n, None)
-        if v not in (None, False, 0):
-            raise InputError(f"--{n.replace('_', '-')}", "not used by rig multiposition; leave it out")
-
-
 def cmd_simulate(cfg, args) -> int:
-    _refuse(args, ("platform", "run"))
     scheme = cfg.scheme(args.scheme)
     if args.seed is not None and args.seed < 0:
         raise InputError("--seed", "must be a whole number >= 0")
@@ -78,7 +70,6 @@ def run_problems(est: np.ndarray, P: np.ndarray, nis: float, failed_updates: int
 
 
 def cmd_identify(cfg, args) -> int:
-    _refuse(args, ("method",))
     choice = cfg.filter_choice() if args.estimator is None else variant_choice(cfg, args.estimator)
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
@@ -126,7 +117,6 @@ def cmd_identify(cfg, args) -> int:
 
 
 def cmd_observability(cfg, args) -> int:
-    _refuse(args, ("arw", "rate", "doo", "replicates"))
     scheme = cfg.scheme(args.scheme)
     check_writable(args.out, "--out", folder=True)
     t0 = time.perf_counter()
@@ -145,3 +135,10 @@ def cmd_observability(cfg, args) -> int:
 
 
 COMMANDS = {"simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+
+SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "
+                                              "default: the config's default_scheme")
+OPTIONS = {"simulate": (SCHEME,), "observability": (SCHEME,),
+           "identify": (SCHEME, option("--estimator", default=None,
+                                       help="ekf or iekf, or a study.estimators name (ekf1, ekf2, iekf)"))}
+"""The rig's own options (``--seed`` of simulate: replicate N of the study's Monte Carlo cell)."""

@@ -14,8 +14,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...schema import load_schema, validate
-from ...scheme import Scheme
-from ..centrifuge.scheme import TABLE1_POSITIONS
+from ...scheme import TABLE1_POSITIONS, Scheme
 from .estimators import check_estimator, choice_from_filter
 from .model import Site, coef_names, p0_vector, truth_vector
 

@@ -27,8 +27,8 @@ import numpy as np
 from numba import njit
 
 from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into
-from ...model.instruments import GYRO_AXES, INDEX
-from ..centrifuge.catalogue import load_catalogue
+from ...model.instruments import GYRO_AXES
+from ...model.platform import default_platform
 
 AXES = ("x", "y", "z")
 BASE_GYRO = ("DF", "DI", "DS", "DO")
@@ -118,14 +118,14 @@ def layout_index(ext: int) -> np.ndarray:
 
 def truth_vector(ext: int = 0, overrides: dict | None = None) -> np.ndarray:
     """True coefficients (§10; §13 extension from CM Table 2, DOO = 0), then ``overrides``."""
-    cat = load_catalogue()
+    platform = default_platform()
     vals = {}
     for t, v in BASE_TRUTH.items():
         for a, x in zip(AXES, v):
             vals[name_of(t, a)] = x
     for t in EXT_GYRO + EXT_ACCEL:
         for a in AXES:
-            vals[name_of(t, a)] = float(cat.truth[INDEX[f"{t}_{a}"]])
+            vals[name_of(t, a)] = float(platform.truth[platform.index(f"{t}_{a}")])
     for a in AXES:
         vals[f"DOO_{a}"] = 0.0
     names = coef_names(ext)

@@ -1,6 +1,6 @@
 """Test records of the multi-position rig (docs/multiposition-1g.md §12).
 
-The centrifuge's record (docs/centrifuge-model.md §13: ``position, t, alpha_cmd, beta_cmd,
+The positioned-platform log of :data:`platcal.records.LOG_COLUMNS` (docs/centrifuge-model.md §13: ``position, t, alpha_cmd, beta_cmd,
 gamma_cmd, Ax, Ay, Az`` in s, deg and g) plus the measured gimbal angles ``alpha_m, beta_m,
 gamma_m`` (deg, present in a real log) and, for simulated runs only, the true ``alpha, beta,
 gamma`` (deg). A recorded log in these columns is identified exactly as a simulated one; its
@@ -18,8 +18,8 @@ import pandas as pd
 
 from ...errors import InputError
 from ...model.frames import DEG
-from ...records import check_times, grid_origin, nearest_samples, num, read_table
-from ..centrifuge.record import LOG_COLUMNS, TRUTH_COLUMNS, write_record  # noqa: F401  (re-exported)
+from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
+                         read_table, write_record)  # write_record: re-exported for the rig's commands
 from ...scheme import Scheme
 
 ANGLE_COLUMNS = ("alpha_m", "beta_m", "gamma_m")

@@ -5,14 +5,17 @@ errors measure its attitude error; a 6- (or 7-) state run filter and a ZUPT stop
 estimate it and the along-track (X) error is compensated open loop. Modules: :mod:`.config`
 (schema, §10), :mod:`.trajectory` (§2), :mod:`.sensors` (§3), :mod:`.ins` (§4),
 :mod:`.errmodel` (§5), :mod:`.filters` (§6), :mod:`.identify` (§7-8), :mod:`.observability`
-(§8), :mod:`.record` (§10), :mod:`.commands` (CLI), :mod:`.study` (the Snakemake study).
+(§8), :mod:`.record` (§10), :mod:`.commands` (CLI), :mod:`.montecarlo` (the Monte Carlo hooks,
+§12), :mod:`.study` (the study's tables, figures and report).
 """
 
 import pandas as pd
 
 from ...rig import Rig
+from . import claims
 from .commands import COMMANDS
 from .config import load_config
+from .montecarlo import SledMonteCarlo
 
 
 def catalogue() -> pd.DataFrame:
@@ -24,4 +27,4 @@ def catalogue() -> pd.DataFrame:
 
 RIG = Rig(name="sled", title="rocket-sled one-dimensional motion constraint, 6/7-state run + ZUPT filters",
           spec="rocket-sled.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
-          estimators=("run6", "run7"))
+          extras={"claims": claims}, estimators=("run6", "run7"), montecarlo=SledMonteCarlo())

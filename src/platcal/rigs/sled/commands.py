@@ -13,40 +13,31 @@ from ...io import atomic_files, check_writable, json_text
 from ...study.tables import write_table
 from .config import SledConfig
 from .identify import estimates, identify, metrics, run_problems
+from .montecarlo import replicate_seeds
 from .observability import rank_table
 from .record import check_out_path, read_record, record_arrays, record_truth, samples_per_phase, write_record
 from .simulate import simulate
 
 
-def refuse(args, names: tuple[str, ...]) -> None:
-    """InputError for any option of another rig that was given (not None / False / 0)."""
-    for name in names:
-        val = getattr(args, name, None)
-        if val not in (None, False, 0):
-            raise InputError(f"--{name.replace('_', '-')}", "not used by rig sled (its trajectory is the config's); "
-                             "leave it out")
-
-
 def cmd_simulate(cfg: SledConfig, args) -> int:
-    """One simulated record (+ ``.truth.json``) of seed ``--seed`` (default: the config's ``seed``)."""
-    refuse(args, ("scheme", "platform", "run"))
-    seed = cfg.seed if args.seed is None else args.seed
-    if seed < 0:
+    """One simulated record (+ ``.truth.json``): replicate ``--seed`` (default 0) of the study's
+    ``default`` case, the same SeedSequence as its Monte Carlo cell (:mod:`.montecarlo`)."""
+    replicate = 0 if args.seed is None else args.seed
+    if replicate < 0:
         raise InputError("--seed", "must be a whole number >= 0")
     out = check_out_path(args.out)
     check_writable(out, "--out")
     t0 = time.perf_counter()
-    sb = simulate(cfg, [seed], noise_free=bool(args.noise_free))
+    sb = simulate(cfg, replicate_seeds(cfg.raw, "default", [replicate]), noise_free=bool(args.noise_free))
     write_record(sb, out)
-    print(f"platcal simulate: sled, stop at {sb.traj.stop_time_s:.2f} s, {sb.traj.run_length_m:.1f} m, "
-          f"{'noise-free' if args.noise_free else 'seed ' + str(seed)} -> {out} ({time.perf_counter() - t0:.2f} s)",
-          file=sys.stderr)
+    what = "noise-free" if args.noise_free else f"replicate {replicate} of case default (root seed {cfg.seed})"
+    print(f"platcal simulate: sled, stop at {sb.traj.stop_time_s:.2f} s, {sb.traj.run_length_m:.1f} m, {what} "
+          f"-> {out} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
     return 0
 
 
 def cmd_identify(cfg: SledConfig, args) -> int:
     """INS, run and stop filters and X compensation of a record -> estimates.csv, metrics.json."""
-    refuse(args, ("scheme", "estimator", "method"))
     check_writable(args.out, "--out", folder=True)
     traj, df, t = read_record(args.data, cfg)
     truth = None if args.no_truth else record_truth(args.data, df)
@@ -82,7 +73,6 @@ def cmd_identify(cfg: SledConfig, args) -> int:
 
 def cmd_observability(cfg: SledConfig, args) -> int:
     """The rank table of §8/§11 -> OUT/rank_table.{csv,md,html}."""
-    refuse(args, ("scheme", "arw", "rate", "doo", "replicates"))
     check_writable(args.out, "--out", folder=True)
     tab = rank_table(cfg)
     write_table(tab, Path(args.out) / "rank_table", "Sled observability ranks (docs/rocket-sled.md §8)",

@@ -1,8 +1,9 @@
 """The open-loop run and stop (ZUPT) Kalman filters (docs/rocket-sled.md §6), batched over seeds.
 
 Discretisation ``Φ = I + F T + (F T)²/2``, ``Q_d = diag(q)·T`` (default tuning) or
-``1e-9·I`` per step (paper tuning); measurement ``z = H x + v`` with ``H = [I₄ 0]``; the
-standard update with the covariance symmetrised after each step (§6). Epoch convention: the
+``1e-9·I`` per step (paper tuning); measurement ``z = H x + v`` with ``H = [I₄ 0]``; the update
+is the shared Joseph-form update of :mod:`platcal.estimation.kalman` (exactly symmetric P; the
+same numbers as §6's standard update with the covariance symmetrised, to rounding). Epoch convention: the
 filter epochs are the navigation states k = m·j (m = IMU samples per filter period); the state
 at j = 0 is the prior (x = 0 for the run filter), and each later epoch is a prediction over
 the preceding m samples, with F from the mean computed specific force over them, then an
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from ...estimation.kalman import joseph_update_sparse, propagate_sparse
 from .config import SledConfig
 from .errmodel import run_F, stop_F
 
@@ -59,11 +61,15 @@ class Epochs:
 
 @dataclass(frozen=True)
 class FilterOut:
-    """Posterior estimates at the filter epochs: x (S,J+1,n), sigma = sqrt(diag P) (S,J+1,n), P final (S,n,n)."""
+    """Posterior estimates at the filter epochs: x (S,J+1,n), sigma = sqrt(diag P) (S,J+1,n), P final
+    (S,n,n); mean NIS of the updates (S,) (4 degrees of freedom each) and updates skipped because
+    the innovation covariance was not positive definite (S,)."""
 
     x: np.ndarray
     sigma: np.ndarray
     P: np.ndarray
+    mean_nis: np.ndarray
+    failed_updates: np.ndarray
 
 
 def _R(cfg: SledConfig) -> np.ndarray:
@@ -106,24 +112,38 @@ def discretise(F: np.ndarray, T) -> np.ndarray:
 
 
 @nb.njit(cache=True)
-def _kalman(Phis, z, x0, P0, Qd, R, xs, sig, Pout):
-    """Plain loops (fast to compile): predict, then update with H = [I₄ 0] via a Cholesky
-    solve of the 4×4 innovation covariance, then symmetrise."""
+def _kalman(Phis, z, x0, P0, Qd, r_var, xs, sig, Pout, nis, failed):
+    """Predict with the dense Φ (every row of Φ is dynamic: the shared sparse propagation with
+    all rows), then the shared Joseph-form update with ``H = [I_m 0]`` (m = 4, diagonal R).
+    An update whose innovation covariance is not positive definite is skipped and counted in
+    ``failed``; ``nis`` is the mean NIS of the updates made (m degrees of freedom each)."""
     S, J, n = Phis.shape[0], Phis.shape[1], Phis.shape[2]
+    m = z.shape[2]
+    rows = np.arange(n)
+    hcols = np.arange(m).reshape(m, 1)   # row r of H is 1 at state r: z observes the first m states
+    hnnz = np.ones(m, dtype=np.int64)
+    hval = np.ones((m, 1))
     x = np.empty(n)
     xn = np.empty(n)
     P = np.empty((n, n))
-    T = np.empty((n, n))
-    Sm = np.empty((4, 4))
-    L = np.empty((4, 4))
-    K = np.empty((n, 4))
-    innov = np.empty(4)
+    W = np.empty((n, n))
+    blk = np.empty((n, n))
+    U = np.empty((m, n))
+    K = np.empty((m, n))
+    D = np.empty((m, n))
+    Sm = np.empty((m, m))
+    Sinv = np.empty((m, m))
+    nu = np.empty(m)
+    innov = np.empty(m)
     for s in range(S):
         x[:] = x0[s]
         P[:, :] = P0[s]
         for i in range(n):
             xs[s, 0, i] = x[i]
             sig[s, 0, i] = np.sqrt(P[i, i])
+        total = 0.0
+        made = 0
+        failed[s] = 0
         for j in range(J):
             Phi = Phis[s, j]
             for a in range(n):
@@ -132,63 +152,20 @@ def _kalman(Phis, z, x0, P0, Qd, R, xs, sig, Pout):
                     acc += Phi[a, b] * x[b]
                 xn[a] = acc
             x[:] = xn
-            for a in range(n):                      # T = Phi P
-                for b in range(n):
-                    acc = 0.0
-                    for c in range(n):
-                        acc += Phi[a, c] * P[c, b]
-                    T[a, b] = acc
-            for a in range(n):                      # P = T Phiᵀ + Q
-                for b in range(n):
-                    acc = 0.0
-                    for c in range(n):
-                        acc += T[a, c] * Phi[b, c]
-                    P[a, b] = acc + Qd[j, a, b]
-            for a in range(4):
-                for b in range(4):
-                    Sm[a, b] = P[a, b] + R[a, b]
-            for a in range(4):                      # Cholesky Sm = L Lᵀ
-                for b in range(a + 1):
-                    acc = Sm[a, b]
-                    for c in range(b):
-                        acc -= L[a, c] * L[b, c]
-                    if a == b:
-                        L[a, a] = np.sqrt(acc)
-                    else:
-                        L[a, b] = acc / L[b, b]
-                for b in range(a + 1, 4):
-                    L[a, b] = 0.0
-            for a in range(n):                      # K row a: solve Sm k = P[a, :4]
-                for b in range(4):
-                    acc = P[a, b]
-                    for c in range(b):
-                        acc -= L[b, c] * K[a, c]
-                    K[a, b] = acc / L[b, b]
-                for b in range(3, -1, -1):
-                    acc = K[a, b]
-                    for c in range(b + 1, 4):
-                        acc -= L[c, b] * K[a, c]
-                    K[a, b] = acc / L[b, b]
-            for b in range(4):
+            propagate_sparse(P, rows, rows, Phi, Qd[j], W, blk)
+            for b in range(m):
                 innov[b] = z[s, j, b] - x[b]
-            for a in range(n):
-                acc = 0.0
-                for b in range(4):
-                    acc += K[a, b] * innov[b]
-                x[a] += acc
-            for a in range(n):                      # P = P − K P[:4, :]
-                for b in range(n):
-                    acc = 0.0
-                    for c in range(4):
-                        acc += K[a, c] * P[c, b]
-                    T[a, b] = P[a, b] - acc
-            for a in range(n):
-                for b in range(n):
-                    P[a, b] = 0.5 * (T[a, b] + T[b, a])
+            if joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, Sm, Sinv, nu, True):
+                for b in range(m):
+                    total += nu[b] * nu[b]
+                made += 1
+            else:
+                failed[s] += 1
             for i in range(n):
                 xs[s, j + 1, i] = x[i]
                 sig[s, j + 1, i] = np.sqrt(max(P[i, i], 0.0))
         Pout[s] = P
+        nis[s] = total / made if made else np.nan
 
 
 def kalman(Fs: np.ndarray, z: np.ndarray, x0: np.ndarray, tun: Tuning, T, T_nominal: float | None = None) -> FilterOut:
@@ -204,13 +181,18 @@ def kalman(Fs: np.ndarray, z: np.ndarray, x0: np.ndarray, tun: Tuning, T, T_nomi
     scale = np.ones(J) if tun.per_step or T_nominal is None else T / T_nominal
     Qs = np.ascontiguousarray(np.asarray(tun.Qd, dtype=np.float64)[None] * scale[:, None, None])
     P0 = np.ascontiguousarray(np.broadcast_to(tun.P0, (S, n, n)), dtype=np.float64)
+    R = np.asarray(tun.R, dtype=np.float64)
+    if np.count_nonzero(R - np.diag(np.diag(R))):
+        raise ValueError("the sled filters' R must be diagonal (the shared update takes variances)")
     xs = np.empty((S, J + 1, n))
     sig = np.empty((S, J + 1, n))
     P = np.empty((S, n, n))
+    nis = np.empty(S)
+    failed = np.empty(S, dtype=np.int64)
     _kalman(np.ascontiguousarray(discretise(Fs, T)), np.ascontiguousarray(z, dtype=np.float64),
-            np.ascontiguousarray(x0, dtype=np.float64), P0, Qs,
-            np.ascontiguousarray(tun.R, dtype=np.float64), xs, sig, P)
-    return FilterOut(xs, sig, P)
+            np.ascontiguousarray(x0, dtype=np.float64), P0, Qs, np.ascontiguousarray(np.diag(R)),
+            xs, sig, P, nis, failed)
+    return FilterOut(xs, sig, P, nis, failed)
 
 
 def epoch_mean(fl: np.ndarray, ep: Epochs, j0: int, j1: int) -> np.ndarray:

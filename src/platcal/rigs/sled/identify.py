@@ -150,12 +150,15 @@ def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
 
 def run_problems(idn: Identification, s: int = 0) -> list[str]:
     """Why seed slot ``s``'s filter run cannot be trusted (empty if it can): non-finite navigation,
-    estimates or sigmas of the run or stop filter, or a final covariance that is not positive
-    definite (the updates are Cholesky solves: a failed one leaves NaN behind)."""
+    estimates or sigmas of the run or stop filter, updates skipped because the innovation
+    covariance was not positive definite, or a final covariance that is not positive definite."""
     out = []
     if not (np.all(np.isfinite(idn.v[s])) and np.all(np.isfinite(idn.r[s]))):
         out.append("the navigation is not finite (a non-physical sample?)")
     for name, fo in (("run", idn.run), ("stop", idn.stop)):
+        if fo.failed_updates[s]:
+            out.append(f"the {name} filter skipped {int(fo.failed_updates[s])} update(s): innovation covariance "
+                       "not positive definite")
         if not (np.all(np.isfinite(fo.x[s])) and np.all(np.isfinite(fo.sigma[s]))):
             out.append(f"the {name} filter's estimates or sigmas are not finite")
         elif not np.all(np.isfinite(fo.P[s])):

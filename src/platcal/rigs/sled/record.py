@@ -4,8 +4,8 @@ Columns ``t`` (s), ``fx, fy, fz`` (m/s^2), ``wx, wy, wz`` (rad/s) in the record'
 (the navigation's initial axes, see :mod:`.simulate`); a simulated record adds the
 simulation-only truth columns ``x_true``, ``vx_true`` (error-free run) and ``x_inst``
 (instrument-only run), m and m/s at the row's time. The drawn error parameters go to a side
-file ``<record>.truth.json`` (JSON: seed, phi0, accelerometer and gyro errors in engineering
-units). CSV (``.csv``) or Parquet (``.parquet``) by suffix; both files written atomically, the
+file ``<record>.truth.json`` (JSON: seed, the replicate's SeedSequence as entropy and spawn key;
+phi0, accelerometer and gyro errors in engineering units). CSV (``.csv``) or Parquet (``.parquet``) by suffix; both files written atomically, the
 side file first, so a record never appears without its truth.
 """
 
@@ -57,7 +57,9 @@ def sim_frame(sb: SimBatch, s: int = 0) -> pd.DataFrame:
 def write_record(sb: SimBatch, path: str | Path, s: int = 0) -> None:
     """Write seed slot ``s`` as a record plus its ``.truth.json`` (atomic)."""
     path = check_out_path(path)
-    side = {"seed": sb.seeds[s], "nabla_static_ug": (sb.truth.nabla_static[s] / G * 1e6).tolist(),
+    ss = sb.seeds[s]
+    side = {"seed": {"entropy": int(ss.entropy), "spawn_key": [int(k) for k in ss.spawn_key]},
+            "nabla_static_ug": (sb.truth.nabla_static[s] / G * 1e6).tolist(),
             **sb.truth.params.to_json(s)}
     atomic_write_text(truth_path(path), json.dumps(side, indent=1) + "\n")
     df = sim_frame(sb, s)

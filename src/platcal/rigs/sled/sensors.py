@@ -3,11 +3,11 @@
 Accelerometers ``f̃ = (I + M) f + diag(s) f + b_a + k2 ∘ f² + w_a``; gyros
 ``ω̃ = ω + b_g + G_s f + w_g``; initial attitude error φ0 (rad, rotation vector in l).
 
-Seeding (§3): seed ``n``'s error parameters come from ``default_rng(7919·n + 11)`` and its IMU
-noise from ``default_rng(104729·n + 3)``, i.e. every seed is drawn as a batch of one with
-``seed0 = n``, so a seed's numbers never depend on the batch it runs in. Draw order (errors):
-b_a(3), s(3), k2(3), M off-diagonal (6: xy, xz, yx, yz, zx, zy), b_g(3), G_s(3×3 row-major),
-φ0(3); (noise): accelerometer (N×3), then gyro (N×3).
+Seeding (docs/rocket-sled.md §3, §12): replicate r draws from one ``numpy.random.Generator`` on
+the Monte Carlo runner's ``SeedSequence`` (:func:`platcal.study.montecarlo.replicate_seed`, keyed
+by the root seed, the case, the noise level and r), so a replicate's numbers never depend on the
+batch it runs in. Draw order: errors b_a(3), s(3), k2(3), M off-diagonal (6: xy, xz, yx, yz, zx,
+zy), b_g(3), G_s(3×3 row-major), φ0(3); then noise: accelerometer (N×3), then gyro (N×3).
 """
 
 from __future__ import annotations
@@ -57,12 +57,12 @@ class ErrorParams:
                            phi0=arr("phi0_arcsec", ARCSEC))
 
 
-def draw_errors(cfg: SledConfig, seeds) -> ErrorParams:
-    """Error parameters of §3 (1 sigma from the config) for each seed."""
+def draw_errors(cfg: SledConfig, rngs) -> ErrorParams:
+    """Error parameters of §3 (1 sigma from the config), one replicate per generator of ``rngs``
+    (drawn first from each: :func:`draw_noise` continues the same streams)."""
     a, gy = cfg.accel, cfg.gyro
     out = {k: [] for k in ("bias_a", "scale", "k2", "M", "bias_g", "g_sens", "phi0")}
-    for n in seeds:
-        rng = np.random.default_rng(7919 * int(n) + 11)
+    for rng in rngs:
         out["bias_a"].append(rng.standard_normal(3) * a["bias_ug"] * 1e-6 * G)
         out["scale"].append(rng.standard_normal(3) * a["scale_ppm"] * 1e-6)
         out["k2"].append(rng.standard_normal(3) * a["k2_ug_g2"] * 1e-6 / G)
@@ -76,16 +76,16 @@ def draw_errors(cfg: SledConfig, seeds) -> ErrorParams:
     return ErrorParams(**{k: np.array(v) for k, v in out.items()})
 
 
-def draw_noise(cfg: SledConfig, seeds, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """White noise per IMU sample (S,N,3): accelerometer (m/s^2) and gyro (rad/s).
+def draw_noise(cfg: SledConfig, rngs, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """White noise per IMU sample (S,N,3): accelerometer (m/s^2) and gyro (rad/s), one replicate
+    per generator of ``rngs`` (after :func:`draw_errors`).
 
     Per-sample sigma: ``noise_ug_rthz·1e-6·g·sqrt(1/dt)`` and ``arw (rad/sqrt(s)) / sqrt(dt)``.
     """
     sa = cfg.accel["noise_ug_rthz"] * 1e-6 * G * np.sqrt(1.0 / cfg.dt)
     sg = cfg.gyro["arw_deg_rth"] * np.pi / 180 / 60 / np.sqrt(cfg.dt)
     wa, wg = [], []
-    for s in seeds:
-        rng = np.random.default_rng(104729 * int(s) + 3)
+    for rng in rngs:
         wa.append(rng.standard_normal((n, 3)) * sa)
         wg.append(rng.standard_normal((n, 3)) * sg)
     return np.array(wa), np.array(wg)

@@ -33,7 +33,7 @@ class Truth:
 
 @dataclass(frozen=True)
 class SimBatch:
-    seeds: tuple[int, ...]
+    seeds: tuple[np.random.SeedSequence, ...]
     traj: Trajectory
     f: np.ndarray           # (S,N,3) recorded specific force, body axes, m/s^2
     w: np.ndarray           # (S,N,3) recorded rate, rad/s
@@ -46,15 +46,18 @@ def record_rotation(phi0: np.ndarray) -> np.ndarray:
 
 
 def simulate(cfg: SledConfig, seeds, noise_free: bool = False) -> SimBatch:
-    """Draw errors and noise for ``seeds``, make the IMU samples and the truths of §4.
+    """Draw errors and noise, one replicate per ``numpy.random.SeedSequence`` of ``seeds`` (the
+    Monte Carlo runner's, :func:`platcal.study.montecarlo.replicate_seed`), make the IMU samples
+    and the truths of §4.
 
     ``noise_free``: no sensor errors, no noise and no initial attitude error.
     """
-    seeds = tuple(int(s) for s in seeds)
+    seeds = tuple(seeds)
     traj = build_trajectory(cfg)
     f, w = true_imu(traj, cfg.omega_ie)
-    p = draw_errors(cfg, seeds)
-    wa, wg = draw_noise(cfg, seeds, traj.n)
+    rngs = [np.random.default_rng(ss) for ss in seeds]
+    p = draw_errors(cfg, rngs)
+    wa, wg = draw_noise(cfg, rngs, traj.n)
     if noise_free:
         p = ErrorParams(*(np.zeros_like(a) for a in (p.bias_a, p.scale, p.k2, p.M, p.bias_g, p.g_sens, p.phi0)))
         wa, wg = np.zeros_like(wa), np.zeros_like(wg)

@@ -1,15 +1,14 @@
-"""The sled study of the Snakemake pipeline (workflow/rules/sled.smk; docs/rocket-sled.md §8, §11).
+"""The sled study's tables, figures and report (workflow/rules/sled.smk; docs/rocket-sled.md §8, §11).
 
-Cases are config overrides of the study's base config; each case simulates and identifies the
-seeds 0 … ``study.seeds``−1 and writes per-seed metrics and the time series of the first seed.
-The summary makes the Table-1 analogue, the §11 check table, the figures and report.md.
+The cases' replicates run as generic Monte Carlo cells (:mod:`.montecarlo`); their §8 metrics
+are the extra columns of the tidy runs table, from which the summary makes the Table-1
+analogue, the §11 check table and report.md. The figures show each case's replicate 0, whose
+time series one small job per case writes (:func:`write_series`).
 """
 
 from __future__ import annotations
 
-import copy
 import json
-import time
 from pathlib import Path
 
 import matplotlib
@@ -19,43 +18,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ...io import atomic_path, atomic_to_csv, atomic_write_text, read_yaml  # noqa: E402
-from ...log import eta_line, job_logger  # noqa: E402
+from ...io import atomic_path, atomic_to_csv, atomic_write_text  # noqa: E402
+from ...log import job_logger  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
-from .config import ARCSEC, SledConfig, load_config  # noqa: E402
-from .identify import after_a, after_b, effective_phi, failed_runs, identify, metrics, phi_columns  # noqa: E402
-from .simulate import simulate  # noqa: E402
-
-CASES = {
-    "default": ({}, "6-state run filter, realtime X compensation (the paper's set-up)"),
-    "post": ({"filter": {"compensation": "post"}}, "6 states, post X compensation"),
-    "run7": ({"filter": {"states": 7}}, "7-state run filter (phi_x kept), realtime"),
-    "run7_post": ({"filter": {"states": 7, "compensation": "post"}}, "7 states, post"),
-    "misalign0_post": ({"imu": {"accel": {"misalign_arcsec": 0}}, "filter": {"compensation": "post"}},
-                       "zero accelerometer misalignment, 6 states, post"),
-    "paper_tuning": ({"filter": {"tuning": "paper"}}, "the paper's literal P0 = I, Q = 1e-9 I, R = 1e6 I"),
-}
-"""Study cases: (overrides of the base config, description)."""
-
-CHUNK = 20
-"""Seeds per batched call (memory; results do not depend on it)."""
-
-
-def merge(base: dict, over: dict) -> dict:
-    """Deep merge of mappings (``over`` wins)."""
-    out = copy.deepcopy(base)
-    for k, v in over.items():
-        out[k] = merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else copy.deepcopy(v)
-    return out
-
-
-def read_config(path: str | Path) -> dict:
-    return read_yaml(Path(path).read_text(encoding="utf-8"))
-
-
-def case_config(raw: dict, case: str) -> SledConfig:
-    return load_config(merge(raw, CASES[case][0]))
-
+from .config import ARCSEC, load_config  # noqa: E402
+from .identify import after_a, after_b, effective_phi, phi_columns  # noqa: E402
+from .montecarlo import CASES, case_config, replicate_seeds, run_replicates  # noqa: E402
 
 def series(idn, truth, s: int = 0) -> pd.DataFrame:
     """Time series of seed slot ``s`` at the filter epochs (m, arcsec) for the figures."""
@@ -86,25 +54,19 @@ def series(idn, truth, s: int = 0) -> pd.DataFrame:
     return df
 
 
-def run_case(raw: dict, case: str, seeds: int, out_metrics, out_series, log_path=None) -> None:
-    """Simulate and identify ``seeds`` seeds of a case; write per-seed metrics and seed 0's series."""
+def write_series(raw: dict, case: str, out, log_path=None) -> None:
+    """series.csv of a case's replicate 0 (the figures' representative run): the same
+    SeedSequence, config and code as replicate 0 of its Monte Carlo cell."""
     log = job_logger(log_path, "platcal.sled")
-    cfg = case_config(raw, case)
-    t0 = time.perf_counter()
-    frames, first = [], None
-    for c0 in range(0, seeds, CHUNK):
-        ids = list(range(c0, min(seeds, c0 + CHUNK)))
-        sb = simulate(cfg, ids)
-        idn = identify(cfg, sb.traj, sb.f, sb.w)
-        met = metrics(idn, sb.truth)
-        met.insert(0, "seed", ids)
-        met.insert(1, "failed", failed_runs(idn))   # flagged, counted and left out by summarise()
-        frames.append(met)
-        if first is None:
-            first = series(idn, sb.truth)
-        log.info(f"sled case {case}: " + eta_line(ids[-1] + 1, seeds, time.perf_counter() - t0))
-    atomic_to_csv(pd.concat(frames, ignore_index=True), out_metrics, float_format="%.10g")
-    atomic_to_csv(first, out_series, float_format="%.10g")
+    sb, idn = run_replicates(case_config(raw, case), replicate_seeds(raw, case, [0]))
+    atomic_to_csv(series(idn, sb.truth), out, float_format="%.10g")
+    log.info(f"sled case {case}: series of replicate 0 -> {out}")
+
+
+def case_metrics(runs: pd.DataFrame, cases) -> dict[str, pd.DataFrame]:
+    """Per case (in ``cases`` order), its replicates' §8 metrics and ``failed`` flag from the
+    study's tidy runs table (one row per replicate, sorted)."""
+    return {c: runs[runs["scheme"] == c].sort_values("replicate").reset_index(drop=True) for c in cases}
 
 
 def rms(x) -> float:
@@ -230,7 +192,7 @@ def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
     for col, ax_ in zip(("y", "z"), axs[0]):
         ax_.plot(base.t, base[f"r_{col}"], label=f"navigation r_{col} (before)")
         ax_.axvline(t_stop, color="grey", ls=":", label="stop")
-        ax_.set(xlabel="time (s)", ylabel=f"{col.upper()} position error (m)", title=f"{col.upper()} before, seed 0")
+        ax_.set(xlabel="time (s)", ylabel=f"{col.upper()} position error (m)", title=f"{col.upper()} before, replicate 0")
         ax_.legend(fontsize=8)
     for col, ax_ in zip(("y", "z"), axs[1]):
         ax_.plot(base.t, 100 * base[f"a_{col}"], label="after A (nav - filter estimate)")
@@ -238,7 +200,7 @@ def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
         if d7 is not None:
             ax_.plot(d7.t, 100 * d7[f"b_{col}"], label="after B, 7 states")
         ax_.axvline(t_stop, color="grey", ls=":")
-        ax_.set(xlabel="time (s)", ylabel=f"{col.upper()} after (cm)", title=f"{col.upper()} after compensation, seed 0")
+        ax_.set(xlabel="time (s)", ylabel=f"{col.upper()} after (cm)", title=f"{col.upper()} after compensation, replicate 0")
         ax_.legend(fontsize=8)
     fig.tight_layout()
     names["yz"] = "yz_before_after.png"
@@ -251,7 +213,7 @@ def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
         ax_.plot(ser["post"].t, 100 * ser["post"].e_con, label="constrained (post, 6 states)")
     ax_.plot(base.t, 100 * base.e_inst, "k--", label="instrument-only truth")
     ax_.axvline(t_stop, color="grey", ls=":", label="stop")
-    ax_.set(xlabel="time (s)", ylabel="X error vs error-free run (cm)", title="Along-track (X) error, seed 0")
+    ax_.set(xlabel="time (s)", ylabel="X error vs error-free run (cm)", title="Along-track (X) error, replicate 0")
     ax_.legend(fontsize=8)
     fig.tight_layout()
     names["x"] = "x_error.png"
@@ -269,7 +231,7 @@ def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
         ax_.axhline(run[f"phi_{a}_true"].iloc[0], color="r", ls=":", label="true phi0")
         lo = min(run[f"phi_{a}_eff"].iloc[0], run[f"phi_{a}_true"].iloc[0]) - 60
         hi = max(run[f"phi_{a}_eff"].iloc[0], run[f"phi_{a}_true"].iloc[0]) + 60
-        ax_.set(ylabel=f"phi_{a} (arcsec)", ylim=(lo, hi), title=f"run-filter phi_{a}, seed 0 "
+        ax_.set(ylabel=f"phi_{a} (arcsec)", ylim=(lo, hi), title=f"run-filter phi_{a}, replicate 0 "
                 f"({'7' if d7 is not None else '6'} states)")
         ax_.legend(fontsize=7, ncol=4)
     np.atleast_1d(axs)[-1].set_xlabel("time (s)")
@@ -279,11 +241,11 @@ def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
     return names
 
 
-def summarise(metric_files: dict[str, str], series_files: dict[str, str], rank_csv: str, outdir: str | Path,
-              raw: dict) -> None:
-    """Table-1 analogue, §11 checks, figures and report.md under ``outdir``."""
+def summarise(runs_file: str, series_files: dict[str, str], rank_csv: str, outdir: str | Path, raw: dict) -> None:
+    """Table-1 analogue, §11 checks, figures and report.md under ``outdir`` from the tidy runs
+    table of the Monte Carlo study (``results/sled/montecarlo/runs.parquet``)."""
     outdir = Path(outdir)
-    mets, failed = split_failed({c: pd.read_csv(p) for c, p in metric_files.items()})
+    mets, failed = split_failed(case_metrics(pd.read_parquet(runs_file), raw["study"]["cases"]))
     ser = {c: pd.read_csv(p) for c, p in series_files.items()}
     ranks = pd.read_csv(rank_csv, dtype=str, keep_default_na=False)
     t1 = table1(mets, failed)

@@ -1,0 +1,125 @@
+"""Cold-start cost of every rig: numba compile time on an empty cache, and load time once cached
+(issue 22 item 4).
+
+Per rig, a fresh process runs the rig's smallest simulate + identify (every kernel its default
+test calls, on a few samples) with ``NUMBA_CACHE_DIR`` set to an empty directory (cold: every
+kernel compiled), then a second fresh process repeats it on the cache the first one wrote (warm:
+kernels loaded from disk). Prints the wall and CPU seconds of both, the number of compiled
+specialisations the cold run wrote (``*.nbi`` index files and ``*.nbc`` entries) and the load
+average.
+
+    python benchmarks/bench_compile.py [--rigs centrifuge sled ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def warm_centrifuge() -> None:
+    from platcal.rigs.centrifuge.base import Centrifuge
+    from platcal.rigs.centrifuge.catalogue import full_truth
+    from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
+    from platcal.rigs.centrifuge.estimators import KINDS
+    from platcal.scheme import TABLE1_POSITIONS
+    from platcal.rigs.centrifuge.simulate import Noise, simulate
+    from platcal.scheme import check_scheme
+
+    settings = FilterSettings()
+    sch = check_scheme("w", {"dwell_s": 0.2, "positions": [list(p) for p in TABLE1_POSITIONS[:2]]})
+    params = Centrifuge().scheme_params(sch)
+    truth = full_truth()
+    d = simulate(truth, sch, params, Noise(), [np.random.SeedSequence([1, i]) for i in range(2)], keep_every=4)
+    z, t = [d.A[:, k, 1:] for k in range(2)], [d.t[1:]] * 2
+    for kind in KINDS:  # the registry's estimators (ekf, iekf, ukf, ml), as the study runs them
+        KINDS[kind].run(z, t, sch.angles_deg, params, settings)
+    run_ekf([None] * 2, t, sch.angles_deg, params, settings, linearise_about=np.repeat(truth[None], 2, axis=0))
+
+
+def warm_multiposition() -> None:
+    from platcal.rigs.multiposition.config import load_config
+    from platcal.rigs.multiposition.filter import run_ekf, simulate
+
+    cfg = load_config({"rig": "multiposition"})
+    sch = cfg.scheme("TET4")
+    t, _, z = simulate(cfg, sch, [0])
+    run_ekf(cfg, sch.angles_deg, t[:5], z[:, :, :5])
+
+
+def warm_sled() -> None:
+    from platcal.rigs.sled.config import load_config
+    from platcal.rigs.sled.identify import identify
+    from platcal.rigs.sled.simulate import simulate
+
+    cfg = load_config({"rig": "sled"})
+    sb = simulate(cfg, range(1))
+    identify(cfg, sb.traj, sb.f, sb.w)
+
+
+def warm_lowprec_centrifuge() -> None:
+    from platcal.rigs.lowprec_centrifuge import RIG
+    from platcal.study.montecarlo import run_cell
+
+    small = {"rig": "lowprec_centrifuge", "runs": {"P1": {"r": [1, 1]}, "P2": {"r": [1, 1]}},
+             "profile": {"rest_first_s": 1, "rest_between_s": 1}, "study": {"seeds": 1}}
+    h = RIG.montecarlo
+    cfg = h.check(small)
+    for est in h.estimators(cfg):
+        run_cell(RIG, cfg, h.case(cfg, "default"), h.noise_levels(cfg)[0], est)
+
+
+WARM = {"centrifuge": warm_centrifuge, "multiposition": warm_multiposition, "sled": warm_sled,
+        "lowprec_centrifuge": warm_lowprec_centrifuge}
+
+
+def run_child(rig: str, cache: str) -> dict:
+    """One fresh process warming ``rig`` up on the numba cache ``cache``: its wall and CPU s."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    out = subprocess.run([sys.executable, __file__, "--child", rig], env=env, check=True, capture_output=True,
+                         text=True).stdout.strip().splitlines()[-1]
+    return json.loads(out)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rigs", nargs="+", default=list(WARM), choices=list(WARM))
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.child:
+        t0, c0 = time.perf_counter(), time.process_time()
+        WARM[a.child]()
+        print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() - c0}))
+        return
+    load0 = os.getloadavg()[0]
+    rows = []
+    for rig in a.rigs:
+        with tempfile.TemporaryDirectory() as cache:
+            cold = run_child(rig, cache)
+            files = list(Path(cache).rglob("*"))
+            nbi = sum(f.suffix == ".nbi" for f in files)
+            nbc = sum(f.suffix == ".nbc" for f in files)
+            warm = run_child(rig, cache)
+        rows.append((rig, cold, warm, nbi, nbc))
+        print(f"{rig}: cold {cold['wall']:.1f} s wall / {cold['cpu']:.1f} s CPU, warm {warm['wall']:.1f} s / "
+              f"{warm['cpu']:.1f} s CPU, {nbi} cached functions, {nbc} specialisations", flush=True)
+    print()
+    print(f"numba cold start (empty NUMBA_CACHE_DIR) and warm start (its cache), one fresh process each; "
+          f"load average {load0:.2f} at start, {os.getloadavg()[0]:.2f} at end, {os.cpu_count()} cores")
+    print("| rig | cold wall s | cold CPU s | warm wall s | warm CPU s | cached functions | specialisations |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for rig, cold, warm, nbi, nbc in rows:
+        print(f"| {rig} | {cold['wall']:.1f} | {cold['cpu']:.1f} | {warm['wall']:.1f} | {warm['cpu']:.1f} | {nbi} "
+              f"| {nbc} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,148 @@
+"""The claims ledger's evaluator: statistics, bootstrap intervals, verdicts, declarations."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from platcal.errors import InputError
+from platcal.study.claims import (INCONCLUSIVE, NOT_REPRODUCED, REPRODUCED, Criterion, Evidence,
+                                  bootstrap_interval, evaluate, ledger_markdown, load_claims, verdict)
+
+YAML = """
+claims:
+  - id: worst_error
+    source: Table 2
+    statement: the largest error is within 2 %
+    paper: "<= 2 %"
+    unit: "%"
+    measure: errors
+    args: {scale: 1.0}
+    statistic: median
+    criterion: {op: "<=", value: 2.0}
+  - id: rank
+    source: section 8
+    statement: rank 27
+    paper: "27"
+    measure: rank
+    statistic: value
+    criterion: {op: "==", value: 27}
+"""
+
+
+def measures(values):
+    return {
+        "errors": lambda results, cfg, scale: Evidence(np.asarray(values) * scale * cfg["k"], "cell x, 5 replicates"),
+        "rank": lambda results, cfg: Evidence(np.array([27.0]), "covariance-only"),
+    }
+
+
+@pytest.mark.parametrize("op,value,lo,hi,expected", [
+    ("<=", 2.0, 1.0, 1.9, REPRODUCED), ("<=", 2.0, 1.5, 2.5, INCONCLUSIVE), ("<=", 2.0, 2.1, 3.0, NOT_REPRODUCED),
+    (">=", 75.0, 80.0, 90.0, REPRODUCED), (">=", 75.0, 60.0, 70.0, NOT_REPRODUCED),
+    ("between", (1.0, 2.0), 1.2, 1.8, REPRODUCED), ("between", (1.0, 2.0), 0.5, 2.5, INCONCLUSIVE),
+    ("between", (1.0, 2.0), 2.5, 3.0, NOT_REPRODUCED), ("==", 27.0, 27.0, 27.0, REPRODUCED),
+    ("==", 27.0, 21.0, 21.0, NOT_REPRODUCED), ("<=", 2.0, np.nan, np.nan, INCONCLUSIVE),
+])
+def test_verdict_from_interval(op, value, lo, hi, expected):
+    assert verdict(Criterion(op, value), lo, hi) == expected
+
+
+def test_bootstrap_interval_brackets_the_statistic_and_is_seeded():
+    x = np.random.default_rng(1).normal(5.0, 1.0, 200)
+    ss = np.random.SeedSequence(3)
+    v, lo, hi = bootstrap_interval(x, "mean", ss)
+    assert lo < v < hi
+    assert hi - lo == pytest.approx(2 * 1.96 / np.sqrt(200), rel=0.25)  # the textbook width
+    assert bootstrap_interval(x, "mean", np.random.SeedSequence(3)) == (v, lo, hi)
+    assert bootstrap_interval([27.0], "value", ss) == (27.0, 27.0, 27.0)
+
+
+def test_evaluate_follows_the_numbers():
+    claims = load_claims("toy", YAML)
+    small = evaluate(claims, measures([1.0, 1.1, 0.9, 1.2, 1.0]), None, {"k": 1.0}, seed=0)
+    assert list(small["verdict"]) == [REPRODUCED, REPRODUCED]
+    big = evaluate(claims, measures([1.0, 1.1, 0.9, 1.2, 1.0]), None, {"k": 10.0}, seed=0)
+    assert big.loc[0, "verdict"] == NOT_REPRODUCED and big.loc[0, "measured"] == pytest.approx(10.0)
+    assert big.loc[0, "settings"] == "cell x, 5 replicates"
+    assert "**not reproduced**" in ledger_markdown(big)
+
+
+def test_a_claim_whose_cell_was_not_run_is_inconclusive():
+    claims = load_claims("toy", YAML)
+    m = measures([1.0]) | {"errors": lambda results, cfg, scale: None}
+    out = evaluate(claims, m, None, {"k": 1.0}, seed=0)
+    assert out.loc[0, "verdict"] == INCONCLUSIVE and out.loc[0, "settings"] == "not run in this study"
+
+
+@pytest.mark.parametrize("edit,field", [
+    (("op: \"<=\"", "op: \"~\""), "claims[0].criterion"),
+    (("statistic: median", "statistic: mode"), "claims[0].statistic"),
+    (("id: rank", "id: worst_error"), "claims[1].id"),
+    (("id: rank", "id: Rank-1"), "claims[1].id"),
+])
+def test_bad_declarations_name_the_field(edit, field):
+    with pytest.raises(InputError) as e:
+        load_claims("toy", YAML.replace(*edit))
+    assert e.value.field == field
+
+
+def test_unknown_measure_is_named():
+    with pytest.raises(InputError, match="unknown measure"):
+        evaluate(load_claims("toy", YAML), {"errors": measures([1.0])["errors"]}, None, {"k": 1}, seed=0)
+
+
+# ---- verdicts are computed: one input changed, the verdict follows (issue 20 item 5)
+
+def _centrifuge_ledger(tmp_path, sigma_a):
+    """table2_gyro on a small real study: 6 replicates of Table 1 at the config's sigma_a."""
+    from pathlib import Path
+
+    from platcal.io import read_yaml
+    from platcal.rigs.centrifuge import RIG, study as mc
+    from platcal.study import montecarlo as smc
+    from platcal.study.claims import evaluate_rig
+
+    raw = read_yaml((Path(__file__).resolve().parents[1] / "config" / "centrifuge.yaml").read_text())
+    raw["noise"]["sigma_a_ug"] = sigma_a
+    raw["study"].update({"schemes": ["table1"], "sigma_a_ug": [sigma_a], "replicates": 6, "batch": 6})
+    cfg = mc.check_study(raw)
+    case = RIG.montecarlo.case(cfg, "table1")
+    est = next(iter(cfg["study"]["estimators"]))
+    coef, runs, _ = smc.run_cell(RIG, cfg, case, sigma_a, est)
+    (tmp_path / "montecarlo").mkdir(parents=True)
+    coef.to_parquet(tmp_path / "montecarlo" / "coef.parquet")
+    runs.to_parquet(tmp_path / "montecarlo" / "runs.parquet")
+    return evaluate_rig(RIG, tmp_path, cfg).set_index("claim")
+
+
+@pytest.mark.slow
+def test_centrifuge_table2_gyro_verdict_follows_the_noise(tmp_path):
+    quiet = _centrifuge_ledger(tmp_path / "a", 10.0)
+    loud = _centrifuge_ledger(tmp_path / "b", 200.0)
+    assert loud.loc["table2_gyro", "verdict"] == NOT_REPRODUCED
+    assert "sigma_a 200 ug" in loud.loc["table2_gyro", "settings"]
+    assert quiet.loc["table2_gyro", "verdict"] != NOT_REPRODUCED
+    assert quiet.loc["table2_accel", "verdict"] == REPRODUCED
+
+
+@pytest.mark.slow
+def test_lowprec_effect_verdict_follows_the_instrument_noise(tmp_path):
+    from platcal.rigs.lowprec_centrifuge import RIG
+    from platcal.study.claims import evaluate_rig
+    from platcal.study.montecarlo import run_cell
+
+    def ledger(folder, noise):
+        h = RIG.montecarlo
+        cfg = h.check({"rig": "lowprec_centrifuge", "study": {"seeds": 2},
+                       "residuals": {"accel_noise_ug_rthz": noise}})
+        cells = [run_cell(RIG, cfg, h.case(cfg, "default"), noise, e) for e in h.estimators(cfg)]
+        (folder / "montecarlo").mkdir(parents=True)
+        pd.concat([c[0] for c in cells]).to_parquet(folder / "montecarlo" / "coef.parquet")
+        pd.concat([c[1] for c in cells]).to_parquet(folder / "montecarlo" / "runs.parquet")
+        return evaluate_rig(RIG, folder, cfg).set_index("claim")
+
+    clean, noisy = ledger(tmp_path / "a", 10.0), ledger(tmp_path / "b", 20000.0)
+    assert clean.loc["proposed_effect_velocity", "verdict"] == REPRODUCED
+    assert noisy.loc["proposed_effect_velocity", "verdict"] == NOT_REPRODUCED
+    assert noisy.loc["proposed_effect_velocity", "measured"] < 75
+    assert noisy.loc["insensitive_to_centrifuge", "verdict"] == INCONCLUSIVE  # those scenarios were not run

@@ -4,8 +4,8 @@ same estimates and covariances as the rig's former dense batched Joseph update, 
 import numpy as np
 
 from platcal.rigs.lowprec_centrifuge.config import load_config
-from platcal.rigs.lowprec_centrifuge.proposed import (NX, P0_STD, R_DIAG, f_matrix, q_density, run_filter,
-                                                      transition_and_h, window_data)
+from platcal.rigs.lowprec_centrifuge.proposed import (NX, P0_STD, R_DIAG, f_matrix, predict, q_density, run_filter,
+                                                      window_data)
 from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
 from platcal.study.montecarlo import replicate_seed
 
@@ -25,9 +25,7 @@ def dense_filter(T, z, m, valid, lat_rad):
     for w in range(nw):
         ok = valid[:, w]
         Tw = np.where(ok, T[:, w], 0.0)
-        phi, H = transition_and_h(Fw[:, w], Tw)
-        xp = np.einsum("bij,bj->bi", phi, x)
-        Pp = phi @ P @ np.swapaxes(phi, 1, 2) + q * Tw[:, None, None] * eye
+        _, H, xp, Pp = predict(Fw[:, w], Tw, x, P, q)   # the prediction is shared; the update is under test
         PHt = Pp @ np.swapaxes(H, 1, 2)
         S = H @ PHt + R
         K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, 1, 2)), 1, 2)

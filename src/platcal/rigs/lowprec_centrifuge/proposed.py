@@ -232,6 +232,16 @@ class FilterResult:
         return np.sqrt(np.diagonal(self.P, axis1=1, axis2=2)[:, K_SLICE])
 
 
+def predict(F: np.ndarray, T: np.ndarray, x: np.ndarray, P: np.ndarray, q: np.ndarray):
+    """One window's prediction, batched over seeds (§7): F (S, 14, 14), window lengths T (S,) s
+    (0 for a padded window: no change), x (S, 14), P (S, 14, 14), q the noise density (14,).
+    Returns Phi, H (S, 4, 14) and the predicted x, P."""
+    phi, H = transition_and_h(F, T)
+    xp = np.einsum("bij,bj->bi", phi, x)
+    Pp = phi @ P @ np.swapaxes(phi, 1, 2) + q * T[:, None, None] * np.eye(NX)
+    return phi, H, xp, Pp
+
+
 def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float) -> FilterResult:
     """The Kalman filter over padded window arrays (S, W), batched over seeds: predict with Phi
     (numpy, batched), then the shared Joseph-form update of :mod:`platcal.estimation.kalman` per
@@ -239,7 +249,6 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     """
     nb, nw = T.shape
     q = q_density()
-    eye = np.eye(NX)
     x = np.zeros((nb, NX))
     P = np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)).copy()
     r_var = R_DIAG.copy()
@@ -254,9 +263,7 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     for w in range(nw):
         ok = valid[:, w]
         Tw = np.where(ok, T[:, w], 0.0)
-        phi, H = transition_and_h(Fw[:, w], Tw)
-        xp = np.einsum("bij,bj->bi", phi, x)
-        Pp = phi @ P @ np.swapaxes(phi, 1, 2) + q * Tw[:, None, None] * eye
+        phi, H, xp, Pp = predict(Fw[:, w], Tw, x, P, q)
         innov = z[:, w] - np.einsum("bij,bj->bi", H, xp)
         H = np.ascontiguousarray(H)
         for s in np.flatnonzero(ok):

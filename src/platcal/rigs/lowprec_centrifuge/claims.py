@@ -15,18 +15,23 @@ from .config import load_config
 from .montecarlo import study_frames
 
 
-def _cross(results: Path, cfg: dict, scenario: str) -> pd.DataFrame | None:
-    """The cross-validations of ``scenario`` (:func:`.montecarlo.study_frames`) from the study's
-    tidy tables ``<results>/montecarlo/{coef,runs}.parquet``, failed runs left out; None when the
-    study did not run the scenario."""
+def _frames(results: Path, cfg: dict, scenario: str) -> tuple[pd.DataFrame, pd.DataFrame] | None:
+    """The cross-validations and coefficients of ``scenario`` (:func:`.montecarlo.study_frames`)
+    from the study's tidy tables ``<results>/montecarlo/{coef,runs}.parquet``, failed runs left
+    out; None when the study did not run the scenario."""
     folder = Path(results) / "montecarlo"
     if not (folder / "runs.parquet").exists() or not (folder / "coef.parquet").exists():
         return None
     runs = pd.read_parquet(folder / "runs.parquet")
     if scenario not in set(runs["scheme"]):
         return None
-    cross, _ = study_frames(load_config(cfg), [scenario], pd.read_parquet(folder / "coef.parquet"), runs)
-    return cross[~cross["failed"].astype(bool)]
+    cross, coeffs = study_frames(load_config(cfg), [scenario], pd.read_parquet(folder / "coef.parquet"), runs)
+    return cross[~cross["failed"].astype(bool)], coeffs[~coeffs["failed"].astype(bool)]
+
+
+def _cross(results: Path, cfg: dict, scenario: str) -> pd.DataFrame | None:
+    f = _frames(results, cfg, scenario)
+    return None if f is None else f[0]
 
 
 def effect(results: Path, cfg: dict, method: str, error: str, channel: str = "X",
@@ -71,7 +76,20 @@ def effect_gap(results: Path, cfg: dict, error: str, channel: str = "X", scenari
                                          f"{len(gap)} seeds")
 
 
-MEASURES = {"effect": effect, "effect_shift": effect_shift, "effect_gap": effect_gap}
+def normalised_errors(results: Path, cfg: dict, scenario: str = "default") -> Evidence | None:
+    """Per seed x platform x run x coefficient, (estimate - truth) / sigma of the proposed filter
+    (§11 item 6), pooled over the coefficients."""
+    f = _frames(results, cfg, scenario)
+    if f is None:
+        return None
+    c = f[1][f[1]["method"] == "proposed"]
+    z = ((c["estimate"] - c["truth"]) / c["sigma"]).to_numpy(float)
+    return Evidence(z, f"scenario {scenario}, proposed, {c.groupby(['platform', 'run', 'coefficient']).ngroups} "
+                       f"coefficients x {c['seed'].nunique()} seeds")
+
+
+MEASURES = {"effect": effect, "effect_shift": effect_shift, "effect_gap": effect_gap,
+            "normalised_errors": normalised_errors}
 
 
 def claims():

@@ -31,23 +31,10 @@ HERE = Path(__file__).resolve().parent
 def child(dwell: float, B: int, kinds: list[str], out: str) -> None:
     """One round in this process (the tree on PYTHONPATH): per kind, the best of two calls,
     wall and CPU s per replicate, as JSON on stdout; the estimates into ``out`` (npz)."""
-    from platcal.rigs.centrifuge.base import Centrifuge
-    from platcal.rigs.centrifuge.catalogue import full_truth
-    from platcal.rigs.centrifuge.ekf import FilterSettings, first_instant
+    from bench_filter import table1_case
     from platcal.rigs.centrifuge.estimators import KINDS
-    from platcal.scheme import TABLE1_POSITIONS
-    from platcal.rigs.centrifuge.simulate import Noise, simulate
-    from platcal.scheme import check_scheme
 
-    settings = FilterSettings()
-    scheme = check_scheme("table1", {"dwell_s": dwell, "positions": [list(p) for p in TABLE1_POSITIONS]})
-    params = Centrifuge().scheme_params(scheme)
-    seeds = [np.random.SeedSequence([2017, i]) for i in range(B)]
-    data = simulate(full_truth(), scheme, params, Noise(), seeds, keep_every=int(round(settings.period_s / 0.005)))
-    i0 = first_instant(settings.update_at_reset)
-    K = scheme.n_positions
-    z = [data.A[:, k, i0:] for k in range(K)]
-    t = [data.t[i0:]] * K
+    scheme, params, settings, z, t = table1_case(B, dwell)
     res, arrays = {}, {}
     for kind in kinds:
         KINDS[kind].run([zk[:1, :20] for zk in z], [tk[:20] for tk in t], scheme.angles_deg, params, settings)

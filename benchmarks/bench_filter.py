@@ -6,7 +6,7 @@ default noise and filter settings), this script times:
 * platcal ``simulate`` and ``run_ekf`` for batches of B = 1, 8, 64 replicates (per replicate,
   amortised over the batch; numba threads as set by ``--threads``);
 * a baseline: FilterPy's ``ExtendedKalmanFilter`` driven step by step in Python with the same
-  model functions (``platcal.model.attitude.rk4`` and ``platcal.model.attitude.measure``), on replicate 0;
+  model functions (``platcal.rigs.centrifuge.attitude.rk4`` and ``platcal.rigs.centrifuge.attitude.measure``), on replicate 0;
 * the covariance-only run (observability / GA objective) over a population of random schemes;
 * every estimator kind of the registry (:data:`platcal.rigs.centrifuge.estimators.KINDS`, default
   options) at the largest batch, so that a newly registered kind appears here;
@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from platcal.model import attitude as platform
+from platcal.rigs.centrifuge import attitude as platform
 from platcal.model.frames import ARCSEC, DEG
 from platcal.model.instruments import N_FULL, N_IDENTIFIED
 from platcal.parallel import get_threads, set_threads
@@ -90,6 +90,20 @@ def filter_flops_per_step(n_coef: int = N_IDENTIFIED) -> int:
     upd += 18 * n + 21 * n + 18 * n             # K = S^-1 U, D = U - S K, x += K^T nu
     upd += 12 * n * (n + 1) // 2                # P - K U^T - D K^T, lower triangle
     return prop + upd
+
+
+def table1_case(B: int, dwell: float = 60.0):
+    """This benchmark's case for other scripts: the Table 1 scheme, 6 x ``dwell`` s, B replicates
+    (seeds ``[2017, i]``) simulated at the default noise. Returns ``(scheme, params, settings, z,
+    t)`` with ``z`` K arrays (B, M, 3) g and ``t`` K arrays (M,) s, as ``run_ekf`` takes them."""
+    settings = FilterSettings()
+    scheme = check_scheme("table1", {"dwell_s": dwell, "positions": [list(p) for p in TABLE1_POSITIONS]})
+    params = Centrifuge().scheme_params(scheme)
+    seeds = [np.random.SeedSequence([2017, i]) for i in range(B)]
+    data = simulate(full_truth(), scheme, params, Noise(), seeds, keep_every=int(round(settings.period_s / 0.005)))
+    i0 = first_instant(settings.update_at_reset)
+    K = scheme.n_positions
+    return scheme, params, settings, [data.A[:, k, i0:] for k in range(K)], [data.t[i0:]] * K
 
 
 def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):

@@ -20,13 +20,11 @@ import numpy as np
 from numba import njit
 
 from platcal.estimation.kalman import joseph_update_sparse, propagate_sparse
-from platcal.model.attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
-from platcal.rigs.centrifuge.base import Centrifuge, specific_force_into
-from platcal.rigs.centrifuge.catalogue import full_truth
-from platcal.rigs.centrifuge.ekf import FilterSettings, _structure, first_instant, run_ekf
-from platcal.scheme import TABLE1_POSITIONS
-from platcal.rigs.centrifuge.simulate import Noise, simulate
-from platcal.scheme import check_scheme
+from platcal.rigs.centrifuge.attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
+from platcal.rigs.centrifuge.base import specific_force_into
+from platcal.rigs.centrifuge.ekf import _structure, run_ekf
+
+from bench_filter import table1_case
 
 
 @njit(cache=True)
@@ -106,15 +104,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=20000)
     args = ap.parse_args(argv)
-    settings = FilterSettings()
-    scheme = check_scheme("t", {"dwell_s": 10.0, "positions": [list(p) for p in TABLE1_POSITIONS]})
-    params = Centrifuge().scheme_params(scheme)
-    data = simulate(full_truth(), scheme, params, Noise(), [np.random.SeedSequence([2017, 0])],
-                    keep_every=int(round(settings.period_s / 0.005)))
-    i0 = first_instant(False)
-    K = scheme.n_positions
-    z = [data.A[:1, k, i0:] for k in range(K)]
-    tt = [data.t[i0:]] * K
+    scheme, params, settings, z, tt = table1_case(1, 10.0)
     run_ekf(z, tt, scheme.angles_deg, params, settings)
     t0 = time.perf_counter()
     est = run_ekf(z, tt, scheme.angles_deg, params, settings)
@@ -151,7 +141,7 @@ def main(argv=None) -> None:
             per_call(lambda m: _loop_copy(m, P.copy()), s),
     }
     print(f"one filter step, n = {n}, one thread, load average {os.getloadavg()[0]:.2f}")
-    print(f"| part | ns per step | % of the whole step |")
+    print("| part | ns per step | % of the whole step |")
     print("|---|---:|---:|")
     copy = parts["restoring P alone (subtract from the two above)"]
     for name, ns in parts.items():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from platcal.estimation import kalman
-from platcal.model import attitude as platform
+from platcal.rigs.centrifuge import attitude as platform
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
 from platcal.rigs.centrifuge.catalogue import full_truth

@@ -4,7 +4,7 @@ IEKF written from its definition; one linearisation is the EKF; batch and thread
 import numpy as np
 import pytest
 
-from platcal.model import attitude as platform
+from platcal.rigs.centrifuge import attitude as platform
 from platcal.parallel import threads
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.catalogue import full_truth

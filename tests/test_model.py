@@ -7,7 +7,7 @@ from platcal.model import frames
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.model.instruments import FULL_NAMES, INDEX, NAMES, accel_output, gyro_drift, unit_of
 from platcal.rigs.centrifuge.catalogue import full_truth, load_catalogue
-from platcal.model.attitude import attitude_rate, measure, rk4
+from platcal.rigs.centrifuge.attitude import attitude_rate, measure, rk4
 
 rng = np.random.default_rng(12345)
 PARAMS = Centrifuge().params()

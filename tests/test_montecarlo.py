@@ -192,7 +192,6 @@ def test_default_config_study_validates():
     assert names[:2] == ["table1", "classical"] and "random_1" in names
 
 
-@pytest.mark.xfail(reason="failed in the session's last full run after the issue 19/20 changes; not diagnosed before the session ended (see the issue 19 note)", strict=False)
 def test_package_code_hash_covers_a_rig_and_the_core_it_imports(monkeypatch):
     h = {r: smc.package_code_hash(f"platcal.rigs.{r}") for r in ("sled", "lowprec_centrifuge", "multiposition")}
     assert len(set(h.values())) == 3 and all(len(v) == 16 for v in h.values())
@@ -203,4 +202,5 @@ def test_package_code_hash_covers_a_rig_and_the_core_it_imports(monkeypatch):
     smc.package_code_hash("platcal.rigs.sled")
     mods, data = seen[0]
     assert "platcal.io" in mods and "platcal.rigs.sled.filters" in mods
+    # the claims ledger's file is the claims rule's, not the simulations'
     assert data == ["rigs/sled/data/config.schema.yaml"]

@@ -253,7 +253,7 @@ def test_nonlinear_update_equals_full_update_with_permuted_square_root(short):
 def test_linearised_propagation_equals_unscented_propagation(short):
     # one 20 ms step from a state with correlated P: the EKF's propagation (used by the default
     # "update" and by "nonlinear") against the unscented one of "all"
-    from platcal.model.attitude import make_sc_rk4_scratch
+    from platcal.rigs.centrifuge.attitude import make_sc_rk4_scratch
     x, P, tm, _ = _state_after(short)
     fs = FilterSettings()
     n, est = x.size, fs.coef_index

@@ -35,7 +35,9 @@ def workdir(tmp_path: Path) -> Path:
 
 
 def smk(d: Path, *args, timeout=300):
-    """Run snakemake in ``d``; on timeout, end its whole process group (its jobs too)."""
+    """Run snakemake in ``d``; on timeout, end its whole process group (its jobs too). The timeout
+    guards against a hang, not the speed: the tiny study's 29 jobs take about 2 min on a quiet
+    2-core machine and several times that on a loaded one."""
     env = dict(os.environ, PYTHONHASHSEED="0")
     p = subprocess.Popen(SNAKEMAKE + list(args), cwd=d, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          env=env, start_new_session=True)
@@ -84,10 +86,9 @@ def test_bad_config_stops_before_any_job(tmp_path, study, field):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="failed in the session's last full run after the issue 19/20 changes; not diagnosed before the session ended (see the issue 19 note)", strict=False)
 def test_tiny_study_end_to_end(tmp_path):
     d = workdir(tmp_path)
-    r = smk(d, "--cores", "2", "--configfile", "config/test.yaml")
+    r = smk(d, "--cores", "2", "--configfile", "config/test.yaml", timeout=1200)
     assert r.returncode == 0, r.stderr[-3000:]
     assert "centrifuge/report.md" in (d / "results" / "report.md").read_text()  # the index links the rig
     res = d / "results" / "centrifuge"
@@ -122,7 +123,7 @@ def test_tiny_study_end_to_end(tmp_path):
         r = smk(d, "--cores", "2", "--configfile", "config/test.yaml", "-n")
         if "Nothing to be done" in r.stdout + r.stderr or attempt == 1:
             break
-        smk(d, "--cores", "2", "--configfile", "config/test.yaml")
+        smk(d, "--cores", "2", "--configfile", "config/test.yaml", timeout=1200)
         before = outputs(d)
     assert r.returncode == 0 and "Nothing to be done" in r.stdout + r.stderr, r.stdout[-2000:]
 
@@ -147,7 +148,6 @@ def test_tiny_study_end_to_end(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="failed in the session's last full run after the issue 19/20 changes; not diagnosed before the session ended (see the issue 19 note)", strict=False)
 def test_cluster_generic_executor_runs_jobs_locally(tmp_path):
     """The executor path of a cluster: each job is a jobscript handed to a submit command."""
     d = workdir(tmp_path)
@@ -161,7 +161,7 @@ def test_cluster_generic_executor_runs_jobs_locally(tmp_path):
     (d / "config/tiny.yaml").write_text(cfg)
     r = smk(d, "--executor", "cluster-generic", "--cluster-generic-submit-cmd", str(submit), "--jobs", "2",
             "--latency-wait", "5", "--seconds-between-status-checks", "1", "--configfile", "config/tiny.yaml",
-            timeout=300)
+            timeout=1200)
     assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
     assert "external jobid 'local-" in r.stdout + r.stderr
     assert (d / "results/report.md").exists()

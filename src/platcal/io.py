@@ -223,6 +223,17 @@ def read_yaml(text: str):
 _FLOAT_RE = re.compile(r"^[-+]?(?:(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?|(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+))$")
 
 
+def sorted_mapping(obj):
+    """A copy of ``obj`` with every mapping's keys sorted, at every depth (lists keep their
+    order). For a Snakemake param built by merging overrides into a config: Snakemake compares a
+    param's ``repr``, which follows key order, and a merge appends keys the base lacks."""
+    if isinstance(obj, dict):
+        return {k: sorted_mapping(obj[k]) for k in sorted(obj)}
+    if isinstance(obj, list):
+        return [sorted_mapping(v) for v in obj]
+    return obj
+
+
 def normalise_numbers(obj):
     """Read YAML 1.1 leftovers such as ``'1.0e4'`` (a string to PyYAML's and Snakemake's
     loaders) as floats, in place, as :func:`platcal.io.read_yaml` does; returns ``obj``."""

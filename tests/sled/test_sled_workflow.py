@@ -127,12 +127,9 @@ def test_inline_config_gives_the_same_jobs(study, tmp_path):
      {"montecarlo_cell": 2, "sled_series": 2, "collect": 1, "sled_summary": 1, "claims": 1, "ledger": 1,
       "report_index": 1, "all": 1}),
     # the filter's states: the default case only (run7 sets them), and the rank table's filter section
-    pytest.param(lambda c: c.update(filter={"states": 7}),
+    (lambda c: c.update(filter={"states": 7}),
      {"montecarlo_cell": 1, "sled_series": 1, "collect": 1, "sled_summary": 1, "sled_observability": 1,
-      "claims": 1, "ledger": 1, "report_index": 1, "all": 1},
-     marks=pytest.mark.xfail(reason="after the merge onto main the run7 cell reruns too (2 cells, measured "
-                                    "2026-11-25): replacing the whole filter section changes run7's case params; "
-                                    "open in issue 19", strict=False)),
+      "claims": 1, "ledger": 1, "report_index": 1, "all": 1}),
     # one more case: its cell and series only, then the aggregates (the study index's report too)
     (lambda c: c["study"].update(cases=c["study"]["cases"] + ["post"]),
      {"montecarlo_cell": 1, "sled_series": 1, "collect": 1, "sled_summary": 1, "claims": 1, "ledger": 1,

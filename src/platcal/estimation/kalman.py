@@ -18,6 +18,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+_LANES = 16
+"""Width (float64 entries) to which the rows of the lower-triangle update are padded: LLVM's
+vector loop over contiguous doubles handles 16 per iteration (4 AVX2 registers, unrolled 4
+times), and shorter tails run scalar (issue 22: the centrifuge EKF's CPU time x 0.87, bit-identical)."""
+
 
 @njit(cache=True, inline="always")
 def add_row_combinations(coef, P, rows, count, out):
@@ -83,8 +88,10 @@ def propagate_sparse(P, dyn, cols, phi, q, W, blk):
         dr = dyn[r]
         wr = W[r]
         prow = P[dr]
+        # the row as one contiguous (vectorised) copy, the column as strided stores apart
         for j in range(n):
             prow[j] = wr[j]
+        for j in range(n):
             P[j, dr] = wr[j]
     for r in range(d):
         for c in range(d):
@@ -266,7 +273,9 @@ def _correct3(x, P, innov, U, K, D, S, Sinv, update_x):
         a0, a1, a2 = K[0, i], K[1, i], K[2, i]
         b0, b1, b2 = D[0, i], D[1, i], D[2, i]
         prow = P[i]
-        for j in range(i + 1):
+        # rows run on to a multiple of _LANES: whole vector blocks instead of a scalar tail;
+        # the extra upper-triangle entries are overwritten by the mirror below
+        for j in range(min(n, (i // _LANES + 1) * _LANES)):
             prow[j] -= (a0 * u0[j] + a1 * u1[j] + a2 * u2[j]) + (b0 * k0[j] + b1 * k1[j] + b2 * k2[j])
     for i in range(n):
         for j in range(i):

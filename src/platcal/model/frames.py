@@ -41,15 +41,9 @@ def rot_z(g):
 
 
 @njit(cache=True)
-def c_rp_into(alpha, beta, gamma, C, dC):
-    """Fill ``C = C_r^p(alpha, beta, gamma)`` and its partials ``dC[i] = dC/d(angle_i)``.
-
-    Closed form of ``Mz(gamma) My(beta) Mx(alpha)`` (docs/centrifuge-model.md §3). ``C`` is (3, 3),
-    ``dC`` is (3, 3, 3) with the angle index first (alpha, beta, gamma). Angles in rad.
-    """
-    sa, ca = np.sin(alpha), np.cos(alpha)
-    sb, cb = np.sin(beta), np.cos(beta)
-    sg, cg = np.sin(gamma), np.cos(gamma)
+def c_rp_sc_into(sa, ca, sb, cb, sg, cg, C, dC, want_d):
+    """:func:`c_rp_into` from the angles' sines and cosines (``sa = sin(alpha)``, ...), for a
+    kernel that shares them with :func:`euler_t_sc_into`; ``dC`` only with ``want_d``."""
     C[0, 0] = cg * cb
     C[0, 1] = cg * sb * sa + sg * ca
     C[0, 2] = -cg * sb * ca + sg * sa
@@ -59,6 +53,8 @@ def c_rp_into(alpha, beta, gamma, C, dC):
     C[2, 0] = sb
     C[2, 1] = -cb * sa
     C[2, 2] = cb * ca
+    if not want_d:
+        return
     # d/d alpha
     dC[0, 0, 0] = 0.0
     dC[0, 0, 1] = cg * sb * ca - sg * sa
@@ -92,6 +88,17 @@ def c_rp_into(alpha, beta, gamma, C, dC):
 
 
 @njit(cache=True)
+def c_rp_into(alpha, beta, gamma, C, dC):
+    """Fill ``C = C_r^p(alpha, beta, gamma)`` and its partials ``dC[i] = dC/d(angle_i)``.
+
+    Closed form of ``Mz(gamma) My(beta) Mx(alpha)`` (docs/centrifuge-model.md §3). ``C`` is (3, 3),
+    ``dC`` is (3, 3, 3) with the angle index first (alpha, beta, gamma). Angles in rad.
+    """
+    c_rp_sc_into(np.sin(alpha), np.cos(alpha), np.sin(beta), np.cos(beta), np.sin(gamma), np.cos(gamma), C, dC,
+                 True)
+
+
+@njit(cache=True)
 def c_rp(alpha, beta, gamma):
     """``C_r^p = Mz(gamma) My(beta) Mx(alpha)`` (3, 3); angles in rad (docs/centrifuge-model.md §3)."""
     C = np.empty((3, 3))
@@ -109,13 +116,8 @@ def euler_e(beta, gamma):
 
 
 @njit(cache=True)
-def euler_t_into(beta, gamma, T, dT):
-    """Fill ``T = E^-1`` (eq. 15, exact inverse) and ``dT[i] = dT/d(angle_i)``.
-
-    ``dT[0]`` (alpha) is zero. Singular at beta = +-90 deg; callers reject such schemes.
-    """
-    sb, cb = np.sin(beta), np.cos(beta)
-    sg, cg = np.sin(gamma), np.cos(gamma)
+def euler_t_sc_into(sb, cb, sg, cg, T, dT, want_d):
+    """:func:`euler_t_into` from the sines and cosines of beta and gamma; ``dT`` only with ``want_d``."""
     ib = 1.0 / cb
     tb = sb * ib
     T[0, 0] = cg * ib
@@ -127,6 +129,8 @@ def euler_t_into(beta, gamma, T, dT):
     T[2, 0] = -tb * cg
     T[2, 1] = tb * sg
     T[2, 2] = 1.0
+    if not want_d:
+        return
     for r in range(3):
         for c in range(3):
             dT[0, r, c] = 0.0
@@ -150,6 +154,15 @@ def euler_t_into(beta, gamma, T, dT):
     dT[2, 2, 0] = tb * sg
     dT[2, 2, 1] = tb * cg
     dT[2, 2, 2] = 0.0
+
+
+@njit(cache=True)
+def euler_t_into(beta, gamma, T, dT):
+    """Fill ``T = E^-1`` (eq. 15, exact inverse) and ``dT[i] = dT/d(angle_i)``.
+
+    ``dT[0]`` (alpha) is zero. Singular at beta = +-90 deg; callers reject such schemes.
+    """
+    euler_t_sc_into(np.sin(beta), np.cos(beta), np.sin(gamma), np.cos(gamma), T, dT, True)
 
 
 @njit(cache=True)

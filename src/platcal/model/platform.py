@@ -3,7 +3,8 @@
 The 45 identified coefficients of the gimballed platform (docs/centrifuge-model.md §4-§7: gyro
 drift terms DF, DI, DS, DO and the g-squared terms, accelerometer k0, k1, misalignments, k2, k3,
 kIP, per axis x, y, z) in their engineering units, grouped ``gyro`` / ``accel``, with the default
-truths of the seeds' platform (Table 2's truth column, ``model/data/platform_truth.csv``). The
+truths of the seeds' platform (the truth column of the precision-centrifuge paper's results table,
+``model/data/platform_truth.csv``). The
 names, order and groups are those of :mod:`platcal.model.instruments`, which the kernels index.
 
 A rig identifies a subset (the centrifuge all 45, the 1 g multi-position test the 24 of its §9
@@ -63,7 +64,7 @@ class PlatformModel:
 
 
 def default_platform() -> PlatformModel:
-    """The seeds' platform: the 45 coefficients with Table 2's truths (``data/platform_truth.csv``)."""
+    """The seeds' platform: the 45 coefficients with their default truths (``data/platform_truth.csv``)."""
     with resources.files(__package__).joinpath("data/platform_truth.csv").open() as fh:
         df = pd.read_csv(fh)
     if tuple(df["name"]) != NAMES:

@@ -295,13 +295,19 @@ def code_hash(modules=None, data=()) -> str:
     return h.hexdigest()[:16]
 
 
+# A rig's claims are read by the claims rule alone (its hash is the whole package's), so editing a
+# claim must not rerun the rig's simulations.
+LEDGER_DATA = ("claims.yaml",)
+
+
 def _package_data(package: str) -> list[str]:
-    """Package-relative paths of a subpackage's ``data/*.csv|yaml`` (config schema, tables)."""
+    """Package-relative paths of a subpackage's ``data/*.csv|yaml`` (config schema, tables), the
+    claims ledger's file excepted."""
     f = _module_file(package)
     if f is None or not f.is_relative_to(_package_root()):
         return []
     return [p.relative_to(_package_root()).as_posix() for p in sorted((f.parent / "data").glob("*"))
-            if p.suffix in (".csv", ".yaml")]
+            if p.suffix in (".csv", ".yaml") and p.name not in LEDGER_DATA]
 
 
 def compute_code_hash(rig: Rig) -> str:

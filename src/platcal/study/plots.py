@@ -38,10 +38,15 @@ def styled(fn):
     return wrapper
 
 
-def save(fig, path: str | os.PathLike) -> None:
-    """Save a figure atomically without metadata (reruns give identical bytes)."""
+def save(fig, path: str | os.PathLike, dpi: float | None = None, tight: bool = True) -> None:
+    """The one figure saver: PNG, atomically, without metadata (no software or time stamp, so
+    reruns give identical bytes), then closed. ``dpi`` None: matplotlib's ``savefig.dpi``;
+    ``tight``: trim the margins (``bbox_inches="tight"``)."""
+    kw = {"bbox_inches": "tight"} if tight else {}
+    if dpi is not None:
+        kw["dpi"] = dpi
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", metadata={"Software": None}, bbox_inches="tight")
+        fig.savefig(tmp, format="png", metadata={"Software": None}, **kw)
     plt.close(fig)
 
 

@@ -12,10 +12,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
-from ...model.attitude import P_G, P_OMEGA_N, P_OMEGA_U
+from .attitude import P_G, P_OMEGA_N, P_OMEGA_U
 
 # Indices into the packed parameter vector the kernels take (see Centrifuge.params()): the
-# centrifuge's own slots before the site constants of platcal.model.attitude.
+# centrifuge's own slots before the site constants of platcal.rigs.centrifuge.attitude.
 P_RATE, P_RADIUS = 0, 1
 
 

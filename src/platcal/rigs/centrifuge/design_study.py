@@ -23,7 +23,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy.stats import spearmanr  # noqa: E402
 
-from ...io import atomic_path, atomic_to_csv, atomic_write_text  # noqa: E402
+from ...io import atomic_to_csv, atomic_write_text  # noqa: E402
+from ...study.plots import save as save_figure  # noqa: E402
 from ...log import job_logger  # noqa: E402
 from ...model.instruments import FULL_NAMES, INDEX, N_IDENTIFIED, NAMES  # noqa: E402
 from ...study.tables import write_table  # noqa: E402
@@ -224,9 +225,7 @@ def scatter_figure(summary: pd.DataFrame, spear: pd.DataFrame, path) -> None:
             ax.grid(alpha=0.3)
         axrow[0].set_ylabel(f"MC RMS relative error, % ({label})")
     axes[0][0].legend(fontsize=8)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120, tight=False)
 
 
 def compare_job(config: dict, scheme_files: list, out_dir, log_path=None) -> None:
@@ -287,9 +286,7 @@ def npos_job(config: dict, scheme_files: list, out_dir, log_path=None) -> None:
     axes[1].set_yscale("log")
     axes[2].set_yscale("log")
     axes[0].legend(fontsize=8)
-    with atomic_path(out / "n_positions.png") as tmp:
-        fig.savefig(tmp, format="png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "n_positions.png", dpi=120, tight=False)
 
 
 def static_job(config: dict, scheme_files: list, out_dir, log_path=None) -> None:

@@ -40,8 +40,7 @@ import numpy as np
 from numba import njit, prange
 
 from ...estimation.kalman import cholesky_inverse, innovation_covariance, joseph_update_sparse, propagate_sparse
-from ...model.attitude import (GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc,
-                               rk4_jac_sc)
+from .attitude import GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of
 from .base import broadcast_params, specific_force_into
@@ -235,6 +234,25 @@ def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, 
 
 
 @njit(cache=True)
+def propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new, pa, pgyro, phi, q, Wd,
+                       blk, scratch):
+    """The EKF's propagation over ``dt`` s (docs/centrifuge-model.md §9): the attitude (rad) through
+    RK4, P through the RK4 map's exact Jacobian (rows of the 3 attitude states), plus the angle
+    random walk ``q_rate * dt``. Shared by the EKF, the IEKF and the UKF's linear step."""
+    npc = pcols.shape[0]
+    rk4_jac_sc(ang, coef, fr3, dt, pb, ang_new, pa, pgyro, scratch)
+    for r in range(3):
+        for k in range(npc - 3):
+            phi[r, k] = pgyro[r, pg[k]]
+        for i in range(3):
+            phi[r, npc - 3 + i] = pa[r, i]
+        q[r, r] = q_rate * dt
+    for r in range(3):
+        ang[r] = ang_new[r]
+    propagate_sparse(Pb, dyn, pcols, phi, q, Wd, blk)
+
+
+@njit(cache=True)
 def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate,
                 update_x, hist_idx, hist_x, hist_s, pcols, pg, hcols, hsrc, hnnz, it_ctl):
     """One replicate through one position; returns (sum of NIS, number of skipped updates).
@@ -307,16 +325,8 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
             specific_force_into(t[m], pb, fr_now)
             for r in range(3):
                 fr3[2, r] = fr_now[r]
-            rk4_jac_sc(ang, coef, fr3, h, pb, ang_new, pa, pgyro, scratch)
-            for r in range(3):
-                for k in range(npc - 3):
-                    phi[r, k] = pgyro[r, pg[k]]
-                for i in range(3):
-                    phi[r, npc - 3 + i] = pa[r, i]
-                q[r, r] = q_rate * h
-            for r in range(3):
-                ang[r] = ang_new[r]
-            propagate_sparse(Pb, dyn, pcols, phi, q, Wd, blk)
+            propagate_attitude(Pb, ang, coef, fr3, h, pb, q_rate, dyn, pcols, pg, ang_new, pa, pgyro, phi, q, Wd,
+                               blk, scratch)
             t_prev = t[m]
         measure_jac_sc(ang, coef, fr_now[0], fr_now[1], fr_now[2], g, out, hm, ha)
         for r in range(3):

@@ -5,7 +5,7 @@ Parameters (``n = nc + 3 K``): the ``nc`` estimated coefficients (45, or 48 with
 angles alpha, beta, gamma (rad) of each of the K positions: the attitude at time 0 of position
 k, the instant of the reset (docs/centrifuge-model.md §9). Within a position the attitude follows
 eq. 18 deterministically from those angles, integrated by the model's RK4 from instant to instant
-(:func:`platcal.model.attitude.rk4_jac_sc`; from 0 to ``t[0]`` first, unless ``t[0] == 0``); the
+(:func:`platcal.rigs.centrifuge.attitude.rk4_jac_sc`; from 0 to ``t[0]`` first, unless ``t[0] == 0``); the
 prediction of each sample is eq. 13 at the propagated angles.
 
 Prior (MAP): coefficients ``N(0, diag(p0_sigma^2))``, initial angles ``N(commanded,
@@ -28,7 +28,7 @@ at the estimate is the mean NIS.
 
 Sensitivities: ``d angle(t_m) / d [angle(0), gyro coef]`` are the chained per-step Jacobians of
 the RK4 map (``Phi_a <- phi_a Phi_a``, ``Phi_g <- phi_a Phi_g + phi_g``), and
-``J_m = [H_c + H_a Phi_g | H_a Phi_a]`` with H from :func:`platcal.model.attitude.measure_jac_sc`.
+``J_m = [H_c + H_a Phi_g | H_a Phi_a]`` with H from :func:`platcal.rigs.centrifuge.attitude.measure_jac_sc`.
 
 Solver: :func:`platcal.estimation.gauss_newton.solve_map` (Gauss-Newton, optionally
 Levenberg-Marquardt), started from zero coefficients (``start='zero'``, the EKF's initial state)
@@ -62,7 +62,7 @@ from numba import njit, prange
 
 from ...errors import InputError
 from ...estimation.gauss_newton import GNResult, one_step, solve_map
-from ...model.attitude import GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
+from .attitude import GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import N_FULL
 from .base import broadcast_params, specific_force_into

@@ -49,7 +49,7 @@ from ...estimation import information
 from ...estimation.information import (CRITERIA, correlation, crb_sigma, criteria, gram_singular_values,
                                        j_objective, numerical_rank, posterior_covariance, relative_scale)
 from ...io import atomic_files, json_text
-from ...model.attitude import make_rk4_scratch, make_work, measure_into, rk4_step_jac
+from .attitude import make_rk4_scratch, make_work, measure_into, rk4_step_jac
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, N_FULL, N_IDENTIFIED, group_of, unit_of
 from .base import broadcast_params, specific_force_into

@@ -24,7 +24,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from ...model.attitude import P_G, measure_scalar, rk4_scalar_sc
+from .attitude import P_G, measure_scalar, rk4_scalar_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import N_FULL
 from .base import broadcast_params

@@ -56,14 +56,13 @@ import numpy as np
 from numba import njit, prange
 
 from ...errors import InputError
-from ...estimation.kalman import propagate_sparse
 from ...estimation.unscented import (check_ut_params, cholesky_upper_into, joseph_update,
                                      regression_cross_into, ut_moments_into)
-from ...model.attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch,
-                               measure_scalar, rk4_jac_sc, rk4_scalar)
+from .attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch, measure_scalar,
+                       rk4_scalar)
 from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
 from .base import specific_force_into
-from .ekf import Estimate, FilterSettings, drive_passes, filter_start
+from .ekf import Estimate, FilterSettings, drive_passes, filter_start, propagate_attitude
 
 SIGMA_POINT_MODES = ("nonlinear", "update", "all")
 
@@ -282,23 +281,6 @@ def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, mstates, est_idx, 
 
 
 @njit(cache=True)
-def _propagate_linear(xb, Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new, pa, pgyro, phi,
-                      q, Wd, blk, scratch):
-    """The EKF's propagation: the mean through RK4, P through the RK4 map's exact Jacobian."""
-    npc = pcols.shape[0]
-    rk4_jac_sc(ang, coef, fr3, dt, pb, ang_new, pa, pgyro, scratch)
-    for r in range(3):
-        for k in range(npc - 3):
-            phi[r, k] = pgyro[r, pg[k]]
-        for i in range(3):
-            phi[r, npc - 3 + i] = pa[r, i]
-        q[r, r] = q_rate * dt
-    for r in range(3):
-        ang[r] = ang_new[r]
-    propagate_sparse(Pb, dyn, pcols, phi, q, Wd, blk)
-
-
-@njit(cache=True)
 def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
                 hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm):
     """One replicate through one position; returns (sum of NIS, number of failed steps).
@@ -374,11 +356,11 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
                 if not propagate_all(xb, Pb, coef, fr3, dt, pb, q_rate * dt, h, w2, perm, est_idx,
                                      Rp, Sf, Dp, Dm, cs, a, a0, y, mz, blk):
                     bad += 1
-                    _propagate_linear(xb, Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg,
-                                      ang_new, pa, pgyro, phi, qm, Wd, blk, scratch)
+                    propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg,
+                                       ang_new, pa, pgyro, phi, qm, Wd, blk, scratch)
             else:
-                _propagate_linear(xb, Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new,
-                                  pa, pgyro, phi, qm, Wd, blk, scratch)
+                propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new,
+                                   pa, pgyro, phi, qm, Wd, blk, scratch)
         zrow = zb[m]
         if full:
             ok, s = update_all(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, perm, mstates, est_idx,
@@ -443,7 +425,7 @@ def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, para
 def propagation_structure(est_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(pcols, pg)``: the states where the attitude rows of the RK4 map's Jacobian may be nonzero
     (the estimated gyro coefficients, then the three angles) and, for each coefficient among
-    them, its column of the compact gyro Jacobian (:data:`platcal.model.attitude.GYRO_COLS`)."""
+    them, its column of the compact gyro Jacobian (:data:`platcal.rigs.centrifuge.attitude.GYRO_COLS`)."""
     nc = est_idx.size
     state_of = {int(f): k for k, f in enumerate(est_idx)}
     pairs = [(state_of[int(f)], q) for q, f in enumerate(GYRO_COLS) if int(f) in state_of]

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into
+from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into, c_rp_sc_into, euler_t_sc_into
 from ...model.instruments import GYRO_AXES
 from ...model.platform import default_platform
 
@@ -216,84 +216,16 @@ def rot_t_into(a0, a1, a2, C, dC, T, dT, want_d):
     """``C_n^p(a0, a1, a2)`` and ``T(a1, a2)`` (and, with ``want_d``, their partials ``dC``,
     ``dT``) from one evaluation of the six sines and cosines.
 
-    The expressions are those of :func:`platcal.model.frames.c_rp_into` and
-    :func:`~platcal.model.frames.euler_t_into` (docs/centrifuge-model.md §3, eq. 15), so the
-    numbers are identical to theirs (tested); fused because the rate of §4 is evaluated five
-    times per filter step and the shared trigonometry is a fifth of its cost.
+    The kernels of :func:`platcal.model.frames.c_rp_into` and
+    :func:`~platcal.model.frames.euler_t_into` (docs/centrifuge-model.md §3, eq. 15) on one set
+    of sines and cosines, because the rate of §4 is evaluated five times per filter step and
+    the shared trigonometry is a fifth of its cost.
     """
     sa, ca = np.sin(a0), np.cos(a0)
     sb, cb = np.sin(a1), np.cos(a1)
     sg, cg = np.sin(a2), np.cos(a2)
-    C[0, 0] = cg * cb
-    C[0, 1] = cg * sb * sa + sg * ca
-    C[0, 2] = -cg * sb * ca + sg * sa
-    C[1, 0] = -sg * cb
-    C[1, 1] = -sg * sb * sa + cg * ca
-    C[1, 2] = sg * sb * ca + cg * sa
-    C[2, 0] = sb
-    C[2, 1] = -cb * sa
-    C[2, 2] = cb * ca
-    ib = 1.0 / cb
-    tb = sb * ib
-    T[0, 0] = cg * ib
-    T[0, 1] = -sg * ib
-    T[0, 2] = 0.0
-    T[1, 0] = sg
-    T[1, 1] = cg
-    T[1, 2] = 0.0
-    T[2, 0] = -tb * cg
-    T[2, 1] = tb * sg
-    T[2, 2] = 1.0
-    if not want_d:
-        return
-    dC[0, 0, 0] = 0.0
-    dC[0, 0, 1] = cg * sb * ca - sg * sa
-    dC[0, 0, 2] = cg * sb * sa + sg * ca
-    dC[0, 1, 0] = 0.0
-    dC[0, 1, 1] = -sg * sb * ca - cg * sa
-    dC[0, 1, 2] = -sg * sb * sa + cg * ca
-    dC[0, 2, 0] = 0.0
-    dC[0, 2, 1] = -cb * ca
-    dC[0, 2, 2] = -cb * sa
-    dC[1, 0, 0] = -cg * sb
-    dC[1, 0, 1] = cg * cb * sa
-    dC[1, 0, 2] = -cg * cb * ca
-    dC[1, 1, 0] = sg * sb
-    dC[1, 1, 1] = -sg * cb * sa
-    dC[1, 1, 2] = sg * cb * ca
-    dC[1, 2, 0] = cb
-    dC[1, 2, 1] = sb * sa
-    dC[1, 2, 2] = -sb * ca
-    dC[2, 0, 0] = -sg * cb
-    dC[2, 0, 1] = -sg * sb * sa + cg * ca
-    dC[2, 0, 2] = sg * sb * ca + cg * sa
-    dC[2, 1, 0] = -cg * cb
-    dC[2, 1, 1] = -cg * sb * sa - sg * ca
-    dC[2, 1, 2] = cg * sb * ca - sg * sa
-    dC[2, 2, 0] = 0.0
-    dC[2, 2, 1] = 0.0
-    dC[2, 2, 2] = 0.0
-    for r in range(3):
-        for c in range(3):
-            dT[0, r, c] = 0.0
-    dT[1, 0, 0] = cg * tb * ib
-    dT[1, 0, 1] = -sg * tb * ib
-    dT[1, 0, 2] = 0.0
-    dT[1, 1, 0] = 0.0
-    dT[1, 1, 1] = 0.0
-    dT[1, 1, 2] = 0.0
-    dT[1, 2, 0] = -cg * ib * ib
-    dT[1, 2, 1] = sg * ib * ib
-    dT[1, 2, 2] = 0.0
-    dT[2, 0, 0] = -sg * ib
-    dT[2, 0, 1] = -cg * ib
-    dT[2, 0, 2] = 0.0
-    dT[2, 1, 0] = cg
-    dT[2, 1, 1] = -sg
-    dT[2, 1, 2] = 0.0
-    dT[2, 2, 0] = tb * sg
-    dT[2, 2, 1] = tb * cg
-    dT[2, 2, 2] = 0.0
+    c_rp_sc_into(sa, ca, sb, cb, sg, cg, C, dC, want_d)
+    euler_t_sc_into(sb, cb, sg, cg, T, dT, want_d)
 
 
 @njit(cache=True)

@@ -29,6 +29,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ...io import sorted_mapping
 from ...rig import NoiseAxis, ReplicateBatch, RunSettings
 from ...study.montecarlo import replicate_seed
 from .config import ARCSEC, SledConfig, load_config
@@ -82,8 +83,10 @@ def case_config(raw: dict, case: str, noise: float | None = None) -> SledConfig:
 def case_params(raw: dict, case: str, noise: float | None = None) -> dict:
     """What a replicate of ``case`` depends on: the case's config at noise level ``noise``, root
     seed included, without the study section (the sweep's list of cases is no replicate's number).
-    A Snakemake param of the rules that run replicates."""
-    return {k: v for k, v in case_raw(raw, case, noise).items() if k != "study"}
+    A Snakemake param of the rules that run replicates. Keys sorted: a case's overrides are merged
+    in, so the same content would otherwise give another order when the base gains the section
+    (the sled's mappings carry no order of their own)."""
+    return sorted_mapping({k: v for k, v in case_raw(raw, case, noise).items() if k != "study"})
 
 
 def noise_level(raw: dict) -> float:

@@ -18,7 +18,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ...io import atomic_path, atomic_to_csv, atomic_write_text  # noqa: E402
+from ...io import atomic_to_csv, atomic_write_text  # noqa: E402
+from ...study.plots import save as save_figure  # noqa: E402
 from ...log import job_logger  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
 from .config import ARCSEC, load_config  # noqa: E402
@@ -173,12 +174,6 @@ def checks(mets: dict[str, pd.DataFrame], ranks: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def _save(fig, path) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
-    plt.close(fig)
-
-
 def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
     """The figures a sled engineer expects; returns {name: file name}."""
     outdir = Path(outdir)
@@ -204,7 +199,7 @@ def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
         ax_.legend(fontsize=8)
     fig.tight_layout()
     names["yz"] = "yz_before_after.png"
-    _save(fig, outdir / names["yz"])
+    save_figure(fig, outdir / names["yz"], dpi=110, tight=False)
     # 2. X error naive / constrained / truth
     fig, ax_ = plt.subplots(figsize=(9, 5))
     ax_.plot(base.t, 100 * base.e_naive, label="naive navigation")
@@ -217,7 +212,7 @@ def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
     ax_.legend(fontsize=8)
     fig.tight_layout()
     names["x"] = "x_error.png"
-    _save(fig, outdir / names["x"])
+    save_figure(fig, outdir / names["x"], dpi=110, tight=False)
     # 3. attitude estimates ± 3 sigma (run phase)
     src = d7 if d7 is not None else base
     run = src[src.a_z.notna()]
@@ -237,7 +232,7 @@ def figures(ser: dict[str, pd.DataFrame], outdir: str | Path) -> dict[str, str]:
     np.atleast_1d(axs)[-1].set_xlabel("time (s)")
     fig.tight_layout()
     names["attitude"] = "attitude.png"
-    _save(fig, outdir / names["attitude"])
+    save_figure(fig, outdir / names["attitude"], dpi=110, tight=False)
     return names
 
 

@@ -23,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .frames import ARCSEC, DEG_PER_HOUR, c_rp_into, euler_t_into
-from .instruments import (GYRO_AXES, I_DOO, I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one, accel_output_into,
+from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into, euler_t_into
+from ...model.instruments import (GYRO_AXES, I_DOO, I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one, accel_output_into,
                           accel_slopes, gyro_axis_components, gyro_drift_into, gyro_drift_scalar,
                           gyro_drift_slopes)
 

@@ -18,6 +18,7 @@ import pandas as pd  # noqa: E402
 
 from ...io import atomic_path, atomic_write_text  # noqa: E402
 from ...study.claims import ledger_markdown, ledger_note  # noqa: E402
+from ...study.plots import save  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
 from .config import load_config  # noqa: E402
 from .montecarlo import study_frames  # noqa: E402
@@ -26,12 +27,6 @@ from .study import (PAPER_TRADITIONAL_RESIDUAL_PCT, acceptance, coefficient_tabl
 
 FMT = {"before": ".3f", "after": ".3f", "VE_before": ".2f", "VE_after": ".3f", "pE_before": ".0f", "pE_after": ".1f",
        "truth": "g", "mean": ".3f", "sd": ".3f", "mean_error": "+.3f", "mean_sigma": ".3f", "rms_z": ".2f"}
-
-
-def _savefig(fig, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
-    plt.close(fig)
 
 
 def fig_effect_vs_imprecision(deg: pd.DataFrame, meta: dict, path: Path) -> None:
@@ -52,7 +47,7 @@ def fig_effect_vs_imprecision(deg: pd.DataFrame, meta: dict, path: Path) -> None
     axes[0].legend(fontsize=8)
     fig.suptitle("Compensation effect against centrifuge imprecision")
     fig.tight_layout()
-    _savefig(fig, path)
+    save(fig, path, dpi=110, tight=False)
 
 
 def fig_velocity_trace(tr: dict, path: Path) -> None:
@@ -72,7 +67,7 @@ def fig_velocity_trace(tr: dict, path: Path) -> None:
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    _savefig(fig, path)
+    save(fig, path, dpi=110, tight=False)
 
 
 def fig_windows(tr: dict, path: Path) -> None:
@@ -94,7 +89,7 @@ def fig_windows(tr: dict, path: Path) -> None:
     ax.legend(uniq.values(), uniq.keys(), fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    _savefig(fig, path)
+    save(fig, path, dpi=110, tight=False)
 
 
 def load_trace(path) -> dict:

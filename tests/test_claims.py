@@ -99,8 +99,8 @@ def _centrifuge_ledger(tmp_path, sigma_a):
 
     from platcal.io import read_yaml
     from platcal.rigs.centrifuge import RIG, study as mc
+    from platcal.rigs.centrifuge.claims import MEASURES, claims
     from platcal.study import montecarlo as smc
-    from platcal.study.claims import evaluate_rig
 
     raw = read_yaml((Path(__file__).resolve().parents[1] / "config" / "centrifuge.yaml").read_text())
     raw["noise"]["sigma_a_ug"] = sigma_a
@@ -112,7 +112,8 @@ def _centrifuge_ledger(tmp_path, sigma_a):
     (tmp_path / "montecarlo").mkdir(parents=True)
     coef.to_parquet(tmp_path / "montecarlo" / "coef.parquet")
     runs.to_parquet(tmp_path / "montecarlo" / "runs.parquet")
-    return evaluate_rig(RIG, tmp_path, cfg).set_index("claim")
+    table2 = [c for c in claims() if c.id.startswith("table2_")]  # the covariance-only claims cost a minute
+    return evaluate(table2, MEASURES, tmp_path, cfg, seed=cfg["seed"]).set_index("claim")
 
 
 @pytest.mark.slow
@@ -146,3 +147,30 @@ def test_lowprec_effect_verdict_follows_the_instrument_noise(tmp_path):
     assert noisy.loc["proposed_effect_velocity", "verdict"] == NOT_REPRODUCED
     assert noisy.loc["proposed_effect_velocity", "measured"] < 75
     assert noisy.loc["insensitive_to_centrifuge", "verdict"] == INCONCLUSIVE  # those scenarios were not run
+
+
+@pytest.mark.slow
+def test_centrifuge_ga_claim_follows_the_designs_J(tmp_path):
+    """ga_beats_table1 reads the GA's J from design/ga_J.json and computes Table 1's at the GA's
+    dwell: a design with a lower J is reproduced, one with a higher J is not; none is inconclusive."""
+    import json
+    from pathlib import Path
+
+    from platcal.io import read_yaml
+    from platcal.rigs.centrifuge import study as mc
+    from platcal.rigs.centrifuge.claims import MEASURES, claims, table1_criterion
+
+    raw = read_yaml((Path(__file__).resolve().parents[1] / "config" / "test.yaml").read_text())["rigs"]["centrifuge"]
+    cfg = mc.check_study(raw)
+    ga = [c for c in claims() if c.id == "ga_beats_table1"]
+    none = evaluate(ga, MEASURES, tmp_path, cfg, seed=0).iloc[0]
+    assert none["verdict"] == INCONCLUSIVE and "ga_J not designed" in none["settings"]
+    j1 = float(table1_criterion(tmp_path, cfg).samples[0])  # Table 1's J at the test config's 3 s
+    (tmp_path / "design").mkdir()
+    verdicts = {}
+    for factor in (0.5, 2.0):
+        (tmp_path / "design" / "ga_J.json").write_text(json.dumps({"settings": {"dwell_s": 3}, "criteria": {"J": factor * j1}}))
+        row = evaluate(ga, MEASURES, tmp_path, cfg, seed=0).iloc[0]
+        assert row["measured"] == pytest.approx(factor)
+        verdicts[factor] = row["verdict"]
+    assert verdicts == {0.5: REPRODUCED, 2.0: NOT_REPRODUCED}

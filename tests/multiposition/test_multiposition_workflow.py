@@ -14,6 +14,8 @@ SNAKEFILE = """configfile: "config/config.yaml"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/montecarlo.smk"
 include: "workflow/rules/multiposition.smk"
+include: "workflow/rules/report.smk"
+RIG_TARGETS = {"multiposition": MULTIPOSITION_TARGETS}
 rule all:
     input: MULTIPOSITION_TARGETS
 """
@@ -31,12 +33,14 @@ def _tree(tmp_path: Path) -> Path:
     (d / "workflow/rules").mkdir(parents=True)
     (d / "workflow/scripts").mkdir(parents=True)
     (d / "config").mkdir()
-    for rules in ("common", "montecarlo", "multiposition"):  # the rig's own rules and the generic Monte Carlo
+    # the rig's own rules, the generic Monte Carlo and the ledger's (the report opens on claims.csv)
+    for rules in ("common", "montecarlo", "multiposition", "report"):
         shutil.copy(ROOT / f"workflow/rules/{rules}.smk", d / "workflow/rules")
     shutil.copytree(ROOT / "workflow/envs", d / "workflow/envs")
+    shutil.copytree(ROOT / "workflow/report", d / "workflow/report")
     shutil.copytree(ROOT / "workflow/schemas", d / "workflow/schemas")
     for p in [*(ROOT / "workflow/scripts").glob("multiposition_*.py"), ROOT / "workflow/scripts/montecarlo_cell.py",
-              ROOT / "workflow/scripts/collect.py"]:
+              ROOT / "workflow/scripts/collect.py", ROOT / "workflow/scripts/claims.py"]:
         shutil.copy(p, d / "workflow/scripts")
     (d / "Snakefile").write_text(SNAKEFILE)
     (d / "config/config.yaml").write_text("rigs: {multiposition: config/multiposition.yaml}\n")
@@ -55,6 +59,12 @@ def test_tiny_study_end_to_end(tmp_path):
     res = d / "results/multiposition"
     report = (res / "report.md").read_text()
     assert "## Scheme check" in report and "figures/ranks.png" in report
+    # the report opens on the rig's ledger rows, as the claims rule wrote them
+    claims = pd.read_csv(res / "claims.csv").set_index("claim")
+    assert report.index("## Claims") < report.index("## Scheme check")
+    assert claims.loc["refuse_roll4", "measured"] == 0 and "| refuse_roll4 |" in report
+    assert claims.loc["accept_s8", "verdict"] == "inconclusive"  # S8 is not in this study's rank_schemes
+    assert (res / "figures/extension_draws.png").stat().st_size > 0
     ranks = pd.read_csv(res / "tables/ranks.csv").set_index("scheme")
     assert ranks.loc["ROLL4", "verdict"] == "refuse" and ranks.loc["ROLL4", "static rank"] == 21
     summ = pd.read_csv(res / "tables/montecarlo_summary.csv")

@@ -85,6 +85,10 @@ def test_sled_study_end_to_end(study):
     res = study / "results" / "sled"
     report = (res / "report.md").read_text()
     assert "Table-1 analogue" in report and "figures/x_error.png" in report
+    # the report opens on the rig's ledger rows, as the claims rule wrote them to claims.csv
+    claims = pd.read_csv(res / "claims.csv").set_index("claim")
+    assert report.index("## Claims") < report.index("## Cases")
+    assert "| lateral_metric_b_7 |" in report and claims.loc["lateral_metric_b_7", "settings"] == "case run7, 2 replicates"
     for name in ("yz_before_after.png", "x_error.png", "attitude.png"):
         assert (res / "figures" / name).stat().st_size > 10_000
     runs = pd.read_parquet(res / "montecarlo" / "runs.parquet")

@@ -43,6 +43,18 @@ CENTRIFUGE_TARGETS = (
     ]
 )
 
+# what the centrifuge's claims are judged on (platcal.rigs.centrifuge.claims): its report opens on them
+CENTRIFUGE_EVIDENCE = (
+    []
+    if CEN is None
+    else [
+        "results/centrifuge/montecarlo/coef.parquet",
+        "results/centrifuge/montecarlo/runs.parquet",
+        "results/centrifuge/compare/coef.parquet",
+        "results/centrifuge/compare/runs.parquet",
+    ]
+)
+
 
 wildcard_constraints:
     design=r"ga_[A-Za-z0-9_]+",
@@ -79,17 +91,20 @@ rule centrifuge_tables:
         table2_single=report(
             "results/centrifuge/tables/table2_single.html",
             caption="../report/table2_single.rst",
-            category="Centrifuge tables",
+            category="Rig 1: centrifuge",
+            subcategory="tables",
         ),
         table2_montecarlo=report(
             "results/centrifuge/tables/table2_montecarlo.html",
             caption="../report/table2_montecarlo.rst",
-            category="Centrifuge tables",
+            category="Rig 1: centrifuge",
+            subcategory="tables",
         ),
         summary=report(
             "results/centrifuge/tables/summary.html",
             caption="../report/summary.rst",
-            category="Centrifuge tables",
+            category="Rig 1: centrifuge",
+            subcategory="tables",
         ),
         timing="results/centrifuge/tables/summary_timing.csv",
     params:
@@ -113,32 +128,38 @@ rule centrifuge_figures:
         boxplot=report(
             "results/centrifuge/figures/rel_err_boxplot.png",
             caption="../report/boxplot.rst",
-            category="Centrifuge figures",
+            category="Rig 1: centrifuge",
+            subcategory="figures",
         ),
         rms_vs_noise=report(
             "results/centrifuge/figures/rms_vs_noise.png",
             caption="../report/rms_vs_noise.rst",
-            category="Centrifuge figures",
+            category="Rig 1: centrifuge",
+            subcategory="figures",
         ),
         convergence=report(
             "results/centrifuge/figures/convergence.png",
             caption="../report/convergence.rst",
-            category="Centrifuge figures",
+            category="Rig 1: centrifuge",
+            subcategory="figures",
         ),
         correlation=report(
             "results/centrifuge/figures/correlation.png",
             caption="../report/correlation.rst",
-            category="Centrifuge figures",
+            category="Rig 1: centrifuge",
+            subcategory="figures",
         ),
         nees=report(
             "results/centrifuge/figures/nees_hist.png",
             caption="../report/nees.rst",
-            category="Centrifuge figures",
+            category="Rig 1: centrifuge",
+            subcategory="figures",
         ),
         paper_vs_mc=report(
             "results/centrifuge/figures/paper_vs_montecarlo.png",
             caption="../report/paper_vs_mc.rst",
-            category="Centrifuge figures",
+            category="Rig 1: centrifuge",
+            subcategory="figures",
         ),
     params:
         study=config_provider("centrifuge", "study", "noise"),
@@ -203,12 +224,14 @@ rule centrifuge_compare:
         cost=report(
             "results/centrifuge/figures/compare_cost.png",
             caption="../report/compare_cost.rst",
-            category="Centrifuge figures",
+            category="Rig 1: centrifuge",
+            subcategory="figures",
         ),
         nees=report(
             "results/centrifuge/figures/compare_nees.png",
             caption="../report/compare_nees.rst",
-            category="Centrifuge figures",
+            category="Rig 1: centrifuge",
+            subcategory="figures",
         ),
     params:
         study=config_provider("centrifuge", "study", "noise", "filter", "seed"),
@@ -227,6 +250,7 @@ rule centrifuge_report:
         figures=rules.centrifuge_figures.output,
         compare=rules.centrifuge_compare.output.tables,
         timing="results/centrifuge/montecarlo/timing.csv",
+        claims="results/centrifuge/claims.csv",
     output:
         "results/centrifuge/report.md",
     params:
@@ -274,7 +298,8 @@ rule centrifuge_design_compare:
         spearman="results/centrifuge/design/compare/spearman.csv",
         figure=report(
             "results/centrifuge/design/compare/criteria_vs_accuracy.png",
-            category="Centrifuge design",
+            category="Rig 1: centrifuge",
+            subcategory="design",
             caption="../report/design_scatter.rst",
         ),
     params:
@@ -296,7 +321,8 @@ rule centrifuge_design_npos:
         table="results/centrifuge/design/npos/n_positions.csv",
         figure=report(
             "results/centrifuge/design/npos/n_positions.png",
-            category="Centrifuge design",
+            category="Rig 1: centrifuge",
+            subcategory="design",
             caption="../report/design_npos.rst",
         ),
     params:
@@ -357,7 +383,8 @@ rule centrifuge_design_report:
     output:
         report(
             "results/centrifuge/design/report.md",
-            category="Centrifuge design",
+            category="Rig 1: centrifuge",
+            subcategory="design",
             caption="../report/design_report.rst",
         ),
     params:

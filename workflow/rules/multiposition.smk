@@ -11,6 +11,18 @@ from platcal.rigs.multiposition.study import WorkflowSetup as _MPSetup
 MP_SETUP = (checked("multiposition", lambda raw: _MPSetup(raw, centrifuge="centrifuge" in RAW))
             if "multiposition" in RAW else _MPSetup(None))
 MULTIPOSITION_TARGETS = MP_SETUP.targets()
+# what the rig's claims are judged on (platcal.rigs.multiposition.claims): its report opens on them
+MULTIPOSITION_EVIDENCE = (
+    [
+        *MP_SETUP.observability(),
+        "results/multiposition/montecarlo/coef.parquet",
+        "results/multiposition/montecarlo/runs.parquet",
+        "results/multiposition/extension/ranks.json",
+        "results/multiposition/extension/spread.csv",
+    ]
+    if MULTIPOSITION_TARGETS
+    else []
+)
 
 
 rule multiposition_kernels:
@@ -123,6 +135,7 @@ rule multiposition_report:
         ext_sigma="results/multiposition/extension/sigma.csv",
         ext_spread="results/multiposition/extension/spread.csv",
         centrifuge=MP_SETUP.centrifuge_json(),
+        claims="results/multiposition/claims.csv",
     output:
         tables=expand(
             "results/multiposition/tables/{table}.{ext}",
@@ -130,10 +143,10 @@ rule multiposition_report:
             ext=["csv", "md", "html"],
         ),
         figures=[
-            report(f, category="Rig 2: multiposition")
+            report(f, category="Rig 2: multiposition", subcategory="figures")
             for f in expand(
                 "results/multiposition/figures/{fig}.png",
-                fig=["ranks", "montecarlo", "nees", "extension"],
+                fig=["ranks", "montecarlo", "nees", "extension", "extension_draws"],
             )
         ],
         report="results/multiposition/report.md",

@@ -23,6 +23,8 @@ if "sled" in MC_CONFIG:
         "results/sled/figures/attitude.png",
         "results/sled/report.md",
     ]
+    # what the rig's claims are judged on (platcal.rigs.sled.claims): its report opens on them
+    SLED_EVIDENCE = ["results/sled/montecarlo/runs.parquet"]
 
     rule sled_series:
         output:
@@ -60,12 +62,13 @@ if "sled" in MC_CONFIG:
             runs="results/sled/montecarlo/runs.parquet",
             series=expand("results/sled/series/{case}.csv", case=SLED_CASES),
             ranks="results/sled/rank_table.csv",
+            claims="results/sled/claims.csv",
         output:
             "results/sled/table1.md",
             "results/sled/checks.md",
-            report("results/sled/figures/yz_before_after.png", category="Rig 3: sled"),
-            report("results/sled/figures/x_error.png", category="Rig 3: sled"),
-            report("results/sled/figures/attitude.png", category="Rig 3: sled"),
+            report("results/sled/figures/yz_before_after.png", category="Rig 3: sled", subcategory="figures"),
+            report("results/sled/figures/x_error.png", category="Rig 3: sled", subcategory="figures"),
+            report("results/sled/figures/attitude.png", category="Rig 3: sled", subcategory="figures"),
             report="results/sled/report.md",
         params:
             # the report prints the whole config

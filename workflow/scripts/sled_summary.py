@@ -3,10 +3,12 @@ from pathlib import Path
 
 from platcal.log import job_logger
 from platcal.rigs.sled.study import summarise
+from platcal.study.claims import read_ledger
 
 sm = snakemake  # noqa: F821
 log = job_logger(sm.log[0], "platcal.sled")
 cfg = dict(sm.params.cfg)
 cases = list(cfg["study"]["cases"])
-summarise(sm.input.runs, dict(zip(cases, sm.input.series)), sm.input.ranks, Path(sm.output.report).parent, cfg)
+summarise(sm.input.runs, dict(zip(cases, sm.input.series)), sm.input.ranks, Path(sm.output.report).parent, cfg,
+          read_ledger(sm.input.claims))
 log.info(f"sled summary of {len(cases)} cases -> {sm.output.report}")

@@ -234,3 +234,19 @@ def ledger_note(df: pd.DataFrame) -> str:
     return (f"{len(df)} claims: {verdict_counts(df)}. Measured: the statistic over the study's replicates, with its "
             "95 % percentile-bootstrap interval; reproduced when the whole interval meets the criterion, not reproduced "
             "when none of it does, inconclusive when it straddles the criterion or the study did not run the cells.")
+
+
+def ledger_section(df: pd.DataFrame, heading: str = "## Claims") -> str:
+    """The opening section of a rig's report.md: the verdict counts and the ledger rows (the
+    paper's value, the measured statistic with its 95 % bootstrap interval over the replicates,
+    the criterion, the verdict and the cells it comes from), as the rig's ``claims.csv`` holds them."""
+    if df.empty:
+        return f"{heading}\n\nThis rig declares no claims.\n"
+    return f"{heading}\n\n{ledger_note(df)}\n\n{ledger_markdown(df)}"
+
+
+def read_ledger(path) -> pd.DataFrame:
+    """A ledger written by the ``claims`` rule (``results/<rig>/claims.csv``), columns :data:`LEDGER_COLUMNS`."""
+    df = pd.read_csv(path)[LEDGER_COLUMNS]
+    text = [c for c in LEDGER_COLUMNS if c not in ("measured", "ci_low", "ci_high")]
+    return df.astype({c: object for c in text}).fillna({c: "" for c in text})

@@ -21,6 +21,7 @@ from ...estimation.consistency import nees_band
 from ...io import atomic_to_csv, atomic_write_text
 from ...log import job_logger
 from ...model.instruments import NAMES, unit_of
+from ...study.claims import ledger_section, read_ledger
 from ...study.plots import (boxplot_rel_err, convergence, correlation_heatmap, nees_histogram, plt,
                             rms_vs_noise, save, styled)
 from ...study.stats import per_coefficient, select_cell, summary, with_timing
@@ -186,8 +187,11 @@ def reading(cfg: dict, t2: pd.DataFrame, t2mc: pd.DataFrame, summ: pd.DataFrame)
     return "\n".join(lines) + "\n"
 
 
-def write_report(cfg: dict, tables_dir, figures_dir, out_path, timing: pd.DataFrame | None = None) -> None:
-    """``results/report.md``: what was run, the reading, tables inline, figures linked."""
+def write_report(cfg: dict, tables_dir, figures_dir, out_path, timing: pd.DataFrame | None = None,
+                 claims: pd.DataFrame | None = None) -> None:
+    """``results/report.md``: the rig's claims ledger rows first (``claims``, as the ``claims``
+    rule wrote them to ``results/centrifuge/claims.csv``; none: no section), then what was run,
+    the reading, tables inline, figures linked."""
     tables_dir, figures_dir, out_path = Path(tables_dir), Path(figures_dir), Path(out_path)
     t2 = pd.read_csv(tables_dir / "table2_single.csv")
     t2mc = pd.read_csv(tables_dir / "table2_montecarlo.csv")
@@ -197,6 +201,7 @@ def write_report(cfg: dict, tables_dir, figures_dir, out_path, timing: pd.DataFr
     parts = ["# platcal Monte Carlo study: centrifuge identification of 45 platform error coefficients", "",
              "Written by the Snakemake workflow (`snakemake --cores 2`). Model: Xu & Zhang (2017) and "
              "the project's spec. All numbers below come from this run's result files.", "",
+             *([ledger_section(claims), ""] if claims is not None else []),
              "## Study", "",
              f"- schemes: {', '.join(sorted(set(summ['scheme']), key=list(summ['scheme']).index))}",
              f"- accelerometer noise sigma_a: {', '.join(f'{v:g}' for v in st['sigma_a_ug'])} ug per sample; "
@@ -321,8 +326,10 @@ def all_figures(coef, runs, t2mc, history, cov, single_info: dict, truth: dict, 
 
 
 def report_from_results(cfg: dict, results) -> Path:
-    """Rewrite ``<results>/report.md`` from a results folder's tables (``platcal report``)."""
+    """Rewrite ``<results>/report.md`` from a results folder's tables (``platcal report``), opening
+    on its ``claims.csv`` when the workflow wrote one."""
     res = Path(results)
     timing = pd.read_csv(res / "montecarlo" / "timing.csv")
-    write_report(check_study(cfg), res / "tables", res / "figures", res / "report.md", timing)
+    claims = read_ledger(res / "claims.csv") if (res / "claims.csv").exists() else None
+    write_report(check_study(cfg), res / "tables", res / "figures", res / "report.md", timing, claims)
     return res / "report.md"

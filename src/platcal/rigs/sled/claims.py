@@ -27,7 +27,18 @@ def metric(results: Path, cfg: dict, case: str, column: str, scale: float = 1.0)
     return Evidence((m[column].abs() * scale).to_numpy(float), f"case {case}, {len(m)} replicates")
 
 
-MEASURES = {"metric": metric}
+def metric_ratio(results: Path, cfg: dict, case: str, numerator: str, denominator: str) -> Evidence | None:
+    """Per replicate, |``numerator``| / |``denominator``| of study case ``case`` (two §8 metrics
+    of the runs table, e.g. the naive X error over the constrained one: > 1, the compensation
+    helps), failed runs left out; None when the study did not run it."""
+    num = metric(results, cfg, case, numerator)
+    den = metric(results, cfg, case, denominator)
+    if num is None or den is None or num.samples.size == 0 or den.samples.size == 0:
+        return num if num is None or num.samples.size == 0 else den
+    return Evidence(num.samples / den.samples, num.settings)
+
+
+MEASURES = {"metric": metric, "metric_ratio": metric_ratio}
 
 
 def claims():

@@ -44,6 +44,8 @@ CASES = {
     "misalign0_post": ({"imu": {"accel": {"misalign_arcsec": 0}}, "filter": {"compensation": "post"}},
                        "zero accelerometer misalignment, 6 states, post"),
     "paper_tuning": ({"filter": {"tuning": "paper"}}, "the paper's literal P0 = I, Q = 1e-9 I, R = 1e6 I"),
+    "paper7": ({"filter": {"states": 7, "tuning": "paper"}},
+               "the paper's own set-up: 7-state run filter, P0 = I, Q = 1e-9 I, R = 1e6 I (realtime)"),
 }
 """Study cases: (overrides of the base config, description)."""
 

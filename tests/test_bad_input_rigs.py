@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 
 from platcal.cli import main
+from clean_records import simulated_records
 from file_snapshot import snapshot
 
 G = 9.80665
@@ -35,13 +36,7 @@ IDENTIFY = {"multiposition": ["--scheme", "tiny"], "sled": [], "lowprec_centrifu
 def records(tmp_path_factory):
     """One clean simulated record per rig (and the lowprec traditional run), as frames."""
     d = tmp_path_factory.mktemp("clean")
-    out = {}
-    for rig, text in CONFIGS.items():
-        cfg = d / f"{rig}.yaml"
-        cfg.write_text(text)
-        rec = d / f"{rig}.csv"
-        assert main(["simulate", "--config", str(cfg), *SIMULATE[rig], "--seed", "1", "--out", str(rec)]) == 0
-        out[rig] = pd.read_csv(rec)
+    out = {rig: frame for rig, (_, frame) in simulated_records(d, CONFIGS, SIMULATE, 1).items()}
     cfg = d / "lowprec_centrifuge.yaml"
     rec = d / "trad.csv"
     assert main(["simulate", "--config", str(cfg), "--platform", "P1", "--run", "traditional", "--seed", "1",

@@ -15,6 +15,7 @@ import sys
 
 from .errors import InputError
 from .io import read_config
+from .logs.calibration import read_calibration
 from .rig import option, rig_of
 
 CONFIG_HELP = "study configuration (YAML); its 'rig:' selects the rig"
@@ -25,6 +26,8 @@ COMMANDS = {
     "design": "genetic-algorithm search for a test scheme (pymoo)",
     "montecarlo": "run one (case, noise level, estimator) cell of the rig's Monte Carlo study",
     "report": "write the rig's report.md from the study's tables and figures",
+    "inspect": "what a log holds as the rig reads it: columns, units, rate, dwells, gaps",
+    "compensate": "apply an identification (calibration.yaml) to a log",
 }
 COMMON = {
     "simulate": (option("--seed", type=int, default=None, help="which run: replicate N of the study's Monte Carlo for the rigs with one, else seed N of its study (default: the config's)"),
@@ -38,6 +41,12 @@ COMMON = {
     "montecarlo": (option("--threads", type=int, default=1, help="threads (numba) or joblib workers"),
                    option("--out", required=True, help="output folder (coef.parquet, runs.parquet, timing.json)")),
     "report": (option("--results", default=None, help="the rig's results folder (default: results/<rig>)"),),
+    "inspect": (option("--data", required=True, help="the log (.csv or .parquet), read through the config's "
+                                                    "'record:' mapping"),),
+    "compensate": (option("--calibration", required=True, help="calibration.yaml written by platcal identify"),
+                   option("--data", required=True, help="the log (.csv or .parquet), read through the "
+                                                        "calibration's config 'record:' mapping"),
+                   option("--out", required=True, help="compensated log to write (.csv or .parquet)")),
 }
 """Options every rig's sub-command takes; a rig adds its own (``Rig.options``)."""
 
@@ -64,17 +73,30 @@ def build_parser(rig=None) -> argparse.ArgumentParser:
         epilog = (f"options of rig {rig.name!r} ({rig.title})" if rig is not None
                   else "give --config FILE with --help to see the options of its rig")
         c = sub.add_parser(command, help=help_, description=help_, epilog=epilog)
-        c.add_argument("--config", required=True, help=CONFIG_HELP)
+        if command != "compensate":  # compensate applies the config the calibration was identified with
+            c.add_argument("--config", required=True, help=CONFIG_HELP)
         for opt in COMMON[command] + tuple(own):
             c.add_argument(*opt.flags, **opt.kwargs)
     return p
 
 
-def _config_of(argv) -> str | None:
-    """The ``--config`` of a command line, before the full parse (None when absent)."""
+def _config_of(argv) -> tuple[str | None, str | None]:
+    """The ``--config`` and ``--calibration`` of a command line, before the full parse (None when absent)."""
     pre = argparse.ArgumentParser(add_help=False)
     pre.add_argument("--config", default=None)
-    return pre.parse_known_args(argv)[0].config
+    pre.add_argument("--calibration", default=None)
+    known = pre.parse_known_args(argv)[0]
+    return known.config, known.calibration
+
+
+def _raw_config(command: str, path, calibration) -> dict | None:
+    """The raw config a command runs with: ``compensate``'s is the one stored in its calibration."""
+    if command == "compensate":
+        if not calibration:
+            return None
+        cal = read_calibration(calibration)
+        return {**cal.config, "rig": cal.rig}
+    return read_config(path) if path else None
 
 
 def run(args: argparse.Namespace, raw: dict, rig) -> int:
@@ -91,8 +113,8 @@ def main(argv=None) -> int:
     command = next((a for a in argv if not a.startswith("-")), "platcal")
     path = rig = None
     try:
-        path = _config_of(argv)
-        raw = read_config(path) if path else None
+        path, calibration = _config_of(argv)
+        raw = _raw_config(command, path, calibration)
         rig = rig_of(raw) if raw is not None else None
         args = build_parser(rig).parse_args(argv)
         return run(args, raw, rig)

@@ -20,6 +20,7 @@ import pandas as pd
 
 from .errors import InputError
 from .io import atomic_to_csv, atomic_to_parquet
+from .logs.mapping import RecordMapping
 
 PARQUET_MAGIC = b"PAR1"
 """The first (and last) four bytes of every Parquet file."""
@@ -102,12 +103,19 @@ def read_frame(path: str | os.PathLike, field: str = "--data", what: str = "a te
 
 def read_table(path: str | os.PathLike, required: tuple[str, ...], optional: tuple[str, ...] = (),
                text: tuple[str, ...] = (), field: str = "--data", what: str = "a test record",
-               min_rows: int = 1) -> pd.DataFrame:
+               min_rows: int = 1, mapping: RecordMapping | None = None, units: dict | None = None,
+               increments: tuple[str, ...] = (), positions: tuple[str, ...] = ()) -> pd.DataFrame:
     """:func:`read_frame` plus the columns: every ``required`` one present, nothing outside
     ``required + optional``, at least ``min_rows`` rows, every column except ``text`` a finite
     number (InputError naming the column and the file's line). Numeric columns come back as float.
+    With a config's ``mapping`` (:class:`platcal.logs.mapping.RecordMapping`) and the rig's column
+    ``units`` (None for a text column) the log is first renamed and converted to the rig's units
+    (``increments``: the columns ``record.kind: increments`` applies to; ``positions``: the east
+    and north position columns ``record.geodetic`` fills).
     """
     df = read_frame(path, field, what)
+    if mapping is not None:
+        df = mapping.apply(df, units, required, str(path), increments, positions)
     cols = [str(c) for c in df.columns]
     missing = [c for c in required if c not in cols]
     if missing:

@@ -238,3 +238,28 @@ def accel_output(coef, f):
     out = np.empty(3)
     accel_output_into(coef, f, out, np.empty((3, coef.shape[0])), np.empty((3, 3)))
     return out
+
+
+def accel_outputs(coef: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """(N, 3) g: the noise-free outputs of accelerometers x, y, z for the specific forces ``f``
+    (N, 3) in p, g, and the full coefficient vector ``coef`` (48,), eqs. 1-3 and 13
+    (docs/centrifuge-model.md §5); the scalar helpers applied to whole columns."""
+    coef = np.asarray(coef, float)
+    f = np.asarray(f, float)
+    out = np.empty_like(f)
+    for j in range(3):
+        aI, aP = accel_axes(coef, j, f[:, 0], f[:, 1], f[:, 2])
+        out[:, j] = accel_one(coef, j, aI, aP)
+    return out
+
+
+def compensate_accelerometers(A: np.ndarray, coef: np.ndarray, iterations: int = 10) -> np.ndarray:
+    """(N, 3) g: the specific force in p whose outputs with ``coef`` (48,) are the measured ``A``
+    (N, 3) g, i.e. the error-free accelerometer outputs (docs/centrifuge-model.md §5). Solved by
+    fixed-point iteration f <- f + (A - outputs(f)): the model departs from the identity by about
+    1e-3 (scale, misalignment, nonlinearity at tens of g), so each pass gains about three digits."""
+    A = np.asarray(A, float)
+    f = A.copy()
+    for _ in range(iterations):
+        f = f + (A - accel_outputs(coef, f))
+    return f

@@ -13,17 +13,23 @@ import sys
 import time
 
 from ...errors import InputError
+from ...estimation.fit import fit_exit_status
 from ...rig import option
 from ...io import check_writable
+from ...logs.calibration import read_calibration
+from ...logs.compensate import compensate_log, read_mapped
+from ...logs.summary import inspect_log
+from ...logs.mapping import RecordMapping
 from ...scheme import resolve_scheme
 from ...study.montecarlo import cell_job, replicate_seed
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
-from .identify import (consistency_warning, identify_input, record_input, run_problems, timed, truth_known,
-                       write_identification)
+from .identify import (calibration, clock_finding, consistency_warning, identify_input, record_fit, record_input,
+                       run_problems, timed, truth_known, write_identification)
 from .observability import write_observability
-from .record import read_record, sim_to_frame, write_record
+from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, compensate_frame, full_coefficients,
+                     read_record, sim_to_frame, write_record)
 from .report import report_from_results
 from .simulate import simulate
 
@@ -79,7 +85,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     check_filter(study.filter)
     scheme = _scheme(study, args)
     check_writable(args.out, "--out", folder=True)
-    df = read_record(args.data)
+    df = read_record(args.data, RecordMapping.from_config(study.config["record"], g=study.centrifuge.g))
     fin = record_input(study, scheme, df)
     est, seconds = timed(identify_input, study, scheme, fin)
     problems = run_problems(est)
@@ -89,8 +95,9 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
               "config's noise and filter settings.", file=sys.stderr)
         return 1
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
+    fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
     summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds,
-                                   samples_used=used)
+                                   samples_used=used, calibration=calibration(est, study, args.data), fit=fit)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if "nees" in summary:
@@ -100,7 +107,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     warning = consistency_warning(summary)
     if warning:
         print(f"platcal identify: warning: {warning}", file=sys.stderr)
-    return 0
+    return fit_exit_status(fit, args.data, args.out)
 
 
 def observability_command(study: Study, args: argparse.Namespace) -> int:
@@ -168,8 +175,29 @@ def report_command(study: Study, args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"simulate": simulate_command, "identify": identify_command, "observability": observability_command,
-            "design": design_command, "montecarlo": montecarlo_command, "report": report_command}
+def inspect_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
+    mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
+    print(inspect_log(args.data, mapping, UNITS, LOG_COLUMNS, TRUTH_COLUMNS).text())
+    return 0
+
+
+def compensate_command(study: Study, args: argparse.Namespace) -> int:
+    """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
+    errors taken out (docs/centrifuge-model.md §5: the specific force whose modelled outputs are
+    the recorded ones), written atomically to ``--out`` in the record's columns and units. The
+    gyros are not in the record (they are seen through the platform's attitude), so only the
+    accelerometers are compensated."""
+    coef = full_coefficients(read_calibration(args.calibration), "centrifuge")
+    mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
+    optional = tuple(c for c in LOG_COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    return compensate_log(args, "centrifuge", read_mapped("centrifuge", mapping, UNITS, COMPENSATE_COLUMNS, optional),
+                          lambda df: compensate_frame(df, coef), "accelerometers compensated")
+
+
+COMMANDS = {"inspect": inspect_command, "simulate": simulate_command, "identify": identify_command, "observability": observability_command,
+            "design": design_command, "montecarlo": montecarlo_command, "report": report_command,
+            "compensate": compensate_command}
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
 OPTIONS = {

@@ -17,6 +17,7 @@ import numpy as np
 from ...errors import InputError
 from ...io import read_config
 from ...model.instruments import INDEX, term_of
+from ...logs.mapping import with_mapping_schema
 from ...schema import load_schema, validate
 from .base import Centrifuge
 from .catalogue import full_truth
@@ -32,7 +33,7 @@ ANGLE_KEYS = ("angles", "alpha", "beta", "gamma")
 
 def schema() -> dict:
     """The configuration's JSON Schema (with defaults)."""
-    return load_schema(__package__, SCHEMA_RESOURCE)
+    return with_mapping_schema(load_schema(__package__, SCHEMA_RESOURCE))
 
 
 def validate_config(raw: dict) -> dict:

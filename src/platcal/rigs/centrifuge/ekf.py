@@ -33,7 +33,7 @@ previous one.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numba
 import numpy as np
@@ -75,6 +75,8 @@ class FilterSettings:
     estimator : the estimator kind that runs (:mod:`platcal.rigs.centrifuge.estimators`:
         ``ekf``, ``iekf``, ...); the covariance-only runs are always the EKF's.
     estimator_options : ``(keyword, value)`` pairs passed to that kind's run function.
+    innovations : keep the last pass's innovations and their predicted variances
+        (``Estimate.innovations``; the fit check, issue 25); the EKF and IEKF only.
     """
 
     period_s: float = 0.02
@@ -88,6 +90,7 @@ class FilterSettings:
     update_at_reset: bool = False
     estimator: str = "ekf"
     estimator_options: tuple = ()
+    innovations: bool = False
 
     @property
     def coef_index(self) -> np.ndarray:
@@ -148,6 +151,9 @@ class Estimate:
     pass_x, pass_P : per-pass final coefficient estimate (passes, B, n_coef) and covariance.
     mean_nis : (B,) mean normalised innovation squared of the last pass (3 expected).
     failed_updates : (B,) updates skipped because S was not positive definite.
+    innovations : (B, M, 6) when ``FilterSettings.innovations``: at each of the M instants of the
+        last pass (positions end to end), the innovation ``z - h(x_pred)`` of Ax, Ay, Az (g) and
+        the diagonal of its predicted covariance S (g^2; NaN where the update was skipped).
     """
 
     names: tuple[str, ...]
@@ -160,6 +166,7 @@ class Estimate:
     pass_P: np.ndarray
     mean_nis: np.ndarray
     failed_updates: np.ndarray
+    innovations: np.ndarray | None = None
 
     @property
     def n_coef(self) -> int:
@@ -179,7 +186,7 @@ class Estimate:
 
 @njit(parallel=True, cache=True)
 def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl):
+              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec):
     """Filter every replicate of the batch through every position of one pass.
 
     Position k's instants are ``t[offs[k]:offs[k + 1]]`` (s since the position's start) with
@@ -192,7 +199,8 @@ def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_v
     ``pcols`` (gyro coefficients, then the angles); for a coefficient column ``pg`` gives its
     column of the RK4 map's compact gyro Jacobian. Row r of H is nonzero only at the states
     ``hcols[r, :hnnz[r]]``; ``hsrc`` says where each value comes from (a column of
-    ``MEAS_COLS[r]``, or ``-1 - i`` for angle i).
+    ``MEAS_COLS[r]``, or ``-1 - i`` for angle i). ``rec`` (B, M, 6) receives each instant's
+    innovation and the diagonal of S ((B, 0, 6): not kept).
 
     Each replicate runs the same sequential kernel (:func:`_filter_one`) in its own iteration, so
     the numbers do not depend on the batch size or on the number of threads. One parallel region
@@ -202,33 +210,34 @@ def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_v
     for b in prange(B):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                           q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          hcols, hsrc, hnnz, it_ctl)
+                          hcols, hsrc, hnnz, it_ctl, rec)
 
 
 @njit(cache=True)
 def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                      q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
-                     hsrc, hnnz, it_ctl):
+                     hsrc, hnnz, it_ctl, rec):
     """:func:`_run_pass` without threads, for a batch of one or a single thread: the same
     per-replicate kernel, minus the parallel region's start-up and join (milliseconds on a
     busy machine)."""
     for b in range(x.shape[0]):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                           q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          hcols, hsrc, hnnz, it_ctl)
+                          hcols, hsrc, hnnz, it_ctl, rec)
 
 
 @njit(cache=True)
 def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                       q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
-                      hsrc, hnnz, it_ctl):
+                      hsrc, hnnz, it_ctl, rec):
     """Replicate b through every position of one pass (see :func:`_run_pass`)."""
     for k in range(offs.shape[0] - 1):
         o0, o1 = offs[k], offs[k + 1]
         zb = z[b, o0:o1] if update_x else z[b]
+        rb = rec[b, o0:o1] if rec.shape[1] > 0 else rec[b]
         stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx,
                             coef_fixed[b], params[b, k], r_var, q_rate, update_x,
-                            hist_idx[o0:o1], hist_x[b], hist_s[b], pcols, pg, hcols, hsrc, hnnz, it_ctl)
+                            hist_idx[o0:o1], hist_x[b], hist_s[b], pcols, pg, hcols, hsrc, hnnz, it_ctl, rb)
         nis_sum[b] += stats[0]
         n_bad[b] += int(stats[1])
 
@@ -254,8 +263,10 @@ def propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_n
 
 @njit(cache=True)
 def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate,
-                update_x, hist_idx, hist_x, hist_s, pcols, pg, hcols, hsrc, hnnz, it_ctl):
+                update_x, hist_idx, hist_x, hist_s, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec):
     """One replicate through one position; returns (sum of NIS, number of skipped updates).
+
+    ``rec`` (M, 6): each instant's innovation and diagonal of S, when it has M rows (else unused).
 
     ``it_ctl`` (4 + n_coef,) controls the iterated update (:func:`iteration_control`): max
     linearisations per update (1 = the EKF), tolerance (largest state change, in sigmas),
@@ -365,8 +376,16 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
         if joseph_update_sparse(xb, Pb, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu,
                                 update_x):
             nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
+            if rec.shape[0] > m:
+                for r in range(3):
+                    rec[m, r] = innov[r]
+                    rec[m, 3 + r] = S[r, r]
         else:
             bad += 1
+            if rec.shape[0] > m:
+                for r in range(3):
+                    rec[m, r] = innov[r]
+                    rec[m, 3 + r] = np.nan
         hi = hist_idx[m]
         if hi >= 0:
             for i in range(n):
@@ -620,10 +639,13 @@ def run_ekf(
     p0 = np.asarray(settings.p0_sigma, float)
     it_ctl = iteration_control(p0) if iterate is None or cov_only else np.ascontiguousarray(iterate, float)
     kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
+    keep = settings.innovations and not cov_only
+    # every full pass overwrites it, so it ends holding the last pass's innovations
+    rec = np.zeros((B, sum(len(tk) for tk in t) if keep else 0, 6))
 
-    def run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad, update_x=not cov_only):
+    def run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad, update_x=not cov_only, rec=rec):
         kernel(x, P, z_all, t_all, offs, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params,
-               st.r_var, st.q_rate, update_x, hidx, hist_x, hist_s, nis, n_bad, *structure, it_ctl)
+               st.r_var, st.q_rate, update_x, hidx, hist_x, hist_s, nis, n_bad, *structure, it_ctl, rec)
 
     nis = np.zeros(B)
     n_bad = np.zeros(B, dtype=np.int64)
@@ -634,10 +656,11 @@ def run_ekf(
         no_hist = np.full(t_w.size, -1, dtype=np.int64)
         with numba.parallel_chunksize(1):
             run_pass(x, P, z_w, t_w, offs_w, no_hist, np.zeros((B, 0, nc + 3)), np.zeros((B, 0, nc + 3)),
-                     nis, n_bad, update_x=True)
+                     nis, n_bad, update_x=True, rec=np.zeros((B, 0, 6)))
         P = restart_covariance(P, nc)
         nis[:] = 0.0
-    return drive_passes(run_pass, x, P, None if cov_only else z, t, settings, passes, nis, n_bad)
+    est = drive_passes(run_pass, x, P, None if cov_only else z, t, settings, passes, nis, n_bad)
+    return replace(est, innovations=rec) if keep else est
 
 
 def run_iekf(

@@ -11,7 +11,11 @@ import pandas as pd
 from scipy.stats import chi2
 
 from ...estimation.consistency import estimate_problems, nees
+from ...estimation.fit import FitCheck, fit_check
 from ...io import atomic_files, json_text
+from ...logs.calibration import Calibration, calibration_of, write_calibration_files
+from ...plausibility import refuse_recognised, timestamp_jitter
+from .catalogue import load_catalogue
 from .config import Study
 from .ekf import Estimate, FilterSettings, first_instant
 from .estimators import run_estimator
@@ -38,13 +42,56 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
     return run_estimator([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, scheme.angles_deg, params, fs)
 
 
+FIT_CHANNELS = ("Ax", "Ay", "Az")
+"""The measured channels, as the record names them (docs/centrifuge-model.md §13)."""
+
+
 def record_input(study: Study, scheme: Scheme, df: pd.DataFrame) -> FilterInput:
     """Check a read test record against the scheme and sampling (InputError before any work) and
-    select the samples the filter uses."""
+    select the samples the filter uses; then its plausibility: no unit, sign or swap of Ax, Ay, Az
+    against the nominal output (:func:`nominal_output`)."""
     check_record(df, scheme, study.sample_s, float(study.config["record"]["max_gap_s"]),
                  expected_g=expected_g(study, scheme))
-    return filter_input(df, scheme, study.filter.period_s, float(study.config["record"]["max_gap_s"]),
-                        update_at_reset=study.filter.update_at_reset)
+    fin = filter_input(df, scheme, study.filter.period_s, float(study.config["record"]["max_gap_s"]),
+                       update_at_reset=study.filter.update_at_reset)
+    refuse_recognised(np.concatenate(fin.z, axis=1)[0], nominal_output(study, scheme, fin), FIT_CHANNELS, "g",
+                      "the record's Ax, Ay, Az must be the platform's x, y, z accelerometers in g")
+    return fin
+
+
+JITTER_SHARE = 0.3
+"""The largest acceleration error a timestamp jitter may cause, as a share of sigma_a: 0.3 adds
+at most 9 % to the measurement noise variance (docs/centrifuge-model.md §13)."""
+
+
+def jitter_tolerance_s(study: Study, scheme: Scheme) -> float:
+    """The largest RMS timestamp jitter, s, the record may carry (docs/centrifuge-model.md §13):
+    a time error dt turns the table by omega dt, which moves the g_level centripetal force by
+    omega dt g_level g, so omega jitter G <= JITTER_SHARE sigma_a (omega rad/s, sigma_a in g,
+    G the largest g-level of the scheme); inf when the table does not turn."""
+    cen = study.centrifuge
+    omega = np.radians(abs(cen.rate_deg_s))
+    level = float(np.max(expected_g(study, scheme)))
+    if omega == 0:
+        return np.inf
+    return JITTER_SHARE * study.filter.sigma_a_ug * 1e-6 / (omega * level)
+
+
+def clock_finding(study: Study, scheme: Scheme, df: pd.DataFrame) -> str | None:
+    """The diagnosis of a record whose timestamps jitter more than :func:`jitter_tolerance_s`
+    about their regular grid (sampling.sample_ms), naming column t; None otherwise. Not a
+    refusal: stamps that are the true sample times are used as recorded (§13), so the jitter
+    explains a record only when it does not fit."""
+    tol = jitter_tolerance_s(study, scheme)
+    pos = df["position"].to_numpy(float)
+    jit = max(timestamp_jitter(df["t"].to_numpy(float)[pos == k], study.sample_s) for k in sorted({int(p) for p in pos}))
+    if jit <= tol:
+        return None
+    return (f"clock: column t jitters by {jit * 1e6:.3g} us RMS about the {study.sample_s * 1e3:g} ms grid; at "
+            f"{study.centrifuge.rate_deg_s:g} deg/s and {np.max(expected_g(study, scheme)):.3g} g a timestamp error moves "
+            f"the force by rate x jitter x g-level, so stamps that are not the true sample times must err by less than "
+            f"{tol * 1e6:.3g} us ({JITTER_SHARE:g} sigma_a, docs/centrifuge-model.md §13): use the recorder's sample "
+            "clock (or the table's encoder angle), not the host's")
 
 
 def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
@@ -59,9 +106,40 @@ def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
 
 def identify_input(study: Study, scheme: Scheme, fin: FilterInput) -> Estimate:
     """Run the study's estimator (``filter.estimator``) over the selected samples of a record (one
-    run: a batch of one)."""
+    run: a batch of one), keeping the innovations for the fit check (EKF, IEKF)."""
     params = study.centrifuge.scheme_params(scheme)[np.array(fin.positions) - 1]
-    return run_estimator(fin.z, fin.t, fin.cmd_deg, params, study.filter)
+    return run_estimator(fin.z, fin.t, fin.cmd_deg, params, replace(study.filter, innovations=True))
+
+
+def nominal_output(study: Study, scheme: Scheme, fin: FilterInput) -> np.ndarray:
+    """(M, 3) g: the noise-free output of the nominal instrument (every coefficient 0) at the
+    commanded angles and the filter instants of ``fin`` (docs/centrifuge-model.md §2)."""
+    params = study.centrifuge.scheme_params(scheme)
+    run = simulate(np.zeros_like(study.truth), scheme, params, study.noise, None, sample_s=study.sample_s)
+    return np.concatenate([run.A[0, k - 1, np.clip(np.rint(tk / study.sample_s).astype(int), 0, run.t.size - 1)]
+                           for k, tk in zip(fin.positions, fin.t)])
+
+
+def record_fit(est: Estimate, fin: FilterInput, study: Study, scheme: Scheme,
+               clock: str | None = None) -> FitCheck | None:
+    """The fit check (:func:`platcal.estimation.fit.fit_check`) of one run from the last pass's
+    innovations of Ax, Ay, Az (g) and their predicted variances (docs/centrifuge-model.md §9);
+    the diagnosis regresses the record on the noise-free output of the nominal instrument
+    (all coefficients 0) at the commanded angles; ``clock`` (:func:`clock_finding`) joins the
+    diagnosis of a record that does not fit. None for an estimator that keeps no innovations
+    (UKF, ML)."""
+    if est.innovations is None:
+        return None
+    rec = est.innovations[0]
+    z = np.concatenate(fin.z, axis=1)[0]
+    innov = rec[:, :3]
+    nominal = nominal_output(study, scheme, fin)
+    segment = np.concatenate([np.full(len(tk), k) for k, tk in zip(fin.positions, fin.t)])
+    fit = fit_check(innov, rec[:, 3:], FIT_CHANNELS, predicted=z - innov, nominal=nominal, t=np.concatenate(fin.t),
+                    segment=segment)
+    if clock is not None and not fit.passed:
+        fit = replace(fit, diagnosis=fit.diagnosis + (clock,))
+    return fit
 
 
 def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:
@@ -101,14 +179,17 @@ def consistency_warning(summary: dict) -> str | None:
 
 
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
-                         seconds: float | None = None, samples_used: dict[int, int] | None = None) -> dict:
+                         seconds: float | None = None, samples_used: dict[int, int] | None = None,
+                         calibration: Calibration | None = None, fit: FitCheck | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
     first pass), each state's estimate and its 1-sigma (``<name>_sigma``), angles in rad.
     The five files land together or not at all (:func:`platcal.io.atomic_files`), ``summary.json``
     last; it is strict JSON (``null`` for a number that is not finite). ``samples_used`` (position
-    -> number of samples the filter used) goes into the summary as ``samples_used_per_position``.
+    -> number of samples the filter used) goes into the summary as ``samples_used_per_position``;
+    ``fit`` (:func:`record_fit`) as its ``fit`` block (``verdict: not available`` when None).
+    With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`).
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
@@ -120,6 +201,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         summary["samples_used_per_position"] = {str(k): int(v) for k, v in samples_used.items()}
     if seconds is not None:
         summary["seconds"] = seconds
+    summary["fit"] = fit.as_dict() if fit is not None else {
+        "verdict": "not available", "reason": f"estimator {study.filter.estimator!r} keeps no innovations"}
     if truth is not None:
         idx = study.filter.coef_index
         summary["nees"] = float(nees(est.coef, est.P[:, :nc, :nc], truth[idx][None])[0])
@@ -133,6 +216,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         covariance_frame(est.names, est.P[0]).to_csv(tmp("covariance.csv"), index=True)
         history_frame(est).to_csv(tmp("history.csv"), index=False)
         tmp("table2.md").write_text(table2_markdown(df))
+        if calibration is not None:
+            write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state
         tmp("summary.json").write_text(json_text(summary))
     return summary
 
@@ -158,3 +243,13 @@ def timed(fn, *args, **kw):
     res = fn(*args, **kw)
     return res, time.perf_counter() - t0
 
+
+
+def calibration(est: Estimate, study: Study, log_path) -> Calibration:
+    """The calibration of one identified record: the identified coefficients (Table 2 names and
+    units), their covariance, the log's hash and the config (docs/centrifuge-model.md §13)."""
+    nc = est.n_coef
+    names = list(est.names[:nc])
+    units = load_catalogue().frame().set_index("name")["unit"].reindex(names).fillna("deg/h/g^2")
+    return calibration_of("centrifuge", "centrifuge-model.md", names, units, est.coef[0], est.P[0, :nc, :nc],
+                          log_path, study.config)

@@ -15,12 +15,18 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ...logs.mapping import RecordMapping
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
                         nearest_samples, read_table, write_record)  # noqa: F401 (write_record re-exported)
 from ...records import num as _num
+from ...logs.calibration import Calibration
 from ...model.frames import DEG
+from ...model.instruments import FULL_NAMES, INDEX, N_FULL, compensate_accelerometers
 from ...scheme import Scheme
 
+UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": "deg", "gamma_cmd": "deg",
+         "Ax": "g", "Ay": "g", "Az": "g", "alpha": "deg", "beta": "deg", "gamma": "deg"}
+"""The record's columns and their units (docs/centrifuge-model.md §13), for a config's ``record:`` mapping."""
 UNIT_FACTOR_G = 3.0
 """A record whose median specific-force magnitude is this many times larger or smaller than the
 centrifuge's is refused: its accelerations are in another unit (m/s^2 gives 9.8, mg 1000)."""
@@ -56,13 +62,14 @@ def sim_to_frame(sim, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
     })
 
 
-def read_record(path: str | os.PathLike) -> pd.DataFrame:
-    """Read a test record (CSV or Parquet) and check its columns and values.
+def read_record(path: str | os.PathLike, mapping: RecordMapping | None = None) -> pd.DataFrame:
+    """Read a test record (CSV or Parquet) and check its columns and values; a log in other
+    columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
 
     Raises InputError naming the column (and row) on missing or extra columns, non-numeric,
     NaN or infinite values.
     """
-    df = read_table(path, LOG_COLUMNS, TRUTH_COLUMNS)
+    df = read_table(path, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS)
     present_truth = [c for c in TRUTH_COLUMNS if c in df.columns]
     if present_truth and len(present_truth) != 3:
         raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in df.columns][0]}",
@@ -202,3 +209,30 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
         ts.append(t[keep])
         zs.append(rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep][None])
     return FilterInput(positions=present, t=ts, z=zs, cmd_deg=cmd[np.array(present) - 1])
+
+
+COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az")
+"""The columns ``platcal compensate`` needs; the record's others pass through unchanged."""
+
+
+def full_coefficients(cal: Calibration, rig: str) -> np.ndarray:
+    """(48,) the full coefficient vector of :mod:`platcal.model.instruments` (its units) from a
+    calibration: the identified coefficients by name, 0 for those it does not hold (DOO, or a
+    filter without them). InputError naming ``--calibration key names`` for a name the model
+    does not have (``rig`` names the model in the message)."""
+    unknown = [n for n in cal.names if n not in INDEX]
+    if unknown:
+        raise InputError("--calibration key names", f"{unknown[0]!r} is not a coefficient of the {rig} model "
+                         f"({', '.join(FULL_NAMES[:3])}, ...)")
+    coef = np.zeros(N_FULL)
+    coef[[INDEX[n] for n in cal.names]] = cal.values
+    return coef
+
+
+def compensate_frame(df: pd.DataFrame, coef: np.ndarray) -> pd.DataFrame:
+    """``df`` with ``Ax, Ay, Az`` (g) compensated with ``coef`` (48,): each sample replaced by
+    the error-free output, the specific force in p whose modelled outputs are the recorded ones
+    (:func:`platcal.model.instruments.compensate_accelerometers`, docs/centrifuge-model.md §5)."""
+    out = df.copy()
+    out[["Ax", "Ay", "Az"]] = compensate_accelerometers(df[["Ax", "Ay", "Az"]].to_numpy(float), coef)
+    return out

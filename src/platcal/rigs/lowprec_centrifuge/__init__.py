@@ -15,7 +15,7 @@ import pandas as pd
 
 from ...rig import Rig
 from . import claims
-from .commands import OPTIONS, identify, simulate
+from .commands import OPTIONS, compensate, identify, inspect, simulate
 from .config import COEFFS, load_config
 from .montecarlo import LowprecMonteCarlo
 
@@ -23,12 +23,12 @@ from .montecarlo import LowprecMonteCarlo
 def catalogue() -> pd.DataFrame:
     """The identified coefficients; truth is per platform (config ``platforms``), hence NaN here."""
     return pd.DataFrame({"name": list(COEFFS), "group": ["accel"] * 4,
-                         "unit": ["ug/g", "ug/g^2", "ug/g", "ug/g^2"], "truth": [np.nan] * 4})
+                         "unit": list(COEFF_UNITS), "truth": [np.nan] * 4})
 
 
 RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
           spec="lowprec-centrifuge.md", load_config=load_config,
-          commands={"simulate": simulate, "identify": identify}, catalogue=catalogue,
-          extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS,
+          commands={"inspect": inspect, "simulate": simulate, "identify": identify, "compensate": compensate},
+          catalogue=catalogue, extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS,
           montecarlo=LowprecMonteCarlo())

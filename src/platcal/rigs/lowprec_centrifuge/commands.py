@@ -16,18 +16,26 @@ import numpy as np
 
 from ...estimation.consistency import estimate_problems
 from ...errors import InputError
+from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option
 from ...io import atomic_files, check_writable, json_text
 from ...study.montecarlo import replicate_seed
-from .config import COEFFS, Study
+from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
+from ...logs.compensate import compensate_log
+from ...logs.summary import inspect_log
+from ...logs.mapping import RecordMapping
+from .config import COEFFS, G0, Study
 from .montecarlo import SEED_KEY
-from .proposed import identify_proposed
-from .record import (check_against_config, check_out_path, estimates_frame, read_record, record_frame, truth_json,
-                     write_record)
+from .proposed import K_SLICE, identify_proposed
+from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, check_plausible,
+                     compensated_frame, estimates_frame,
+                     read_record, record_frame, truth_json, write_record)
 from .traditional import identify_traditional
 from .truth import simulate_batch
 
 METHODS = ("proposed", "traditional")
+COEFF_UNITS = ("ug/g", "ug/g^2", "ug/g", "ug/g^2")
+"""Units of :data:`.config.COEFFS` (docs/lowprec-centrifuge.md §10): asymmetry ug/g, second order ug/g^2."""
 
 
 def simulate(study: Study, args) -> int:
@@ -62,13 +70,17 @@ def identify(study: Study, args) -> int:
         raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
     check_writable(args.out, "--out", folder=True)
     max_gap = float(study.raw["record"]["max_gap_s"])
-    rec = read_record(args.data, use_truth=not args.no_truth, rate_hz=study.rate_hz, max_gap_s=max_gap)
+    rec = read_record(args.data, use_truth=not args.no_truth, rate_hz=study.rate_hz, max_gap_s=max_gap,
+                      mapping=RecordMapping.from_config(study.raw["record"], g=G0))
     found = check_against_config(rec, study, method, max_gap)
-    t0 = time.perf_counter()
     arm = study.centrifuge.arm_m
+    check_plausible(rec, arm)
+    t0 = time.perf_counter()
+    fit = None
     if method == "proposed":
         res = identify_proposed(rec.t, rec.v[None], rec.p[None], rec.psi[None], rec.f, rec.schedule, arm,
-                                study.latitude_deg)
+                                study.latitude_deg, keep_innovations=True)
+        fit = record_fit(res)
         est, sig = res.coeffs[0], res.sigmas[0]
         extra = f"{int(res.n_windows[0])} windows"
         problems = run_problems(res.x[0], res.P[0])
@@ -89,19 +101,59 @@ def identify(study: Study, args) -> int:
     df = estimates_frame(COEFFS, est, sig, truth)
     summary = {"rig": "lowprec_centrifuge", "method": method, "samples": int(rec.t.size), **found,
                "coefficients": dict(zip(COEFFS, map(float, est))), "truth_known": truth is not None,
-               "seconds": round(seconds, 3)}
-    with atomic_files(args.out) as tmp:   # both files land together, summary.json last
+               "seconds": round(seconds, 3),
+               "fit": fit.as_dict() if fit is not None else {
+                   "verdict": "not available", "reason": "the traditional method (eq. (2)) has no innovations"}}
+    cov = res.P[0][K_SLICE, K_SLICE] if method == "proposed" else np.diag(sig ** 2)
+    cal = calibration_of("lowprec_centrifuge", "lowprec-centrifuge.md", COEFFS, COEFF_UNITS, est, cov, args.data, study.raw)
+    with atomic_files(args.out) as tmp:   # the files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
+        write_calibration_files(tmp, cal)
         tmp("summary.json").write_text(json_text(summary))
     print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {seconds:.2f} s -> {args.out}; "
           + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est)), file=sys.stderr)
-    return 0
+    return fit_exit_status(fit, args.data, args.out)
+
+
+FIT_CHANNELS = ("zVE", "zVN", "zPE", "zPN")
+"""The proposed filter's window observations (docs/lowprec-centrifuge.md §7): mean velocity
+error (m/s) and mean position error about the arm (m), east and north."""
+
+
+def record_fit(res) -> FitCheck:
+    """The fit check (:func:`platcal.estimation.fit.fit_check`) of one record's proposed filter
+    from its window innovations and their predicted variances (:func:`.proposed.run_filter`). No
+    diagnosis: the windows observe the INS's errors, not the instrument's output, so a unit, sign
+    or swap is recognised before the filter (:func:`.record.check_plausible`)."""
+    buf = res.innovations[0]
+    return fit_check(buf[:, :4], buf[:, 4:], FIT_CHANNELS)
 
 
 def run_problems(x: np.ndarray, P: np.ndarray | None) -> list[str]:
     """Why an identification cannot be trusted (empty if it can): non-finite estimates, a
     covariance (proposed filter) that is not finite or not positive definite."""
     return estimate_problems(x, P)
+
+
+def inspect(study: Study, args) -> int:
+    """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
+    mapping = RecordMapping.from_config(study.raw["record"], g=G0)
+    optional = tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS
+    print(inspect_log(args.data, mapping, UNITS, REQUIRED, optional, text=("schedule",), positions=POSITIONS).text())
+    return 0
+
+
+def compensate(study: Study, args) -> int:
+    """``platcal compensate``: the log's velocities and positions with the errors the
+    calibration's coefficients cause taken out (docs/lowprec-centrifuge.md §8), written
+    atomically to ``--out`` in the record's columns and units."""
+    coeffs = calibration_values(read_calibration(args.calibration), COEFFS, "lowprec_centrifuge")
+    mapping = RecordMapping.from_config(study.raw["record"], g=G0)
+    read = lambda path: read_record(path, use_truth=False, rate_hz=study.rate_hz,  # noqa: E731
+                                    max_gap_s=float(study.raw["record"]["max_gap_s"]), mapping=mapping)
+    return compensate_log(args, "lowprec_centrifuge", read, lambda rec: compensated_frame(rec, coeffs, study.latitude_deg),
+                          "velocity and position compensated")
+
 
 OPTIONS = {
     "simulate": (option("--platform", default=None, help="platform name of the config (required)"),

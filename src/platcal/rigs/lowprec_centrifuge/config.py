@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 
 from ...errors import InputError
+from ...logs.mapping import with_mapping_schema
 from ...schema import load_schema, validate
 
 G0 = 9.80665
@@ -94,7 +95,7 @@ def _check_level(field: str, level: float, cen: Centrifuge) -> None:
 
 def load_config(raw) -> Study:
     """Validate ``raw`` (a mapping; defaults filled from the schema) and return a :class:`Study`."""
-    cfg = validate(raw, load_schema("platcal.rigs.lowprec_centrifuge", "data/config.schema.yaml"))
+    cfg = validate(raw, with_mapping_schema(load_schema("platcal.rigs.lowprec_centrifuge", "data/config.schema.yaml")))
     cen = Centrifuge(**cfg["centrifuge"])
     if cen.arm_m + cen.arm_error_mm * 1e-3 <= 0:
         raise InputError("centrifuge.arm_error_mm", "the true arm arm_m + arm_error_mm must be positive")

@@ -222,6 +222,7 @@ class FilterResult:
     n_windows: np.ndarray  # (S,)
     mean_nis: np.ndarray   # (S,) mean normalised innovation squared over the updates (dof 4)
     failed_updates: np.ndarray  # (S,) updates skipped: innovation covariance not positive definite
+    innovations: np.ndarray | None = None  # (S, W, 8) innovations and diag(S), when kept
 
     @property
     def coeffs(self) -> np.ndarray:
@@ -242,10 +243,14 @@ def predict(F: np.ndarray, T: np.ndarray, x: np.ndarray, P: np.ndarray, q: np.nd
     return phi, H, xp, Pp
 
 
-def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float) -> FilterResult:
+def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float,
+               keep_innovations: bool = False) -> FilterResult:
     """The Kalman filter over padded window arrays (S, W), batched over seeds: predict with Phi
     (numpy, batched), then the shared Joseph-form update of :mod:`platcal.estimation.kalman` per
     seed (H dense: every column listed). Window means of velocity (m/s) and position (m) (§7).
+
+    ``keep_innovations``: the result's ``innovations`` (S, W, 8) holds each window's innovation
+    (zVE, zVN m/s, zPE, zPN m) and its predicted variance diag(S) (NaN for padding), for the fit check.
     """
     nb, nw = T.shape
     q = q_density()
@@ -260,6 +265,7 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     nu = np.empty(4)
     nis = np.zeros(nb)
     skipped = np.zeros(nb, dtype=np.int64)
+    innovations = np.full((nb, nw, 8), np.nan) if keep_innovations else None
     for w in range(nw):
         ok = valid[:, w]
         Tw = np.where(ok, T[:, w], 0.0)
@@ -267,6 +273,9 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
         innov = z[:, w] - np.einsum("bij,bj->bi", H, xp)
         H = np.ascontiguousarray(H)
         for s in np.flatnonzero(ok):
+            if innovations is not None:   # before the update, which overwrites Pp[s]
+                innovations[s, w, :4] = innov[s]
+                innovations[s, w, 4:] = np.einsum("ij,jk,ik->i", H[s], Pp[s], H[s]) + r_var
             if joseph_update_sparse(xp[s], Pp[s], hcols, hnnz, H[s], innov[s], r_var, U, K, D, S, Sinv, nu, True):
                 nis[s] += nu @ nu
             else:
@@ -276,11 +285,14 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     n_upd = valid.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_nis = nis / (n_upd - skipped)
-    return FilterResult(x=x, P=P, n_windows=n_upd, mean_nis=mean_nis, failed_updates=skipped)
+    return FilterResult(x=x, P=P, n_windows=n_upd, mean_nis=mean_nis, failed_updates=skipped,
+                        innovations=innovations)
 
 
-def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float) -> FilterResult:
-    """Proposed method on S records: t (N,), v, p_rel (S, N, 2), psi (S, N) rad, f (N, 2) or (S, N, 2)."""
+def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float,
+                      keep_innovations: bool = False) -> FilterResult:
+    """Proposed method on S records: t (N,), v, p_rel (S, N, 2), psi (S, N) rad, f (N, 2) or (S, N, 2);
+    ``keep_innovations`` as :func:`run_filter`."""
     nb = v.shape[0]
     per = []
     common = force_terms(t, f) if f.ndim == 2 else None
@@ -295,4 +307,4 @@ def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: floa
     for s, (tt, zz, mm) in enumerate(per):
         k = len(tt)
         T[s, :k], z[s, :k], m[s, :k], valid[s, :k] = tt, zz, mm, True
-    return run_filter(T, z, m, valid, np.radians(lat_deg))
+    return run_filter(T, z, m, valid, np.radians(lat_deg), keep_innovations)

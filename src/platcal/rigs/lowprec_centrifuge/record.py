@@ -19,10 +19,14 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ...logs.mapping import RecordMapping
 from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
+from ...plausibility import refuse_recognised
 from ...records import check_times, read_table
 from .config import COEFFS, G0
 from .profile import HOLD, SCHEDULE_NAMES, SPINNING, STATIC
+from .proposed import cumtrap
+from .truth import _integrate
 from .truth import RunBatch
 
 REQUIRED = ("t", "VE", "VN", "pE", "pN", "heading_deg", "schedule")
@@ -30,6 +34,13 @@ NUMERIC = ("t", "VE", "VN", "pE", "pN", "heading_deg", "fE", "fN")
 TRUTH_COLUMNS = ("truth_dVE", "truth_dVN", "truth_dpE", "truth_dpN", "truth_theta_deg", "truth_phi_x",
                  "truth_phi_y", "truth_phi_z")
 """Simulation-only columns (never read by the identification)."""
+UNITS = {"t": "s", "VE": "m/s", "VN": "m/s", "pE": "m", "pN": "m", "heading_deg": "deg", "fE": "m/s^2",
+         "fN": "m/s^2", "schedule": None, "truth_dVE": "m/s", "truth_dVN": "m/s", "truth_dpE": "m", "truth_dpN": "m",
+         "truth_theta_deg": "deg", "truth_phi_x": "rad", "truth_phi_y": "rad", "truth_phi_z": "rad"}
+"""The record's columns and their units (§10; None: text), for a config's ``record:`` mapping; g
+converts by :data:`.config.G0` (9.80665 m/s^2)."""
+POSITIONS = ("pE", "pN")
+"""The east and north positions a ``record.geodetic`` mapping fills from latitude and longitude."""
 
 
 @dataclass(frozen=True)
@@ -95,17 +106,20 @@ def write_record(df: pd.DataFrame, meta: dict, path) -> None:
         atomic_to_csv(df, path)
 
 
-def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s: float = 0.05) -> Record:
+def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s: float = 0.05,
+                mapping: RecordMapping | None = None) -> Record:
     """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.read_table`);
     InputError naming the column (and row) of the first problem.
 
     Times as recorded (docs/lowprec-centrifuge.md §12, "Recorded times"): ``t`` must increase,
     its median step be within a factor 10 of ``1 / rate_hz`` (``profile.rate_hz``: t in seconds),
     and no gap exceed ``max_gap_s`` (``record.max_gap_s``); jitter and a constant offset are kept
-    (the windows, their integrals and the plateau spans all use the record's own times).
+    (the windows, their integrals and the plateau spans all use the record's own times). A log in
+    other columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
     """
     df = read_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
-                    text=("schedule",), what="a lowprec_centrifuge record", min_rows=3)
+                    text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping, units=UNITS,
+                    positions=POSITIONS)
     p = Path(path)
     t = df["t"].to_numpy(float)
     check_times(t, 1.0 / rate_hz, max_gap_s, "--data column t", f"profile.rate_hz = {rate_hz:g} Hz, a step of "
@@ -200,6 +214,55 @@ def check_against_config(rec: Record, study, method: str, max_gap_s: float) -> d
                          f"proposed run of the config (runs: {runs}); add the run to the config or check arm_m")
     return {"levels_g": [round(g, 4) for g in got], "matches_runs": match, "samples_per_phase": found,
             "samples_per_spin": [s[3] for s in spins]}
+
+
+def nominal_velocity(rec: Record, arm_m: float) -> np.ndarray:
+    """(N, 2) m/s: the error-free velocity (VE, VN) of a platform on an arm of ``arm_m`` turned to
+    the record's heading (docs/lowprec-centrifuge.md §7: d/dt arm (cos psi, sin psi))."""
+    psi = np.unwrap(rec.psi)
+    return np.gradient(arm_m * np.stack([np.cos(psi), np.sin(psi)], axis=-1), rec.t, axis=0)
+
+
+def check_plausible(rec: Record, arm_m: float) -> None:
+    """Refuse (InputError naming the column, exit 2, before the filter) a record whose velocities
+    are a unit, sign or swap of the motion the config's arm and the record's heading imply
+    (:func:`nominal_velocity`), or whose positions are one of the integral of its velocities
+    (the INS's own position drifts by hundreds of metres on a spinning arm, its integral of
+    velocity with it; :func:`platcal.plausibility.refuse_recognised`): e.g. pE, pN in km are
+    1/1000 of the integrated VE, VN."""
+    refuse_recognised(rec.v, nominal_velocity(rec, arm_m), ("VE", "VN"), "m/s",
+                      f"VE, VN must be the INS's east and north velocities in m/s (on the arm of {arm_m:g} m: "
+                      "arm x heading rate)")
+    refuse_recognised(rec.p - rec.p[0], cumtrap(rec.t, rec.v), ("pE", "pN"), "m",
+                      "pE, pN must be the INS's east and north positions in m (the integral of VE, VN); map "
+                      "lat/lon or other units through the config's record.units",
+                      source="the integral of the record's VE, VN")
+
+
+def coefficient_responses(rec: Record, lat_deg: float) -> np.ndarray:
+    """(4, N, 4): the INS errors (dVE, dVN m/s, pE, pN m) a unit (1 ug/g or ug/g^2) of each
+    coefficient kA_x, k2_x, kA_y, k2_y causes along the record, from its own specific force
+    (docs/lowprec-centrifuge.md §5, §8: the error model integrated at the record's median step)."""
+    lat = np.radians(lat_deg)
+    dt = float(np.median(np.diff(rec.t)))
+    out = np.empty((len(COEFFS), rec.t.size, 4))
+    for j in range(len(COEFFS)):
+        coef = np.zeros(8)
+        coef[4 + j] = 1e-6
+        _integrate(dt, np.ascontiguousarray(rec.f, dtype=float), coef, np.zeros(3), np.zeros(7), np.zeros((0, 2)),
+                   np.zeros((0, 3)), np.sin(lat), np.cos(lat), np.tan(lat), out[j], np.zeros((0, 3)))
+    return out
+
+
+def compensated_frame(rec: Record, coeffs: np.ndarray, lat_deg: float) -> pd.DataFrame:
+    """The record (``t, VE, VN, pE, pN, heading_deg, fE, fN, schedule``, its units) with the
+    velocity and position errors the coefficients ``coeffs`` (kA_x, k2_x, kA_y, k2_y; ug/g,
+    ug/g^2) cause taken out (§8: e_after = e - sum_k c_k S_k(t), :func:`coefficient_responses`)."""
+    err = np.einsum("k,kni->ni", np.asarray(coeffs, float), coefficient_responses(rec, lat_deg))
+    return pd.DataFrame({"t": rec.t, "VE": rec.v[:, 0] - err[:, 0], "VN": rec.v[:, 1] - err[:, 1],
+                         "pE": rec.p[:, 0] - err[:, 2], "pN": rec.p[:, 1] - err[:, 3],
+                         "heading_deg": np.mod(np.degrees(rec.psi), 360.0), "fE": rec.f[:, 0], "fN": rec.f[:, 1],
+                         "schedule": np.asarray(SCHEDULE_NAMES)[rec.schedule]})
 
 
 def estimates_frame(names, est, sigma, truth: dict | None) -> pd.DataFrame:

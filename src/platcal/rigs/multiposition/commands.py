@@ -19,14 +19,22 @@ import numpy as np
 import pandas as pd
 
 from ...estimation.consistency import estimate_problems
+from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...errors import InputError
 from ...rig import option
 from ...io import atomic_files, check_writable, json_text
+from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
+from ...logs.compensate import compensate_log, read_mapped
+from ...logs.dwells import dwell_figure
+from ...logs.summary import inspect_log
+from ...logs.mapping import RecordMapping
+from ...plausibility import refuse_recognised
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
 from .observability import evaluate
-from .record import read_record, to_frame, write_record
+from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, TRUTH_COLUMNS, UG, UNITS, compensate_frame,
+                     read_record, to_frame, write_record)
 
 
 
@@ -47,12 +55,59 @@ def cmd_simulate(cfg, args) -> int:
     return 0
 
 
-def identify(cfg, rec, choice=None):
+def identify(cfg, rec, choice=None, innovations=None):
     """``(estimate (nc,), covariance (nc, nc), mean NIS, skipped updates)`` of one record with the
-    estimator of ``choice`` (:class:`.estimators.FilterChoice`; default the config's ``filter``)."""
+    estimator of ``choice`` (:class:`.estimators.FilterChoice`; default the config's ``filter``);
+    ``innovations`` (1, K, n, 12) receives the last pass's innovations (:func:`.filter.run_filter`)."""
     tk, Z, nk = rec.packed()
-    r = estimate(cfg, choice or cfg.filter_choice(), rec.cmd_deg, tk, Z, nk=nk)
+    r = estimate(cfg, choice or cfg.filter_choice(), rec.cmd_deg, tk, Z, nk=nk, innovations=innovations)
     return r.coef[0], r.cov[0], float(r.mean_nis[0]), int(r.failed_updates[0])
+
+
+FIT_CHANNELS = ("Ax", "Ay", "Az", "alpha_m", "beta_m", "gamma_m")
+
+
+def innovation_buffer(rec) -> np.ndarray:
+    """The (1, K, n, 12) array :func:`identify` fills with innovations for :func:`record_fit`."""
+    tk, _, _ = rec.packed()
+    return np.zeros((1,) + tk.shape + (12,))
+
+
+def nominal_output(cfg, scheme, rec) -> np.ndarray:
+    """(M, 6) ug, arcsec: the noise-free output of the nominal instrument (every coefficient 0)
+    at the commanded angles and the record's filter instants (docs/multiposition-1g.md §7)."""
+    tn, _, zn = simulate(cfg, scheme, [0], noise_free=True, truth=np.zeros_like(cfg.truth()))
+    return np.concatenate([zn[0, k, np.clip(np.rint(tk / cfg.ts).astype(int), 0, tn.size - 1)]
+                           for k, tk in enumerate(rec.t)])
+
+
+def check_plausible(cfg, scheme, rec) -> None:
+    """Refuse (InputError naming the column) a record whose accelerometers are a unit, sign or
+    swap of what the nominal instrument reads at the commanded angles (a static platform reads
+    |f| = 1 g; :func:`platcal.plausibility.refuse_recognised`). The angle sensors are left to the
+    fit check: a log may wrap them differently from the commanded angles (+-180 deg)."""
+    z = np.concatenate(rec.z)
+    nominal = nominal_output(cfg, scheme, rec)
+    refuse_recognised(z[:, :3] * UG, nominal[:, :3] * UG, FIT_CHANNELS[:3], "g",
+                      "Ax, Ay, Az must be the x, y, z accelerometers in g (a static platform reads |f| = 1 g)")
+
+
+def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
+    """The fit check (:func:`platcal.estimation.fit.fit_check`) of one run from its innovations of
+    Ax, Ay, Az (ug) and the angle sensors (arcsec) (docs/multiposition-1g.md §9); the diagnosis
+    regresses the record on the noise-free output of the nominal instrument (coefficients 0) at
+    the commanded angles."""
+    nk = [len(t) for t in rec.t]
+    buf = innovations[0]
+    rows = np.concatenate([buf[k, :n] for k, n in enumerate(nk)])
+    z = np.concatenate(rec.z)
+    t = np.concatenate(rec.t)
+    segment = np.repeat(np.arange(len(nk)), nk)
+    innov = rows[:, :6]
+    nominal = nominal_output(cfg, scheme, rec)
+    # the angle sensors against the filter's own (wrapped) prediction: a log may wrap +-180 deg
+    nominal[:, 3:] = z[:, 3:] - innov[:, 3:]
+    return fit_check(innov, rows[:, 6:], FIT_CHANNELS, predicted=z - innov, nominal=nominal, t=t, segment=segment)
 
 
 def run_problems(est: np.ndarray, P: np.ndarray, nis: float, failed_updates: int = 0) -> list[str]:
@@ -73,9 +128,12 @@ def cmd_identify(cfg, args) -> int:
     choice = cfg.filter_choice() if args.estimator is None else variant_choice(cfg, args.estimator)
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
-    rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]))
+    rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]),
+                              mapping=RecordMapping.from_config(cfg.raw["record"]))
+    check_plausible(cfg, scheme, rec)
     t0 = time.perf_counter()
-    est, P, nis, failed = identify(cfg, rec, choice)
+    innovations = innovation_buffer(rec)
+    est, P, nis, failed = identify(cfg, rec, choice, innovations)
     seconds = time.perf_counter() - t0
     problems = run_problems(est, P, nis, failed)
     if problems:
@@ -93,6 +151,13 @@ def cmd_identify(cfg, args) -> int:
                "positions": int(len(rec.t)), "samples": int(sum(used.values())),
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
+    if rec.segmentation is not None:
+        t_log = rec.segmentation[0]
+        summary["dwells_found"] = [{"position": d.position, "t_start": float(t_log[d.start]),
+                                    "t_end": float(t_log[d.stop - 1]), "samples": d.stop - d.start}
+                                   for d in rec.segmentation[2]]
+    fit = record_fit(cfg, scheme, rec, innovations)
+    summary["fit"] = fit.as_dict()
     use_truth = rec.has_truth and not args.no_truth
     if use_truth:
         tr = cfg.truth()
@@ -104,8 +169,12 @@ def cmd_identify(cfg, args) -> int:
                         "max_abs_rel_err_pct_gyro": float(df.loc[g, "rel_err_pct"].abs().max()),
                         "max_abs_rel_err_pct_accel": float(df.loc[~g, "rel_err_pct"].abs().max())})
     out = Path(args.out)
-    with atomic_files(out) as tmp:  # both files land together, summary.json last
+    cal = calibration_of("multiposition", "multiposition-1g.md", names, df["unit"], est, P, args.data, cfg.raw)
+    with atomic_files(out) as tmp:  # the files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
+        write_calibration_files(tmp, cal)
+        if rec.segmentation is not None:
+            dwell_figure(*rec.segmentation, tmp("dwells.png"))
         tmp("summary.json").write_text(json_text(summary))
     msg = (f"platcal identify: multiposition 27-state {choice.label}, {min(used.values())}-"
            f"{max(used.values())} samples per position, {seconds:.2f} s -> {out}")
@@ -113,7 +182,7 @@ def cmd_identify(cfg, args) -> int:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.3f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.4f} %, NEES {summary['nees']:.1f} (dof 24)")
     print(msg, file=sys.stderr)
-    return 0
+    return fit_exit_status(fit, args.data, out)
 
 
 def cmd_observability(cfg, args) -> int:
@@ -134,7 +203,27 @@ def cmd_observability(cfg, args) -> int:
     return 0
 
 
-COMMANDS = {"simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+def cmd_inspect(cfg, args) -> int:
+    """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
+    # a continuous log (no position column) is read too: identify finds its dwells
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in CONTINUOUS_COLUMNS)
+    summary = inspect_log(args.data, RecordMapping.from_config(cfg.raw["record"]), UNITS, CONTINUOUS_COLUMNS, optional)
+    print(summary.text())
+    return 0
+
+
+def cmd_compensate(cfg, args) -> int:
+    """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
+    errors taken out (docs/multiposition-1g.md §6), written atomically to ``--out``."""
+    coef = calibration_values(read_calibration(args.calibration), coef_names(), "multiposition")
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    read = read_mapped("multiposition", RecordMapping.from_config(cfg.raw["record"]), UNITS, COMPENSATE_COLUMNS,
+                       optional)
+    return compensate_log(args, "multiposition", read, lambda df: compensate_frame(df, coef),
+                          "accelerometers compensated")
+
+
+COMMANDS = {"inspect": cmd_inspect, "compensate": cmd_compensate, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "
                                               "default: the config's default_scheme")

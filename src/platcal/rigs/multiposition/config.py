@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ...errors import InputError
+from ...logs.mapping import with_mapping_schema
 from ...schema import load_schema, validate
 from ...scheme import TABLE1_POSITIONS, Scheme
 from .estimators import check_estimator, choice_from_filter
@@ -125,7 +126,7 @@ def scheme_table(cfg: dict) -> dict[str, Scheme]:
 
 def load_config(raw) -> Config:
     """Validate a raw config mapping (every default filled) into a :class:`Config`."""
-    cfg = validate(raw, load_schema("platcal.rigs.multiposition", "data/config.schema.yaml"))
+    cfg = validate(raw, with_mapping_schema(load_schema("platcal.rigs.multiposition", "data/config.schema.yaml")))
     bmax = float(cfg["gimbal"]["beta_max_deg"])
     schemes = scheme_table(cfg)
     names = set(coef_names(2))

@@ -43,22 +43,25 @@ class Estimate:
 
 
 def run_ekf_estimator(cfg, positions_deg, t, Z, nk=None, passes=None, options=None, threads=None,
-                      sigma_a_ug=None) -> Estimate:
-    """The EKF of §9."""
-    return Estimate(*run_filter(cfg, positions_deg, t, Z, nk, passes, threads=threads, sigma_a_ug=sigma_a_ug))
+                      sigma_a_ug=None, innovations=None) -> Estimate:
+    """The EKF of §9 (``innovations``: see :func:`.filter.run_filter`)."""
+    return Estimate(*run_filter(cfg, positions_deg, t, Z, nk, passes, threads=threads, sigma_a_ug=sigma_a_ug,
+                                innovations=innovations))
 
 
 def run_iekf_estimator(cfg, positions_deg, t, Z, nk=None, passes=None, options=None, threads=None,
-                       sigma_a_ug=None) -> Estimate:
+                       sigma_a_ug=None, innovations=None) -> Estimate:
     """The Gauss-Newton iterated EKF; ``options`` = ``filter.iekf`` (iterations, tolerance)."""
     o = {**ESTIMATOR_DEFAULTS["iekf"], **(options or {})}
     return Estimate(*run_filter(cfg, positions_deg, t, Z, nk, passes, threads=threads, sigma_a_ug=sigma_a_ug,
-                                iterations=int(o["iterations"]), tolerance=float(o["tolerance"])))
+                                iterations=int(o["iterations"]), tolerance=float(o["tolerance"]),
+                                innovations=innovations))
 
 
 Runner = Callable[..., Estimate]
 ESTIMATORS: dict[str, Runner] = {"ekf": run_ekf_estimator, "iekf": run_iekf_estimator}
-"""Estimator name -> runner ``(cfg, positions_deg, t, Z, nk, passes, options, threads, sigma_a_ug)``."""
+"""Estimator name -> runner ``(cfg, positions_deg, t, Z, nk, passes, options, threads, sigma_a_ug,
+innovations)``."""
 
 ESTIMATOR_DEFAULTS: dict[str, dict] = {"ekf": {}, "iekf": {"iterations": 3, "tolerance": 0.01}}
 """Default options per estimator (the schema's defaults of ``filter.<name>``)."""
@@ -113,7 +116,10 @@ def raw_variant_choice(raw: dict, name: str, field: str = "--estimator") -> Filt
     return choice_from_filter(f)
 
 
-def estimate(cfg, choice: FilterChoice, positions_deg, t, Z, nk=None, threads=None, sigma_a_ug=None) -> Estimate:
-    """Run the estimator of ``choice`` on outputs ``Z`` (R, K, n, 6)."""
+def estimate(cfg, choice: FilterChoice, positions_deg, t, Z, nk=None, threads=None, sigma_a_ug=None,
+             innovations=None) -> Estimate:
+    """Run the estimator of ``choice`` on outputs ``Z`` (R, K, n, 6); ``innovations`` (R, K, n, 12),
+    when given, receives the last pass's innovations and S diagonals (:func:`.filter.run_filter`)."""
     return ESTIMATORS[choice.estimator](cfg, positions_deg, t, Z, nk=nk, passes=choice.passes,
-                                        options=choice.options, threads=threads, sigma_a_ug=sigma_a_ug)
+                                        options=choice.options, threads=threads, sigma_a_ug=sigma_a_ug,
+                                        innovations=innovations)

@@ -179,7 +179,7 @@ def resid6_k(ctx, x, z, res, hval, hcols, hnnz):
 
 
 @njit(cache=True)
-def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol):
+def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, rec):
     """One pass over K positions for one replicate; x (n,), P (n, n) updated in place.
 
     ``tk`` (K, m) sample times, ``zk`` (K, m, 6) outputs (ug, arcsec), ``nk`` (K,) samples used.
@@ -188,6 +188,8 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     (prior sigmas): :func:`platcal.estimation.iterated.gauss_newton_point` finds the last
     linearisation point, then the same two 3-D Joseph updates apply its Jacobian and innovation
     (``iters = 1`` is the EKF, bit for bit).
+    ``rec`` (K, m, 12), when it is not empty, receives at each update the innovation of the six
+    channels (ug, arcsec) and the diagonal of their predicted covariance S (NaN: update skipped).
     Returns the sum of squared standardised innovations (NIS), the number of updates and the
     number of measurement linearisations.
     """
@@ -228,6 +230,7 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     nup = 0
     nlin = 0
     nbad = 0
+    keep = rec.shape[0] > 0
     for k in range(K):
         x[:3] = 0.0
         for i in range(3):
@@ -277,20 +280,30 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
                 nlin += 1
                 for i in range(3):
                     innov[i] = zk[k, s, i] - zp[i]
-            if joseph_update_sparse(x, P, hc, nn, Hs, innov, ra, U, Kg, D, S, Sinv, nu, update_x):
+            ok = joseph_update_sparse(x, P, hc, nn, Hs, innov, ra, U, Kg, D, S, Sinv, nu, update_x)
+            if ok:
                 if not gained:
                     nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
                 nup += 1
             else:
                 nbad += 1
+            if keep:
+                for i in range(3):
+                    rec[k, s, i] = innov[i]
+                    rec[k, s, 6 + i] = S[i, i] if ok else np.nan
             for i in range(3):
                 d = zk[k, s, 3 + i] - (phi0s[k, i] + x[i]) / ARCSEC
                 innov[i] = (d + 648000.0) % 1296000.0 - 648000.0
-            if joseph_update_sparse(x, P, hca, nna, ha, innov, rn, U, Kg, D, S, Sinv, nu, update_x):
+            ok = joseph_update_sparse(x, P, hca, nna, ha, innov, rn, U, Kg, D, S, Sinv, nu, update_x)
+            if ok:
                 if not gained:
                     nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
             else:
                 nbad += 1
+            if keep:
+                for i in range(3):
+                    rec[k, s, 3 + i] = innov[i]
+                    rec[k, s, 9 + i] = S[i, i] if ok else np.nan
             if gained:
                 for i in range(6):
                     nis += nu6[i] * nu6[i]
@@ -299,10 +312,10 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
 
 @njit(cache=True, nogil=True)
 def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol,
-               nis, nlin, nbad):
+               nis, nlin, nbad, rec):
     for b in range(lo, hi):
         s, u, nl, nb = _ekf_one(X[b], Ps[b], phi0s, tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x,
-                            iters, tol)
+                            iters, tol, rec[b] if rec.shape[0] > 0 else rec[0])
         nis[b] = s / max(u, 1) / 6.0
         nlin[b] += nl
         nbad[b] += nb  # updates skipped because S was not positive definite
@@ -317,7 +330,7 @@ def dynamic_cols(ext: int) -> np.ndarray:
 
 def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
                threads: int | None = None, sigma_a_ug: float | None = None, iterations: int = 0,
-               tolerance: float = 0.0):
+               tolerance: float = 0.0, innovations: np.ndarray | None = None):
     """Identify the coefficients from outputs ``Z`` (R, K, n, 6) (ug, arcsec) at times ``t``.
 
     ``positions_deg`` (K, 3) commanded angles; ``t`` is (n,) shared by all positions, or (K, n)
@@ -326,7 +339,9 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     tolerance ``tolerance`` prior sigmas; 1 = the EKF as one 6-D update). Returns ``(coef (R, nc),
     cov (R, nc, nc), mean NIS per measurement (R,), linearisations per update (R,), updates skipped
     because S was not positive definite (R,))`` (linearisations averaged over the passes, skipped
-    updates summed). Filter R uses the config's noise (``sigma_a_ug`` overrides).
+    updates summed). Filter R uses the config's noise (``sigma_a_ug`` overrides). ``innovations``
+    (R, K, n, 12), when given, receives the last pass's innovations and S diagonals
+    (:func:`_ekf_one`; the fit check, issue 25).
     """
     Z = np.ascontiguousarray(Z, dtype=float)
     R, K, ns, _ = Z.shape
@@ -350,13 +365,15 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     nlin = np.zeros(R)
     nbad = np.zeros(R, dtype=np.int64)
     npass = int(passes or cfg.passes)
+    # one placeholder row when none is kept: the kernel indexes rec[0] (numba types both branches)
+    rec = np.zeros((1, 0, 0, 12)) if innovations is None else innovations
     for p in range(npass):
         if p > 0:
             C = Ps[:, 3:, 3:].copy()
             Ps[:] = 0.0
             Ps[:, 3:, 3:] = 100.0 * C
         _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, cfg.arw_rad**2,
-                  cfg.sigma_set_rad**2, cols, True, int(iterations), float(tolerance), nis, nlin, nbad)
+                  cfg.sigma_set_rad**2, cols, True, int(iterations), float(tolerance), nis, nlin, nbad, rec)
     return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis, nlin / (npass * int(nk.sum())), nbad
 
 
@@ -397,7 +414,7 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
         X, Ps = x0[None].copy(), Pinit[None].copy()
         Zd = np.zeros((1, K, ns, 6))
         _ekf_range(0, 1, X, Ps, phi0s, tk, Zd, nk, lay, wn, wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, cols,
-                   False, 0, 0.0, np.empty(1), np.zeros(1), np.zeros(1, dtype=np.int64))
+                   False, 0, 0.0, np.empty(1), np.zeros(1), np.zeros(1, dtype=np.int64), np.zeros((1, 0, 0, 12)))
         return Ps[0, 3:, 3:]
     X = np.repeat(x0[None], K, axis=0)
     Ps = np.repeat(Pinit[None], K, axis=0)
@@ -415,7 +432,7 @@ def _ekf_pos_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, se
     """One covariance-only position per batch entry (position b from ``phi0s[b]``)."""
     for b in range(lo, hi):
         s, u, _, _ = _ekf_one(X[b], Ps[b], phi0s[b:b + 1], tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, False,
-                           0, 0.0)
+                           0, 0.0, np.zeros((0, 0, 12)))
         nis[b] = s
 
 

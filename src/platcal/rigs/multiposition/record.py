@@ -17,14 +17,22 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ...logs.dwells import DwellRule, find_dwells
+from ...logs.mapping import RecordMapping
 from ...model.frames import DEG
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
                          read_table, write_record)  # write_record: re-exported for the rig's commands
 from ...scheme import Scheme
+from .model import measure
 
 ANGLE_COLUMNS = ("alpha_m", "beta_m", "gamma_m")
 COLUMNS = LOG_COLUMNS + ANGLE_COLUMNS
 UG = 1e-6
+UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": "deg", "gamma_cmd": "deg",
+         "Ax": "g", "Ay": "g", "Az": "g", "alpha_m": "deg", "beta_m": "deg", "gamma_m": "deg",
+         "alpha": "deg", "beta": "deg", "gamma": "deg"}
+"""The record's columns and their units (§12), for a config's ``record:`` mapping; g is standard
+gravity, 9.80665 m/s^2 (:data:`platcal.logs.mapping.STANDARD_GRAVITY`)."""
 
 
 @dataclass
@@ -38,6 +46,8 @@ class Record:
     has_truth: bool
     positions: list = None
     """Position numbers (1-based) of ``t`` and ``z``; None: 1..K."""
+    segmentation: tuple | None = None
+    """For a continuous log cut here: ``(t (N,) s, angle sensors (N, 3) deg, dwells)``."""
 
     def samples_used(self) -> dict[int, int]:
         """Samples the EKF uses, per position number."""
@@ -76,7 +86,7 @@ def to_frame(scheme: Scheme, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> p
 
 
 def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float = 0.02,
-                max_gap_s: float = 0.1) -> tuple[Record, Scheme]:
+                max_gap_s: float = 0.1, mapping: RecordMapping | None = None) -> tuple[Record, Scheme]:
     """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.read_table`) and
     select the samples the EKF uses; InputError naming the column (and position) otherwise.
 
@@ -90,9 +100,17 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     the actual interval, so jitter enters the dynamics and a small gap drops only the instants it
     covers. With ``scheme`` the record must hold exactly its positions 1..K, with its commanded
     angles, each spanning the scheme's dwell (within ``max_gap_s``); without, the positions and
-    dwell are taken from the record (a recorded log needs no scheme file).
+    dwell are taken from the record (a recorded log needs no scheme file). A log in other columns
+    or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
     """
-    df = read_table(path, COLUMNS, TRUTH_COLUMNS, what="a multiposition record")
+    segmentation = None
+    try:
+        df = read_table(path, COLUMNS, TRUTH_COLUMNS, what="a multiposition record", mapping=mapping, units=UNITS)
+    except InputError as exc:  # no position column: a continuous log, cut into the scheme's dwells here
+        if scheme is None or exc.field not in ("--data column position", "record.columns.position"):
+            raise
+        df, segmentation = labelled_frame(read_table(path, CONTINUOUS_COLUMNS, what="a continuous multiposition log",
+                                                     mapping=mapping, units=UNITS), scheme)
     cols = list(df.columns)
     present_truth = [c for c in TRUTH_COLUMNS if c in cols]
     if present_truth and len(present_truth) != 3:
@@ -148,4 +166,53 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     if scheme is None:
         dwell = max(float(t[-1]) for t in ts_used) or 1.0
         scheme = Scheme(name=f"record:{Path(path).name}", positions=tuple(map(tuple, cmd)), dwell_s=dwell)
-    return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=len(present_truth) == 3, positions=present), scheme
+    return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=len(present_truth) == 3, positions=present,
+                  segmentation=segmentation), scheme
+
+
+CONTINUOUS_COLUMNS = ("t", "Ax", "Ay", "Az") + ANGLE_COLUMNS
+"""A continuous log (no ``position`` and commanded angles): its dwells are found (:mod:`platcal.logs.dwells`)."""
+
+
+def labelled_frame(df: pd.DataFrame, scheme: Scheme, rule: DwellRule = DwellRule()) -> tuple[pd.DataFrame, tuple]:
+    """A continuous log as a record: its static dwells found and matched to ``scheme``'s
+    positions (:func:`platcal.logs.dwells.find_dwells`), each dwell's clock counted from its first
+    sample, the commanded angles filled in; slews are dropped. Returns the record and
+    ``(t, angles, dwells)`` for the figure. InputError when a position is found twice or not at all."""
+    t = df["t"].to_numpy(float)
+    ang = df[list(ANGLE_COLUMNS)].to_numpy(float)
+    dwells = find_dwells(t, ang, df[["Ax", "Ay", "Az"]].to_numpy(float), scheme.angles_deg, rule)
+    found = [d.position for d in dwells]
+    for k in range(1, scheme.n_positions + 1):
+        if found.count(k) != 1:
+            raise InputError("--data", f"{found.count(k)} dwells of the log match position {k} of scheme "
+                             f"{scheme.name!r} (dwells found at positions {found}); a continuous log holds each "
+                             "position once")
+    parts = []
+    for d in dwells:
+        part = df.iloc[d.start:d.stop].copy()
+        part["t"] = t[d.start:d.stop] - t[d.start]
+        part.insert(0, "position", float(d.position))
+        for i, c in enumerate(("alpha_cmd", "beta_cmd", "gamma_cmd")):
+            part[c] = scheme.angles_deg[d.position - 1, i]
+        parts.append(part)
+    return pd.concat(parts, ignore_index=True), (t, ang, dwells)
+
+
+COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az") + ANGLE_COLUMNS
+"""What ``platcal compensate`` needs of a log: accelerometer outputs and the gimbal angle sensors."""
+
+
+def compensate_frame(df: pd.DataFrame, coef: np.ndarray) -> pd.DataFrame:
+    """``df`` with ``Ax, Ay, Az`` (g) compensated: the modelled error of §6 at the measured gimbal
+    angles (``alpha_m, beta_m, gamma_m``, deg) with coefficients ``coef`` (24, state order of
+    :func:`.model.coef_names`) is taken out, leaving the error-free output of each accelerometer
+    (the specific force along its nominal input axis, g). The angle sensors' own noise enters
+    through the modelled misalignment terms only (second order)."""
+    ang = df[list(ANGLE_COLUMNS)].to_numpy(float) * DEG
+    x_cal = np.r_[np.zeros(3), coef]
+    x_free = np.zeros_like(x_cal)
+    err = np.array([measure(a, x_cal)[0][:3] - measure(a, x_free)[0][:3] for a in ang])  # ug
+    out = df.copy()
+    out[["Ax", "Ay", "Az"]] = df[["Ax", "Ay", "Az"]].to_numpy(float) - err * UG
+    return out

@@ -9,13 +9,21 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
+from ...estimation.fit import fit_exit_status
 from ...io import atomic_files, check_writable, json_text
+from ...logs.calibration import read_calibration, write_calibration_files
+from ...logs.compensate import compensate_log
+from ...logs.increments import increment_units
+from ...logs.summary import inspect_log
+from ...logs.mapping import RecordMapping
 from ...study.tables import write_table
-from .config import SledConfig
-from .identify import estimates, identify, metrics, run_problems
+from .config import G, SledConfig
+from .identify import (calibration, compensated_track, estimates, identify, metrics, phi_from_calibration, record_fit,
+                       run_problems)
 from .montecarlo import replicate_seeds
 from .observability import rank_table
-from .record import check_out_path, read_record, record_arrays, record_truth, samples_per_phase, write_record
+from .record import (IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, check_plausible, read_record, record_arrays,
+                     record_truth, samples_per_phase, write_record)
 from .simulate import simulate
 
 
@@ -43,6 +51,7 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     truth = None if args.no_truth else record_truth(args.data, df)
     t0 = time.perf_counter()
     f, w = record_arrays(df)
+    check_plausible(cfg, traj, f[0], w[0], t)
     idn = identify(cfg, traj, f, w, t=t)
     problems = run_problems(idn)
     if problems:
@@ -59,8 +68,11 @@ def cmd_identify(cfg: SledConfig, args) -> int:
                     "truth_known": truth is not None, "seconds": round(seconds, 3),
                     "samples": int(len(t)), "samples_used_per_phase": samples_per_phase(traj, t, cfg.dt),
                     "filter_epochs": {"run": int(idn.j_stop), "stop": int(idn.j_end - idn.j_stop)}})
-    with atomic_files(out) as tmp:  # both files land together, metrics.json last
+    fit = record_fit(idn)
+    summary["fit"] = fit.as_dict()
+    with atomic_files(out) as tmp:  # the files land together, metrics.json last
         est.to_csv(tmp("estimates.csv"), index=False, float_format="%.6g")
+        write_calibration_files(tmp, calibration(idn, args.data, cfg.raw))
         tmp("metrics.json").write_text(json_text(summary))
     msg = (f"platcal identify: sled {cfg.states}-state run filter, {cfg.compensation} X compensation, "
            f"{seconds:.2f} s -> {out}; Y/Z run max {met['yz_before_max_run_cm']:.1f} cm before, "
@@ -68,7 +80,7 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     if truth is not None:
         msg += f"; X at stop naive {met['x_naive_stop_cm']:.1f} cm, constrained {met['x_constrained_stop_cm']:.1f} cm"
     print(msg, file=sys.stderr)
-    return 0
+    return fit_exit_status(fit, args.data, out, "metrics.json")
 
 
 def cmd_observability(cfg: SledConfig, args) -> int:
@@ -81,4 +93,26 @@ def cmd_observability(cfg: SledConfig, args) -> int:
     return 0
 
 
-COMMANDS = {"simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+def cmd_inspect(cfg: SledConfig, args) -> int:
+    """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
+    mapping = RecordMapping.from_config(cfg.raw["record"], g=G)
+    units = increment_units(UNITS, IMU_COLUMNS[1:]) if mapping.kind == "increments" else UNITS
+    print(inspect_log(args.data, mapping, units, IMU_COLUMNS, TRUTH_COLUMNS, increments=IMU_COLUMNS[1:]).text())
+    return 0
+
+
+def cmd_compensate(cfg: SledConfig, args) -> int:
+    """``platcal compensate``: the record's along-track X(t), V(t) navigated and compensated with
+    the calibration's attitude errors (docs/rocket-sled.md §7), written atomically to ``--out``."""
+    phi = phi_from_calibration(read_calibration(args.calibration))
+
+    def apply(rec):
+        _, df, t = rec
+        f, w = record_arrays(df)
+        return compensated_track(cfg, f[0], w[0], t, phi)
+
+    return compensate_log(args, "sled", lambda path: read_record(path, cfg), apply,
+                          "along-track X(t), V(t) navigated and compensated")
+
+
+COMMANDS = {"compensate": cmd_compensate, "inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

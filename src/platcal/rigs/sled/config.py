@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import InputError
+from ...logs.mapping import with_mapping_schema
 from ...schema import load_schema, validate
 
 G = 9.80665
@@ -102,7 +103,7 @@ def check_trajectory(cfg: SledConfig) -> None:
 
 def load_config(raw) -> SledConfig:
     """Validate a raw ``rig: sled`` mapping (defaults filled) and return the typed config."""
-    cfg = validate(raw, load_schema("platcal.rigs.sled", "data/config.schema.yaml"))
+    cfg = validate(raw, with_mapping_schema(load_schema("platcal.rigs.sled", "data/config.schema.yaml")))
     tr, imu, fl = cfg["trajectory"], cfg["imu"], cfg["filter"]
     out = SledConfig(
         raw=cfg,

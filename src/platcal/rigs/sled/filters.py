@@ -63,13 +63,16 @@ class Epochs:
 class FilterOut:
     """Posterior estimates at the filter epochs: x (S,J+1,n), sigma = sqrt(diag P) (S,J+1,n), P final
     (S,n,n); mean NIS of the updates (S,) (4 degrees of freedom each) and updates skipped because
-    the innovation covariance was not positive definite (S,)."""
+    the innovation covariance was not positive definite (S,); the innovations and their predicted
+    variances per update, for the fit check (docs/rocket-sled.md §6)."""
 
     x: np.ndarray
     sigma: np.ndarray
     P: np.ndarray
     mean_nis: np.ndarray
     failed_updates: np.ndarray
+    innov: np.ndarray | None = None   # (S,J,4) innovations z - x_pred[:4] of the updates, SI units
+    s_var: np.ndarray | None = None   # (S,J,4) their predicted variances diag(S); NaN where skipped
 
 
 def _R(cfg: SledConfig) -> np.ndarray:
@@ -112,11 +115,13 @@ def discretise(F: np.ndarray, T) -> np.ndarray:
 
 
 @nb.njit(cache=True)
-def _kalman(Phis, z, x0, P0, Qd, r_var, xs, sig, Pout, nis, failed):
+def _kalman(Phis, z, x0, P0, Qd, r_var, xs, sig, Pout, nis, failed, innov_out, svar_out):
     """Predict with the dense Φ (every row of Φ is dynamic: the shared sparse propagation with
     all rows), then the shared Joseph-form update with ``H = [I_m 0]`` (m = 4, diagonal R).
     An update whose innovation covariance is not positive definite is skipped and counted in
-    ``failed``; ``nis`` is the mean NIS of the updates made (m degrees of freedom each)."""
+    ``failed``; ``nis`` is the mean NIS of the updates made (m degrees of freedom each).
+    ``innov_out``, ``svar_out`` (S,J,m) receive each update's innovation and diag(S) = diag(P_pred)
+    + R (H = [I_m 0]); NaN variances where the update was skipped."""
     S, J, n = Phis.shape[0], Phis.shape[1], Phis.shape[2]
     m = z.shape[2]
     rows = np.arange(n)
@@ -155,12 +160,16 @@ def _kalman(Phis, z, x0, P0, Qd, r_var, xs, sig, Pout, nis, failed):
             propagate_sparse(P, rows, rows, Phi, Qd[j], W, blk)
             for b in range(m):
                 innov[b] = z[s, j, b] - x[b]
+                innov_out[s, j, b] = innov[b]
+                svar_out[s, j, b] = P[b, b] + r_var[b]
             if joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, Sm, Sinv, nu, True):
                 for b in range(m):
                     total += nu[b] * nu[b]
                 made += 1
             else:
                 failed[s] += 1
+                for b in range(m):
+                    svar_out[s, j, b] = np.nan
             for i in range(n):
                 xs[s, j + 1, i] = x[i]
                 sig[s, j + 1, i] = np.sqrt(max(P[i, i], 0.0))
@@ -189,10 +198,13 @@ def kalman(Fs: np.ndarray, z: np.ndarray, x0: np.ndarray, tun: Tuning, T, T_nomi
     P = np.empty((S, n, n))
     nis = np.empty(S)
     failed = np.empty(S, dtype=np.int64)
+    m = z.shape[2]
+    innov = np.empty((S, J, m))
+    s_var = np.empty((S, J, m))
     _kalman(np.ascontiguousarray(discretise(Fs, T)), np.ascontiguousarray(z, dtype=np.float64),
             np.ascontiguousarray(x0, dtype=np.float64), P0, Qs, np.ascontiguousarray(np.diag(R)),
-            xs, sig, P, nis, failed)
-    return FilterOut(xs, sig, P, nis, failed)
+            xs, sig, P, nis, failed, innov, s_var)
+    return FilterOut(xs, sig, P, nis, failed, innov, s_var)
 
 
 def epoch_mean(fl: np.ndarray, ep: Epochs, j0: int, j1: int) -> np.ndarray:

@@ -17,6 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ...errors import InputError
+from ...estimation.fit import FitCheck, fit_check
+from ...logs.calibration import Calibration, calibration_of
+from ...logs.increments import sample_intervals
 from .config import ARCSEC, G, SledConfig
 from .errmodel import propagate_run_model
 from ...records import nearest_samples
@@ -62,8 +66,7 @@ def record_epochs(t: np.ndarray, period_s: float) -> Epochs:
     ``dts = diff(t)``, the last sample covering the median step."""
     step = float(np.median(np.diff(t)))
     k = np.union1d(0, nearest_samples(t, period_s, 0.5 * step))   # epoch 0 (the prior) is the first sample
-    dts = np.r_[np.diff(t), step]
-    return Epochs(k=k, T=np.diff(t[k]), dts=dts)
+    return Epochs(k=k, T=np.diff(t[k]), dts=sample_intervals(t))
 
 
 def stop_index(t: np.ndarray, stop_time_s: float) -> int:
@@ -85,10 +88,31 @@ def compensate_x(fl: np.ndarray, r_x: np.ndarray, v_x: np.ndarray, phi_hat: np.n
     INS's rules). ``r_x``, ``v_x`` (S,N) at t_k; ``dt`` the IMU period or (N,) the record's
     sample intervals, s; returns r_x^c (S,N).
     """
+    _, dr = x_corrections(fl, phi_hat, dt)
+    return r_x - dr[:, :r_x.shape[1]]
+
+
+def x_corrections(fl: np.ndarray, phi_hat: np.ndarray, dt) -> tuple[np.ndarray, np.ndarray]:
+    """The along-track velocity and position errors (S,N+1) at t_0 … t_N, m/s and m, that the
+    attitude errors ``phi_hat`` (S,N,3) rad cause through the computed specific force ``fl``
+    (S,N,3) (§7, eqs. 20-21: ``Δa_x = f_y φ̂_z − f_z φ̂_y`` summed by the INS's rules)."""
     da = fl[..., 1] * phi_hat[..., 2] - fl[..., 2] * phi_hat[..., 1]
     dv = np.concatenate([np.zeros((da.shape[0], 1)), np.cumsum(da * dt, axis=1)], axis=1)   # at t_0 … t_N
     dr = np.concatenate([np.zeros((da.shape[0], 1)), np.cumsum((dv[:, :-1] + dv[:, 1:]) * 0.5 * dt, axis=1)], axis=1)
-    return r_x - dr[:, :r_x.shape[1]]
+    return dv, dr
+
+
+def compensated_track(cfg: SledConfig, f: np.ndarray, w: np.ndarray, t: np.ndarray, phi: np.ndarray) -> pd.DataFrame:
+    """The along-track position X(t) (m) and velocity V(t) (m/s) of one record, navigated (§4)
+    and compensated open loop with the constant attitude errors ``phi`` (3,) rad [φ_x, φ_y, φ_z]
+    (§7, the ``post`` mode): columns ``t, x_nav_m, v_nav_m_s, x_m, v_m_s``. ``f``, ``w`` (N,3)
+    m/s^2, rad/s; ``t`` (N,) s from the record's start, its samples' own intervals."""
+    dts = sample_intervals(t)
+    v, r, fl = mechanise(f[None], w[None], np.zeros((1, 3)), cfg.omega_ie, dts)
+    n = t.size
+    dv, dr = x_corrections(fl, np.broadcast_to(np.asarray(phi, float), (1, n, 3)), dts)
+    return pd.DataFrame({"t": t, "x_nav_m": r[0, :n, 0], "v_nav_m_s": v[0, :n, 0],
+                         "x_m": r[0, :n, 0] - dr[0, :n], "v_m_s": v[0, :n, 0] - dv[0, :n]})
 
 
 def phi_per_sample(run: FilterOut, states: int, epochs: np.ndarray, j_stop: int, n: int, mode: str) -> np.ndarray:
@@ -260,3 +284,44 @@ def estimates(idn: Identification, truth: Truth | None, s: int = 0) -> pd.DataFr
     rows.append({"name": "nabla_x", "filter": "stop", "unit": "ug", "estimate": idn.nabla_x_hat[s] / G * 1e6,
                  "sigma": np.nan, "truth": nab, "effective": np.nan})
     return pd.DataFrame(rows)
+
+
+def calibration(idn: Identification, log_path, config: dict, s: int = 0) -> Calibration:
+    """The calibration of one identified run (docs/rocket-sled.md §7): the run filter's attitude
+    errors it estimates (arcsec; φ_x only with 7 states) with their covariance block, and the
+    by-product ∇̂_x (µg), whose variance is not given by the filters (NaN)."""
+    cols = phi_columns(idn.cfg.states)
+    names = list(cols) + ["nabla_x"]
+    idx = list(cols.values())
+    n = len(names)
+    cov = np.full((n, n), np.nan)
+    cov[:-1, :-1] = idn.run.P[s][np.ix_(idx, idx)] / ARCSEC ** 2
+    values = [idn.run.x[s, -1, i] / ARCSEC for i in idx] + [idn.nabla_x_hat[s] / G * 1e6]
+    return calibration_of("sled", "rocket-sled.md", names, ["arcsec"] * (n - 1) + ["ug"], values, cov, log_path,
+                          config)
+
+
+def phi_from_calibration(cal: Calibration) -> np.ndarray:
+    """(3,) rad: the attitude errors [φ_x, φ_y, φ_z] of a sled calibration (:func:`calibration`;
+    φ_x 0 when the 6-state filter did not estimate it). InputError naming ``--calibration key
+    names`` for one without φ_y, φ_z."""
+    missing = [n for n in ("phi_y", "phi_z") if n not in cal.names]
+    if missing:
+        raise InputError("--calibration key names", f"lacks {missing[0]!r}; a sled calibration holds phi_y, phi_z "
+                         "(and phi_x with 7 states), arcsec")
+    return np.array([cal.value(n) if n in cal.names else 0.0 for n in ("phi_x", "phi_y", "phi_z")]) * ARCSEC
+
+
+RUN_CHANNELS = ("run v_y", "run r_y", "run v_z", "run r_z")
+"""The run filter's measured channels (docs/rocket-sled.md §6.1): the navigation's lateral
+velocity (m/s) and position (m), y and z, whose true values are 0 on the track."""
+
+
+def record_fit(idn: Identification, s: int = 0) -> FitCheck:
+    """The fit check (:func:`platcal.estimation.fit.fit_check`) of seed slot ``s``'s run filter
+    (docs/rocket-sled.md §6.1): its innovations of v_y, r_y, v_z, r_z and their predicted variances
+    at the epochs up to the stop. The stop filter is left out: its measurements restart at the
+    stop and its few epochs add little. No diagnosis: the filter predicts the navigation's error,
+    not the IMU's output, so a unit, sign or swap is recognised before the filters
+    (:func:`.record.check_plausible`), and a clock cannot be told from a drift here."""
+    return fit_check(idn.run.innov[s], idn.run.s_var[s], RUN_CHANNELS)

@@ -18,15 +18,22 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ...logs.increments import increment_units, rates_from_increments
+from ...logs.mapping import RecordMapping
 from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
+from ...plausibility import refuse_recognised
 from ...records import check_times, grid_origin, num, read_table
 from .config import G, SledConfig
 from .sensors import ErrorParams
 from .simulate import SimBatch, Truth
-from .trajectory import Trajectory, build_trajectory
+from .trajectory import Trajectory, build_trajectory, true_imu
 
 IMU_COLUMNS = ("t", "fx", "fy", "fz", "wx", "wy", "wz")
 TRUTH_COLUMNS = ("x_true", "vx_true", "x_inst")
+UNITS = {"t": "s", "fx": "m/s^2", "fy": "m/s^2", "fz": "m/s^2", "wx": "rad/s", "wy": "rad/s", "wz": "rad/s",
+         "x_true": "m", "vx_true": "m/s", "x_inst": "m"}
+"""The record's columns and their units (§10), for a config's ``record:`` mapping; g converts by
+:data:`.config.G` (9.80665 m/s^2)."""
 
 
 def truth_path(record: str | Path) -> Path:
@@ -86,14 +93,23 @@ def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataF
     acceleration (within :data:`PHASE_TOL_G`), or a median ``fz`` that is not about 1 g in m/s^2.
     The clock may count from 0 (a first sample within ``record.max_gap_s`` of it) or from any
     origin (a constant offset, removed by :func:`platcal.records.grid_origin`); jitter is kept.
+    A log in other columns or units is read through the config's ``record:`` mapping (:data:`UNITS`);
+    with ``record.kind: increments`` the f and w columns are delta-v (m/s) and delta-theta (rad)
+    per sample, converted over each sample's interval (:mod:`platcal.logs.increments`).
     """
     max_gap = float(cfg.raw["record"]["max_gap_s"])
-    df = read_table(path, IMU_COLUMNS, TRUTH_COLUMNS, what="a sled record", min_rows=2)
+    mapping = RecordMapping.from_config(cfg.raw["record"], g=G)
+    incremental = mapping.kind == "increments"
+    df = read_table(path, IMU_COLUMNS, TRUTH_COLUMNS, what="a sled record", min_rows=2, mapping=mapping,
+                    units=increment_units(UNITS, IMU_COLUMNS[1:]) if incremental else UNITS,
+                    increments=IMU_COLUMNS[1:])
     traj = build_trajectory(cfg)
     t = df["t"].to_numpy(dtype=float)
     field = "--data column t"
     med = check_times(t, cfg.dt, max_gap, field, f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
     t = t - (0.0 if abs(t[0]) <= max_gap else grid_origin(t, med))
+    if incremental:  # delta-v, delta-theta over each sample's interval (platcal.logs.increments)
+        df[list(IMU_COLUMNS[1:])] = rates_from_increments(df[list(IMU_COLUMNS[1:])].to_numpy(float), t)
     span, want = float(t[-1] + med), traj.n * cfg.dt
     if abs(span - want) > max_gap:
         raise InputError(field, f"the record lasts {span:g} s ({len(df)} rows from t = {num(t[0])} s), but the "
@@ -120,6 +136,31 @@ def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataF
                              f"{got / G:.3g} g, but the config's trajectory accelerates at {level / G:.3g} g there; "
                              "the record is not a run of this trajectory (check the trajectory section)")
     return traj, df, t
+
+
+NOMINAL_FIX = {"f": "fx, fy, fz must be the body-axis specific force in m/s^2 (x along the track, z down-up: "
+                     "fz about +g at rest)",
+               "w": "wx, wy, wz must be the body-axis rates in rad/s (at rest they read the earth rate, "
+                    "7.29e-5 rad/s)"}
+
+
+def nominal_imu(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N,3) m/s^2 and (N,3) rad/s: the error-free IMU output of the config's trajectory
+    (docs/rocket-sled.md §2) at the record's instants ``t`` (s from its start; nearest grid sample)."""
+    f, w = true_imu(traj, cfg.omega_ie)
+    k = np.clip(np.floor(t / cfg.dt + 0.5).astype(np.int64), 0, traj.n - 1)
+    return f[k], w[k]
+
+
+def check_plausible(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray, t: np.ndarray) -> None:
+    """Refuse (InputError naming the column, exit 2, before the filters) a record whose specific
+    force or rates are a unit, sign or swap of the trajectory's error-free output (docs/rocket-sled.md
+    §10): the along-track force and the 1 g at rest for ``fx, fz``, the earth rate for the gyros
+    (:func:`platcal.plausibility.refuse_recognised`). ``f``, ``w`` (N,3) as :func:`record_arrays`
+    gives them for one record."""
+    f_nom, w_nom = nominal_imu(cfg, traj, t)
+    refuse_recognised(f, f_nom, ("fx", "fy", "fz"), "m/s^2", NOMINAL_FIX["f"])
+    refuse_recognised(w, w_nom, ("wx", "wy", "wz"), "rad/s", NOMINAL_FIX["w"])
 
 
 def samples_per_phase(traj: Trajectory, t: np.ndarray, dt: float) -> dict[str, int]:

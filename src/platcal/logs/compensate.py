@@ -1,0 +1,49 @@
+"""``platcal compensate``'s common path (issue 21, item 4): read a log through the calibration's
+config ``record:`` mapping, apply the rig's compensation, write the result atomically.
+
+The rig supplies its record's columns and units and a pure function from the log (in the rig's
+columns and units) to the compensated log; checks of ``--out`` come first, before the log is
+read, so a bad option is refused before any work. Nothing here names a rig.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Callable
+
+import pandas as pd
+
+from ..errors import InputError
+from ..io import check_writable
+from ..records import read_table, write_record
+from .mapping import RecordMapping
+
+OUT_SUFFIXES = (".csv", ".parquet")
+
+
+def check_compensate_out(path) -> None:
+    """InputError naming ``--out`` unless it is a writable .csv or .parquet file path."""
+    if Path(path).suffix not in OUT_SUFFIXES:
+        raise InputError("--out", f"a compensated log is written as .csv or .parquet, got {Path(path).name!r}")
+    check_writable(path, "--out")
+
+
+def read_mapped(rig: str, mapping: RecordMapping, units: dict, required: tuple, optional: tuple = (),
+                text: tuple = ()) -> Callable[[str], pd.DataFrame]:
+    """A reader of a log in the rig's ``units`` (columns ``required`` + ``optional``) through
+    ``mapping``, for :func:`compensate_log`."""
+    return lambda path: read_table(path, required, optional, text=text, mapping=mapping, units=units,
+                                   what=f"a {rig} log")
+
+
+def compensate_log(args, rig: str, read: Callable[[str], object], apply: Callable[[object], pd.DataFrame],
+                   what: str) -> int:
+    """Check ``args.out``, read ``args.data`` with ``read`` (the rig's checks, InputError naming
+    the column), write ``apply(log)`` to ``args.out`` in the rig's columns and units, and say so
+    on stderr naming ``what`` was compensated. Returns the exit status 0."""
+    check_compensate_out(args.out)
+    out = apply(read(args.data))
+    write_record(out, args.out)
+    print(f"platcal compensate: {rig}, {len(out)} samples, {what} -> {args.out}", file=sys.stderr)
+    return 0

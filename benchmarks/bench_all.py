@@ -236,7 +236,7 @@ def lowprec_centrifuge(B: int, repeat: int) -> dict:
     study = load_config({"rig": "lowprec_centrifuge"})
     p = study.platform_names()[0]
     r = [r for r in study.run_names(p) if r != "traditional"][0]
-    rb = simulate_batch(study, p, r, np.arange(B))
+    rb = simulate_batch(study, p, r, [np.random.SeedSequence([1, i]) for i in range(B)])
 
     def ident(b0, b1):
         return proposed.identify_proposed(rb.prof.t, rb.v_ind[b0:b1], rb.p_ind[b0:b1], rb.psi[b0:b1], rb.kin.f,
@@ -261,7 +261,8 @@ def lowprec_centrifuge(B: int, repeat: int) -> dict:
                 kf.update(z[s, w].reshape(4, 1), H=H)
                 kf.P = 0.5 * (kf.P + kf.P.T)
             x[s], P[s] = kf.x[:, 0], kf.P
-        return proposed.FilterResult(x=x, P=P, n_windows=valid.sum(axis=1))
+        return proposed.FilterResult(x=x, P=P, n_windows=valid.sum(axis=1), mean_nis=np.full(nb, np.nan),
+                                     failed_updates=np.zeros(nb, np.int64))
 
     with Clock() as clock, mock.patch.object(proposed, "run_filter", run_filter_fp):
         fp = ident(0, 1)

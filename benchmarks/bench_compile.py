@@ -66,12 +66,15 @@ def warm_sled() -> None:
 
 
 def warm_lowprec_centrifuge() -> None:
-    from platcal.rigs.lowprec_centrifuge.config import load_config
-    from platcal.rigs.lowprec_centrifuge.study import run_scenario
+    from platcal.rigs.lowprec_centrifuge import RIG
+    from platcal.study.montecarlo import run_cell
 
     small = {"rig": "lowprec_centrifuge", "runs": {"P1": {"r": [1, 1]}, "P2": {"r": [1, 1]}},
-             "profile": {"rest_first_s": 1, "rest_between_s": 1}}
-    run_scenario(load_config(small), np.arange(1))
+             "profile": {"rest_first_s": 1, "rest_between_s": 1}, "study": {"seeds": 1}}
+    h = RIG.montecarlo
+    cfg = h.check(small)
+    for est in h.estimators(cfg):
+        run_cell(RIG, cfg, h.case(cfg, "default"), h.noise_levels(cfg)[0], est)
 
 
 WARM = {"centrifuge": warm_centrifuge, "multiposition": warm_multiposition, "sled": warm_sled,

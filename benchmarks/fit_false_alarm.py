@@ -77,20 +77,24 @@ def lowprec_fits(config: str, seeds: range, batch: int = 5):
     """The fit check of each seed's record of the config's first platform and its first run
     (``platcal simulate --platform P --run R --seed N``), proposed method."""
     from platcal.rigs.lowprec_centrifuge.commands import record_fit
+    from platcal.rigs.lowprec_centrifuge.montecarlo import SEED_KEY
     from platcal.rigs.lowprec_centrifuge.proposed import FilterResult, identify_proposed
     from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
+    from platcal.study.montecarlo import replicate_seed
 
     study = get_rig("lowprec_centrifuge").load_config(read_config(config))
     platform = study.platform_names()[0]
     run = study.run_names(platform)[0]
+    noise = study.residuals["accel_noise_ug_rthz"]
     for a in range(seeds.start, seeds.stop, batch):
         ns = list(range(a, min(a + batch, seeds.stop)))
-        rb = simulate_batch(study, platform, run, ns)
+        rb = simulate_batch(study, platform, run, [replicate_seed(study.seed, SEED_KEY, noise, n) for n in ns], ns)
         fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
                                study.centrifuge.arm_m, study.latitude_deg, keep_innovations=True)
         for s, n in enumerate(ns):
-            yield n, record_fit(FilterResult(fr.x[s:s + 1], fr.P[s:s + 1], fr.n_windows[s:s + 1],
-                                             fr.innovations[s:s + 1]))
+            yield n, record_fit(FilterResult(x=fr.x[s:s + 1], P=fr.P[s:s + 1], n_windows=fr.n_windows[s:s + 1],
+                                             mean_nis=fr.mean_nis[s:s + 1], failed_updates=fr.failed_updates[s:s + 1],
+                                             innovations=fr.innovations[s:s + 1]))
 
 
 RIGS = {"centrifuge": (centrifuge_fits, "config/centrifuge.yaml"),

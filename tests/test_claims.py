@@ -1,6 +1,7 @@
 """The claims ledger's evaluator: statistics, bootstrap intervals, verdicts, declarations."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from platcal.errors import InputError
@@ -128,17 +129,18 @@ def test_centrifuge_table2_gyro_verdict_follows_the_noise(tmp_path):
 @pytest.mark.slow
 def test_lowprec_effect_verdict_follows_the_instrument_noise(tmp_path):
     from platcal.rigs.lowprec_centrifuge import RIG
-    from platcal.rigs.lowprec_centrifuge.config import load_config
-    from platcal.rigs.lowprec_centrifuge.study import run_scenario, study_seeds
     from platcal.study.claims import evaluate_rig
+    from platcal.study.montecarlo import run_cell
 
     def ledger(folder, noise):
-        study = load_config({"rig": "lowprec_centrifuge", "study": {"seeds": 2},
-                             "residuals": {"accel_noise_ug_rthz": noise}})
-        res = run_scenario(study, study_seeds(study))
-        (folder / "scenarios" / "default").mkdir(parents=True)
-        res["cross"].to_csv(folder / "scenarios" / "default" / "cross.csv", index=False)
-        return evaluate_rig(RIG, folder, study.raw).set_index("claim")
+        h = RIG.montecarlo
+        cfg = h.check({"rig": "lowprec_centrifuge", "study": {"seeds": 2},
+                       "residuals": {"accel_noise_ug_rthz": noise}})
+        cells = [run_cell(RIG, cfg, h.case(cfg, "default"), noise, e) for e in h.estimators(cfg)]
+        (folder / "montecarlo").mkdir(parents=True)
+        pd.concat([c[0] for c in cells]).to_parquet(folder / "montecarlo" / "coef.parquet")
+        pd.concat([c[1] for c in cells]).to_parquet(folder / "montecarlo" / "runs.parquet")
+        return evaluate_rig(RIG, folder, cfg).set_index("claim")
 
     clean, noisy = ledger(tmp_path / "a", 10.0), ledger(tmp_path / "b", 20000.0)
     assert clean.loc["proposed_effect_velocity", "verdict"] == REPRODUCED

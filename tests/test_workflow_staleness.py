@@ -81,11 +81,11 @@ def edit(d: Path, rig: str, old: str, new: str) -> None:
 # (rig, regex of the value in config/<rig>.yaml, its replacement, outputs that must be listed
 #  (regex), outputs that must not be listed (regex))
 EDITS = [
-    ("lowprec_centrifuge", r"k0_ug: 20", "k0_ug: 21", r"scenarios/(default|worst|rate-0\.001)/cross", r"^$"),
-    ("lowprec_centrifuge", r"kA_x: -40", "kA_x: -41", r"scenarios/default/cross|tables/table1\.csv", r"^$"),
+    ("lowprec_centrifuge", r"k0_ug: 20", "k0_ug: 21", r"lowprec_centrifuge/runs/(default|worst|rate-0\.001)/", r"^$"),
+    ("lowprec_centrifuge", r"kA_x: -40", "kA_x: -41", r"lowprec_centrifuge/runs/default/|tables/table1\.csv", r"^$"),
     # the default scenario and the arm sweep use the base rate; the rate sweep overrides it
-    ("lowprec_centrifuge", r"rate_error: 3\.0e-4", "rate_error: 2.0e-4", r"scenarios/(default|arm-5mm)/cross",
-     r"scenarios/rate-0\.001/"),
+    ("lowprec_centrifuge", r"rate_error: 3\.0e-4", "rate_error: 2.0e-4", r"lowprec_centrifuge/runs/(default|arm-5mm)/",
+     r"lowprec_centrifuge/runs/rate-0\.001/"),
     # ROLL4 is a rank-table scheme only: the rank table reruns, no Monte Carlo cell does
     ("multiposition", r"ROLL4: \{dwell_s: 60", "ROLL4: {dwell_s: 50", r"observability/ROLL4/observability\.json",
      r"/runs/|extension/|design/"),

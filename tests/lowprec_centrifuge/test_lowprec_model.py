@@ -13,7 +13,14 @@ from platcal.rigs.lowprec_centrifuge.profile import HOLD, STATIC, build_profile,
 from platcal.rigs.lowprec_centrifuge.proposed import (DEG_H, f_matrix, find_windows, transition_and_h,
                                                        window_data)
 from platcal.rigs.lowprec_centrifuge.traditional import design_matrix, identify_traditional
+from platcal.rigs.lowprec_centrifuge.montecarlo import SEED_KEY
 from platcal.rigs.lowprec_centrifuge.truth import _integrate, simulate_batch
+from platcal.study.montecarlo import replicate_seed
+
+
+def S(replicates):
+    """The study's SeedSequences of these replicates (root seed 0, accelerometer noise 10 ug/rtHz)."""
+    return [replicate_seed(0, SEED_KEY, 10.0, r) for r in replicates]
 
 
 @pytest.fixture(scope="module")
@@ -126,8 +133,8 @@ def test_linearity_gives_exact_compensation():
     raw = dict(a.raw)
     raw["platforms"] = {"P1": {"kA_x": 10, "k2_x": 3, "kA_y": -7, "k2_y": 1}}
     b = load_config(raw)
-    ra = simulate_batch(a, "P1", "run1", [4, 5])
-    rb = simulate_batch(b, "P1", "run1", [4, 5])
+    ra = simulate_batch(a, "P1", "run1", S([4, 5]))
+    rb = simulate_batch(b, "P1", "run1", S([4, 5]))
     dc = ra.coeffs - rb.coeffs
     pred = compensate(ra.final, ra.sens_final, np.tile(dc, (2, 1)))
     assert np.allclose(pred, rb.final, rtol=0, atol=1e-9 * np.abs(ra.final).max())
@@ -224,8 +231,8 @@ def test_bad_config_names_the_field(raw, field):
 
 def test_same_seed_same_numbers_whatever_the_batch():
     st = small()
-    one = simulate_batch(st, "P1", "run1", [3])
-    many = simulate_batch(st, "P1", "run1", [0, 1, 2, 3])
+    one = simulate_batch(st, "P1", "run1", S([3]))
+    many = simulate_batch(st, "P1", "run1", S([0, 1, 2, 3]))
     assert np.array_equal(one.v_ind[0], many.v_ind[3]) and np.array_equal(one.psi[0], many.psi[3])
     assert np.array_equal(one.err[0], many.err[3])
     assert not np.array_equal(many.err[0], many.err[3])
@@ -235,7 +242,7 @@ def test_proposed_filter_covariance_is_symmetric_positive_definite():
     from platcal.rigs.lowprec_centrifuge.proposed import identify_proposed
 
     st = small()
-    rb = simulate_batch(st, "P1", "run1", [0, 1])
+    rb = simulate_batch(st, "P1", "run1", S([0, 1]))
     res = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
                             st.centrifuge.arm_m, st.latitude_deg)
     for P in res.P:

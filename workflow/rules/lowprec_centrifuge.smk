@@ -1,21 +1,15 @@
 # Rig 4, low-precision centrifuge (docs/lowprec-centrifuge.md): the default scenario and the
-# centrifuge-imprecision sweep of section 2, one job per scenario, then tables, figures, report.
-# Reads its config (path or inline) from config["rigs"]["lowprec_centrifuge"] through RAW
-# (common.smk); without that key it defines no target. Each scenario job's param is the
-# scenario's own config (study.scenario_config): an edit reruns exactly the scenarios it changes.
-import re as _lp_re
+# centrifuge-imprecision sweep of section 2 (scenarios x proposed/traditional x seeds) are the
+# generic stage of workflow/rules/montecarlo.smk (rules montecarlo_cell and collect; hooks
+# platcal.rigs.lowprec_centrifuge.montecarlo.LowprecMonteCarlo); here the figures' traces and the
+# tables, figures and report from the tidy tables. Each rule's params hold the config content its
+# outputs depend on (config_provider, common.smk); without config["rigs"]["lowprec_centrifuge"]
+# LOWPREC_CENTRIFUGE_TARGETS is empty.
+from platcal.study.montecarlo import package_code_hash as _lp_code_hash
 
 LOWPREC_CENTRIFUGE_TARGETS = []
-if "lowprec_centrifuge" in RAW:
-    from platcal.rigs.lowprec_centrifuge.config import load_config as _lp_load
-    from platcal.rigs.lowprec_centrifuge.study import scenario_config as _lp_scenario_config
-    from platcal.rigs.lowprec_centrifuge.study import scenarios as _lp_scenarios
-    from platcal.study.montecarlo import package_code_hash as _lp_code_hash
-
-    _LP_STUDY = checked("lowprec_centrifuge", _lp_load)
-    LOWPREC_SCENARIOS = list(_lp_scenarios(_LP_STUDY))
-    LOWPREC_SCENARIO_CONFIG = {s: _lp_scenario_config(_LP_STUDY, s) for s in LOWPREC_SCENARIOS}
-    LOWPREC_CODE = _lp_code_hash("platcal.rigs.lowprec_centrifuge")  # a code edit reruns the jobs
+if "lowprec_centrifuge" in MC_CONFIG:
+    LOWPREC_CODE = _lp_code_hash("platcal.rigs.lowprec_centrifuge")  # a code edit reruns the rules
     LOWPREC_FILES = expand(
         "results/lowprec_centrifuge/tables/{t}.{ext}",
         t=["table1", "table1_y", "coefficients", "degradation", "acceptance", "cross_validation"],
@@ -26,29 +20,25 @@ if "lowprec_centrifuge" in RAW:
     )
     LOWPREC_CENTRIFUGE_TARGETS = LOWPREC_FILES + ["results/lowprec_centrifuge/report.md"]
 
-    rule lowprec_scenario:
+    rule lowprec_trace:
         output:
-            cross="results/lowprec_centrifuge/scenarios/{scen}/cross.csv",
-            coeffs="results/lowprec_centrifuge/scenarios/{scen}/coeffs.csv",
-            trace="results/lowprec_centrifuge/scenarios/{scen}/trace.npz",
-        wildcard_constraints:
-            scen="|".join(_lp_re.escape(s) for s in LOWPREC_SCENARIOS),
+            "results/lowprec_centrifuge/trace.npz",
         params:
-            config=lambda w: LOWPREC_SCENARIO_CONFIG[w.scen],
+            cfg=config_provider("lowprec_centrifuge", "rig", "seed", "site", "centrifuge", "platforms", "runs",
+                                "profile", "traditional", "residuals"),
             code=LOWPREC_CODE,
-        threads: 1
         conda:
             "../envs/platcal.yaml"
         log:
-            "results/lowprec_centrifuge/logs/scenario_{scen}.log",
+            "results/lowprec_centrifuge/logs/trace.log",
         script:
-            "../scripts/lowprec_scenario.py"
+            "../scripts/lowprec_trace.py"
 
     rule lowprec_report:
         input:
-            cross=expand("results/lowprec_centrifuge/scenarios/{scen}/cross.csv", scen=LOWPREC_SCENARIOS),
-            coeffs=expand("results/lowprec_centrifuge/scenarios/{scen}/coeffs.csv", scen=LOWPREC_SCENARIOS),
-            trace="results/lowprec_centrifuge/scenarios/default/trace.npz",
+            coef="results/lowprec_centrifuge/montecarlo/coef.parquet",
+            runs="results/lowprec_centrifuge/montecarlo/runs.parquet",
+            trace="results/lowprec_centrifuge/trace.npz",
         output:
             report="results/lowprec_centrifuge/report.md",
             files=[
@@ -56,8 +46,8 @@ if "lowprec_centrifuge" in RAW:
                 for f in LOWPREC_FILES
             ],
         params:
-            config=_LP_STUDY.raw,
-            names=LOWPREC_SCENARIOS,
+            cfg=config_provider("lowprec_centrifuge", "rig", "seed", "site", "centrifuge", "platforms", "runs",
+                                "profile", "traditional", "residuals", "study"),
             code=LOWPREC_CODE,
         conda:
             "../envs/platcal.yaml"

@@ -11,8 +11,9 @@ noise_key(v), r))`` (:func:`replicate_seed`): ``stable_key`` is the first 4 byte
 SHA-256, never Python's salted ``hash``; ``noise_key`` is the level in thousandths of its unit
 (``round(1000 v)``), so the key belongs to the level itself, not to its position in the list.
 The estimators are not part of the key: every estimator of a cell sees the same data (common
-random numbers). A replicate's numbers do not depend on the batch it runs in, the number of
-threads or joblib workers, or the job order.
+random numbers); a case may key its seeds by another name (its ``seed_key``), shared by cases
+that must see the same data too. A replicate's numbers do not depend on the batch it runs in,
+the number of threads or joblib workers, or the job order.
 
 Tidy tables
 -----------
@@ -91,8 +92,8 @@ def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> t
         "mean_nis": batch.mean_nis, "failed_updates": np.asarray(batch.failed_updates).astype(np.int64),
     })
     runs["failed"] = failed_runs(batch)
-    for name, values in batch.extra.items():  # the rig's own per-run columns, after the standard ones
-        runs[name] = np.asarray(values)
+    if batch.extra:  # the rig's own per-run columns, after the standard ones (joined at once: there may be many)
+        runs = pd.concat([runs, pd.DataFrame({k: np.asarray(v) for k, v in batch.extra.items()})], axis=1)
     return coef, runs
 
 
@@ -107,11 +108,14 @@ def batch_truth(batch) -> np.ndarray:
 
 def failed_runs(batch) -> np.ndarray:
     """(B,) bool: a run that cannot be trusted, with failed updates or a non-finite estimate, sigma,
-    NEES or mean NIS. Such runs stay in the tidy tables, flagged, and the summary counts them."""
+    NEES or mean NIS (the estimate alone for an estimator without ``uncertainty``). Such runs stay
+    in the tidy tables, flagged, and the summary counts them."""
     est = np.asarray(batch.estimate, float).reshape(len(batch.nees), -1)
     sig = np.asarray(batch.sigma, float).reshape(len(batch.nees), -1)
-    finite = (np.isfinite(est).all(axis=1) & np.isfinite(sig).all(axis=1)
-              & np.isfinite(np.asarray(batch.nees, float)) & np.isfinite(np.asarray(batch.mean_nis, float)))
+    finite = np.isfinite(est).all(axis=1)
+    if batch.uncertainty:
+        finite &= (np.isfinite(sig).all(axis=1) & np.isfinite(np.asarray(batch.nees, float))
+                   & np.isfinite(np.asarray(batch.mean_nis, float)))
     return (np.asarray(batch.failed_updates) > 0) | ~finite
 
 
@@ -122,8 +126,8 @@ def _run_chunk(rig_name: str, cfg: dict, case, level: float, estimator: str, rep
     hooks = get_rig(rig_name).montecarlo
     seed = hooks.settings(cfg).seed
     t0 = time.perf_counter()
-    batch = hooks.run_batch(cfg, case, level, estimator, [replicate_seed(seed, case.name, level, r)
-                                                          for r in replicates])
+    key = getattr(case, "seed_key", case.name)
+    batch = hooks.run_batch(cfg, case, level, estimator, [replicate_seed(seed, key, level, r) for r in replicates])
     coef, runs = tidy_frames(batch, case.name, level, estimator, replicates)
     return coef, runs, time.perf_counter() - t0
 

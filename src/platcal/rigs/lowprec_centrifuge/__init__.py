@@ -5,7 +5,8 @@ platform INS by a variable-period Kalman filter, against the traditional two-lev
 Modules: ``config`` (schema, :class:`Study`), ``profile`` (run profiles, kinematics), ``truth``
 (residual draws, INS error model, 5 lock-step variants), ``record`` (the test record),
 ``proposed`` (windows, observations, 14-state filter), ``traditional`` (eq. 2), ``metrics``
-(compensation, effect), ``study`` (Monte Carlo scenarios, tables, figures, report),
+(compensation, effect), ``study`` (scenarios, tables from the tidy Monte Carlo tables), ``montecarlo`` (the
+hooks of the generic Monte Carlo runner), ``report`` (tables, figures, report),
 ``commands`` (the CLI).
 """
 
@@ -16,6 +17,7 @@ from ...rig import Rig
 from . import claims
 from .commands import OPTIONS, compensate, identify, inspect, simulate
 from .config import COEFFS, load_config
+from .montecarlo import LowprecMonteCarlo
 
 
 def catalogue() -> pd.DataFrame:
@@ -27,5 +29,6 @@ def catalogue() -> pd.DataFrame:
 RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
           spec="lowprec-centrifuge.md", load_config=load_config,
-          commands={"inspect": inspect, "simulate": simulate, "identify": identify, "compensate": compensate}, catalogue=catalogue,
-          extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS)
+          commands={"inspect": inspect, "simulate": simulate, "identify": identify, "compensate": compensate},
+          catalogue=catalogue, extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS,
+          montecarlo=LowprecMonteCarlo())

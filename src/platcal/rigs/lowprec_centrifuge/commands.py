@@ -1,6 +1,8 @@
 """``platcal simulate`` and ``platcal identify`` for ``rig: lowprec_centrifuge`` (docs/lowprec-centrifuge.md §10).
 
-simulate: ``--platform P --run run1|run2|traditional [--seed N] [--noise-free] --out rec.csv``
+simulate: ``--platform P --run run1|run2|traditional [--seed N] [--noise-free] --out rec.csv``;
+``--seed N`` writes replicate N (default 0) of the study's Monte Carlo cells (root seed: the
+config's ``seed``; the same record in every centrifuge scenario's cells, §9, §12)
 identify: ``--data rec.csv --out DIR [--method proposed|traditional] [--no-truth]``
 Every option is checked before any work; options of other rigs are refused by name.
 """
@@ -17,11 +19,13 @@ from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option
 from ...io import atomic_files, check_writable, json_text
+from ...study.montecarlo import replicate_seed
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from .config import COEFFS, G0, Study
+from .montecarlo import SEED_KEY
 from .proposed import K_SLICE, identify_proposed
 from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, check_plausible,
                      compensated_frame, estimates_frame,
@@ -47,9 +51,12 @@ def simulate(study: Study, args) -> int:
         raise InputError("--seed", "must be a whole number >= 0")
     check_out_path(args.out)
     check_writable(args.out, "--out")
-    seed = study.seed if args.seed is None else args.seed
+    seed = 0 if args.seed is None else int(args.seed)
     t0 = time.perf_counter()
-    rb = simulate_batch(study, args.platform, args.run, [seed], keep_phi=True, noise_free=bool(args.noise_free))
+    # --seed N is replicate N of the study's cells (any scenario: they share the seeds), root seed `seed`
+    ss = replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], seed)
+    rb = simulate_batch(study, args.platform, args.run, [ss], [seed], keep_phi=True,
+                        noise_free=bool(args.noise_free))
     write_record(record_frame(rb), truth_json(rb, study), args.out)
     print(f"platcal simulate: lowprec_centrifuge {args.platform} {args.run} ({', '.join(f'{a:g}' for a in rb.prof.levels)}"
           f" g), {'noise-free' if args.noise_free else f'seed {seed}'}, {rb.prof.t[-1]:.0f} s -> {args.out} "

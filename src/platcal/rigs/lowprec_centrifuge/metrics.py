@@ -8,15 +8,17 @@ true INS errors at the last sample of the run (the state, not the noisy output).
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
 ERRORS = ("VE", "VN", "pE", "pN")
 CHANNEL = {"VE": "X", "pE": "X", "VN": "Y", "pN": "Y"}
 
 
 def compensate(before: np.ndarray, sens: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
-    """e_after = e_before - sum_k c_k S_k (§8): before (S, 4), sens (4 coeffs, 4 errors), coeffs (S, 4)."""
-    return before - coeffs @ sens
+    """e_after = e_before - sum_k c_k S_k (§8): before (S, 4), sens (4 coeffs, 4 errors), coeffs (S, 4).
+
+    Summed per seed (not a BLAS product, whose rounding depends on the batch size), so a seed's
+    numbers do not depend on the batch it runs in."""
+    return before - (np.asarray(coeffs)[:, :, None] * sens[None]).sum(axis=1)
 
 
 def effect(before, after) -> np.ndarray:
@@ -27,16 +29,3 @@ def effect(before, after) -> np.ndarray:
 def nonlinear_effect(before, after, after_truth) -> np.ndarray:
     """Nonlinear-part effect = 1 - |after - after_truth| / |before - after_truth|, in % (§8)."""
     return 100.0 * (1.0 - np.abs(after - after_truth) / np.abs(before - after_truth))
-
-
-def cross_rows(seeds, platform: str, method: str, cal_run: str, eval_run: str, before, after, after_truth) -> pd.DataFrame:
-    """Tidy rows (one per seed and error) of one calibration -> evaluation cell."""
-    rows = []
-    eff = effect(before, after)
-    nl = nonlinear_effect(before, after, after_truth)
-    for i, s in enumerate(seeds):
-        for j, e in enumerate(ERRORS):
-            rows.append((int(s), platform, method, cal_run, eval_run, CHANNEL[e], e, before[i, j], after[i, j],
-                         eff[i, j], nl[i, j]))
-    return pd.DataFrame(rows, columns=["seed", "platform", "method", "cal_run", "eval_run", "channel", "error",
-                                       "before", "after", "effect_pct", "nonlinear_effect_pct"])

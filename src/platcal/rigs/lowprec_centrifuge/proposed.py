@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import InputError
+from ...estimation.kalman import joseph_update_sparse
 from .config import G0, OMEGA_IE, R_EARTH
 from .profile import STATIC
 from .truth import ARCSEC, DEG_H
@@ -219,6 +220,8 @@ class FilterResult:
     x: np.ndarray        # (S, 14) final estimate
     P: np.ndarray        # (S, 14, 14) final covariance
     n_windows: np.ndarray  # (S,)
+    mean_nis: np.ndarray   # (S,) mean normalised innovation squared over the updates (dof 4)
+    failed_updates: np.ndarray  # (S,) updates skipped: innovation covariance not positive definite
     innovations: np.ndarray | None = None  # (S, W, 8) innovations and diag(S), when kept
 
     @property
@@ -230,44 +233,60 @@ class FilterResult:
         return np.sqrt(np.diagonal(self.P, axis1=1, axis2=2)[:, K_SLICE])
 
 
+def predict(F: np.ndarray, T: np.ndarray, x: np.ndarray, P: np.ndarray, q: np.ndarray):
+    """One window's prediction, batched over seeds (§7): F (S, 14, 14), window lengths T (S,) s
+    (0 for a padded window: no change), x (S, 14), P (S, 14, 14), q the noise density (14,).
+    Returns Phi, H (S, 4, 14) and the predicted x, P."""
+    phi, H = transition_and_h(F, T)
+    xp = np.einsum("bij,bj->bi", phi, x)
+    Pp = phi @ P @ np.swapaxes(phi, 1, 2) + q * T[:, None, None] * np.eye(NX)
+    return phi, H, xp, Pp
+
+
 def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float,
                keep_innovations: bool = False) -> FilterResult:
-    """The Kalman filter over padded window arrays (S, W), batched over seeds: predict with Phi, Joseph update.
+    """The Kalman filter over padded window arrays (S, W), batched over seeds: predict with Phi
+    (numpy, batched), then the shared Joseph-form update of :mod:`platcal.estimation.kalman` per
+    seed (H dense: every column listed). Window means of velocity (m/s) and position (m) (§7).
 
     ``keep_innovations``: the result's ``innovations`` (S, W, 8) holds each window's innovation
     (zVE, zVN m/s, zPE, zPN m) and its predicted variance diag(S) (NaN for padding), for the fit check.
-
-    [D] numpy rather than numba: a numba kernel of this loop ran ~2x faster but took 20-30 s to
-    compile on the shared machine.
     """
     nb, nw = T.shape
     q = q_density()
-    eye = np.eye(NX)
     x = np.zeros((nb, NX))
     P = np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)).copy()
-    R = np.diag(R_DIAG)
+    r_var = R_DIAG.copy()
     Fw = f_matrix(lat_rad, m)                    # (S, W, 14, 14)
+    hcols = np.tile(np.arange(NX), (4, 1))
+    hnnz = np.full(4, NX)
+    U, K, D = (np.empty((4, NX)) for _ in range(3))
+    S, Sinv = np.empty((4, 4)), np.empty((4, 4))
+    nu = np.empty(4)
+    nis = np.zeros(nb)
+    skipped = np.zeros(nb, dtype=np.int64)
     innovations = np.full((nb, nw, 8), np.nan) if keep_innovations else None
     for w in range(nw):
         ok = valid[:, w]
         Tw = np.where(ok, T[:, w], 0.0)
-        phi, H = transition_and_h(Fw[:, w], Tw)
-        xp = np.einsum("bij,bj->bi", phi, x)
-        Pp = phi @ P @ np.swapaxes(phi, 1, 2) + q * Tw[:, None, None] * eye
-        PHt = Pp @ np.swapaxes(H, 1, 2)
-        S = H @ PHt + R
-        K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, 1, 2)), 1, 2)
+        phi, H, xp, Pp = predict(Fw[:, w], Tw, x, P, q)
         innov = z[:, w] - np.einsum("bij,bj->bi", H, xp)
-        if innovations is not None:
-            innovations[:, w, :4] = innov
-            innovations[:, w, 4:] = np.where(ok[:, None], np.diagonal(S, axis1=1, axis2=2), np.nan)
-        xn = xp + np.einsum("bij,bj->bi", K, innov)
-        ikh = eye - K @ H
-        Pn = ikh @ Pp @ np.swapaxes(ikh, 1, 2) + K @ R @ np.swapaxes(K, 1, 2)
-        Pn = 0.5 * (Pn + np.swapaxes(Pn, 1, 2))
-        x = np.where(ok[:, None], xn, x)
-        P = np.where(ok[:, None, None], Pn, P)
-    return FilterResult(x=x, P=P, n_windows=valid.sum(axis=1), innovations=innovations)
+        H = np.ascontiguousarray(H)
+        for s in np.flatnonzero(ok):
+            if innovations is not None:   # before the update, which overwrites Pp[s]
+                innovations[s, w, :4] = innov[s]
+                innovations[s, w, 4:] = np.einsum("ij,jk,ik->i", H[s], Pp[s], H[s]) + r_var
+            if joseph_update_sparse(xp[s], Pp[s], hcols, hnnz, H[s], innov[s], r_var, U, K, D, S, Sinv, nu, True):
+                nis[s] += nu @ nu
+            else:
+                skipped[s] += 1
+        x = np.where(ok[:, None], xp, x)
+        P = np.where(ok[:, None, None], Pp, P)
+    n_upd = valid.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_nis = nis / (n_upd - skipped)
+    return FilterResult(x=x, P=P, n_windows=n_upd, mean_nis=mean_nis, failed_updates=skipped,
+                        innovations=innovations)
 
 
 def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float,

@@ -1,6 +1,6 @@
 """Tables, figures and the Markdown report of the rig's study (docs/lowprec-centrifuge.md §8, §11).
 
-:func:`write_study` reads the per-scenario outputs of :func:`~.study.run_scenario` and writes,
+:func:`write_study` reads the study's tidy Monte Carlo tables (:mod:`.montecarlo`) and writes,
 under one folder, ``tables/`` (CSV + Markdown + HTML), ``figures/`` (PNG, byte-stable) and
 ``report.md`` (tables inline, figures linked relatively, the §11 checks and the paper's claims).
 """
@@ -18,18 +18,15 @@ import pandas as pd  # noqa: E402
 
 from ...io import atomic_path, atomic_write_text  # noqa: E402
 from ...study.claims import ledger_markdown, ledger_note  # noqa: E402
+from ...study.plots import save  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
+from .config import load_config  # noqa: E402
+from .montecarlo import study_frames  # noqa: E402
 from .study import (PAPER_TRADITIONAL_RESIDUAL_PCT, acceptance, coefficient_table, degradation_table,  # noqa: E402
-                    drop_failed, pooled, table1, y_table)
+                    drop_failed, pooled, scenarios, table1, y_table)
 
 FMT = {"before": ".3f", "after": ".3f", "VE_before": ".2f", "VE_after": ".3f", "pE_before": ".0f", "pE_after": ".1f",
        "truth": "g", "mean": ".3f", "sd": ".3f", "mean_error": "+.3f", "mean_sigma": ".3f", "rms_z": ".2f"}
-
-
-def _savefig(fig, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
-    plt.close(fig)
 
 
 def fig_effect_vs_imprecision(deg: pd.DataFrame, meta: dict, path: Path) -> None:
@@ -50,7 +47,7 @@ def fig_effect_vs_imprecision(deg: pd.DataFrame, meta: dict, path: Path) -> None
     axes[0].legend(fontsize=8)
     fig.suptitle("Compensation effect against centrifuge imprecision")
     fig.tight_layout()
-    _savefig(fig, path)
+    save(fig, path, dpi=110, tight=False)
 
 
 def fig_velocity_trace(tr: dict, path: Path) -> None:
@@ -70,7 +67,7 @@ def fig_velocity_trace(tr: dict, path: Path) -> None:
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    _savefig(fig, path)
+    save(fig, path, dpi=110, tight=False)
 
 
 def fig_windows(tr: dict, path: Path) -> None:
@@ -92,19 +89,7 @@ def fig_windows(tr: dict, path: Path) -> None:
     ax.legend(uniq.values(), uniq.keys(), fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    _savefig(fig, path)
-
-
-def load_scenarios(scen_dirs: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
-    cross, coeffs = [], []
-    for name, d in scen_dirs.items():
-        c = pd.read_csv(Path(d) / "cross.csv")
-        c.insert(0, "scenario", name)
-        k = pd.read_csv(Path(d) / "coeffs.csv")
-        k.insert(0, "scenario", name)
-        cross.append(c)
-        coeffs.append(k)
-    return pd.concat(cross, ignore_index=True), pd.concat(coeffs, ignore_index=True)
+    save(fig, path, dpi=110, tight=False)
 
 
 def load_trace(path) -> dict:
@@ -112,10 +97,21 @@ def load_trace(path) -> dict:
         return {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
 
 
-def write_study(scen_dirs: dict, meta: dict, trace_path, out: Path, seeds: int, claims=None) -> None:
-    """All tables, figures and report.md of the study under ``out``."""
+def write_trace(trace: dict, path) -> None:
+    """The figures' traces (:func:`.montecarlo.study_trace`) as an ``.npz``, atomically."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **trace)
+
+
+def write_study(cfg: dict, coef_path, runs_path, trace_path, out: Path, claims=None) -> None:
+    """All tables, figures and report.md of the study under ``out``, from the tidy Monte Carlo
+    tables (``coef.parquet``, ``runs.parquet``) and the traces of :func:`write_trace`; the report
+    opens on ``claims``, the rig's ledger rows (:func:`platcal.study.claims.evaluate_rig`)."""
     out = Path(out)
-    cross_all, coeffs_all = load_scenarios(scen_dirs)
+    study = load_config(cfg)
+    meta = scenarios(study)
+    seeds = int(study.study["seeds"])
+    cross_all, coeffs_all = study_frames(study, list(meta), pd.read_parquet(coef_path), pd.read_parquet(runs_path))
     cross_all, coeffs_all, n_failed = drop_failed(cross_all, coeffs_all)
     cross = cross_all[cross_all["scenario"] == "default"].drop(columns="scenario")
     coeffs = coeffs_all[coeffs_all["scenario"] == "default"].drop(columns="scenario")

@@ -2,27 +2,21 @@
 
 One *scenario* is a centrifuge imprecision (rate, arm, stretch); in it every platform runs its
 proposed runs and the traditional run for every seed (common random numbers across scenarios,
-§9). :func:`run_scenario` returns the tidy cross-validation table (seed, platform, method,
-calibration run, evaluated run, channel, error, before, after, effect %, nonlinear-part effect %)
-and the coefficient table (seed, platform, method, run, coefficient, estimate, sigma, truth).
-The aggregation functions build the Table-1 analogue, the coefficient and degradation tables
-and the §11 acceptance checks from those.
+§9), as cells of the generic Monte Carlo runner (:mod:`.montecarlo`, whose
+:func:`~.montecarlo.study_frames` turns the tidy tables into the cross-validation table: scenario,
+seed, platform, method, calibration run, evaluated run, channel, error, before, after, effect %,
+nonlinear-part effect %, failed; and the coefficient table: scenario, seed, platform, method, run,
+coefficient, estimate, sigma, truth, failed). The aggregation functions here build the Table-1
+analogue, the coefficient and degradation tables and the §11 acceptance checks from those.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import time
-
 import numpy as np
 import pandas as pd
 
-from ...log import eta_line
-from .config import COEFFS, Study
-from .metrics import compensate, cross_rows
-from .proposed import find_windows, identify_proposed
-from .traditional import identify_traditional
-from .truth import simulate_batch
+from .config import Study
+from .proposed import find_windows
 
 PAPER_TABLE1 = pd.DataFrame(
     [("P1", "run1", "run1", -3.96, 84.1, -1428, 93.4), ("P1", "run1", "run2", -13.26, 96.3, -6517, 94.5),
@@ -66,33 +60,6 @@ def scenarios(study: Study) -> dict[str, dict]:
     return out
 
 
-def scenario_config(study: Study, name: str) -> dict:
-    """The raw config of scenario ``name`` alone: the study's config with the scenario's
-    centrifuge in ``centrifuge`` and, of ``study``, only what one scenario's run reads (the seeds;
-    the sweep lists emptied). It is the scenario job's Snakemake param: an edit reruns exactly the
-    scenarios whose numbers it changes, and ``load_config`` of it runs the scenario."""
-    raw = dict(study.raw)
-    raw["centrifuge"] = dataclasses.asdict(scenarios(study)[name]["centrifuge"])
-    raw["study"] = {"seeds": study.study["seeds"], "first_seed": study.study["first_seed"],
-                    "rate_errors": [], "arm_errors_mm": [], "worst": {}, "gross": {}}
-    return raw
-
-
-def study_seeds(study: Study) -> np.ndarray:
-    s = study.study
-    return np.arange(s["first_seed"], s["first_seed"] + s["seeds"])
-
-
-def _coeff_rows(seeds, platform, method, run, est, sig, truth, failed) -> pd.DataFrame:
-    rows = []
-    for i, s in enumerate(seeds):
-        for j, name in enumerate(COEFFS):
-            rows.append((int(s), platform, method, run, name, est[i, j], sig[i, j] if sig is not None else np.nan,
-                         truth[j], bool(failed[i])))
-    return pd.DataFrame(rows, columns=["seed", "platform", "method", "run", "coefficient", "estimate", "sigma",
-                                       "truth", "failed"])
-
-
 def failed_fits(x: np.ndarray, P: np.ndarray | None = None) -> np.ndarray:
     """(S,) True where a seed's identification failed: a non-finite estimate, or (proposed filter)
     a covariance that is not finite or not positive definite. Such runs are flagged in the tidy
@@ -120,61 +87,10 @@ def drop_failed(cross: pd.DataFrame, coeffs: pd.DataFrame) -> tuple[pd.DataFrame
     return cross[~cross["failed"]], coeffs[~coeffs["failed"]], n
 
 
-def run_scenario(study: Study, seeds, log=None, trace: bool = False) -> dict:
-    """Every platform x (proposed runs + traditional) x seeds of one centrifuge (the study's).
-
-    Returns {"cross": DataFrame, "coeffs": DataFrame, "trace": dict | None}. ``trace``: keep, for
-    the first seed of the first platform's first run, the error trace (10 Hz) and the heading
-    around the first spin with its windows (for the figures).
-    """
-    seeds = np.asarray(seeds)
-    cross, coeffs = [], []
-    tr = None
-    jobs = [(p, r) for p in study.platform_names() for r in study.run_names(p)]
-    t0 = time.perf_counter()
-    done = 0
-    for p in study.platform_names():
-        truth = np.array([study.platforms[p][c] for c in COEFFS], dtype=float)
-        finals, sens, est, fail = {}, {}, {}, {}
-        for r in study.run_names(p):
-            rb = simulate_batch(study, p, r, seeds)
-            if r == "traditional":
-                c = identify_traditional(rb.prof.t, rb.v_ind, rb.psi, rb.prof.schedule, rb.prof.levels,
-                                         study.centrifuge.arm_m)
-                est["traditional"] = c
-                fail["traditional"] = failed_fits(c)
-                coeffs.append(_coeff_rows(seeds, p, "traditional", r, c, None, truth, fail["traditional"]))
-            else:
-                fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
-                                       study.centrifuge.arm_m, study.latitude_deg)
-                est[r] = fr.coeffs
-                fail[r] = failed_fits(fr.x, fr.P)
-                finals[r], sens[r] = rb.final.copy(), rb.sens_final.copy()
-                coeffs.append(_coeff_rows(seeds, p, "proposed", r, fr.coeffs, fr.sigmas, truth, fail[r]))
-                if trace and tr is None:
-                    tr = _trace(rb, fr.coeffs[0], truth)
-            done += 1
-            if log is not None:
-                log.info(f"{p} {r}: " + eta_line(done, len(jobs), time.perf_counter() - t0))
-            del rb
-        if tr is not None and "traditional_coeffs" not in tr:
-            tr["traditional_coeffs"] = est["traditional"][0]
-        tcoef = np.broadcast_to(truth, (seeds.size, 4))
-        for j in finals:
-            after_truth = compensate(finals[j], sens[j], tcoef)
-            cells = [("proposed", i, est[i]) for i in finals] + [("traditional", "traditional", est["traditional"]),
-                                                                   ("truth", "truth", tcoef)]
-            for method, i, c in cells:
-                rows = cross_rows(seeds, p, method, i, j, finals[j], compensate(finals[j], sens[j], c), after_truth)
-                bad = dict(zip(map(int, seeds), fail.get(i, np.zeros(seeds.size, bool))))
-                rows["failed"] = rows["seed"].map(bad).astype(bool)   # the calibration run failed
-                cross.append(rows)
-    return {"cross": pd.concat(cross, ignore_index=True), "coeffs": pd.concat(coeffs, ignore_index=True),
-            "trace": tr}
-
-
-def _trace(rb, coeffs_proposed, truth) -> dict:
-    """Seed-0 traces of the first run: dVE, pE before compensation and the unit responses (10 Hz)."""
+def trace_of(rb, coeffs_proposed, coeffs_traditional, truth) -> dict:
+    """Traces of replicate 0 of a run (the figures' data): dVE, pE before compensation and the unit
+    responses (10 Hz), the heading around the first spin with its windows, and the proposed,
+    traditional and true coefficients (ug/g, ug/g^2)."""
     step = max(1, int(round(0.1 / rb.prof.dt)))
     t = rb.prof.t
     ia = int(np.flatnonzero(rb.prof.schedule != 0)[0]) - 1
@@ -183,7 +99,8 @@ def _trace(rb, coeffs_proposed, truth) -> dict:
     win = find_windows(t, psi_u, rb.prof.schedule)
     return {"platform": rb.platform, "run": rb.run, "seed": int(rb.seeds[0]), "t": t[::step],
             "before": rb.err[0, ::step][:, [0, 2]], "sens": rb.sens[:, ::step][:, :, [0, 2]],
-            "proposed_coeffs": coeffs_proposed, "truth": truth, "head_t": t[sl], "head_psi": psi_u[sl] - psi_u[ia],
+            "proposed_coeffs": coeffs_proposed, "traditional_coeffs": coeffs_traditional, "truth": truth,
+            "head_t": t[sl], "head_psi": psi_u[sl] - psi_u[ia],
             "win_ts": win.ts, "win_te": win.te, "win_spin": win.spinning, "spin_start": t[ia]}
 
 

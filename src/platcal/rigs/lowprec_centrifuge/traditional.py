@@ -47,6 +47,8 @@ def identify_traditional(t, v, psi, schedule, levels_g, arm_m: float) -> np.ndar
         dv[:, i, :] = err[1] - err[0]
         durs.append(t[ke] - t[ks])
     M = design_matrix(levels_g, durs)
-    cx = np.linalg.solve(M, dv[:, :, 0].T).T
-    cy = np.linalg.solve(M, dv[:, :, 1].T).T
+    # one 2x2 solve per seed (stacked): a multi-right-hand-side solve rounds by the batch size
+    Ms = np.broadcast_to(M, (v.shape[0], 2, 2))
+    cx = np.linalg.solve(Ms, dv[:, :, 0:1])[:, :, 0]
+    cy = np.linalg.solve(Ms, dv[:, :, 1:2])[:, :, 0]
     return np.stack([cx[:, 0], cx[:, 1], cy[:, 0], cy[:, 1]], axis=1)

@@ -5,14 +5,14 @@ the four unit-coefficient variants of §8 (v1..v4: the response to 1 ug/g kA_x, 
 1 ug/g kA_y, 1 ug/g^2 k2_y alone; no other error, no noise, zero initial state). The INS error
 model is linear in the coefficients, so these give the compensated errors exactly.
 
-Seeding (§9): per (seed, platform, run) ``default_rng([seed, platform, run, 777])`` draws the error
-parameters (in this order: k0 x,y; scale x,y; gyro drift x,y,z; tilt noise x,y; azimuth). [D] The
-noise streams use ``default_rng([seed, platform, run, 778])`` (accelerometer x,y; gyro x,y,z;
-velocity E,N; position E,N; heading, each a full-length block in that order) instead of the
-spec's "keyed to the first seed of the batch": a seed's numbers then do not depend on the batch
-it runs in (project standard), and they are still common across centrifuge scenarios.
-Platform keys are 1-based positions in ``platforms``; run keys 1, 2, ... for the proposed runs in
-config order and 0 for the traditional run.
+Seeding (§9, [D] §12): a replicate is one ``numpy.random.SeedSequence``, the generic runner's
+(:func:`platcal.study.montecarlo.replicate_seed`); :func:`run_streams` derives from it, per
+(platform, run), one stream for the error parameters (in this order: k0 x,y; scale x,y; gyro
+drift x,y,z; tilt x,y; azimuth) and one for the noise (accelerometer x,y; gyro x,y,z; velocity
+E,N; position E,N; heading, each a full-length block in that order). A replicate's numbers do not
+depend on the batch it runs in, and they are common across centrifuge scenarios (the scenarios
+share one seed key, :mod:`.montecarlo`). Platform keys are 1-based positions in ``platforms``;
+run keys 1, 2, ... for the proposed runs in config order and 0 for the traditional run.
 """
 
 from __future__ import annotations
@@ -123,10 +123,19 @@ def _integrate(dt, f, coef, eps, x0, acc_w, gyro_w, sin_l, cos_l, tan_l, out, ph
         pz += dt * dpz
 
 
-def draw_params(study: Study, platform: str, run: str, seed: int) -> tuple:
-    """(k0_ug(2), scale_ppm(2), drift_deg_h(3), phi0_rad(3)) of one (seed, platform, run) (§4, §5, §9)."""
+def run_streams(seed: np.random.SeedSequence, platform_key: int, run_key: int) -> tuple:
+    """The (parameters, noise) SeedSequences of one (platform, run) of a replicate: children of the
+    replicate's ``seed`` keyed by the platform and run keys (§9, [D] §12), built directly rather
+    than by ``spawn`` so that they do not depend on what was spawned before."""
+    base = tuple(seed.spawn_key) + (int(platform_key), int(run_key))
+    return (np.random.SeedSequence(seed.entropy, spawn_key=base + (0,)),
+            np.random.SeedSequence(seed.entropy, spawn_key=base + (1,)))
+
+
+def draw_params(study: Study, rng: np.random.Generator) -> tuple:
+    """(k0_ug(2), scale_ppm(2), drift_deg_h(3), phi0_rad(3)) drawn from ``rng``, the parameter
+    stream of one (replicate, platform, run) (§4, §5, §9)."""
     res = study.residuals
-    rng = np.random.default_rng([int(seed), study.platform_index(platform), study.run_index(platform, run), 777])
     k0 = rng.normal(0.0, res["k0_ug"], 2)
     sk = rng.normal(0.0, res["scale_ppm"], 2)
     eps = rng.normal(0.0, res["gyro_bias_deg_h"], 3)
@@ -142,13 +151,15 @@ def coeff_vector(study: Study, platform: str) -> np.ndarray:
     return np.array([c["kA_x"], c["k2_x"], c["kA_y"], c["k2_y"]], dtype=float)
 
 
-def simulate_batch(study: Study, platform: str, run: str, seeds, keep_phi: bool = False,
+def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None, keep_phi: bool = False,
                    noise_free: bool = False) -> RunBatch:
-    """Simulate ``run`` of ``platform`` for every seed of ``seeds`` (§2-§5, §8, §9).
+    """Simulate ``run`` of ``platform`` for every replicate SeedSequence of ``seeds`` (§2-§5, §8, §9);
+    ``replicates``: their numbers (``RunBatch.seeds``; 0, 1, ... by default).
 
     ``noise_free``: no drawn residual and no noise (truth coefficients only).
     """
-    seeds = np.atleast_1d(np.asarray(seeds, dtype=np.int64))
+    streams = [run_streams(s, study.platform_index(platform), study.run_index(platform, run)) for s in seeds]
+    seeds = np.arange(len(streams)) if replicates is None else np.asarray(replicates, dtype=np.int64)
     prof = build_profile(study, platform, run)
     kin = kinematics(prof, study.centrifuge)
     n = prof.t.size
@@ -169,11 +180,11 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, keep_phi: bool 
     none2 = np.zeros((0, 2))
     none3 = np.zeros((0, 3))
     nophi = np.zeros((0, 3))
-    for i, seed in enumerate(seeds):
+    for i, (param_seed, noise_seed) in enumerate(streams):
         if noise_free:
             k0, sk, eps, phi0 = np.zeros(2), np.zeros(2), np.zeros(3), np.zeros(3)
         else:
-            k0, sk, eps, phi0 = draw_params(study, platform, run, int(seed))
+            k0, sk, eps, phi0 = draw_params(study, np.random.default_rng(param_seed))
         for key, val in (("k0", k0), ("sk", sk), ("eps", eps), ("phi0", phi0)):
             dr[key][i] = val
         coef = np.concatenate([k0, sk, coeffs]) * 1e-6
@@ -181,8 +192,7 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, keep_phi: bool 
         if noise_free:
             acc_w, gyro_w = none2, none3
         else:
-            rng = np.random.default_rng([int(seed), study.platform_index(platform),
-                                         study.run_index(platform, run), 778])
+            rng = np.random.default_rng(noise_seed)
             acc_w = rng.standard_normal((n, 2)) * s_acc
             gyro_w = rng.standard_normal((n, 3)) * s_gyro
         _integrate(dt, kin.f, coef, eps * DEG_H, x0, acc_w, gyro_w, sl, cl, tl, err[i],

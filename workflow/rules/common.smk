@@ -104,3 +104,9 @@ def rig_rules(rig):
 
 
 RIG_RULES = {r: rig_rules(r) for r in RIGS}
+
+
+def claims_evidence(w):
+    """What a rig's claims read: its <RIG>_EVIDENCE when its report opens on its claims.csv (no
+    cycle), else every target of the rig."""
+    return globals().get(f"{w.ledger_rig.upper()}_EVIDENCE") or RIG_TARGETS[w.ledger_rig]

@@ -7,12 +7,6 @@ INDEX_REPORT = "results/report.md"
 LEDGER = expand("results/claims.{ext}", ext=["csv", "md", "html"])
 
 
-def claims_evidence(w):
-    """What a rig's claims read: its <RIG>_EVIDENCE when its report opens on its claims.csv (no
-    cycle), else every target of the rig."""
-    return globals().get(f"{w.ledger_rig.upper()}_EVIDENCE") or RIG_TARGETS[w.ledger_rig]
-
-
 rule claims:
     input:
         claims_evidence,

@@ -206,6 +206,16 @@ def test_sequential_centrifuge_equals_one_filter_over_both_records():
     assert np.all(np.abs(np.sqrt(np.diagonal(es.P[:, :nc, :nc], axis1=1, axis2=2)) - sig) <= 0.01 * sig)
 
 
+def test_rms_interval_covers_the_sigma_at_its_level():
+    """The chi-square interval of the true sigma from R draws' RMS covers it in about 95 % of trials."""
+    rng = np.random.default_rng(7)
+    sigma, r = 2.0, 50
+    rms = np.sqrt((rng.normal(0.0, sigma, (4000, r)) ** 2).mean(axis=1))
+    lo, hi = cp.rms_interval(rms, r)
+    assert abs(((lo <= sigma) & (sigma <= hi)).mean() - 0.95) < 0.015
+    assert 0.8 < lo[0] / rms[0] < 0.85 and 1.2 < hi[0] / rms[0] < 1.3  # the width quoted in the docstring
+
+
 def test_default_campaign_is_valid():
     camp = cp.load_campaign(cp.campaign_content("config/campaign.yaml"))
     assert {r.name for r in camp.rigs} == {"centrifuge", "multiposition"}
@@ -223,6 +233,9 @@ def test_plan_command_writes_every_output(tmp_path, capsys):
     alts, checks = pd.read_csv(out / "alternatives.csv"), pd.read_csv(out / "check.csv")
     assert len(coefs) == 45 and coefs["achieved_rms"].notna().all()
     assert (coefs["meets"] == (coefs["achieved_rms"] <= coefs["target_sigma"])).all()
+    lo, hi = coefs["achieved_rms_ci_low"], coefs["achieved_rms_ci_high"]
+    assert ((lo < coefs["achieved_rms"]) & (coefs["achieved_rms"] < hi)).all()
+    assert (coefs["planned_in_ci"] == ((lo <= coefs["planned_sigma"]) & (coefs["planned_sigma"] <= hi))).all()
     assert (coefs["planned_sigma"] <= coefs["target_sigma"]).all()
     assert plan["cost"].sum() == pytest.approx(alts.loc[alts["name"] == "plan", "cost"].item())
     assert set(checks["name"]) == set(alts["name"])  # every alternative has tests here

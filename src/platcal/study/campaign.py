@@ -42,6 +42,7 @@ from pymoo.operators.crossover.sbx import SBX
 from pymoo.operators.mutation.pm import PM
 from pymoo.operators.repair.rounding import RoundingRepair
 from pymoo.optimize import minimize
+from scipy import stats
 
 from ..errors import InputError
 from ..estimation.information import marginal_information
@@ -433,17 +434,34 @@ def progress_table(campaign: Campaign, cands: Candidates, sequence: list[int]) -
                          for i, (n, g, u) in enumerate(zip(pl.names, pl.groups, pl.units))])
 
 
-def coefficient_table(campaign: Campaign, planned: np.ndarray, achieved_rms: np.ndarray | None = None) -> pd.DataFrame:
-    """coefficients.csv: target, prior and planned sigma, the Monte Carlo's RMS error (NaN when
-    not run) and ``meets`` (achieved_rms <= target; empty without a Monte Carlo)."""
+def rms_interval(rms: np.ndarray, replicates: int, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+    """The ``level`` confidence interval of the true RMS error (the sigma the replicates' errors are
+    drawn with) from the RMS over ``replicates`` zero-mean Gaussian errors: R rms^2 / sigma^2 is
+    chi-square with R degrees of freedom. At 50 replicates it spans about 0.83-1.25 x rms, so a
+    planned sigma 20 % off can still be within it."""
+    lo, hi = stats.chi2.ppf([(1 + level) / 2, (1 - level) / 2], replicates)
+    return rms * np.sqrt(replicates / lo), rms * np.sqrt(replicates / hi)
+
+
+def coefficient_table(campaign: Campaign, planned: np.ndarray, check: Check | None = None) -> pd.DataFrame:
+    """coefficients.csv: target, prior and planned sigma, the Monte Carlo's RMS error with its 95 %
+    interval (:func:`rms_interval`; NaN when not run), ``planned_in_ci`` (the planned sigma inside
+    that interval: the Cramer-Rao check with the replicates' sampling error) and ``meets``
+    (achieved_rms <= target; empty without a Monte Carlo)."""
     pl = campaign.platform
-    ach = np.full(len(pl.names), np.nan) if achieved_rms is None else np.asarray(achieved_rms, float)
+    nan = np.full(len(pl.names), np.nan)
+    ach, lo, hi = (nan, nan, nan) if check is None else (check.achieved_rms,
+                                                         *rms_interval(check.achieved_rms, check.replicates))
+    ran = ~np.isnan(ach)
     return pd.DataFrame({"name": pl.names, "unit": pl.units, "group": pl.groups, "target_sigma": campaign.target_sigma,
                          "prior_sigma": campaign.prior_sigma, "planned_sigma": planned,
                          "planned_over_target": planned / campaign.target_sigma, "achieved_rms": ach,
+                         "achieved_rms_ci_low": lo, "achieved_rms_ci_high": hi,
                          "achieved_over_planned": ach / planned,
-                         "meets": pd.array([None if np.isnan(a) else bool(a <= t)
-                                            for a, t in zip(ach, campaign.target_sigma)], dtype="boolean")})
+                         "planned_in_ci": pd.array([bool(a <= p <= b) if r else None
+                                                    for a, p, b, r in zip(lo, planned, hi, ran)], dtype="boolean"),
+                         "meets": pd.array([bool(a <= t) if r else None
+                                            for a, t, r in zip(ach, campaign.target_sigma, ran)], dtype="boolean")})
 
 
 def reference_counts(campaign: Campaign, cands: Candidates, tests: list[dict]) -> np.ndarray:
@@ -641,10 +659,12 @@ def progress_figure(plan: Plan, path) -> None:
 def check_table(name: str, check: Check, planned: np.ndarray, target: np.ndarray, names) -> dict:
     """One row of check.csv: the Monte Carlo of a plan against its planned sigmas and targets."""
     ratio = check.achieved_rms / planned
+    lo, hi = rms_interval(check.achieved_rms, check.replicates)
     return {"name": name, "replicates": check.replicates, "mean_nees": float(check.nees.mean()),
             "nees_dof": planned.size, "mean_nees_over_dof": float(check.nees.mean() / planned.size),
             "share_meeting_target": float((check.achieved_rms <= target).mean()),
             "share_rms_within_20pct_of_planned": float((np.abs(ratio - 1.0) <= 0.2).mean()),
+            "share_planned_in_rms_ci95": float(((lo <= planned) & (planned <= hi)).mean()),
             "worst_rms_over_planned": float(ratio.max()),
             "worst_rms_over_planned_coefficient": names[int(np.argmax(ratio))], "seconds": check.seconds}
 
@@ -685,14 +705,15 @@ def write_plan(plan: Plan, out_dir, checks: dict[str, Check] | None = None) -> p
     planned = planned_sigma(plan.campaign, plan.cands, plan.counts)[0]
     checks = checks or {}
     check = checks.get("plan")
-    coefs = coefficient_table(plan.campaign, planned, None if check is None else check.achieved_rms)
+    coefs = coefficient_table(plan.campaign, planned, check)
     total = plan.plan["cost"].sum()
     verdict = ("meets every target" if plan.meets else
                "NO plan found meets every target; shown: the plan with the least worst sigma/target")
     write_table(plan.plan, out / "plan", f"Campaign {plan.campaign.name}: the plan",
                 f"{verdict}; cost {total:.6g}, {plan.plan['hours'].sum():.4g} rig hours")
     write_table(coefs, out / "coefficients", "Planned sigma (and Monte Carlo RMS error) per coefficient",
-                "units: the unit column; meets = achieved_rms <= target_sigma")
+                "units: the unit column; meets = achieved_rms <= target_sigma; achieved_rms_ci_*: its 95 % "
+                "interval over the replicates (chi-square); planned_in_ci: planned_sigma inside it")
     write_table(plan.alternatives, out / "alternatives", "The plan and its alternatives",
                 "single-rig plans: the cheapest that meets every target, else the best it can do")
     table = None

@@ -191,7 +191,7 @@ class Estimate:
 
 @njit(parallel=True, cache=True)
 def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec):
+              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg):
     """Filter every replicate of the batch through every position of one pass.
 
     Position k's instants are ``t[offs[k]:offs[k + 1]]`` (s since the position's start) with
@@ -207,6 +207,12 @@ def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_v
     ``MEAS_COLS[r]``, or ``-1 - i`` for angle i). ``rec`` (B, M, 6) receives each instant's
     innovation and the diagonal of S ((B, 0, 6): not kept).
 
+    ``seg`` (:func:`segments`) cuts the instants into segments: segment s runs the instants
+    ``offs[s]:offs[s + 1]`` of position ``seg.k[s]``; it starts with the position's reset when
+    ``seg.t0[s]`` is NaN, else it continues the position from its instant ``seg.t0[s]`` (a chunk
+    of a streamed record, :func:`run_ekf` ``z_source``); ``seg.nis`` (B,) carries a position's
+    NIS sum from segment to segment, added to ``nis_sum`` when ``seg.last[s]``.
+
     Each replicate runs the same sequential kernel (:func:`_filter_one`) in its own iteration, so
     the numbers do not depend on the batch size or on the number of threads. One parallel region
     per pass (not per position) keeps thread start-up and joins rare.
@@ -215,35 +221,41 @@ def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_v
     for b in prange(B):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                           q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          hcols, hsrc, hnnz, it_ctl, rec)
+                          hcols, hsrc, hnnz, it_ctl, rec, seg)
 
 
 @njit(cache=True)
 def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                      q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
-                     hsrc, hnnz, it_ctl, rec):
+                     hsrc, hnnz, it_ctl, rec, seg):
     """:func:`_run_pass` without threads, for a batch of one or a single thread: the same
     per-replicate kernel, minus the parallel region's start-up and join (milliseconds on a
     busy machine)."""
     for b in range(x.shape[0]):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
-                          q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          hcols, hsrc, hnnz, it_ctl, rec)
+                          hcols, hsrc, hnnz, it_ctl, rec, seg)
 
 
 @njit(cache=True)
 def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                       q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
-                      hsrc, hnnz, it_ctl, rec):
-    """Replicate b through every position of one pass (see :func:`_run_pass`)."""
-    for k in range(offs.shape[0] - 1):
-        o0, o1 = offs[k], offs[k + 1]
+                      hsrc, hnnz, it_ctl, rec, seg):
+    """Replicate b through every segment of one pass (see :func:`_run_pass`)."""
+    seg_k, seg_t0, seg_last, seg_nis = seg
+    for s in range(offs.shape[0] - 1):
+        o0, o1 = offs[s], offs[s + 1]
+        k = seg_k[s]
         zb = z[b, o0:o1] if update_x else z[b]
         rb = rec[b, o0:o1] if rec.shape[1] > 0 else rec[b]
+        reset = np.isnan(seg_t0[s])
         stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx,
                             coef_fixed[b], params[b, k], r_var, q_rate, update_x,
-                            hist_idx[o0:o1], hist_x[b], hist_s[b], pcols, pg, hcols, hsrc, hnnz, it_ctl, rb)
-        nis_sum[b] += stats[0]
+                            hist_idx[o0:o1], hist_x[b], hist_s[b], pcols, pg, hcols, hsrc, hnnz, it_ctl, rb,
+                            reset, 0.0 if reset else seg_t0[s], 0.0 if reset else seg_nis[b])
+        if seg_last[s]:
+            nis_sum[b] += stats[0]
+        else:
+            seg_nis[b] = stats[0]
         n_bad[b] += int(stats[1])
 
 
@@ -268,8 +280,14 @@ def propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_n
 
 @njit(cache=True)
 def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate,
-                update_x, hist_idx, hist_x, hist_s, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec):
-    """One replicate through one position; returns (sum of NIS, number of skipped updates).
+                update_x, hist_idx, hist_x, hist_s, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec,
+                reset=True, t_start=0.0, nis_start=0.0):
+    """One replicate through one position (or a segment of it); returns (sum of NIS, number of
+    skipped updates).
+
+    ``reset``: the position starts here (attitude reset, t = 0); False continues it from the
+    instant ``t_start`` (s since its start) where the previous segment ended, with the NIS sum
+    ``nis_start`` so far: the same operations in the same order as one call over the position.
 
     ``rec`` (M, 6): each instant's innovation and diagonal of S, when it has M rows (else unused).
 
@@ -308,7 +326,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     fr3 = np.empty((3, 3))
     fr_now = np.empty(3)
     ang = xb[nc:]
-    nis = 0.0
+    nis = nis_start
     bad = 0
     it_max = int(it_ctl[0])
     it_tol = it_ctl[1]
@@ -319,15 +337,16 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     coef_i = coef_fixed.copy()
     w3 = np.empty(3)
     # attitude reset: commanded angles, variance sigma_set^2, no cross-covariance
-    for r in range(3):
-        xb[nc + r] = cmd[r]
-        for i in range(n):
-            Pb[nc + r, i] = 0.0
-            Pb[i, nc + r] = 0.0
-        Pb[nc + r, nc + r] = reset_var
+    if reset:
+        for r in range(3):
+            xb[nc + r] = cmd[r]
+            for i in range(n):
+                Pb[nc + r, i] = 0.0
+                Pb[i, nc + r] = 0.0
+            Pb[nc + r, nc + r] = reset_var
     # the position starts at the reset (t = 0): the first instant is reached by propagation,
     # unless it is the reset instant itself (filter.update_at_reset)
-    t_prev = 0.0
+    t_prev = t_start
     specific_force_into(t_prev, pb, fr_now)
     for m in range(M):
         for k in range(nc):

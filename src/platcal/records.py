@@ -13,15 +13,17 @@ from __future__ import annotations
 
 import codecs
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .errors import InputError
-from .io import atomic_to_csv, atomic_to_parquet
+from .io import atomic_path, atomic_to_csv, atomic_to_parquet
 from .logs.mapping import RecordMapping
 
 PARQUET_MAGIC = b"PAR1"
@@ -34,6 +36,9 @@ TIME_TOL = 1e-6
 LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay", "Az")
 """Columns of a positioned-platform test log (docs/centrifuge-model.md §13, docs/multiposition-1g.md
 §12): position number, time s, commanded gimbal angles deg, accelerometer outputs g."""
+CHUNK_ROWS = 100_000
+"""Rows per chunk of a streamed record (``--chunk-rows``): about 9 MB of float64 for the
+centrifuge's 11 columns, so reading, checking and filtering hold a few chunks at most."""
 TRUTH_COLUMNS = ("alpha", "beta", "gamma")
 """The true gimbal angles (deg) of a simulated positioned-platform log."""
 
@@ -321,3 +326,31 @@ def write_record(df: pd.DataFrame, path: str | os.PathLike) -> None:
         atomic_to_parquet(df, path)
     else:
         atomic_to_csv(df, path, float_format=None)
+
+
+@contextmanager
+def record_writer(path: str | os.PathLike) -> Iterator[Callable[[pd.DataFrame], None]]:
+    """Write a test record chunk by chunk: yields ``write(df)``, each chunk appended (CSV rows
+    after one header, the same text :func:`write_record` gives the whole table; a Parquet row
+    group each) to a temporary file that is renamed to ``path`` when the block ends without
+    error (:func:`platcal.io.atomic_path`), so a long record is written without being held and
+    nothing half-written is left."""
+    parquet = str(path).endswith(".parquet")
+    with atomic_path(path) as tmp:
+        state: dict = {}
+
+        def write(df: pd.DataFrame) -> None:
+            if parquet:
+                table = pa.Table.from_pandas(df, preserve_index=False)
+                if "writer" not in state:
+                    state["writer"] = pq.ParquetWriter(tmp, table.schema)
+                state["writer"].write_table(table)
+            else:
+                df.to_csv(tmp, index=False, float_format=None, mode="a" if state else "w", header=not state)
+                state["csv"] = True
+
+        try:
+            yield write
+        finally:
+            if "writer" in state:
+                state["writer"].close()

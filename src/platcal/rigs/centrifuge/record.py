@@ -62,6 +62,26 @@ def sim_to_frame(sim, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
     })
 
 
+def chunk_to_frame(chunk, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
+    """One replicate of a :class:`~platcal.rigs.centrifuge.simulate.SimChunk` as rows of a test
+    record: the rows :func:`sim_to_frame` gives for those samples."""
+    m = chunk.t.size
+    cmd = scheme.angles_deg[chunk.position]
+    return pd.DataFrame({
+        "position": np.full(m, chunk.position + 1),
+        "t": chunk.t,
+        "alpha_cmd": np.full(m, cmd[0]),
+        "beta_cmd": np.full(m, cmd[1]),
+        "gamma_cmd": np.full(m, cmd[2]),
+        "Ax": chunk.A[replicate, :, 0],
+        "Ay": chunk.A[replicate, :, 1],
+        "Az": chunk.A[replicate, :, 2],
+        "alpha": chunk.angles[replicate, :, 0] / DEG,
+        "beta": chunk.angles[replicate, :, 1] / DEG,
+        "gamma": chunk.angles[replicate, :, 2] / DEG,
+    })
+
+
 def read_record(path: str | os.PathLike, mapping: RecordMapping | None = None) -> pd.DataFrame:
     """Read a test record (CSV or Parquet) and check its columns and values; a log in other
     columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).

@@ -25,12 +25,12 @@ from ...study.montecarlo import cell_job, replicate_seed
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
-from .identify import (calibration, clock_finding, consistency_warning, identify_input, record_fit, record_input,
-                       run_problems, timed, truth_known, write_identification)
+from .identify import (calibration, clock_finding, consistency_warning, identify_input, identify_streamed, record_fit,
+                       record_input, run_problems, streamable, timed, truth_known, write_identification)
 from .observability import write_observability
-from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, chunk_to_frame, compensate_frame,
-                     full_coefficients, read_record)
-from ...records import CHUNK_ROWS, record_writer
+from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, FilterInput, chunk_to_frame,
+                     compensate_frame, full_coefficients, read_record)
+from ...records import CHUNK_ROWS, iter_table, record_writer
 from .report import report_from_results
 from .simulate import simulate_chunks
 
@@ -98,9 +98,28 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     check_filter(study.filter)
     scheme = _scheme(study, args)
     check_writable(args.out, "--out", folder=True)
-    df = read_record(args.data, RecordMapping.from_config(study.config["record"], g=study.centrifuge.g))
-    fin = record_input(study, scheme, df)
-    est, seconds = timed(identify_input, study, scheme, fin)
+    mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
+    chunk_rows = _chunk_rows(args)
+
+    def read_chunks():
+        return iter_table(args.data, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS, chunk_rows=chunk_rows)
+
+    # a record longer than one chunk is streamed (memory does not grow with it); a shorter one,
+    # or an estimator that needs it whole, is read whole as before
+    chunks = read_chunks() if chunk_rows and streamable(study.filter) else None
+    if chunks is not None and next(chunks, None) is not None and next(chunks, None) is not None:
+        chunks.close()
+        t0 = time.perf_counter()
+        est, scan, fit = identify_streamed(study, scheme, read_chunks)
+        seconds = time.perf_counter() - t0
+        fin = FilterInput(scan.positions, scan.t, [], scan.cmd_deg)
+        known = scan.truth
+    else:
+        df = read_record(args.data, mapping)
+        fin = record_input(study, scheme, df)
+        est, seconds = timed(identify_input, study, scheme, fin)
+        fit = None
+        known = truth_known(df)
     problems = run_problems(est)
     if problems:
         print(f"platcal identify: error: the filter run over {args.data} failed: {'; '.join(problems)}. "
@@ -108,8 +127,9 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
               "config's noise and filter settings.", file=sys.stderr)
         return 1
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
-    fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
-    summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds,
+    if fit is None:
+        fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
+    summary = write_identification(args.out, est, study, known and not args.no_truth, seconds,
                                    samples_used=used, calibration=calibration(est, study, args.data), fit=fit)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")

@@ -206,12 +206,15 @@ class SimChunk:
 
 def simulate_chunks(truth: np.ndarray, scheme: Scheme, centrifuge_params: np.ndarray, noise: Noise,
                     seeds: list[np.random.SeedSequence] | None, *, sample_s: float = 0.005, keep_every: int = 1,
-                    chunk_samples: int | None = None) -> Iterator[SimChunk]:
+                    chunk_samples: int | None = None, positions=None) -> Iterator[SimChunk]:
     """:func:`simulate` position by position, each in chunks of at most ``chunk_samples`` samples
     (None: a position at a time), so a long test is written without being held: the noise of a
     chunk is drawn from the replicate's streams where the previous chunk stopped and the attitude
     carries over, so the numbers are those of :func:`simulate` whatever the chunk size
-    (docs/centrifuge-model.md §8). Arguments as :func:`simulate`."""
+    (docs/centrifuge-model.md §8). Arguments as :func:`simulate`; ``positions`` (0-based, a
+    noise-free run only, whose positions are independent): only those positions."""
+    if positions is not None and seeds is not None:
+        raise ValueError("positions: a noisy run draws its noise position after position; simulate them all")
     truth = np.atleast_2d(np.asarray(truth, float))
     B = truth.shape[0] if seeds is None else len(seeds)
     if truth.shape[0] == 1 and B > 1:
@@ -235,7 +238,7 @@ def simulate_chunks(truth: np.ndarray, scheme: Scheme, centrifuge_params: np.nda
     n_workers = min(B, numba.get_num_threads())
     pool = ThreadPoolExecutor(n_workers) if n_workers > 1 and (use_acc or use_arw) else None
     try:
-        for k in range(K):
+        for k in range(K) if positions is None else positions:
             theta0 = np.ascontiguousarray(cmd[k][None, :] + set_err[:, k])
             pk = np.ascontiguousarray(params[:, k])
             for i0 in range(0, n, step):

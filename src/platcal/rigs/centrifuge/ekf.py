@@ -261,6 +261,21 @@ def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, 
 
 
 @njit(cache=True)
+def attitude_reset(xb, Pb, cmd, reset_var):
+    """A position's start (docs/centrifuge-model.md §9): the attitude states (the last 3) set to
+    the commanded angles ``cmd`` (rad) with variance ``reset_var`` (rad^2) and no
+    cross-covariance. Shared by the EKF, the IEKF and the UKF."""
+    n = xb.shape[0]
+    nc = n - 3
+    for r in range(3):
+        xb[nc + r] = cmd[r]
+        for i in range(n):
+            Pb[nc + r, i] = 0.0
+            Pb[i, nc + r] = 0.0
+        Pb[nc + r, nc + r] = reset_var
+
+
+@njit(cache=True)
 def propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new, pa, pgyro, phi, q, Wd,
                        blk, scratch):
     """The EKF's propagation over ``dt`` s (docs/centrifuge-model.md §9): the attitude (rad) through
@@ -337,14 +352,8 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     xnew = np.empty(n)
     coef_i = coef_fixed.copy()
     w3 = np.empty(3)
-    # attitude reset: commanded angles, variance sigma_set^2, no cross-covariance
     if reset:
-        for r in range(3):
-            xb[nc + r] = cmd[r]
-            for i in range(n):
-                Pb[nc + r, i] = 0.0
-                Pb[i, nc + r] = 0.0
-            Pb[nc + r, nc + r] = reset_var
+        attitude_reset(xb, Pb, cmd, reset_var)
     # the position starts at the reset (t = 0): the first instant is reached by propagation,
     # unless it is the reset instant itself (filter.update_at_reset)
     t_prev = t_start

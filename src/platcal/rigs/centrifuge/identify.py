@@ -182,7 +182,7 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     chunk's position numbers and commanded angles are checked as it comes; a position's checks
     (:func:`~.record.check_position`) and its filter instants (:func:`~.record.select_instants`)
     need its times whole (their medians), so the position's ``t`` and ``Ax, Ay, Az`` are held
-    until it ends (40 bytes per sample of the longest position); the nominal output at its
+    until it ends (32 bytes per sample of the longest position); the nominal output at its
     instants comes from a noise-free simulation of that position in chunks.
     """
     K = scheme.n_positions

@@ -12,7 +12,7 @@ physics; a low-precision run is the config's profile). The centrifuge is measure
     python benchmarks/bench_memory.py                    # every case, 6 h included (minutes)
     python benchmarks/bench_memory.py --max-minutes 60   # skip the 6-hour cases
 
-Writes ``benchmarks/bench_memory.{csv,md,html}`` (platcal.study.tables). Run it niced on a shared
+Writes ``benchmarks/bench_memory.{csv,md}`` (platcal.study.tables; its .html is not kept in git). Run it niced on a shared
 machine; RSS does not depend on the load, wall time does (CPU time is given beside it).
 """
 

@@ -308,7 +308,11 @@ def gross_errors_moments(mo: Moments, names) -> list[tuple[int, str]]:
         return []
     A = mo.pp[np.ix_(active, active)]
     coef = np.zeros((m, m))  # coef[:, i] explains channel i
-    if np.linalg.matrix_rank(A, hermitian=True) == active.size:
+    # the normal equations square the predictions' condition: collinear predictions (e.g. constant
+    # columns) leave eigenvalues at rounding level, so rank is judged at 1e-12 of the largest
+    # (singular values of the predictions 1e-6 apart), not at machine precision
+    eig = np.linalg.eigvalsh(A)
+    if eig.min() > 1e-12 * eig.max():
         coef[active] = np.linalg.solve(A, mo.pz[active])
     else:
         for i in active:

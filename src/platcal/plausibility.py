@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InputError
-from .estimation.fit import gross_errors
+from .estimation.fit import Moments, gross_errors_moments
 
 
 def refuse_recognised(z: np.ndarray, nominal: np.ndarray, columns, unit: str, fix: str,
@@ -21,13 +21,20 @@ def refuse_recognised(z: np.ndarray, nominal: np.ndarray, columns, unit: str, fi
     model's output ``nominal`` (N, m) in the same unit (:func:`platcal.estimation.fit.gross_errors`):
     the first such column is named with its RMS, the RMS ``nominal`` has (``source`` says where
     it comes from) and ``fix``."""
-    found = gross_errors(z, nominal, columns)
+    refuse_recognised_moments(Moments.of(z, nominal), columns, unit, fix, field, source)
+
+
+def refuse_recognised_moments(mo: Moments, columns, unit: str, fix: str, field: str = "--data",
+                              source: str = "the rig's error-free model of this test") -> None:
+    """:func:`refuse_recognised` from the sums of a record against the nominal output
+    (:class:`platcal.estimation.fit.Moments`, added chunk by chunk for a streamed record)."""
+    found = gross_errors_moments(mo, columns)
     if not found:
         return
     i, what = found[0]
-    rms = lambda a: float(np.sqrt(np.mean(a * a)))  # noqa: E731
+    rms_z, rms_p = mo.rms()
     raise InputError(f"{field} column {columns[i]}",
-                     f"RMS {rms(z[:, i]):.4g} {unit}, expected about {rms(nominal[:, i]):.4g} {unit} from {source}; "
+                     f"RMS {rms_z[i]:.4g} {unit}, expected about {rms_p[i]:.4g} {unit} from {source}; "
                      f"{what}; {fix}")
 
 

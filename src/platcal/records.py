@@ -11,15 +11,19 @@ in plain numbers, and the :class:`~platcal.errors.InputError` names the column.
 
 from __future__ import annotations
 
-import io
+import codecs
 import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from .errors import InputError
-from .io import atomic_to_csv, atomic_to_parquet
+from .io import atomic_path, atomic_to_csv, atomic_to_parquet
 from .logs.mapping import RecordMapping
 
 PARQUET_MAGIC = b"PAR1"
@@ -32,6 +36,9 @@ TIME_TOL = 1e-6
 LOG_COLUMNS = ("position", "t", "alpha_cmd", "beta_cmd", "gamma_cmd", "Ax", "Ay", "Az")
 """Columns of a positioned-platform test log (docs/centrifuge-model.md §13, docs/multiposition-1g.md
 §12): position number, time s, commanded gimbal angles deg, accelerometer outputs g."""
+CHUNK_ROWS = 100_000
+"""Rows per chunk of a streamed record (``--chunk-rows``): about 9 MB of float64 for the
+centrifuge's 11 columns, so reading, checking and filtering hold a few chunks at most."""
 TRUTH_COLUMNS = ("alpha", "beta", "gamma")
 """The true gimbal angles (deg) of a simulated positioned-platform log."""
 
@@ -47,42 +54,63 @@ def shown(v) -> str:
     return repr(v) if isinstance(v, str) else str(num(v))
 
 
-def csv_text(path: Path, field: str = "--data", what: str = "a test record") -> str:
-    """The text of a CSV record: UTF-8 without NUL bytes, last line complete.
+CSV_BLOCK = 1 << 22
+"""Bytes read at a time when a CSV record's text is checked (4 MiB: the check holds no more)."""
 
-    A last line with fewer fields than the header is reported as a truncated file (a log cut off
-    while being written), not as a bad number.
-    """
-    raw = path.read_bytes()
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(field, f"{path} is not a UTF-8 CSV file (byte {exc.start} cannot be decoded); "
-                         f"{what} is CSV text or Parquet (.parquet)") from None
-    if "\x00" in text:
-        raise InputError(field, f"{path} is not a CSV text file (it holds NUL bytes); {what} is CSV "
-                         "text or Parquet (.parquet)")
-    lines = text.rstrip("\r\n").splitlines()
-    if len(lines) >= 2:
-        n_head, n_last = lines[0].count(","), lines[-1].count(",")
+
+def check_csv_file(path: Path, field: str = "--data", what: str = "a test record") -> None:
+    """Refuse a CSV record that is not UTF-8 text without NUL bytes, or whose last line is
+    incomplete, reading it in blocks of :data:`CSV_BLOCK` bytes (memory does not grow with the
+    file). A last line with fewer fields than the header is reported as a truncated file (a log
+    cut off while being written), not as a bad number."""
+    decoder = codecs.getincrementaldecoder("utf-8")()
+    offset, breaks, head, tail = 0, 0, "", ""
+    with open(path, "rb") as fh:
+        while True:
+            block = fh.read(CSV_BLOCK)
+            try:
+                text = decoder.decode(block, final=not block)
+            except UnicodeDecodeError as exc:
+                raise InputError(field, f"{path} is not a UTF-8 CSV file (byte {offset + exc.start} cannot be "
+                                 f"decoded); {what} is CSV text or Parquet (.parquet)") from None
+            if "\x00" in text:
+                raise InputError(field, f"{path} is not a CSV text file (it holds NUL bytes); {what} is CSV "
+                                 "text or Parquet (.parquet)")
+            if not block:
+                break
+            offset += len(block)
+            breaks += text.count("\n")
+            if len(head) < CSV_BLOCK and "\n" not in head:
+                head += text
+            tail = (tail + text)[-CSV_BLOCK:]  # the last line, unless one line is longer than a block
+    stripped = tail.rstrip("\r\n")
+    n_lines = breaks - tail[len(stripped):].count("\n") + 1
+    lines = stripped.splitlines()
+    if n_lines >= 2 and lines:
+        n_head, n_last = head.splitlines()[0].count(","), lines[-1].count(",")
         if n_last < n_head:
-            raise InputError(f"{field} line {len(lines)}", f"the last line is truncated: {n_last + 1} of "
+            raise InputError(f"{field} line {n_lines}", f"the last line is truncated: {n_last + 1} of "
                              f"{n_head + 1} fields (was the file cut off while being written?)")
-    return text
 
 
-def read_frame(path: str | os.PathLike, field: str = "--data", what: str = "a test record") -> pd.DataFrame:
-    """Read a record file as a table: Parquet when named ``.parquet``, UTF-8 CSV otherwise.
+def iter_frames(path: str | os.PathLike, field: str = "--data", what: str = "a test record",
+                chunk_rows: int | None = None) -> Iterator[pd.DataFrame]:
+    """Read a record file as tables of at most ``chunk_rows`` rows (None: one table, the whole
+    file): Parquet when named ``.parquet`` (its row batches, pyarrow ``iter_batches``), UTF-8
+    CSV otherwise (pandas ``chunksize``). Whole-file reading is the one-chunk case.
 
-    Refused (InputError naming ``field``): a missing file, a folder, a file whose content is not
-    what its name says (Parquet named .csv or the reverse), text that is not UTF-8 or holds NUL
-    bytes, a truncated last line, anything pandas cannot parse.
+    Refused before the first table (InputError naming ``field``): a missing file, a folder, a
+    file whose content is not what its name says (Parquet named .csv or the reverse), text that
+    is not UTF-8 or holds NUL bytes, a truncated last line; then anything pandas or pyarrow
+    cannot parse, when it is met.
     """
     path = Path(path)
     if not path.exists():
         raise InputError(field, f"no such file: {path}")
     if path.is_dir():
         raise InputError(field, f"{path} is a folder; give {what} file (.csv or .parquet)")
+    if chunk_rows is not None and chunk_rows < 1:
+        raise InputError("--chunk-rows", f"must be a whole number >= 1, got {chunk_rows}")
     parquet = path.suffix == ".parquet"
     try:
         with open(path, "rb") as fh:
@@ -94,11 +122,81 @@ def read_frame(path: str | os.PathLike, field: str = "--data", what: str = "a te
     if not parquet and head == PARQUET_MAGIC:
         raise InputError(field, f"{path} is a Parquet file named {path.suffix or 'without .parquet'}; "
                          "rename it to .parquet")
-    text = None if parquet else csv_text(path, field, what)
+    if not parquet:
+        check_csv_file(path, field, what)
     try:
-        return pd.read_parquet(path) if parquet else pd.read_csv(io.StringIO(text))
+        if chunk_rows is None:
+            yield pd.read_parquet(path) if parquet else pd.read_csv(path, encoding="utf-8")
+        elif parquet:
+            for batch in pq.ParquetFile(path).iter_batches(batch_size=chunk_rows):
+                yield batch.to_pandas()
+        else:
+            with pd.read_csv(path, encoding="utf-8", chunksize=chunk_rows) as reader:
+                yield from reader
     except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise InputError(field, f"cannot read {path} as {what}: {exc}") from None
+
+
+def read_frame(path: str | os.PathLike, field: str = "--data", what: str = "a test record") -> pd.DataFrame:
+    """The whole record file as one table (:func:`iter_frames` with one chunk)."""
+    return next(iter_frames(path, field, what))
+
+
+def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tuple[str, ...] = (),
+               text: tuple[str, ...] = (), field: str = "--data", what: str = "a test record",
+               min_rows: int = 1, mapping: RecordMapping | None = None, units: dict | None = None,
+               increments: tuple[str, ...] = (), positions: tuple[str, ...] = (),
+               chunk_rows: int | None = None) -> Iterator[pd.DataFrame]:
+    """:func:`read_table` in chunks of at most ``chunk_rows`` rows (None: one chunk): every chunk
+    is mapped, converted and checked as the whole file is (a row named by its line in the file;
+    ISO times and geodetic positions count from the log's first sample, not the chunk's), so
+    memory does not grow with the record. ``min_rows`` is checked when the last chunk is read
+    (before it is yielded, so a record that is too short yields nothing). Checks that span rows
+    (time increasing, gaps) are the rig's, on the chunks it is handed (:class:`TimeCheck`)."""
+    carry: dict = {"row0": 0}
+    chunks = iter_frames(path, field, what, chunk_rows)
+    pending = None
+    rows = 0
+    for df in chunks:
+        if mapping is not None:
+            df = mapping.apply(df, units, required, str(path), increments, positions, carry)
+        df = _checked(df, required, optional, text, field, what, carry["row0"])
+        carry["row0"] += len(df)
+        rows += len(df)
+        if pending is not None:
+            yield pending
+        pending = df
+    if rows < min_rows:
+        raise InputError(field, f"the record has {rows or 'no'} rows; {what} needs at least {min_rows}")
+    yield pending
+
+
+def _checked(df: pd.DataFrame, required: tuple[str, ...], optional: tuple[str, ...], text: tuple[str, ...],
+             field: str, what: str, row0: int) -> pd.DataFrame:
+    """One chunk's columns and values checked (see :func:`read_table`); ``row0``: the file's
+    data row of its first row (0-based), for the line numbers of messages."""
+    cols = [str(c) for c in df.columns]
+    missing = [c for c in required if c not in cols]
+    if missing:
+        hint = ""
+        if len(cols) == 1 and any(sep in cols[0] for sep in ";\t|"):
+            hint = f"; the header {cols[0][:60]!r} is not comma-separated: a CSV record uses ','"
+        raise InputError(f"{field} column {missing[0]}", f"missing; {what} has columns {list(required)}"
+                         + (f" (and optionally {list(optional)})" if optional else "") + hint)
+    extra = [c for c in cols if c not in required + optional]
+    if extra:
+        raise InputError(f"{field} column {extra[0]}", f"unexpected column; allowed: {list(required + optional)}")
+    for c in cols:
+        if c in text:
+            continue
+        values = pd.to_numeric(df[c], errors="coerce")
+        bad = ~np.isfinite(values.to_numpy(float))
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise InputError(f"{field} column {c}, row {row0 + row + 2}",
+                             f"value {shown(df[c].iloc[row])} is not a finite number (NaN, infinite or text)")
+        df[c] = values.astype(float)
+    return df
 
 
 def read_table(path: str | os.PathLike, required: tuple[str, ...], optional: tuple[str, ...] = (),
@@ -111,35 +209,36 @@ def read_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     With a config's ``mapping`` (:class:`platcal.logs.mapping.RecordMapping`) and the rig's column
     ``units`` (None for a text column) the log is first renamed and converted to the rig's units
     (``increments``: the columns ``record.kind: increments`` applies to; ``positions``: the east
-    and north position columns ``record.geodetic`` fills).
+    and north position columns ``record.geodetic`` fills). The one-chunk case of :func:`iter_table`.
     """
-    df = read_frame(path, field, what)
-    if mapping is not None:
-        df = mapping.apply(df, units, required, str(path), increments, positions)
-    cols = [str(c) for c in df.columns]
-    missing = [c for c in required if c not in cols]
-    if missing:
-        hint = ""
-        if len(cols) == 1 and any(sep in cols[0] for sep in ";\t|"):
-            hint = f"; the header {cols[0][:60]!r} is not comma-separated: a CSV record uses ','"
-        raise InputError(f"{field} column {missing[0]}", f"missing; {what} has columns {list(required)}"
-                         + (f" (and optionally {list(optional)})" if optional else "") + hint)
-    extra = [c for c in cols if c not in required + optional]
-    if extra:
-        raise InputError(f"{field} column {extra[0]}", f"unexpected column; allowed: {list(required + optional)}")
-    if len(df) < min_rows:
-        raise InputError(field, f"the record has {len(df) or 'no'} rows; {what} needs at least {min_rows}")
-    for c in cols:
-        if c in text:
-            continue
-        values = pd.to_numeric(df[c], errors="coerce")
-        bad = ~np.isfinite(values.to_numpy(float))
-        if bad.any():
-            row = int(np.argmax(bad))
-            raise InputError(f"{field} column {c}, row {row + 2}",
-                             f"value {shown(df[c].iloc[row])} is not a finite number (NaN, infinite or text)")
-        df[c] = values.astype(float)
-    return df
+    return next(iter_table(path, required, optional, text, field, what, min_rows, mapping, units, increments,
+                           positions))
+
+
+class TimeCheck:
+    """Time increasing across the chunks of a streamed record: each chunk's ``t`` is checked as
+    :func:`check_increasing` checks a whole one, with the last time of the previous chunk in
+    front, so a step back at a chunk boundary is refused as one inside a chunk is."""
+
+    def __init__(self, field: str, where: str = ""):
+        self.field, self.where = field, where
+        self.last: float | None = None
+        self.count = 0
+
+    def __call__(self, t: np.ndarray) -> None:
+        if t.size == 0:
+            return
+        ahead = t if self.last is None else np.r_[self.last, t]
+        try:
+            check_increasing(ahead, self.field, self.where)
+        except InputError:
+            step = np.diff(ahead)
+            i = int(np.argmax(step <= 0)) + 1  # in ``ahead``
+            n = self.count + i + (0 if self.last is None else -1)
+            raise InputError(self.field, f"time does not increase at sample {n + 1}{self.where} "
+                             f"(t = {num(ahead[i - 1])} then {num(ahead[i])} s)") from None
+        self.last = float(t[-1])
+        self.count += t.size
 
 
 def check_increasing(t: np.ndarray, field: str, where: str = "") -> None:
@@ -227,3 +326,31 @@ def write_record(df: pd.DataFrame, path: str | os.PathLike) -> None:
         atomic_to_parquet(df, path)
     else:
         atomic_to_csv(df, path, float_format=None)
+
+
+@contextmanager
+def record_writer(path: str | os.PathLike) -> Iterator[Callable[[pd.DataFrame], None]]:
+    """Write a test record chunk by chunk: yields ``write(df)``, each chunk appended (CSV rows
+    after one header, the same text :func:`write_record` gives the whole table; a Parquet row
+    group each) to a temporary file that is renamed to ``path`` when the block ends without
+    error (:func:`platcal.io.atomic_path`), so a long record is written without being held and
+    nothing half-written is left."""
+    parquet = str(path).endswith(".parquet")
+    with atomic_path(path) as tmp:
+        state: dict = {}
+
+        def write(df: pd.DataFrame) -> None:
+            if parquet:
+                table = pa.Table.from_pandas(df, preserve_index=False)
+                if "writer" not in state:
+                    state["writer"] = pq.ParquetWriter(tmp, table.schema)
+                state["writer"].write_table(table)
+            else:
+                df.to_csv(tmp, index=False, float_format=None, mode="a" if state else "w", header=not state)
+                state["csv"] = True
+
+        try:
+            yield write
+        finally:
+            if "writer" in state:
+                state["writer"].close()

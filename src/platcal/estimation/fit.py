@@ -25,7 +25,7 @@ derivative: an offset, or a jitter that inflates it in proportion). Nothing here
 from __future__ import annotations
 
 import sys
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 from scipy import stats as sps
@@ -111,16 +111,90 @@ class FitCheck:
                 f"{self.nis_bound:.4g} x {1 + self.tolerance.nis:g}); worst channels: {worst}; diagnosis: {diag}")
 
 
+class FitSums:
+    """The running sums the fit check's figures come from, so a run's innovations can be judged
+    block by block (a streamed record) with the figures of the whole series: per channel the
+    count, the sums of ``e`` and ``e^2`` and the lag-1 pair sums (pairs within a segment, across
+    block boundaries too). :func:`fit_check` is its one-block case."""
+
+    def __init__(self, m: int):
+        z = lambda: np.zeros(m)  # noqa: E731
+        self.n, self.se, self.see = 0, z(), z()
+        self.na, self.sa, self.sb, self.saa, self.sbb, self.sab = 0, z(), z(), z(), z(), z()
+        self.last_e: np.ndarray | None = None
+        self.last_seg = None
+
+    def add(self, innov: np.ndarray, s_var: np.ndarray, segment: np.ndarray | None = None) -> np.ndarray:
+        """Add a block of innovations (N, m) and predicted variances (N, m) (rows with a
+        non-finite or non-positive variance left out) with their segment labels (N,); returns
+        the mask of rows used."""
+        innov = np.asarray(innov, float)
+        s_var = np.asarray(s_var, float)
+        ok = np.all(np.isfinite(innov) & np.isfinite(s_var) & (s_var > 0), axis=1)
+        e = innov[ok] / np.sqrt(s_var[ok])
+        if e.shape[0] == 0:
+            return ok
+        seg = np.zeros(e.shape[0], int) if segment is None else np.asarray(segment)[ok]
+        self.n += e.shape[0]
+        self.se += e.sum(axis=0)
+        self.see += (e * e).sum(axis=0)
+        if self.last_e is not None:
+            e_all, seg_all = np.vstack([self.last_e[None], e]), np.r_[self.last_seg, seg]
+        else:
+            e_all, seg_all = e, seg
+        same = seg_all[1:] == seg_all[:-1]
+        a, b = e_all[:-1][same], e_all[1:][same]
+        self.na += a.shape[0]
+        self.sa += a.sum(axis=0)
+        self.sb += b.sum(axis=0)
+        self.saa += (a * a).sum(axis=0)
+        self.sbb += (b * b).sum(axis=0)
+        self.sab += (a * b).sum(axis=0)
+        self.last_e, self.last_seg = e[-1].copy(), seg[-1]
+        return ok
+
+    def lag1(self) -> np.ndarray:
+        """(m,) lag-1 autocorrelation of ``e`` over the pairs within a segment (each pair's
+        members centred on their own mean)."""
+        na = max(self.na, 1)
+        cov = self.sab - self.sa * self.sb / na
+        den = np.sqrt(np.maximum(self.saa - self.sa * self.sa / na, 0.0) * np.maximum(self.sbb - self.sb * self.sb / na, 0.0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(den > 0, cov / np.where(den > 0, den, 1.0), 0.0)
+
+    def check(self, names, tolerance: "FitTolerance" = None, diagnosis: tuple[str, ...] = ()) -> "FitCheck":
+        """The verdict from the sums (see :func:`fit_check`); ``diagnosis`` is attached when the
+        check fails."""
+        tol = FitTolerance() if tolerance is None else tolerance
+        n, m = self.n, self.se.size
+        # Bonferroni: the check's false-alarm level is split over m channels x 3 figures
+        lv = tol.level / (3 * m)
+        nis_bound = float(sps.chi2.ppf(1.0 - lv, n) / n) if n else np.inf
+        zq = float(sps.norm.ppf(1.0 - lv / 2))
+        mean_bound = zq / np.sqrt(max(n, 1))
+        lag1_bound = zq / np.sqrt(max(n - 1, 1))
+        mean = self.se / n if n else np.zeros(m)
+        nis_c = self.see / n if n else np.zeros(m)
+        lag1 = self.lag1() if n > 2 else np.zeros(m)
+        # innovations far smaller than predicted (a noise-free record) are correlated but harmless:
+        # the lag-1 figure counts in proportion to their share of the predicted variance
+        score = np.maximum.reduce([nis_c / (nis_bound * (1 + tol.nis)), np.abs(mean) / (mean_bound + tol.mean),
+                                   np.abs(lag1) * np.minimum(1.0, nis_c) / (lag1_bound + tol.lag1)])
+        channels = tuple(ChannelFit(str(nm), n, float(mean[i]), float(np.sqrt(nis_c[i])), float(nis_c[i]),
+                                    float(lag1[i]), float(score[i])) for i, nm in enumerate(names))
+        passed = bool(n > 0 and np.all(score <= 1.0))
+        order = np.argsort(-score, kind="stable")
+        worst = tuple(str(names[i]) for i in order[:3] if score[i] > 1.0)
+        return FitCheck(channels, n, float(nis_c.mean()) if n else float("nan"), nis_bound, mean_bound, lag1_bound,
+                        tol, passed, worst, () if passed else tuple(diagnosis))
+
+
 def lag1_autocorrelation(e: np.ndarray, segment: np.ndarray | None = None) -> np.ndarray:
     """(m,) lag-1 autocorrelation of each column of ``e`` (N, m), pairs taken only within a
     segment (``segment`` (N,) labels, e.g. the position; None: one segment)."""
-    same = np.ones(e.shape[0] - 1, bool) if segment is None else segment[1:] == segment[:-1]
-    a, b = e[:-1][same], e[1:][same]
-    a = a - a.mean(axis=0)
-    b = b - b.mean(axis=0)
-    den = np.sqrt((a * a).sum(axis=0) * (b * b).sum(axis=0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(den > 0, (a * b).sum(axis=0) / np.where(den > 0, den, 1.0), 0.0)
+    sums = FitSums(e.shape[1])
+    sums.add(e, np.ones_like(e), segment)
+    return sums.lag1()
 
 
 def fit_check(innov: np.ndarray, s_var: np.ndarray, names, *, predicted: np.ndarray | None = None,
@@ -138,41 +212,21 @@ def fit_check(innov: np.ndarray, s_var: np.ndarray, names, *, predicted: np.ndar
     derivative within a segment. ``nominal`` (N, m): the model's output with the nominal (prior)
     coefficients, which the diagnosis regresses the measurement on instead of ``predicted``: a
     filter fed data that do not fit diverges, and its predictions then follow the data.
+    The figures are those of :class:`FitSums` over the whole series at once.
     """
     innov = np.asarray(innov, float)
     s_var = np.asarray(s_var, float)
-    ok = np.all(np.isfinite(innov) & np.isfinite(s_var) & (s_var > 0), axis=1)
-    innov, s_var = innov[ok], s_var[ok]
-    seg = None if segment is None else np.asarray(segment)[ok]
-    n, m = innov.shape
-    e = innov / np.sqrt(s_var)
-    tol = tolerance
-    # Bonferroni: the check's false-alarm level is split over m channels x 3 figures
-    lv = tol.level / (3 * m)
-    nis_bound = float(sps.chi2.ppf(1.0 - lv, n) / n) if n else np.inf
-    zq = float(sps.norm.ppf(1.0 - lv / 2))
-    mean_bound = zq / np.sqrt(max(n, 1))
-    lag1_bound = zq / np.sqrt(max(n - 1, 1))
-    mean = e.mean(axis=0) if n else np.zeros(m)
-    nis_c = (e * e).mean(axis=0) if n else np.zeros(m)
-    lag1 = lag1_autocorrelation(e, seg) if n > 2 else np.zeros(m)
-    # innovations far smaller than predicted (a noise-free record) are correlated but harmless:
-    # the lag-1 figure counts in proportion to their share of the predicted variance
-    score = np.maximum.reduce([nis_c / (nis_bound * (1 + tol.nis)), np.abs(mean) / (mean_bound + tol.mean),
-                               np.abs(lag1) * np.minimum(1.0, nis_c) / (lag1_bound + tol.lag1)])
-    channels = tuple(ChannelFit(str(nm), n, float(mean[i]), float(np.sqrt(nis_c[i])), float(nis_c[i]),
-                                float(lag1[i]), float(score[i])) for i, nm in enumerate(names))
-    passed = bool(n > 0 and np.all(score <= 1.0))
-    order = np.argsort(-score, kind="stable")
-    worst = tuple(str(names[i]) for i in order[:3] if score[i] > 1.0)
-    diagnosis = ()
-    if not passed and predicted is not None:
+    sums = FitSums(innov.shape[1])
+    ok = sums.add(innov, s_var, segment)
+    fit = sums.check(names, tolerance)
+    if not fit.passed and predicted is not None:
+        seg = None if segment is None else np.asarray(segment)[ok]
         pred = np.asarray(predicted, float)[ok]
         ref = pred if nominal is None else np.asarray(nominal, float)[ok]
-        diagnosis = tuple(diagnose(innov + pred, ref, s_var, names, None if t is None else np.asarray(t)[ok], seg,
-                                   tol.detect, innov))
-    return FitCheck(channels, n, float(nis_c.mean()) if n else float("nan"), nis_bound, mean_bound, lag1_bound,
-                    tol, passed, worst, diagnosis)
+        diagnosis = tuple(diagnose(innov[ok] + pred, ref, s_var[ok], names, None if t is None else np.asarray(t)[ok],
+                                   seg, tolerance.detect, innov[ok]))
+        fit = replace(fit, diagnosis=diagnosis)
+    return fit
 
 
 def time_derivative(y: np.ndarray, t: np.ndarray, segment: np.ndarray | None = None) -> np.ndarray:
@@ -207,20 +261,62 @@ def gross_errors(z: np.ndarray, predicted: np.ndarray, names) -> list[tuple[int,
     prediction with its own near 0 a swap. Only channels whose prediction is not negligible (RMS
     above 5 % of the largest) are judged or used as regressors; when their predictions are
     collinear each channel is compared with its own prediction only (no swap)."""
+    return gross_errors_moments(Moments.of(z, predicted), names)
+
+
+@dataclass
+class Moments:
+    """Sums of a record's channels ``z`` (N, m) against the model's predictions ``p`` (N, m):
+    ``n``, ``pp`` = sum p p^T, ``pz`` = sum p z^T (m, m), ``zz`` = sum z^2 (m,); the regression of
+    :func:`gross_errors` needs no more, so a streamed record adds them block by block."""
+
+    n: int
+    pp: np.ndarray
+    pz: np.ndarray
+    zz: np.ndarray
+
+    @classmethod
+    def zero(cls, m: int) -> "Moments":
+        return cls(0, np.zeros((m, m)), np.zeros((m, m)), np.zeros(m))
+
+    @classmethod
+    def of(cls, z: np.ndarray, p: np.ndarray) -> "Moments":
+        out = cls.zero(np.asarray(z).shape[1])
+        out.add(z, p)
+        return out
+
+    def add(self, z: np.ndarray, p: np.ndarray) -> None:
+        z, p = np.asarray(z, float), np.asarray(p, float)
+        self.n += z.shape[0]
+        self.pp += p.T @ p
+        self.pz += p.T @ z
+        self.zz += (z * z).sum(axis=0)
+
+    def rms(self) -> tuple[np.ndarray, np.ndarray]:
+        """(RMS of each channel of z, of p)."""
+        n = max(self.n, 1)
+        return np.sqrt(self.zz / n), np.sqrt(np.diag(self.pp) / n)
+
+
+def gross_errors_moments(mo: Moments, names) -> list[tuple[int, str]]:
+    """:func:`gross_errors` from the sums :class:`Moments` (least squares by its normal equations)."""
     names = [str(n) for n in names]
-    m = z.shape[1]
-    rms = np.sqrt(np.mean(predicted * predicted, axis=0))
+    m = mo.pp.shape[0]
+    rms = np.sqrt(np.diag(mo.pp) / max(mo.n, 1))
     active = np.flatnonzero(rms > 0.05 * rms.max()) if rms.max() > 0 else np.array([], int)
     if active.size == 0:
         return []
-    X = predicted[:, active]
+    A = mo.pp[np.ix_(active, active)]
     coef = np.zeros((m, m))  # coef[:, i] explains channel i
-    sol, _, rank, _ = np.linalg.lstsq(X, z, rcond=None)
-    if rank == active.size:
-        coef[active] = sol
+    # the normal equations square the predictions' condition: collinear predictions (e.g. constant
+    # columns) leave eigenvalues at rounding level, so rank is judged at 1e-12 of the largest
+    # (singular values of the predictions 1e-6 apart), not at machine precision
+    eig = np.linalg.eigvalsh(A)
+    if eig.min() > 1e-12 * eig.max():
+        coef[active] = np.linalg.solve(A, mo.pz[active])
     else:
         for i in active:
-            coef[i, i] = float(np.dot(z[:, i], predicted[:, i]) / np.dot(predicted[:, i], predicted[:, i]))
+            coef[i, i] = float(mo.pz[i, i] / mo.pp[i, i])
     out = []
     for i in active:
         a = coef[:, i]

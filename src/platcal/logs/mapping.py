@@ -101,22 +101,33 @@ def conversion_factor(unit: str, native: str, g: float, field_: str) -> float:
     return float(ureg.Quantity(1.0, have).to(want).magnitude)
 
 
-def iso_seconds(values: pd.Series, field_: str) -> np.ndarray:
-    """ISO 8601 date-times as seconds since the first one (InputError naming ``field_``)."""
+def iso_seconds(values: pd.Series, field_: str, carry: dict | None = None) -> np.ndarray:
+    """ISO 8601 date-times as seconds since the first one (InputError naming ``field_``).
+
+    ``carry`` (a chunk of a streamed log, :func:`platcal.records.iter_table`): ``row0`` the file
+    row of the chunk's first value (0-based data row), and the log's first stamp under
+    ``iso_origin``, set by the first chunk, so every chunk counts from the log's first sample."""
+    carry = {} if carry is None else carry
     stamps = pd.to_datetime(values, errors="coerce", utc=True, format="ISO8601")
     bad = stamps.isna().to_numpy()
     if bad.any():
         i = int(np.argmax(bad))
-        raise InputError(f"{field_}, row {i + 2}", f"{values.iloc[i]!r} is not an ISO 8601 date-time")
-    ns = (stamps - stamps.iloc[0]).to_numpy("timedelta64[ns]").astype(np.int64)  # any resolution pandas chose
+        raise InputError(f"{field_}, row {carry.get('row0', 0) + i + 2}", f"{values.iloc[i]!r} is not an ISO 8601 "
+                         "date-time")
+    origin = carry.setdefault(f"iso_origin {field_}", stamps.iloc[0])
+    ns = (stamps - origin).to_numpy("timedelta64[ns]").astype(np.int64)  # any resolution pandas chose
     return ns * 1e-9
 
 
-def geodetic_positions(df: pd.DataFrame, geodetic: dict, positions: tuple[str, ...], source: str) -> pd.DataFrame:
+def geodetic_positions(df: pd.DataFrame, geodetic: dict, positions: tuple[str, ...], source: str,
+                       carry: dict | None = None) -> pd.DataFrame:
     """``df`` with its latitude, longitude (and height, m) columns named in ``geodetic`` replaced
     by the local east and north positions ``positions`` (m) from the first sample, on the WGS84
     ellipsoid (pymap3d.geodetic2enu); InputError naming ``record.geodetic.<key>`` for a column
-    the log lacks or a value that is not a finite number."""
+    the log lacks or a value that is not a finite number. ``carry``: as in :func:`iso_seconds`
+    (the first sample's latitude, longitude and height under ``geodetic_origin``)."""
+    carry = {} if carry is None else carry
+    row0 = carry.get("row0", 0)
     cols = [str(c) for c in df.columns]
     deg = geodetic.get("angles", "deg") == "deg"
     values = {}
@@ -129,7 +140,7 @@ def geodetic_positions(df: pd.DataFrame, geodetic: dict, positions: tuple[str, .
         v = pd.to_numeric(df[src], errors="coerce").to_numpy(float)
         if not np.all(np.isfinite(v)):
             row = int(np.argmax(~np.isfinite(v)))
-            raise InputError(f"record.geodetic.{key}, row {row + 2}", f"value {df[src].iloc[row]!r} of column "
+            raise InputError(f"record.geodetic.{key}, row {row0 + row + 2}", f"value {df[src].iloc[row]!r} of column "
                              f"{src!r} is not a finite number")
         values[key] = v
     lat, lon = values["lat"], values["lon"]
@@ -138,7 +149,8 @@ def geodetic_positions(df: pd.DataFrame, geodetic: dict, positions: tuple[str, .
         raise InputError("record.geodetic.lat", f"column {geodetic['lat']!r} reaches {np.abs(lat).max():g}, beyond "
                          f"+-{limit:g}: not a latitude in {'deg' if deg else 'rad'} (record.geodetic.angles)")
     h = values.get("height", np.zeros_like(lat))
-    e, n, _ = pymap3d.geodetic2enu(lat, lon, h, lat[0], lon[0], h[0], deg=deg)
+    lat0, lon0, h0 = carry.setdefault("geodetic_origin", (lat[0], lon[0], h[0]))
+    e, n, _ = pymap3d.geodetic2enu(lat, lon, h, lat0, lon0, h0, deg=deg)
     out = df.drop(columns=[geodetic[k] for k in values])
     out[positions[0]], out[positions[1]] = np.asarray(e, float), np.asarray(n, float)
     return out
@@ -187,14 +199,16 @@ class RecordMapping:
             conversion_factor(unit, native[col], self.g, field_)
 
     def apply(self, df: pd.DataFrame, native: dict, required: tuple[str, ...], source: str = "the log",
-              increments: tuple[str, ...] = (), positions: tuple[str, ...] = ()) -> pd.DataFrame:
+              increments: tuple[str, ...] = (), positions: tuple[str, ...] = (),
+              carry: dict | None = None) -> pd.DataFrame:
         """The log ``df`` renamed to the rig's columns and converted to its units (``native``:
         rig column -> unit, None for text). Unmapped columns keep their names; with
         ``ignore_extra`` the columns the rig does not read are dropped. A required column that is
         missing afterwards is refused naming ``record.columns.<col>``. ``increments``: the columns
         that ``kind: increments`` turns into increments (none: the rig refuses that kind).
         ``positions``: the rig's east and north position columns (m) a ``geodetic`` mapping fills
-        (:func:`geodetic_positions`; none: the rig refuses it)."""
+        (:func:`geodetic_positions`; none: the rig refuses it). ``carry``: a streamed log's
+        state from chunk to chunk (:func:`iso_seconds`), None for a whole log."""
         if self.kind == "increments" and not increments:
             raise InputError("record.kind", "this rig's record has no rate or specific-force columns, so it cannot "
                              "be read from increments; use kind: samples")
@@ -203,7 +217,7 @@ class RecordMapping:
                              "from latitude and longitude; remove record.geodetic")
         self.check(native)
         if self.geodetic:
-            df = geodetic_positions(df, self.geodetic, positions, source)
+            df = geodetic_positions(df, self.geodetic, positions, source, carry)
         cols = [str(c) for c in df.columns]
         for col, src in self.columns.items():
             if src not in cols:
@@ -222,7 +236,7 @@ class RecordMapping:
             if col not in out.columns:
                 continue
             if unit.strip() == ISO_TIME:
-                out[col] = iso_seconds(out[col], f"record.units.{col}")
+                out[col] = iso_seconds(out[col], f"record.units.{col}", carry)
                 continue
             values = pd.to_numeric(out[col], errors="coerce").to_numpy(float)
             factor = conversion_factor(unit, native[col], self.g, f"record.units.{col}")

@@ -25,13 +25,14 @@ from ...study.montecarlo import cell_job, replicate_seed
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
-from .identify import (calibration, clock_finding, consistency_warning, identify_input, record_fit, record_input,
-                       run_problems, timed, truth_known, write_identification)
+from .identify import (calibration, clock_finding, consistency_warning, identify_input, identify_streamed, record_fit,
+                       record_input, run_problems, streamable, timed, truth_known, write_identification)
 from .observability import write_observability
-from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, compensate_frame, full_coefficients,
-                     read_record, sim_to_frame, write_record)
+from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, FilterInput, chunk_to_frame,
+                     compensate_frame, full_coefficients, read_record)
+from ...records import CHUNK_ROWS, iter_table, record_writer
 from .report import report_from_results
-from .simulate import simulate
+from .simulate import simulate_chunks
 
 def _scheme(study: Study, args: argparse.Namespace):
     if not args.scheme:
@@ -50,13 +51,25 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
     # can be written out and identified on its own
     seeds = None if args.noise_free else [replicate_seed(study.seed, scheme.name, study.noise.sigma_a_ug, replicate)]
     t0 = time.perf_counter()
-    sim = simulate(study.truth, scheme, study.centrifuge.scheme_params(scheme), study.noise, seeds,
-                   sample_s=study.sample_s)
-    write_record(sim_to_frame(sim, scheme), args.out)
+    chunk_rows = _chunk_rows(args)
+    # written chunk by chunk (same numbers, same CSV text as the whole record), so a long test
+    # does not need its record in memory
+    with record_writer(args.out) as write:
+        for chunk in simulate_chunks(study.truth, scheme, study.centrifuge.scheme_params(scheme), study.noise, seeds,
+                                     sample_s=study.sample_s, chunk_samples=chunk_rows or None):
+            write(chunk_to_frame(chunk, scheme))
     print(f"platcal simulate: scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s, "
           f"{'noise-free' if seeds is None else f'replicate {replicate} of the cell (seed {study.seed})'}"
           f" -> {args.out} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
     return 0
+
+
+def _chunk_rows(args: argparse.Namespace) -> int:
+    """``--chunk-rows`` (0: the whole record at once); InputError when negative."""
+    n = CHUNK_ROWS if args.chunk_rows is None else int(args.chunk_rows)
+    if n < 0:
+        raise InputError("--chunk-rows", f"must be a whole number >= 0 (0: the whole record at once), got {n}")
+    return n
 
 
 def with_estimator(study: Study, name: str | None) -> Study:
@@ -85,9 +98,28 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     check_filter(study.filter)
     scheme = _scheme(study, args)
     check_writable(args.out, "--out", folder=True)
-    df = read_record(args.data, RecordMapping.from_config(study.config["record"], g=study.centrifuge.g))
-    fin = record_input(study, scheme, df)
-    est, seconds = timed(identify_input, study, scheme, fin)
+    mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
+    chunk_rows = _chunk_rows(args)
+
+    def read_chunks():
+        return iter_table(args.data, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS, chunk_rows=chunk_rows)
+
+    # a record longer than one chunk is streamed (memory does not grow with it); a shorter one,
+    # or an estimator that needs it whole, is read whole as before
+    chunks = read_chunks() if chunk_rows and streamable(study.filter) else None
+    if chunks is not None and next(chunks, None) is not None and next(chunks, None) is not None:
+        chunks.close()
+        t0 = time.perf_counter()
+        est, scan, fit = identify_streamed(study, scheme, read_chunks)
+        seconds = time.perf_counter() - t0
+        fin = FilterInput(scan.positions, scan.t, [], scan.cmd_deg)
+        known = scan.truth
+    else:
+        df = read_record(args.data, mapping)
+        fin = record_input(study, scheme, df)
+        est, seconds = timed(identify_input, study, scheme, fin)
+        fit = None
+        known = truth_known(df)
     problems = run_problems(est)
     if problems:
         print(f"platcal identify: error: the filter run over {args.data} failed: {'; '.join(problems)}. "
@@ -95,8 +127,9 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
               "config's noise and filter settings.", file=sys.stderr)
         return 1
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
-    fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
-    summary = write_identification(args.out, est, study, truth_known(df) and not args.no_truth, seconds,
+    if fit is None:
+        fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
+    summary = write_identification(args.out, est, study, known and not args.no_truth, seconds,
                                    samples_used=used, calibration=calibration(est, study, args.data), fit=fit)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
@@ -200,10 +233,12 @@ COMMANDS = {"inspect": inspect_command, "simulate": simulate_command, "identify"
             "compensate": compensate_command}
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
+CHUNK = option("--chunk-rows", type=int, default=None,
+               help=f"rows of the record held at a time (default {CHUNK_ROWS}; 0: the whole record at once)")
 OPTIONS = {
-    "simulate": (SCHEME,),
-    "identify": (SCHEME, option("--estimator", default=None,
-                                help="estimator kind or study.estimators name (default: filter.estimator)")),
+    "simulate": (SCHEME, CHUNK),
+    "identify": (SCHEME, CHUNK, option("--estimator", default=None,
+                                       help="estimator kind or study.estimators name (default: filter.estimator)")),
     "observability": (SCHEME,
                       option("--arw", type=float, default=None, help="override the filter's ARW, deg/sqrt(h)"),
                       option("--rate", type=float, default=None, help="override the centrifuge rate, deg/s (0: static 1 g)"),

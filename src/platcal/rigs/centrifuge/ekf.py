@@ -191,7 +191,7 @@ class Estimate:
 
 @njit(parallel=True, cache=True)
 def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec):
+              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg):
     """Filter every replicate of the batch through every position of one pass.
 
     Position k's instants are ``t[offs[k]:offs[k + 1]]`` (s since the position's start) with
@@ -207,6 +207,12 @@ def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_v
     ``MEAS_COLS[r]``, or ``-1 - i`` for angle i). ``rec`` (B, M, 6) receives each instant's
     innovation and the diagonal of S ((B, 0, 6): not kept).
 
+    ``seg`` (:func:`segments`) cuts the instants into segments: segment s runs the instants
+    ``offs[s]:offs[s + 1]`` of position ``seg.k[s]``; it starts with the position's reset when
+    ``seg.t0[s]`` is NaN, else it continues the position from its instant ``seg.t0[s]`` (a chunk
+    of a streamed record, :func:`run_ekf` ``z_source``); ``seg.nis`` (B,) carries a position's
+    NIS sum from segment to segment, added to ``nis_sum`` when ``seg.last[s]``.
+
     Each replicate runs the same sequential kernel (:func:`_filter_one`) in its own iteration, so
     the numbers do not depend on the batch size or on the number of threads. One parallel region
     per pass (not per position) keeps thread start-up and joins rare.
@@ -215,36 +221,58 @@ def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_v
     for b in prange(B):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                           q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          hcols, hsrc, hnnz, it_ctl, rec)
+                          hcols, hsrc, hnnz, it_ctl, rec, seg)
 
 
 @njit(cache=True)
 def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                      q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
-                     hsrc, hnnz, it_ctl, rec):
+                     hsrc, hnnz, it_ctl, rec, seg):
     """:func:`_run_pass` without threads, for a batch of one or a single thread: the same
     per-replicate kernel, minus the parallel region's start-up and join (milliseconds on a
     busy machine)."""
     for b in range(x.shape[0]):
         _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                           q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          hcols, hsrc, hnnz, it_ctl, rec)
+                          hcols, hsrc, hnnz, it_ctl, rec, seg)
 
 
 @njit(cache=True)
 def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                       q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
-                      hsrc, hnnz, it_ctl, rec):
-    """Replicate b through every position of one pass (see :func:`_run_pass`)."""
-    for k in range(offs.shape[0] - 1):
-        o0, o1 = offs[k], offs[k + 1]
+                      hsrc, hnnz, it_ctl, rec, seg):
+    """Replicate b through every segment of one pass (see :func:`_run_pass`)."""
+    seg_k, seg_t0, seg_last, seg_nis = seg
+    for s in range(offs.shape[0] - 1):
+        o0, o1 = offs[s], offs[s + 1]
+        k = seg_k[s]
         zb = z[b, o0:o1] if update_x else z[b]
         rb = rec[b, o0:o1] if rec.shape[1] > 0 else rec[b]
+        reset = np.isnan(seg_t0[s])
         stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx,
                             coef_fixed[b], params[b, k], r_var, q_rate, update_x,
-                            hist_idx[o0:o1], hist_x[b], hist_s[b], pcols, pg, hcols, hsrc, hnnz, it_ctl, rb)
-        nis_sum[b] += stats[0]
+                            hist_idx[o0:o1], hist_x[b], hist_s[b], pcols, pg, hcols, hsrc, hnnz, it_ctl, rb,
+                            reset, 0.0 if reset else seg_t0[s], 0.0 if reset else seg_nis[b])
+        if seg_last[s]:
+            nis_sum[b] += stats[0]
+        else:
+            seg_nis[b] = stats[0]
         n_bad[b] += int(stats[1])
+
+
+@njit(cache=True)
+def attitude_reset(xb, Pb, cmd, reset_var):
+    """A position's start (docs/centrifuge-model.md §9): the attitude states (the last 3) set to
+    the commanded angles ``cmd`` (rad) with variance ``reset_var`` (rad^2) and no
+    cross-covariance. Shared by the EKF, the IEKF and the UKF."""
+    n = xb.shape[0]
+    nc = n - 3
+    for r in range(3):
+        xb[nc + r] = cmd[r]
+        for i in range(n):
+            Pb[nc + r, i] = 0.0
+            Pb[i, nc + r] = 0.0
+        Pb[nc + r, nc + r] = reset_var
 
 
 @njit(cache=True)
@@ -268,8 +296,14 @@ def propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_n
 
 @njit(cache=True)
 def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate,
-                update_x, hist_idx, hist_x, hist_s, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec):
-    """One replicate through one position; returns (sum of NIS, number of skipped updates).
+                update_x, hist_idx, hist_x, hist_s, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec,
+                reset=True, t_start=0.0, nis_start=0.0):
+    """One replicate through one position (or a segment of it); returns (sum of NIS, number of
+    skipped updates).
+
+    ``reset``: the position starts here (attitude reset, t = 0); False continues it from the
+    instant ``t_start`` (s since its start) where the previous segment ended, with the NIS sum
+    ``nis_start`` so far: the same operations in the same order as one call over the position.
 
     ``rec`` (M, 6): each instant's innovation and diagonal of S, when it has M rows (else unused).
 
@@ -308,7 +342,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     fr3 = np.empty((3, 3))
     fr_now = np.empty(3)
     ang = xb[nc:]
-    nis = 0.0
+    nis = nis_start
     bad = 0
     it_max = int(it_ctl[0])
     it_tol = it_ctl[1]
@@ -318,16 +352,11 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     xnew = np.empty(n)
     coef_i = coef_fixed.copy()
     w3 = np.empty(3)
-    # attitude reset: commanded angles, variance sigma_set^2, no cross-covariance
-    for r in range(3):
-        xb[nc + r] = cmd[r]
-        for i in range(n):
-            Pb[nc + r, i] = 0.0
-            Pb[i, nc + r] = 0.0
-        Pb[nc + r, nc + r] = reset_var
+    if reset:
+        attitude_reset(xb, Pb, cmd, reset_var)
     # the position starts at the reset (t = 0): the first instant is reached by propagation,
     # unless it is the reset instant itself (filter.update_at_reset)
-    t_prev = 0.0
+    t_prev = t_start
     specific_force_into(t_prev, pb, fr_now)
     for m in range(M):
         for k in range(nc):
@@ -509,6 +538,27 @@ def pass_history_index(t: list, slots: list, total: int, p: int, period_s: float
     return np.ascontiguousarray(np.concatenate(out), dtype=np.int64)
 
 
+def whole_segments(offs: np.ndarray, B: int) -> tuple:
+    """The kernel's ``seg`` for whole positions end to end (:func:`_run_pass`): position k is
+    segment k, starting with its reset and ending the position."""
+    K = offs.shape[0] - 1
+    return (np.arange(K, dtype=np.int64), np.full(K, np.nan), np.ones(K, dtype=np.bool_), np.zeros(B))
+
+
+def chunk_segments(offs: np.ndarray, t_all: np.ndarray, i0: int, i1: int, carry: np.ndarray) -> tuple:
+    """``(offsets, seg)`` of the instants ``i0 .. i1 - 1`` of a pass (positions end to end at
+    ``offs``, instants ``t_all``): one segment per position they touch, which starts with the
+    position's reset when it holds the position's first instant and otherwise continues from the
+    instant before; ``carry`` (B,) the NIS sums the kernel carries between segments."""
+    ks = [k for k in range(offs.shape[0] - 1) if offs[k] < i1 and offs[k + 1] > i0]
+    starts = [max(i0, int(offs[k])) for k in ks]
+    ends = [min(i1, int(offs[k + 1])) for k in ks]
+    local = np.array([a - i0 for a in starts] + [i1 - i0], dtype=np.int64)
+    t0 = np.array([np.nan if a == offs[k] else t_all[a - 1] for k, a in zip(ks, starts)], float)
+    last = np.array([b == offs[k + 1] for k, b in zip(ks, ends)], dtype=np.bool_)
+    return local, (np.array(ks, dtype=np.int64), t0, last, carry)
+
+
 def restart_covariance(P: np.ndarray, nc: int) -> np.ndarray:
     """P of a new pass (docs/centrifuge-model.md §11): 100 x the coefficient block, nothing else."""
     out = np.zeros_like(P)
@@ -604,6 +654,8 @@ def run_ekf(
     linearise_about: np.ndarray | None = None,
     iterate: np.ndarray | None = None,
     warmup_s: float | None = None,
+    z_source=None,
+    on_innovations=None,
 ) -> Estimate:
     """Run the EKF over every position of a scheme, for a batch of B runs.
 
@@ -626,6 +678,14 @@ def run_ekf(
         record is filtered about a better linearisation point for (1 + warmup_s / dwell) times
         the cost of one pass. Not a pass: ``pass_x``, ``pass_P`` and the history hold the full
         passes only. None: no warm-up (the paper's EKF).
+    z_source : a streamed record (one run, ``z`` None): called once per pass, it yields
+        ``(i0, i1, z_block (1, i1 - i0, 3))``, the outputs of the instants ``i0 .. i1 - 1`` of all
+        positions end to end, in order; the filter runs block by block with its state carried
+        (:func:`chunk_segments`), the same operations as over the whole record, so memory holds
+        one block. No warm-up.
+    on_innovations : with ``z_source`` and ``settings.innovations``, called with ``(i0, i1,
+        z_block, rec_block (1, i1 - i0, 6))`` after each block (every pass; the last pass's are
+        the run's), instead of keeping them in ``Estimate.innovations``.
 
     Returns
     -------
@@ -633,7 +693,9 @@ def run_ekf(
     """
     K = len(t)
     cov_only = linearise_about is not None
-    B = z[0].shape[0] if not cov_only else np.asarray(linearise_about).shape[0]
+    if z_source is not None and (cov_only or warmup_s is not None):
+        raise ValueError("a streamed record (z_source) is filtered without warm-up, not covariance-only")
+    B = 1 if z_source is not None else z[0].shape[0] if not cov_only else np.asarray(linearise_about).shape[0]
     st = filter_start(cmd_deg, centrifuge_params, settings, B, K)
     est_idx = settings.coef_index
     nc = est_idx.size
@@ -651,11 +713,23 @@ def run_ekf(
     kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
     keep = settings.innovations and not cov_only
     # every full pass overwrites it, so it ends holding the last pass's innovations
-    rec = np.zeros((B, sum(len(tk) for tk in t) if keep else 0, 6))
+    rec = np.zeros((B, sum(len(tk) for tk in t) if keep and z_source is None else 0, 6))
+    carry = np.zeros(B)
 
     def run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad, update_x=not cov_only, rec=rec):
-        kernel(x, P, z_all, t_all, offs, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params,
-               st.r_var, st.q_rate, update_x, hidx, hist_x, hist_s, nis, n_bad, *structure, it_ctl, rec)
+        if z_source is None:
+            kernel(x, P, z_all, t_all, offs, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params,
+                   st.r_var, st.q_rate, update_x, hidx, hist_x, hist_s, nis, n_bad, *structure, it_ctl, rec,
+                   whole_segments(offs, B))
+            return
+        for i0, i1, zb in z_source():
+            local, seg = chunk_segments(offs, t_all, i0, i1, carry)
+            rb = np.zeros((B, i1 - i0 if keep else 0, 6))
+            kernel(x, P, np.ascontiguousarray(zb, float), t_all[i0:i1], local, st.cmd_rad, st.reset_var, est_idx,
+                   coef_fixed, st.params, st.r_var, st.q_rate, True, hidx[i0:i1], hist_x, hist_s, nis, n_bad,
+                   *structure, it_ctl, rb, seg)
+            if keep and on_innovations is not None:
+                on_innovations(i0, i1, zb, rb)
 
     nis = np.zeros(B)
     n_bad = np.zeros(B, dtype=np.int64)
@@ -670,7 +744,7 @@ def run_ekf(
         P = restart_covariance(P, nc)
         nis[:] = 0.0
     est = drive_passes(run_pass, x, P, None if cov_only else z, t, settings, passes, nis, n_bad)
-    return replace(est, innovations=rec) if keep else est
+    return replace(est, innovations=rec) if keep and z_source is None else est
 
 
 def run_iekf(
@@ -684,6 +758,7 @@ def run_iekf(
     tol: float = 0.01,
     until_s: float | None = None,
     ratio: float | None = None,
+    **stream,
 ) -> Estimate:
     """The iterated EKF (issue 9 item 3): :func:`run_ekf` whose measurement updates relinearise.
 
@@ -697,9 +772,10 @@ def run_iekf(
     ``until_s`` (iterate only at instants t < until_s of each position; None: all) and ``ratio``
     (iterate only while the mean over the coefficients of P_ii / P0_ii exceeds it, i.e. while
     the coefficients are still poorly known; None: always). Same batching and bit-identity
-    whatever B and threads as the EKF.
+    whatever B and threads as the EKF. ``stream``: :func:`run_ekf`'s ``z_source`` and
+    ``on_innovations`` (a streamed record).
     """
     if int(iterations) < 1:
         raise ValueError("iterations must be >= 1")
     ctl = iteration_control(settings.p0_sigma, int(iterations), tol, until_s, ratio)
-    return run_ekf(z, t, cmd_deg, centrifuge_params, settings, iterate=ctl)
+    return run_ekf(z, t, cmd_deg, centrifuge_params, settings, iterate=ctl, **stream)

@@ -4,24 +4,28 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
 from ...estimation.consistency import estimate_problems, nees
-from ...estimation.fit import FitCheck, fit_check
+from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
 from ...io import atomic_files, json_text
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files
-from ...plausibility import refuse_recognised, timestamp_jitter
+from ...plausibility import refuse_recognised, refuse_recognised_moments, timestamp_jitter
+from ...records import CHUNK_ROWS
 from .catalogue import load_catalogue
 from .config import Study
 from .ekf import Estimate, FilterSettings, first_instant
-from .estimators import run_estimator
-from .record import TRUTH_COLUMNS, FilterInput, check_record, filter_input
-from ...scheme import Scheme
-from .simulate import simulate
+from .estimators import check_kind, run_estimator
+from .record import (TRUTH_COLUMNS, FilterInput, _ranges, check_position, check_record, filter_input,
+                     select_instants)
+from .record import _num
+from ...errors import InputError
+from ...scheme import Scheme, whole_periods
+from .simulate import simulate, simulate_chunks
 from .tables import covariance_frame, estimates_frame, table2_markdown
 
 
@@ -82,9 +86,14 @@ def clock_finding(study: Study, scheme: Scheme, df: pd.DataFrame) -> str | None:
     about their regular grid (sampling.sample_ms), naming column t; None otherwise. Not a
     refusal: stamps that are the true sample times are used as recorded (§13), so the jitter
     explains a record only when it does not fit."""
-    tol = jitter_tolerance_s(study, scheme)
     pos = df["position"].to_numpy(float)
     jit = max(timestamp_jitter(df["t"].to_numpy(float)[pos == k], study.sample_s) for k in sorted({int(p) for p in pos}))
+    return clock_text(study, scheme, jit)
+
+
+def clock_text(study: Study, scheme: Scheme, jit: float) -> str | None:
+    """:func:`clock_finding` from the largest RMS jitter ``jit`` (s) of the record's positions."""
+    tol = jitter_tolerance_s(study, scheme)
     if jit <= tol:
         return None
     return (f"clock: column t jitters by {jit * 1e6:.3g} us RMS about the {study.sample_s * 1e3:g} ms grid; at "
@@ -140,6 +149,176 @@ def record_fit(est: Estimate, fin: FilterInput, study: Study, scheme: Scheme,
     if clock is not None and not fit.passed:
         fit = replace(fit, diagnosis=fit.diagnosis + (clock,))
     return fit
+
+
+STREAMED_KINDS = ("ekf", "iekf")
+"""The estimators that filter a streamed record block by block (the UKF keeps its own kernel and
+the ML estimate needs the whole record at once: they read it whole)."""
+
+
+@dataclass
+class StreamScan:
+    """What the first read of a streamed record gives (:func:`scan_record`): per position (in
+    order) the filter instants ``t`` (s since its start), the record's row of every instant end
+    to end ``rows``, whether the true angles are there, the largest timestamp jitter (s), and
+    the sums of Ax, Ay, Az at the instants against the nominal output (the plausibility check and
+    the fit's diagnosis)."""
+
+    positions: list[int]
+    t: list[np.ndarray]
+    rows: np.ndarray
+    truth: bool
+    jitter_s: float
+    moments: Moments
+    cmd_deg: np.ndarray
+
+
+def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
+    """Check a record read in ``chunks`` (:func:`platcal.records.iter_table` tables, in file
+    order) as :func:`record_input` checks a whole one, holding one position at a time.
+
+    A streamed record holds each position as one block of rows, positions in increasing order
+    (a logger's order; a record in any other order is read whole, ``--chunk-rows 0``). Every
+    chunk's position numbers and commanded angles are checked as it comes; a position's checks
+    (:func:`~.record.check_position`) and its filter instants (:func:`~.record.select_instants`)
+    need its times whole (their medians), so the position's ``t`` and ``Ax, Ay, Az`` are held
+    until it ends (32 bytes per sample of the longest position); the nominal output at its
+    instants comes from a noise-free simulation of that position in chunks.
+    """
+    K = scheme.n_positions
+    cmd = scheme.angles_deg
+    max_gap = float(study.config["record"]["max_gap_s"])
+    want = expected_g(study, scheme)
+    params = study.centrifuge.scheme_params(scheme)
+    positions, ts, rows, jit = [], [], [], 0.0
+    moments = Moments.zero(3)
+    truth = None
+    held: dict = {"k": None, "t": [], "a": [], "row0": 0}
+
+    def finish() -> None:
+        nonlocal jit
+        k = held["k"]
+        if k is None:
+            return
+        t = np.concatenate(held["t"])
+        a = np.concatenate(held["a"])
+        check_position(k, t, a, scheme, study.sample_s, max_gap, float(want[k - 1]))
+        jit = max(jit, timestamp_jitter(t, study.sample_s))
+        keep, tk = select_instants(k, t, study.filter.period_s, max_gap, study.filter.update_at_reset)
+        tk = tk[keep]
+        moments.add(a[keep], nominal_at(study, scheme, params, k, tk))
+        positions.append(k)
+        ts.append(tk)
+        rows.append(held["row0"] + keep)
+        held.update(k=None, t=[], a=[])
+
+    row = 0
+    for df in chunks:
+        if truth is None:
+            present = [c for c in TRUTH_COLUMNS if c in df.columns]
+            if present and len(present) != 3:
+                raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in df.columns][0]}",
+                                 "the true angles come as all three of alpha, beta, gamma or not at all")
+            truth = len(present) == 3
+        pos = df["position"].to_numpy(float)
+        off = (pos != np.round(pos)) | (pos < 1) | (pos > K)
+        if off.any():
+            raise InputError("--data column position", f"index {_num(pos[off][0])} is not a position of scheme "
+                             f"{scheme.name!r}, which has positions 1..{K}; pick the right --scheme")
+        rec_cmd = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
+        bad = np.max(np.abs(rec_cmd - cmd[pos.astype(int) - 1]), axis=1) > 1e-6
+        if bad.any():
+            i = int(np.argmax(bad))
+            k = int(pos[i])
+            raise InputError(f"--data position {k}", f"commanded angles {rec_cmd[i].tolist()} differ from "
+                             f"scheme {scheme.name!r} position {k} {cmd[k - 1].tolist()}; pick the right --scheme")
+        t = df["t"].to_numpy(float)
+        a = df[["Ax", "Ay", "Az"]].to_numpy(float)
+        cuts = np.r_[0, np.flatnonzero(np.diff(pos)) + 1, pos.size]
+        for i0, i1 in zip(cuts[:-1], cuts[1:]):
+            k = int(pos[i0])
+            if k != held["k"]:
+                finish()
+                if positions and k <= positions[-1]:
+                    raise InputError("--data column position", f"position {k} follows position {positions[-1]} at "
+                                     f"row {row + i0 + 2}: a record read in chunks holds each position as one block, "
+                                     "in increasing order; sort it so, or read it whole with --chunk-rows 0")
+                held.update(k=k, row0=row + i0)
+            held["t"].append(t[i0:i1])
+            held["a"].append(a[i0:i1])
+        row += len(df)
+    finish()
+    missing = [k for k in range(1, K + 1) if k not in positions]
+    if missing:
+        raise InputError("--data column position", f"the record has positions {_ranges(positions)} but scheme "
+                         f"{scheme.name!r} has {K} (1..{K}): missing {_ranges(missing)}; pick the right --scheme "
+                         "or record every position")
+    return StreamScan(positions, ts, np.concatenate(rows), bool(truth), jit, moments, cmd[np.array(positions) - 1])
+
+
+def nominal_at(study: Study, scheme: Scheme, params: np.ndarray, k: int, tk: np.ndarray,
+               chunk_samples: int = CHUNK_ROWS) -> np.ndarray:
+    """(M, 3) g: :func:`nominal_output` of position ``k`` (1-based) at its instants ``tk`` (s),
+    from a noise-free simulation of that position alone in chunks (the same numbers)."""
+    n = whole_periods(scheme.dwell_s, study.sample_s, f"schemes.{scheme.name}.dwell_s")
+    idx = np.clip(np.rint(tk / study.sample_s).astype(int), 0, n - 1)
+    out = np.empty((tk.size, 3))
+    for ch in simulate_chunks(np.zeros_like(study.truth), scheme, params, study.noise, None, sample_s=study.sample_s,
+                              chunk_samples=chunk_samples, positions=[k - 1]):
+        sel = (idx >= ch.j0) & (idx < ch.j0 + ch.t.size)
+        out[sel] = ch.A[0, idx[sel] - ch.j0]
+    return out
+
+
+def identify_streamed(study: Study, scheme: Scheme, read_chunks) -> tuple[Estimate, StreamScan, FitCheck | None]:
+    """Identify a record read in chunks, twice or more (``read_chunks()`` yields the record's
+    checked tables in file order, afresh at each call): a first read checks it
+    (:func:`scan_record`, then the plausibility of Ax, Ay, Az as :func:`record_input`), each
+    filter pass reads it again and filters it block by block (:func:`~.ekf.run_ekf`
+    ``z_source``) and the last pass's innovations feed the fit check's running sums
+    (:class:`~platcal.estimation.fit.FitSums`). Estimates, covariance, history and mean NIS are
+    bit-identical to the whole record's; the fit's figures agree to rounding. The fit's
+    diagnosis of a record that does not fit names units, signs, swaps (from the sums) and the
+    clock jitter of :func:`clock_finding`, not the clock offset that :func:`record_fit` finds in
+    the innovations' time derivative. ``filter.estimator`` one of :data:`STREAMED_KINDS`,
+    without warm-up."""
+    scan = scan_record(read_chunks(), study, scheme)
+    refuse_recognised_moments(scan.moments, FIT_CHANNELS, "g",
+                              "the record's Ax, Ay, Az must be the platform's x, y, z accelerometers in g")
+    settings = replace(study.filter, innovations=True)
+    params = study.centrifuge.scheme_params(scheme)[np.array(scan.positions) - 1]
+    offs = np.r_[0, np.cumsum([tk.size for tk in scan.t])]
+    rows = scan.rows
+    state = {}
+
+    def z_source():
+        r0 = 0
+        for df in read_chunks():
+            r1 = r0 + len(df)
+            i0, i1 = np.searchsorted(rows, r0), np.searchsorted(rows, r1)
+            yield int(i0), int(i1), df[["Ax", "Ay", "Az"]].to_numpy(float)[rows[i0:i1] - r0][None]
+            r0 = r1
+
+    def on_innovations(i0, i1, zb, rb):
+        if i0 == 0:  # a new pass: the fit judges the last one
+            state["sums"] = FitSums(3)
+        segment = np.searchsorted(offs, np.arange(i0, i1), side="right")
+        state["sums"].add(rb[0, :, :3], rb[0, :, 3:], segment)
+
+    kind = check_kind(settings.estimator)
+    est = kind.run(None, scan.t, scan.cmd_deg, params, settings, z_source=z_source, on_innovations=on_innovations,
+                   **dict(settings.estimator_options))
+    diagnosis = [text for _, text in gross_errors_moments(scan.moments, FIT_CHANNELS)]
+    clock = clock_text(study, scheme, scan.jitter_s)
+    if not diagnosis and clock is not None:
+        diagnosis.append(clock)
+    return est, scan, state["sums"].check(FIT_CHANNELS, diagnosis=tuple(diagnosis))
+
+
+def streamable(settings: FilterSettings) -> bool:
+    """Whether the estimator of ``settings`` filters a record in chunks (:data:`STREAMED_KINDS`,
+    no warm-up pass)."""
+    return settings.estimator in STREAMED_KINDS and dict(settings.estimator_options).get("warmup_s") is None
 
 
 def identify_record(study: Study, scheme: Scheme, df: pd.DataFrame) -> Estimate:

@@ -62,6 +62,26 @@ def sim_to_frame(sim, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
     })
 
 
+def chunk_to_frame(chunk, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
+    """One replicate of a :class:`~platcal.rigs.centrifuge.simulate.SimChunk` as rows of a test
+    record: the rows :func:`sim_to_frame` gives for those samples."""
+    m = chunk.t.size
+    cmd = scheme.angles_deg[chunk.position]
+    return pd.DataFrame({
+        "position": np.full(m, chunk.position + 1),
+        "t": chunk.t,
+        "alpha_cmd": np.full(m, cmd[0]),
+        "beta_cmd": np.full(m, cmd[1]),
+        "gamma_cmd": np.full(m, cmd[2]),
+        "Ax": chunk.A[replicate, :, 0],
+        "Ay": chunk.A[replicate, :, 1],
+        "Az": chunk.A[replicate, :, 2],
+        "alpha": chunk.angles[replicate, :, 0] / DEG,
+        "beta": chunk.angles[replicate, :, 1] / DEG,
+        "gamma": chunk.angles[replicate, :, 2] / DEG,
+    })
+
+
 def read_record(path: str | os.PathLike, mapping: RecordMapping | None = None) -> pd.DataFrame:
     """Read a test record (CSV or Parquet) and check its columns and values; a log in other
     columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
@@ -104,35 +124,42 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
         raise InputError("--data column position", f"the record has positions {_ranges(found)} but scheme "
                          f"{scheme.name!r} has {K} (1..{K}): missing {_ranges(missing)}; pick the right --scheme "
                          "or record every position")
+    a = df[["Ax", "Ay", "Az"]].to_numpy(float) if expected_g is not None else None
     for k in found:
-        t = df["t"].to_numpy(float)[pos == k]
-        field = f"--data column t, position {k}"
-        if t.size < 2:
-            raise InputError(field, f"has {t.size} sample; a position of scheme {scheme.name!r} lasts "
-                             f"{scheme.dwell_s:g} s, about {round(scheme.dwell_s / sample_s)} samples")
-        check_increasing(t, field, " of the position")
-        med = check_time_unit(t, sample_s, field, f"sampling.sample_ms = {sample_s * 1e3:g} ms = {sample_s:g} s",
-                              " since the position's start")
-        t = t - position_origin(t, med, max_gap_s)
-        check_gap(t, max_gap_s, field)
-        if expected_g is not None:
-            a = df[["Ax", "Ay", "Az"]].to_numpy(float)[pos == k]
-            with np.errstate(over="ignore"):  # 1e300 g is refused below, without a numpy warning
-                size = float(np.median(np.linalg.norm(a, axis=1)))
-            want = float(expected_g[k - 1])
-            if not (want / UNIT_FACTOR_G <= size <= want * UNIT_FACTOR_G):
-                raise InputError(f"--data columns Ax, Ay, Az, position {k}",
-                                 f"median |A| = {size:.4g}, expected about {want:.4g} g at this position "
-                                 "(centrifuge g_level and gravity); the accelerations must be in g")
-        if t[0] > max_gap_s:
-            raise InputError(field, f"first sample {_num(t[0])} s after the position's start, more than "
-                             f"record.max_gap_s = {max_gap_s:g} s")
-        span = float(t[-1] + med)
-        if abs(span - scheme.dwell_s) > max_gap_s:
-            raise InputError(field, f"position {k} spans {span:g} s (t = {_num(t[0])} .. {_num(t[-1])} s "
-                             "from its start), "
-                             f"but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s per position "
-                             f"(record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
+        check_position(k, df["t"].to_numpy(float)[pos == k], None if a is None else a[pos == k], scheme, sample_s,
+                       max_gap_s, None if expected_g is None else float(expected_g[k - 1]))
+
+
+def check_position(k: int, t: np.ndarray, a: np.ndarray | None, scheme: Scheme, sample_s: float, max_gap_s: float,
+                   want_g: float | None = None) -> None:
+    """:func:`check_record`'s checks of position ``k`` from its times ``t`` (s) and, with
+    ``want_g`` (the magnitude of the specific force it should measure, g), its outputs ``a``
+    (n, 3) g."""
+    field = f"--data column t, position {k}"
+    if t.size < 2:
+        raise InputError(field, f"has {t.size} sample; a position of scheme {scheme.name!r} lasts "
+                         f"{scheme.dwell_s:g} s, about {round(scheme.dwell_s / sample_s)} samples")
+    check_increasing(t, field, " of the position")
+    med = check_time_unit(t, sample_s, field, f"sampling.sample_ms = {sample_s * 1e3:g} ms = {sample_s:g} s",
+                          " since the position's start")
+    t = t - position_origin(t, med, max_gap_s)
+    check_gap(t, max_gap_s, field)
+    if want_g is not None:
+        with np.errstate(over="ignore"):  # 1e300 g is refused below, without a numpy warning
+            size = float(np.median(np.linalg.norm(a, axis=1)))
+        if not (want_g / UNIT_FACTOR_G <= size <= want_g * UNIT_FACTOR_G):
+            raise InputError(f"--data columns Ax, Ay, Az, position {k}",
+                             f"median |A| = {size:.4g}, expected about {want_g:.4g} g at this position "
+                             "(centrifuge g_level and gravity); the accelerations must be in g")
+    if t[0] > max_gap_s:
+        raise InputError(field, f"first sample {_num(t[0])} s after the position's start, more than "
+                         f"record.max_gap_s = {max_gap_s:g} s")
+    span = float(t[-1] + med)
+    if abs(span - scheme.dwell_s) > max_gap_s:
+        raise InputError(field, f"position {k} spans {span:g} s (t = {_num(t[0])} .. {_num(t[-1])} s "
+                         "from its start), "
+                         f"but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s per position "
+                         f"(record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
 
 
 def position_origin(t: np.ndarray, step: float, max_gap_s: float | None) -> float:
@@ -199,16 +226,24 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
         if np.max(np.abs(rec_cmd - cmd[k - 1])) > 1e-6:
             raise InputError(f"--data position {k}", f"commanded angles {rec_cmd[0].tolist()} differ from "
                              f"scheme {scheme.name!r} position {k} {cmd[k - 1].tolist()}; pick the right --scheme")
-        step = float(np.median(np.diff(t))) if t.size > 1 else period_s
-        origin = position_origin(t, step, max_gap_s)
-        if origin != 0.0:
-            t = t - origin
-        keep = nearest_samples(t, period_s, 0.5 * step, first=0 if update_at_reset else 1)
-        if keep.size < 1:
-            raise InputError(f"--data column t, position {k}", f"no sample falls on a {period_s * 1e3:g} ms filter instant")
+        keep, t = select_instants(k, t, period_s, max_gap_s, update_at_reset)
         ts.append(t[keep])
         zs.append(rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep][None])
     return FilterInput(positions=present, t=ts, z=zs, cmd_deg=cmd[np.array(present) - 1])
+
+
+def select_instants(k: int, t: np.ndarray, period_s: float, max_gap_s: float | None,
+                    update_at_reset: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``(keep, t - origin)``: the indices of position ``k``'s samples nearest its filter
+    instants and its times from the position's start (see :func:`filter_input`)."""
+    step = float(np.median(np.diff(t))) if t.size > 1 else period_s
+    origin = position_origin(t, step, max_gap_s)
+    if origin != 0.0:
+        t = t - origin
+    keep = nearest_samples(t, period_s, 0.5 * step, first=0 if update_at_reset else 1)
+    if keep.size < 1:
+        raise InputError(f"--data column t, position {k}", f"no sample falls on a {period_s * 1e3:g} ms filter instant")
+    return keep, t
 
 
 COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az")

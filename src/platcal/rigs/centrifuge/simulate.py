@@ -18,6 +18,7 @@ step (the stages move the angles by ~1e-9 rad, handled by exact-to-rounding Tayl
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numba
@@ -60,45 +61,50 @@ class SimResult:
 
 @njit(parallel=True, cache=True)
 def _simulate_position(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, arw, keep, out_a,
-                       out_ang):
+                       out_ang, i0, n_total):
     """Integrate every replicate of the batch through one position (see :func:`_simulate_one`).
 
     ``fr_tab`` (U, n, 3, 3) tabulates the base specific force per distinct parameter row;
-    replicate b uses ``fr_tab[tab_of[b]]``.
+    replicate b uses ``fr_tab[tab_of[b]]``. ``i0``, ``n_total``: the chunk's first sample and the
+    position's samples (a position simulated in chunks, :func:`simulate_chunks`); ``theta0`` ends
+    holding the angles at sample ``i0 + n``, where the next chunk starts.
     """
     B = theta0.shape[0]
     for b in prange(B):
         _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, arw, b,
-                      keep, out_a[b], out_ang[b])
+                      keep, out_a[b], out_ang[b], i0, n_total)
 
 
 @njit(cache=True)
 def _simulate_position_serial(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, arw, keep,
-                              out_a, out_ang):
+                              out_a, out_ang, i0, n_total):
     """:func:`_simulate_position` without threads (a batch of one, or one thread): same kernel,
     no parallel region to start and join."""
     for b in range(theta0.shape[0]):
         _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, arw, b,
-                      keep, out_a[b], out_ang[b])
+                      keep, out_a[b], out_ang[b], i0, n_total)
 
 
 @njit(cache=True)
-def _simulate_one(theta0, coef, n, dt, params, fr_tab, acc_noise, arw, b, keep, out_a, out_ang):
-    """One replicate: RK4 of eq. 18 over ``n`` samples of ``dt`` s from ``theta0`` (rad), keeping
-    one output in ``keep``. ``fr_tab[i, s]`` is the base specific force (m/s^2) at sample i's
+def _simulate_one(theta0, coef, n, dt, params, fr_tab, acc_noise, arw, b, keep, out_a, out_ang, i0, n_total):
+    """One replicate: RK4 of eq. 18 over the ``n`` samples ``i0 .. i0 + n - 1`` (of ``n_total``
+    in the position) of ``dt`` s from ``theta0`` (rad, the angles at sample ``i0``; left holding
+    those at sample ``i0 + n``), keeping the outputs of the samples that are multiples of
+    ``keep``. ``fr_tab[i, s]`` is the base specific force (m/s^2) at the chunk's sample i's
     start, middle and end (s = 0, 1, 2). Noise arrays are (B, n, 3) or (B, 0, 3) for none."""
     g = params[P_G]
     ang = theta0.copy()
     new = np.empty(3)
     noisy_a = acc_noise.shape[1] > 0
     noisy_g = arw.shape[1] > 0
+    j0 = (i0 + keep - 1) // keep  # the first kept sample's slot in the position
     for i in range(n):
         # one set of sin/cos per sample serves the measurement and the RK4 step
         sa, ca = np.sin(ang[0]), np.cos(ang[0])
         sb, cb = np.sin(ang[1]), np.cos(ang[1])
         sg, cg = np.sin(ang[2]), np.cos(ang[2])
-        if i % keep == 0:
-            j = i // keep
+        if (i0 + i) % keep == 0:
+            j = (i0 + i) // keep - j0
             fr = fr_tab[i, 0]
             m0, m1, m2 = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
             out_a[j, 0] = m0 + (acc_noise[b, i, 0] if noisy_a else 0.0)
@@ -106,21 +112,24 @@ def _simulate_one(theta0, coef, n, dt, params, fr_tab, acc_noise, arw, b, keep, 
             out_a[j, 2] = m2 + (acc_noise[b, i, 2] if noisy_a else 0.0)
             for r in range(3):
                 out_ang[j, r] = ang[r]
-        if i < n - 1:
+        if i0 + i < n_total - 1:
             rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr_tab[i], dt, params, new)
             for r in range(3):
                 ang[r] = new[r] + (arw[b, i, r] if noisy_g else 0.0)
+    for r in range(3):
+        theta0[r] = ang[r]
 
 
-def _force_tables(params: np.ndarray, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Base specific force (eq. 10, m/s^2) at each sample's start, middle and end, per distinct
-    row of ``params`` (B, 5): ``(tables (U, n, 3, 3), index (B,) of each replicate's table)``.
+def _force_tables(params: np.ndarray, n: int, dt: float, i0: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Base specific force (eq. 10, m/s^2) at the start, middle and end of samples ``i0 .. i0 +
+    n - 1``, per distinct row of ``params`` (B, 5): ``(tables (U, n, 3, 3), index (B,) of each
+    replicate's table)``.
 
     Replicates normally share the centrifuge, so this is computed once, not B times; the times
     are formed exactly as the step's stage times ``t, t + dt/2, t + dt`` with ``t = i dt``.
     """
     uniq, tab_of = np.unique(params, axis=0, return_inverse=True)
-    t0 = np.arange(n) * dt
+    t0 = np.arange(i0, i0 + n) * dt
     times = np.stack([t0, t0 + 0.5 * dt, t0 + dt], axis=1)  # (n, 3)
     out = np.empty((uniq.shape[0], n, 3, 3))
     for u, p in enumerate(uniq):
@@ -162,7 +171,50 @@ def simulate(
     sample_s : sample period, s (5 ms).
     keep_every : keep one sample in this many (the filter's period / sample period);
         the noise streams are the same whatever this is.
+
+    The whole of :func:`simulate_chunks` (each position one chunk) in arrays.
     """
+    parts = list(simulate_chunks(truth, scheme, centrifuge_params, noise, seeds, sample_s=sample_s,
+                                 keep_every=keep_every))
+    K = scheme.n_positions
+    B = parts[0].A.shape[0]
+    nk = sum(p.A.shape[1] for p in parts if p.position == 0)
+    A = np.empty((B, K, nk, 3))
+    ang = np.empty((B, K, nk, 3))
+    for p in parts:
+        A[:, p.position, p.j0:p.j0 + p.A.shape[1]] = p.A
+        ang[:, p.position, p.j0:p.j0 + p.A.shape[1]] = p.angles
+    n = whole_periods(scheme.dwell_s, sample_s, f"schemes.{scheme.name}.dwell_s")
+    t = np.arange(0, n, keep_every) * sample_s
+    return SimResult(A=A, angles=ang, t=t, set_error=parts[0].set_error)
+
+
+@dataclass
+class SimChunk:
+    """Samples ``i0 .. i0 + n - 1`` of one position of a simulation (:func:`simulate_chunks`):
+    ``A`` and ``angles`` (B, m, 3) in g and rad at the kept samples (slots ``j0 .. j0 + m - 1``
+    of the position), their times ``t`` (m,) s since the position's start, and the setting
+    errors (B, K, 3) rad of the whole run."""
+
+    position: int
+    j0: int
+    A: np.ndarray
+    angles: np.ndarray
+    t: np.ndarray
+    set_error: np.ndarray
+
+
+def simulate_chunks(truth: np.ndarray, scheme: Scheme, centrifuge_params: np.ndarray, noise: Noise,
+                    seeds: list[np.random.SeedSequence] | None, *, sample_s: float = 0.005, keep_every: int = 1,
+                    chunk_samples: int | None = None, positions=None) -> Iterator[SimChunk]:
+    """:func:`simulate` position by position, each in chunks of at most ``chunk_samples`` samples
+    (None: a position at a time), so a long test is written without being held: the noise of a
+    chunk is drawn from the replicate's streams where the previous chunk stopped and the attitude
+    carries over, so the numbers are those of :func:`simulate` whatever the chunk size
+    (docs/centrifuge-model.md §8). Arguments as :func:`simulate`; ``positions`` (0-based, a
+    noise-free run only, whose positions are independent): only those positions."""
+    if positions is not None and seeds is not None:
+        raise ValueError("positions: a noisy run draws its noise position after position; simulate them all")
     truth = np.atleast_2d(np.asarray(truth, float))
     B = truth.shape[0] if seeds is None else len(seeds)
     if truth.shape[0] == 1 and B > 1:
@@ -171,7 +223,7 @@ def simulate(
         raise ValueError(f"truth must be (B, {N_FULL}), got {truth.shape}")
     K = scheme.n_positions
     n = whole_periods(scheme.dwell_s, sample_s, f"schemes.{scheme.name}.dwell_s")
-    nk = (n + keep_every - 1) // keep_every
+    step = n if chunk_samples is None else max(1, int(chunk_samples))
     cmd = scheme.angles_deg * DEG
     params = broadcast_params(centrifuge_params, B, K)
     streams = replicate_streams(seeds) if seeds is not None else None
@@ -179,45 +231,50 @@ def simulate(
     if streams is not None and noise.sigma_set_arcsec > 0:
         for b, (g_set, _, _) in enumerate(streams):
             set_err[b] = g_set.standard_normal((K, 3)) * noise.sigma_set_arcsec * ARCSEC
-    A = np.empty((B, K, nk, 3))
-    ang = np.empty((B, K, nk, 3))
     arw_step = noise.arw_deg_rth * DEG / 60.0 * np.sqrt(sample_s)  # rad per step
     kernel = _simulate_position_serial if B == 1 or numba.get_num_threads() == 1 else _simulate_position
-    # noise buffers reused position after position, filled in place by each replicate's stream
     use_acc = streams is not None and noise.sigma_a_ug > 0
     use_arw = streams is not None and arw_step > 0
-    acc = np.empty((B, n if use_acc else 0, 3))
-    arw = np.empty((B, n if use_arw else 0, 3))
     n_workers = min(B, numba.get_num_threads())
     pool = ThreadPoolExecutor(n_workers) if n_workers > 1 and (use_acc or use_arw) else None
+    try:
+        for k in range(K) if positions is None else positions:
+            theta0 = np.ascontiguousarray(cmd[k][None, :] + set_err[:, k])
+            pk = np.ascontiguousarray(params[:, k])
+            for i0 in range(0, n, step):
+                m = min(step, n - i0)
+                # noise buffers of the chunk, filled in place by each replicate's stream
+                acc = np.empty((B, m if use_acc else 0, 3))
+                arw = np.empty((B, m if use_arw else 0, 3))
 
-    def draw(b: int) -> None:
-        # numpy releases the GIL while filling, so replicates draw in parallel threads; each
-        # replicate has its own generators, so the numbers do not depend on the threading
-        if use_acc:
-            streams[b][1].standard_normal(out=acc[b])
-        if use_arw:
-            streams[b][2].standard_normal(out=arw[b])
+                def draw(b: int) -> None:
+                    # numpy releases the GIL while filling, so replicates draw in parallel threads; each
+                    # replicate has its own generators, so the numbers do not depend on the threading
+                    # (nor on the chunks: a stream drawn in pieces gives the numbers drawn at once)
+                    if use_acc:
+                        streams[b][1].standard_normal(out=acc[b])
+                    if use_arw:
+                        streams[b][2].standard_normal(out=arw[b])
 
-    for k in range(K):
-        if use_acc or use_arw:
-            if pool is None:
-                for b in range(B):
-                    draw(b)
-            else:
-                list(pool.map(draw, range(B)))
-        if use_acc:
-            acc *= noise.sigma_a_ug
-            acc *= 1e-6
-        if use_arw:
-            arw *= arw_step
-        theta0 = np.ascontiguousarray(cmd[k][None, :] + set_err[:, k])
-        pk = np.ascontiguousarray(params[:, k])
-        fr_tab, tab_of = _force_tables(pk, n, sample_s)
-        with numba.parallel_chunksize(1):  # dynamic: balances threads slowed by other load
-            kernel(theta0, truth, n, sample_s, pk, fr_tab, tab_of, acc, arw, keep_every,
-                   A[:, k], ang[:, k])
-    if pool is not None:
-        pool.shutdown()
-    t = np.arange(0, n, keep_every) * sample_s
-    return SimResult(A=A, angles=ang, t=t, set_error=set_err)
+                if use_acc or use_arw:
+                    if pool is None:
+                        for b in range(B):
+                            draw(b)
+                    else:
+                        list(pool.map(draw, range(B)))
+                if use_acc:
+                    acc *= noise.sigma_a_ug
+                    acc *= 1e-6
+                if use_arw:
+                    arw *= arw_step
+                j0 = (i0 + keep_every - 1) // keep_every
+                kept = np.arange(j0 * keep_every, i0 + m, keep_every)
+                A = np.empty((B, kept.size, 3))
+                ang = np.empty((B, kept.size, 3))
+                fr_tab, tab_of = _force_tables(pk, m, sample_s, i0)
+                with numba.parallel_chunksize(1):  # dynamic: balances threads slowed by other load
+                    kernel(theta0, truth, m, sample_s, pk, fr_tab, tab_of, acc, arw, keep_every, A, ang, i0, n)
+                yield SimChunk(position=k, j0=j0, A=A, angles=ang, t=kept * sample_s, set_error=set_err)
+    finally:
+        if pool is not None:
+            pool.shutdown()

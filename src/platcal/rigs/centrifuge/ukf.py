@@ -62,7 +62,7 @@ from .attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scra
                        rk4_scalar)
 from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
 from .base import specific_force_into
-from .ekf import Estimate, FilterSettings, drive_passes, filter_start, propagate_attitude
+from .ekf import Estimate, FilterSettings, attitude_reset, drive_passes, filter_start, propagate_attitude
 
 SIGMA_POINT_MODES = ("nonlinear", "update", "all")
 
@@ -333,12 +333,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     nis = 0.0
     bad = 0
     # attitude reset at time 0: commanded angles, variance sigma_set^2, no cross-covariance
-    for r in range(3):
-        xb[nc + r] = cmd[r]
-        for i in range(n):
-            Pb[nc + r, i] = 0.0
-            Pb[i, nc + r] = 0.0
-        Pb[nc + r, nc + r] = reset_var
+    attitude_reset(xb, Pb, cmd, reset_var)
     t_prev = 0.0
     specific_force_into(0.0, pb, fr_prev)
     for m in range(M):

@@ -17,7 +17,7 @@ def fallback_shift(platform: str, replicates: int) -> np.ndarray:
     st = load_config({"rig": "lowprec_centrifuge"})
     rb = simulate_batch(st, platform, "run1", [replicate_seed(0, "fallback", 10, r) for r in range(replicates)])
     args = (rb.prof.schedule, st.centrifuge.arm_m, st.latitude_deg)
-    with_f = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, *args)
+    with_f = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, *args)
     f_diff = np.gradient(rb.v_ind, rb.prof.t, axis=1)   # what read_record does without fE, fN
     without = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, f_diff, *args)
     return (without.coeffs - with_f.coeffs) / with_f.sigmas

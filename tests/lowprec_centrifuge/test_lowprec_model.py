@@ -243,7 +243,7 @@ def test_proposed_filter_covariance_is_symmetric_positive_definite():
 
     st = small()
     rb = simulate_batch(st, "P1", "run1", S([0, 1]))
-    res = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
+    res = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, rb.prof.schedule,
                             st.centrifuge.arm_m, st.latitude_deg)
     for P in res.P:
         assert np.array_equal(P, P.T)

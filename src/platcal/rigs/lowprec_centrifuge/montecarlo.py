@@ -128,7 +128,7 @@ def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
                 continue
             finals[r], sens[r] = rb.final.copy(), rb.sens_final.copy()
             if estimator == "proposed":
-                fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule, arm,
+                fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, rb.prof.schedule, arm,
                                        study.latitude_deg)
                 est.append(fr.coeffs)
                 sig.append(fr.sigmas)
@@ -266,7 +266,7 @@ def study_trace(cfg: dict) -> dict:
     run = list(study.runs[p])[0]
     seeds = [replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], 0)]
     rb = simulate_batch(study, p, run, seeds)
-    fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
+    fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, rb.prof.schedule,
                            study.centrifuge.arm_m, study.latitude_deg)
     tb = simulate_batch(study, p, "traditional", seeds)
     trad = identify_traditional(tb.prof.t, tb.v_ind, tb.psi, tb.prof.schedule, tb.prof.levels, study.centrifuge.arm_m)

@@ -7,9 +7,11 @@ motion (:mod:`.insim`: nonlinear mechanization, exact platform rotation, the acc
 and the gyro drift with its g-sensitive terms acting on the drifting platform), *not* the
 filter's linear model. In lock-step, the four unit-coefficient variants of §8 (v1..v4: the same
 INS with 1 ug/g kA_x, 1 ug/g^2 k2_x, 1 ug/g kA_y, 1 ug/g^2 k2_y alone; no other error, no noise)
-give the responses S_k of the compensation e_after = e_before - sum_k c_k S_k; the INS is linear
-in the coefficients to far below the metrics' resolution (measured in the tests against
-re-navigation with the corrected coefficients).
+give the responses S_k. The INS is not exactly linear in the coefficients (the transport-rate and
+Coriolis terms of velocity errors of up to 20 m/s): ``floor=True`` also navigates each replicate
+with its coefficients removed (the exact compensation, same draws and noise), and a calibration
+c_hat is compensated about that floor, e_after = e_floor + sum_k (c - c_hat)_k S_k, whose error is
+second order in the estimate's error (measured in the tests against re-navigation).
 
 Seeding (§9, [D] §12): a replicate is one ``numpy.random.SeedSequence``, the generic runner's
 (:func:`platcal.study.montecarlo.replicate_seed`); :func:`run_streams` derives from it, per
@@ -80,6 +82,7 @@ class RunBatch:
     f_meas: np.ndarray        # (S, N, 2) measured horizontal specific force (accelerometer outputs), m/s^2
     p_ind: np.ndarray         # (S, N, 2) INS position output relative to the start, m
     psi: np.ndarray           # (S, N) heading output, rad (not wrapped)
+    final_floor: np.ndarray | None = None  # (S, 4) end-of-run errors with the coefficients removed
 
     @property
     def final(self) -> np.ndarray:
@@ -141,11 +144,13 @@ def fine_truth(study: Study, platform: str, run: str) -> tuple[Profile, Kinemati
 
 
 def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None, keep_phi: bool = False,
-                   noise_free: bool = False) -> RunBatch:
+                   noise_free: bool = False, floor: bool = False) -> RunBatch:
     """Simulate ``run`` of ``platform`` for every replicate SeedSequence of ``seeds`` (§2-§5, §8, §9);
     ``replicates``: their numbers (``RunBatch.seeds``; 0, 1, ... by default).
 
-    ``noise_free``: no drawn residual and no noise (truth coefficients only).
+    ``noise_free``: no drawn residual and no noise (truth coefficients only). ``floor``: also the
+    end-of-run errors of the same INS (draws, noise) with its coefficients removed
+    (``RunBatch.final_floor``, the exact-coefficient compensation of §8).
     """
     streams = [run_streams(s, study.platform_index(platform), study.run_index(platform, run)) for s in seeds]
     seeds = np.arange(len(streams)) if replicates is None else np.asarray(replicates, dtype=np.int64)
@@ -162,6 +167,7 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
     v_ind = np.empty((nseed, n, 2))
     p_ind = np.empty((nseed, n, 2))
     f_meas = np.empty((nseed, n, 2))
+    final_floor = np.empty((nseed, 4)) if floor else None
     psi = np.empty((nseed, n))
     dr = {k: np.zeros((nseed, m)) for k, m in (("k0", 2), ("sk", 2), ("eps", 3), ("phi0", 3), ("gg", 18))}
     for i, (param_seed, noise_seed) in enumerate(streams):
@@ -180,6 +186,9 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
         err[i], ph, f_meas[i] = ft.navigate(n, coef, gyro_vector(gg), eps * DEG_H, phi0, acc_w, gyro_w, keep_phi)
         if keep_phi:
             phi[i] = ph
+        if floor:
+            final_floor[i] = ft.navigate(n, np.concatenate([k0, sk, np.zeros(4)]) * 1e-6, gyro_vector(gg), eps * DEG_H,
+                                         phi0, acc_w, gyro_w)[0][-1]
         v_ind[i] = kin.v + err[i, :, :2]
         p_ind[i] = kin.p - kin.p[0] + err[i, :, 2:]
         psi[i] = kin.theta
@@ -194,4 +203,5 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
         sens[j] = ft.navigate(n, coef, np.zeros(N_FULL), np.zeros(3), np.zeros(3))[0]
     draws = Draws(k0_ug=dr["k0"], scale_ppm=dr["sk"], drift_deg_h=dr["eps"], phi0_rad=dr["phi0"], gyro_g=dr["gg"])
     return RunBatch(platform=platform, run=run, seeds=seeds, coeffs=coeffs, prof=prof, kin=kin, draws=draws,
-                    err=err, phi=phi, sens=sens, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi)
+                    err=err, phi=phi, sens=sens, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi,
+                    final_floor=final_floor)

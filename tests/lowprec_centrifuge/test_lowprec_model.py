@@ -79,7 +79,9 @@ def test_kinematics_imprecise(study):
     a_true = np.hypot(*k.f[i]) / G0
     r = cen.arm_m + 2e-3 + 0.02e-3 * a_true
     assert a_true == pytest.approx(30 * (1 + 3e-4) ** 2 * r / cen.arm_m, rel=2e-5)
-    assert k.omega[i] ** 2 * k.r[i] / G0 == pytest.approx(30 * (1 + 3e-4) ** 2 * r / cen.arm_m, rel=1e-9)
+    # centripetal alone: the stretch load is A of the unstretched arm, A0 = w^2 (r_nom + dr) / g0
+    r_exact = cen.arm_m + 2e-3 + 0.02e-3 * 30 * (1 + 3e-4) ** 2 * (cen.arm_m + 2e-3) / cen.arm_m
+    assert k.omega[i] ** 2 * k.r[i] / G0 == pytest.approx(30 * (1 + 3e-4) ** 2 * r_exact / cen.arm_m, rel=1e-12)
 
 
 def test_error_model_derivative_matches_F(study):

@@ -261,8 +261,9 @@ def coefficient_responses(rec: Record, lat_deg: float) -> np.ndarray:
     for j in range(len(COEFFS)):
         coef = np.zeros(8)
         coef[4 + j] = 1e-6
-        integrate_error_model(dt, np.ascontiguousarray(rec.f, dtype=float), coef, np.zeros(3), np.zeros(7), np.zeros((0, 2)),
-                   np.zeros((0, 3)), np.sin(lat), np.cos(lat), np.tan(lat), out[j], np.zeros((0, 3)))
+        integrate_error_model(dt, np.ascontiguousarray(rec.f, dtype=float), coef, np.zeros(3), np.zeros(7),
+                              np.zeros((0, 2)), np.zeros((0, 3)), np.sin(lat), np.cos(lat), np.tan(lat), out[j],
+                              np.zeros((0, 3)))
     return out
 
 

@@ -239,7 +239,8 @@ def lowprec_centrifuge(B: int, repeat: int) -> dict:
     rb = simulate_batch(study, p, r, [np.random.SeedSequence([1, i]) for i in range(B)])
 
     def ident(b0, b1):
-        return proposed.identify_proposed(rb.prof.t, rb.v_ind[b0:b1], rb.p_ind[b0:b1], rb.psi[b0:b1], rb.kin.f,
+        return proposed.identify_proposed(rb.prof.t, rb.v_ind[b0:b1], rb.p_ind[b0:b1], rb.psi[b0:b1],
+                                          rb.f_meas[b0:b1],
                                           rb.prof.schedule, study.centrifuge.arm_m, study.latitude_deg)
 
     tp, fr = best_time(lambda: ident(0, B), repeat)

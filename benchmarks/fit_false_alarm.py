@@ -89,7 +89,7 @@ def lowprec_fits(config: str, seeds: range, batch: int = 5):
     for a in range(seeds.start, seeds.stop, batch):
         ns = list(range(a, min(a + batch, seeds.stop)))
         rb = simulate_batch(study, platform, run, [replicate_seed(study.seed, SEED_KEY, noise, n) for n in ns], ns)
-        fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
+        fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, rb.prof.schedule,
                                study.centrifuge.arm_m, study.latitude_deg, keep_innovations=True)
         for s, n in enumerate(ns):
             yield n, record_fit(FilterResult(x=fr.x[s:s + 1], P=fr.P[s:s + 1], n_windows=fr.n_windows[s:s + 1],

@@ -109,7 +109,10 @@ def test_lowprec_compensate(tmp_path):
         free = df[col] - df[err]                              # the noise-free record's errors are the coefficients'
         scale = max(np.abs(df[err]).max(), 1e-12)
         assert np.abs(df[err]).max() > 0
-        assert np.abs(got[col] - free).max() <= 1e-9 * max(scale, np.abs(free).max()), col
+        # compensate integrates the §5 error model along the log's f; the record is the navigated INS
+        # (lowprec insim.py), which that model follows to 0.5 % of the coefficients' error
+        # (tests/lowprec_centrifuge/test_lowprec_insim.py): exact no longer, within that
+        assert np.abs(got[col] - free).max() <= 5e-3 * scale, col
     ident = compensate(tmp_path, calfile, clean, "comp_id.csv")
     for col, err in (("pE", "truth_dpE"), ("pN", "truth_dpN")):
         assert np.abs(ident[col] - (df[col] - df[err])).max() < 0.2 * np.abs(df[err]).max()

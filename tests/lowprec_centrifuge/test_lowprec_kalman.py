@@ -42,7 +42,7 @@ def dense_filter(T, z, m, valid, lat_rad):
 def test_shared_update_matches_the_dense_joseph_filter():
     st = load_config(TINY)
     rb = simulate_batch(st, "P1", "run1", [replicate_seed(0, "k", 10, r) for r in range(2)])
-    per = [window_data(rb.prof.t, rb.v_ind[s], rb.p_ind[s], np.unwrap(rb.psi[s]), rb.kin.f, rb.prof.schedule,
+    per = [window_data(rb.prof.t, rb.v_ind[s], rb.p_ind[s], np.unwrap(rb.psi[s]), rb.f_meas[s], rb.prof.schedule,
                        st.centrifuge.arm_m)[1:] for s in range(2)]
     nw = max(len(p[0]) for p in per) + 3   # padded windows of the second seed change nothing
     T, z, m, valid = np.zeros((2, nw)), np.zeros((2, nw, 4)), np.zeros((2, nw, 4)), np.zeros((2, nw), bool)

@@ -3,7 +3,9 @@ platform INS by a variable-period Kalman filter, against the traditional two-lev
 (``docs/lowprec-centrifuge.md``, seed 004).
 
 Modules: ``config`` (schema, :class:`Study`), ``profile`` (run profiles, kinematics), ``truth``
-(residual draws, INS error model, 5 lock-step variants), ``record`` (the test record),
+(residual draws, the simulated runs, 5 lock-step variants), ``insim`` (the independent truth: the
+platform INS navigated through the table's motion), ``errormodel`` (the §5 error model along a
+specific force: a log's compensation), ``record`` (the test record),
 ``proposed`` (windows, observations, 14-state filter), ``traditional`` (eq. 2), ``metrics``
 (compensation, effect), ``study`` (scenarios, tables from the tidy Monte Carlo tables), ``montecarlo`` (the
 hooks of the generic Monte Carlo runner), ``report`` (tables, figures, report),

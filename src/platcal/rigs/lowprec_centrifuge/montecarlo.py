@@ -114,11 +114,11 @@ def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
     arm = study.centrifuge.arm_m
     for p in study.platform_names():
         truth = coeff_vector(study, p)
-        finals, sens, coef = {}, {}, {}
+        finals, floors, sens, coef = {}, {}, {}, {}
         for r in study.run_names(p):
             if r == "traditional" and estimator != "traditional":
                 continue
-            rb = simulate_batch(study, p, r, seeds, replicates)
+            rb = simulate_batch(study, p, r, seeds, replicates, floor=r != "traditional")
             if r == "traditional":
                 c = identify_traditional(rb.prof.t, rb.v_ind, rb.psi, rb.prof.schedule, rb.prof.levels, arm)
                 est.append(c)
@@ -126,9 +126,9 @@ def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
                 extra[failed_column(p, r)] = failed_fits(c)
                 coef[r] = c
                 continue
-            finals[r], sens[r] = rb.final.copy(), rb.sens_final.copy()
+            finals[r], floors[r], sens[r] = rb.final.copy(), rb.final_floor, rb.sens_final.copy()
             if estimator == "proposed":
-                fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule, arm,
+                fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, rb.prof.schedule, arm,
                                        study.latitude_deg)
                 est.append(fr.coeffs)
                 sig.append(fr.sigmas)
@@ -140,10 +140,10 @@ def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
                 coef[r] = fr.coeffs
             del rb
         tcoef = np.broadcast_to(truth, (B, 4))
-        for j in finals:   # evaluated run
-            after_truth = compensate(finals[j], sens[j], tcoef)
+        for j in finals:   # evaluated run: compensated about the exact floor (second order in c_hat - c)
+            after_truth = floors[j]
             for i, c in list(coef.items()) + [("truth", tcoef)]:
-                extra.update(cross_metrics(p, i, j, finals[j], compensate(finals[j], sens[j], c), after_truth))
+                extra.update(cross_metrics(p, i, j, finals[j], compensate(floors[j], sens[j], c - tcoef), after_truth))
     q = quantities(study, estimator)
     proposed = estimator == "proposed"
     return ReplicateBatch(
@@ -266,7 +266,7 @@ def study_trace(cfg: dict) -> dict:
     run = list(study.runs[p])[0]
     seeds = [replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], 0)]
     rb = simulate_batch(study, p, run, seeds)
-    fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.kin.f, rb.prof.schedule,
+    fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, rb.prof.schedule,
                            study.centrifuge.arm_m, study.latitude_deg)
     tb = simulate_batch(study, p, "traditional", seeds)
     trad = identify_traditional(tb.prof.t, tb.v_ind, tb.psi, tb.prof.schedule, tb.prof.levels, study.centrifuge.arm_m)

@@ -5,7 +5,13 @@ Conventions ([D] where the spec is silent):
 * a sample is ``static`` (schedule 0) when the commanded rate is 0, ``hold`` (2) inside a
   traditional-run plateau (first sample >= plateau start, last sample < plateau end) and
   ``spinning`` (1) otherwise;
-* the arm angle starts at theta_0 = 0 (East); theta = cumulative trapezoid of the true rate.
+* the arm angle starts at theta_0 = 0 (East); theta = cumulative trapezoid of the true rate
+  (on the truth simulation's fine grid, :mod:`.insim`);
+* the true motion is on the spherical Earth of §1 (``kinematics``): the arm's centre at latitude L,
+  the platform at east/north offsets r (cos theta, sin theta) from it, the specific force with the
+  Earth-rate and transport-rate terms of the navigation equation (the INS's own mechanization,
+  inverted), so that an error-free INS reproduces the motion exactly (§2 neglects these terms in
+  the error model only).
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import G0, Centrifuge, Study
+from .config import G0, OMEGA_IE, R_EARTH, Centrifuge, Study
 
 STATIC, SPINNING, HOLD = 0, 1, 2
 SCHEDULE_NAMES = ("static", "spinning", "hold")
@@ -37,14 +43,21 @@ class Profile:
 
 @dataclass(frozen=True)
 class Kinematics:
-    """True centrifuge motion (§2): angle, rate, arm, specific force, velocity and position."""
+    """True centrifuge motion (§2) on the spherical Earth of §1: angle, rate, arm, specific force,
+    velocity, position and latitude."""
 
     theta: np.ndarray   # (N,) rad, from East toward North
     omega: np.ndarray   # (N,) rad/s
     r: np.ndarray       # (N,) m
-    f: np.ndarray       # (N, 2) horizontal specific force (E, N), m/s^2
-    v: np.ndarray       # (N, 2) velocity, m/s
-    p: np.ndarray       # (N, 2) position relative to the centre, m
+    f: np.ndarray       # (N, 2) horizontal specific force (E, N) in the navigation frame, m/s^2
+    f_up: np.ndarray    # (N,) vertical specific force, m/s^2 (g0 and the Coriolis/centripetal terms)
+    v: np.ndarray       # (N, 2) velocity over the ground (E, N), m/s
+    p: np.ndarray       # (N, 2) position relative to the centre, m (p_E = R cos L0 dlambda, p_N = R dL)
+    lat: np.ndarray     # (N,) true latitude, rad
+
+    def subsample(self, step: int) -> "Kinematics":
+        """Every ``step``-th sample (the record's grid from the truth's fine grid)."""
+        return Kinematics(**{k: getattr(self, k)[::step] for k in self.__dataclass_fields__})
 
 
 def level_rate(level_g: float, arm_m: float) -> float:
@@ -93,14 +106,18 @@ def _duration(seg, cen: Centrifuge) -> float:
     return (seg[2] - seg[1]) / cen.jerk_g_s
 
 
-def build_profile(study: Study, platform: str, run: str) -> Profile:
-    """The commanded rate of a run on the 100 Hz grid (§3)."""
+def build_profile(study: Study, platform: str, run: str, substeps: int = 1) -> Profile:
+    """The commanded rate of a run on the data grid (``profile.rate_hz``, §3), or on a grid
+    ``substeps`` times finer with the same span (the truth simulation's, :mod:`.insim`): its
+    sample ``substeps * k`` is the data grid's sample k."""
     cen = study.centrifuge
     segs = segments(study, platform, run)
     durs = [_duration(s, cen) for s in segs]
     edges = np.concatenate([[0.0], np.cumsum(durs)])
     dt = 1.0 / study.rate_hz
     n = int(np.floor(edges[-1] / dt + 1e-9)) + 1
+    n = substeps * (n - 1) + 1
+    dt = dt / substeps
     t = np.arange(n) * dt
     w = np.zeros(n)
     wd = np.zeros(n)
@@ -129,16 +146,40 @@ def build_profile(study: Study, platform: str, run: str) -> Profile:
     return Profile(t=t, omega_nom=w, omegadot_nom=wd, schedule=sched, levels=levels)
 
 
-def kinematics(prof: Profile, cen: Centrifuge, theta0: float = 0.0) -> Kinematics:
-    """True motion (§2): w = w_nom (1 + e_w), r = r_nom + dr + s A, A = w^2 (r_nom + dr) / g0."""
+def kinematics(prof: Profile, cen: Centrifuge, lat_deg: float, theta0: float = 0.0) -> Kinematics:
+    """True motion (§2) on the spherical Earth (§1, radius R) at latitude ``lat_deg`` (deg) of the
+    arm's centre: w = w_nom (1 + e_w), r = r_nom + dr + s A, A = w^2 (r_nom + dr) / g0, theta the
+    cumulative trapezoid of w from ``theta0`` (rad); east/north offsets r (cos theta, sin theta)
+    from the centre (p_E = R cos L0 dlambda, p_N = R dL). Velocity over the ground
+    V = (R cos L lambda', R L') and the specific force of the navigation equation inverted,
+    f = V' - g + (2 w_ie + w_en) x V (g = (0, 0, -g0), w_en = (-VN/R, VE/R, VE tan L / R)): the
+    motion an error-free INS mechanizing that equation reproduces. The arm's stretch rate enters
+    through r' and r'' (w'' by central differences of the tabulated w')."""
     w = prof.omega_nom * (1.0 + cen.rate_error)
     wd = prof.omegadot_nom * (1.0 + cen.rate_error)
     r0 = cen.arm_m + cen.arm_error_mm * 1e-3
-    r = r0 + cen.stretch_mm_per_g * 1e-3 * (w**2 * r0 / G0)
+    ks = cen.stretch_mm_per_g * 1e-3 * r0 / G0          # r = r0 + ks w^2
+    r = r0 + ks * w**2
+    wdd = np.gradient(wd, prof.t)
+    rd = 2 * ks * w * wd
+    rdd = 2 * ks * (wd**2 + w * wdd)
     dt = prof.dt
     theta = theta0 + np.concatenate([[0.0], np.cumsum(0.5 * dt * (w[1:] + w[:-1]))])
     c, s = np.cos(theta), np.sin(theta)
-    f = np.stack([-w**2 * r * c - r * wd * s, -w**2 * r * s + r * wd * c], axis=-1)
-    v = np.stack([-r * w * s, r * w * c], axis=-1)
-    p = np.stack([r * c, r * s], axis=-1)
-    return Kinematics(theta=theta, omega=w, r=r, f=f, v=v, p=p)
+    lat0 = np.radians(lat_deg)
+    lat = lat0 + r * s / R_EARTH
+    scale = np.cos(lat) / np.cos(lat0)                   # R cos L lambda' over R cos L0 lambda'
+    de, dn = rd * c - r * w * s, rd * s + r * w * c      # d/dt of the offsets r (cos, sin)
+    dde = rdd * c - 2 * rd * w * s - r * wd * s - r * w**2 * c
+    ddn = rdd * s + 2 * rd * w * c + r * wd * c - r * w**2 * s
+    ve, vn = scale * de, dn
+    lat_dot = vn / R_EARTH
+    vde = scale * dde - np.sin(lat) * lat_dot / np.cos(lat0) * de
+    vdn = ddn
+    wx = -vn / R_EARTH
+    wy = 2 * OMEGA_IE * np.cos(lat) + ve / R_EARTH
+    wz = 2 * OMEGA_IE * np.sin(lat) + ve * np.tan(lat) / R_EARTH
+    f = np.stack([vde - wz * vn, vdn + wz * ve], axis=-1)
+    f_up = G0 + wx * vn - wy * ve
+    return Kinematics(theta=theta, omega=w, r=r, f=f, f_up=f_up, v=np.stack([ve, vn], axis=-1),
+                      p=np.stack([r * c, r * s], axis=-1), lat=lat)

@@ -1,28 +1,38 @@
-"""Truth simulator: drawn residuals, the platform INS error model and the record (docs/lowprec-centrifuge.md §4, §5, §8, §9).
+"""Truth simulator: drawn residuals, the independent INS simulation and the record
+(docs/lowprec-centrifuge.md §4, §5, §8, §9, §12).
 
-One call simulates one run of one platform for a batch of seeds (leading axis), in lock-step with
-the four unit-coefficient variants of §8 (v1..v4: the response to 1 ug/g kA_x, 1 ug/g^2 k2_x,
-1 ug/g kA_y, 1 ug/g^2 k2_y alone; no other error, no noise, zero initial state). The INS error
-model is linear in the coefficients, so these give the compensated errors exactly.
+One call simulates one run of one platform for a batch of replicates (leading axis): the platform
+INS navigated at ``profile.truth_steps`` RK4 steps per data sample through the centrifuge's true
+motion (:mod:`.insim`: nonlinear mechanization, exact platform rotation, the accelerometer errors
+and the gyro drift with its g-sensitive terms acting on the drifting platform), *not* the
+filter's linear model. In lock-step, the four unit-coefficient variants of §8 (v1..v4: the same
+INS with 1 ug/g kA_x, 1 ug/g^2 k2_x, 1 ug/g kA_y, 1 ug/g^2 k2_y alone; no other error, no noise)
+give the responses S_k. The INS is not exactly linear in the coefficients (the transport-rate and
+Coriolis terms of velocity errors of up to 20 m/s): ``floor=True`` also navigates each replicate
+with its coefficients removed (the exact compensation, same draws and noise), and a calibration
+c_hat is compensated about that floor, e_after = e_floor + sum_k (c - c_hat)_k S_k, whose error is
+second order in the estimate's error (measured in the tests against re-navigation).
 
 Seeding (§9, [D] §12): a replicate is one ``numpy.random.SeedSequence``, the generic runner's
 (:func:`platcal.study.montecarlo.replicate_seed`); :func:`run_streams` derives from it, per
 (platform, run), one stream for the error parameters (in this order: k0 x,y; scale x,y; gyro
-drift x,y,z; tilt x,y; azimuth) and one for the noise (accelerometer x,y; gyro x,y,z; velocity
-E,N; position E,N; heading, each a full-length block in that order). A replicate's numbers do not
-depend on the batch it runs in, and they are common across centrifuge scenarios (the scenarios
-share one seed key, :mod:`.montecarlo`). Platform keys are 1-based positions in ``platforms``;
-run keys 1, 2, ... for the proposed runs in config order and 0 for the traditional run.
+drift x,y,z; tilt x,y; azimuth; then the gyros' g-sensitive terms DI, DO, DS and DIO, DIS, DOS,
+each x,y,z) and one for the noise (accelerometer x,y; gyro x,y,z; velocity E,N; position E,N;
+heading, each a full-length block in that order). A replicate's numbers do not depend on the
+batch it runs in, and they are common across centrifuge scenarios (the scenarios share one seed
+key, :mod:`.montecarlo`). Platform keys are 1-based positions in ``platforms``; run keys 1, 2, ...
+for the proposed runs in config order and 0 for the traditional run.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
-from .config import G0, OMEGA_IE, R_EARTH, Study
+from ...model.instruments import INDEX, N_FULL
+from .config import G0, Study
+from .insim import FineTruth
 from .profile import Kinematics, Profile, build_profile, kinematics
 
 ARCSEC = np.pi / 180 / 3600
@@ -31,6 +41,11 @@ DEG_H = np.pi / 180 / 3600
 TILT_SIGMA_ARCSEC = 5.0
 """Levelling residual of the alignment (§5), arcsec."""
 VARIANTS = 4
+G_TERMS = ("DI", "DO", "DS")
+"""The gyros' drift terms linear in the specific force (deg/h/g; the paper's K a terms, §4)."""
+GG_TERMS = ("DIO", "DIS", "DOS")
+"""[D] Its product terms (deg/h/g^2; the paper's a_X a_Y, a_Z a_X: zero mean over a revolution).
+The squared terms DII, DSS, DOO, not in the paper's model, are zero."""
 
 
 @dataclass(frozen=True)
@@ -41,6 +56,12 @@ class Draws:
     scale_ppm: np.ndarray     # (S, 2) scale-factor residual x, y, ppm
     drift_deg_h: np.ndarray   # (S, 3) gyro drift x, y, z, deg/h
     phi0_rad: np.ndarray      # (S, 3) initial attitude error x, y, z, rad
+    gyro_g: np.ndarray        # (S, 18) DI, DO, DS (deg/h/g), DIO, DIS, DOS (deg/h/g^2), each x, y, z
+
+    def gyro_coefficients(self, i: int) -> dict:
+        """Replicate i's g-sensitive gyro terms by the shared model's names (``DI_x`` ...)."""
+        return {f"{t}_{a}": float(v) for (t, a), v in
+                zip(((t, a) for t in G_TERMS + GG_TERMS for a in "xyz"), self.gyro_g[i])}
 
 
 @dataclass
@@ -58,8 +79,10 @@ class RunBatch:
     phi: np.ndarray | None    # (S, N, 3) true attitude errors (when asked for)
     sens: np.ndarray          # (4, N, 4) unit-coefficient responses (v1..v4)
     v_ind: np.ndarray         # (S, N, 2) INS velocity output, m/s
+    f_meas: np.ndarray        # (S, N, 2) measured horizontal specific force (accelerometer outputs), m/s^2
     p_ind: np.ndarray         # (S, N, 2) INS position output relative to the start, m
     psi: np.ndarray           # (S, N) heading output, rad (not wrapped)
+    final_floor: np.ndarray | None = None  # (S, 4) end-of-run errors with the coefficients removed
 
     @property
     def final(self) -> np.ndarray:
@@ -72,57 +95,6 @@ class RunBatch:
         return self.sens[:, -1, :]
 
 
-@numba.njit(cache=True)
-def _integrate(dt, f, coef, eps, x0, acc_w, gyro_w, sin_l, cos_l, tan_l, out, phi_out):
-    """Euler integration of the §5 error model for one trajectory.
-
-    coef = (k0x, k0y, dKx, dKy, kAx, k2x, kAy, k2y) dimensionless (g/g); eps rad/s; x0 =
-    (dVE, dVN, pE, pN, phix, phiy, phiz); acc_w (M, 2) m/s^2 and gyro_w (M, 3) rad/s are the
-    per-sample white noises (M = 0: none). out (N, 4) receives (dVE, dVN, pE, pN) at each sample,
-    phi_out (N, 3) the attitude (if its length is N).
-    """
-    n = f.shape[0]
-    noisy = acc_w.shape[0] == n
-    keep_phi = phi_out.shape[0] == n
-    ve, vn, pe, pn, px, py, pz = x0[0], x0[1], x0[2], x0[3], x0[4], x0[5], x0[6]
-    w_s = OMEGA_IE * sin_l
-    w_c = OMEGA_IE * cos_l
-    for k in range(n):
-        out[k, 0] = ve
-        out[k, 1] = vn
-        out[k, 2] = pe
-        out[k, 3] = pn
-        if keep_phi:
-            phi_out[k, 0] = px
-            phi_out[k, 1] = py
-            phi_out[k, 2] = pz
-        fe = f[k, 0]
-        fn = f[k, 1]
-        ae = fe / G0
-        an = fn / G0
-        nab_e = G0 * (coef[0] + coef[2] * ae + coef[4] * abs(ae) + coef[5] * ae * ae)
-        nab_n = G0 * (coef[1] + coef[3] * an + coef[6] * abs(an) + coef[7] * an * an)
-        wx, wy, wz = eps[0], eps[1], eps[2]
-        if noisy:
-            nab_e += acc_w[k, 0]
-            nab_n += acc_w[k, 1]
-            wx += gyro_w[k, 0]
-            wy += gyro_w[k, 1]
-            wz += gyro_w[k, 2]
-        dve = pz * fn - py * G0 + 2 * w_s * vn + nab_e
-        dvn = -pz * fe + px * G0 - 2 * w_s * ve + nab_n
-        dpx = -vn / R_EARTH + w_s * py - w_c * pz + wx
-        dpy = ve / R_EARTH - w_s * pn / R_EARTH - w_s * px + wy
-        dpz = ve * tan_l / R_EARTH + w_c * pn / R_EARTH + w_c * px + wz
-        pe += dt * (ve + 0.5 * dt * dve)
-        pn += dt * (vn + 0.5 * dt * dvn)
-        ve += dt * dve
-        vn += dt * dvn
-        px += dt * dpx
-        py += dt * dpy
-        pz += dt * dpz
-
-
 def run_streams(seed: np.random.SeedSequence, platform_key: int, run_key: int) -> tuple:
     """The (parameters, noise) SeedSequences of one (platform, run) of a replicate: children of the
     replicate's ``seed`` keyed by the platform and run keys (§9, [D] §12), built directly rather
@@ -133,8 +105,9 @@ def run_streams(seed: np.random.SeedSequence, platform_key: int, run_key: int) -
 
 
 def draw_params(study: Study, rng: np.random.Generator) -> tuple:
-    """(k0_ug(2), scale_ppm(2), drift_deg_h(3), phi0_rad(3)) drawn from ``rng``, the parameter
-    stream of one (replicate, platform, run) (§4, §5, §9)."""
+    """(k0_ug(2), scale_ppm(2), drift_deg_h(3), phi0_rad(3), gyro_g(18)) drawn from ``rng``, the
+    parameter stream of one (replicate, platform, run) (§4, §5, §9; the g-sensitive terms last, so
+    the others are the draws of the former order)."""
     res = study.residuals
     k0 = rng.normal(0.0, res["k0_ug"], 2)
     sk = rng.normal(0.0, res["scale_ppm"], 2)
@@ -143,7 +116,18 @@ def draw_params(study: Study, rng: np.random.Generator) -> tuple:
     az = rng.normal(0.0, res["azimuth_sigma_arcmin"] * 60 * ARCSEC)
     # levelled by the alignment: the tilt balances the bias (phi_y = k0x, phi_x = -k0y)
     phi0 = np.array([-k0[1] * 1e-6 + tilt[0], k0[0] * 1e-6 + tilt[1], az])
-    return k0, sk, eps, phi0
+    gg = np.concatenate([rng.normal(0.0, res["gyro_g_deg_h_g"], 3 * len(G_TERMS)),
+                         rng.normal(0.0, res["gyro_gg_deg_h_g2"], 3 * len(GG_TERMS))])
+    return k0, sk, eps, phi0, gg
+
+
+def gyro_vector(gyro_g: np.ndarray) -> np.ndarray:
+    """The shared gyro model's (48,) coefficient vector (:mod:`platcal.model.instruments`) holding
+    the g-sensitive terms ``gyro_g`` (18,), every other term 0 (the constant drift is separate)."""
+    c = np.zeros(N_FULL)
+    for k, (t, a) in enumerate((t, a) for t in G_TERMS + GG_TERMS for a in "xyz"):
+        c[INDEX[f"{t}_{a}"]] = gyro_g[k]
+    return c
 
 
 def coeff_vector(study: Study, platform: str) -> np.ndarray:
@@ -151,21 +135,28 @@ def coeff_vector(study: Study, platform: str) -> np.ndarray:
     return np.array([c["kA_x"], c["k2_x"], c["kA_y"], c["k2_y"]], dtype=float)
 
 
+def fine_truth(study: Study, platform: str, run: str) -> tuple[Profile, Kinematics, FineTruth]:
+    """The run's profile on the data grid, the true motion there and on the truth's fine grid (§2)."""
+    steps = int(study.profile["truth_steps"])
+    prof = build_profile(study, platform, run)
+    fine = kinematics(build_profile(study, platform, run, 2 * steps), study.centrifuge, study.latitude_deg)
+    return prof, fine.subsample(2 * steps), FineTruth(fine, steps, prof.dt, study.latitude_deg)
+
+
 def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None, keep_phi: bool = False,
-                   noise_free: bool = False) -> RunBatch:
+                   noise_free: bool = False, floor: bool = False) -> RunBatch:
     """Simulate ``run`` of ``platform`` for every replicate SeedSequence of ``seeds`` (§2-§5, §8, §9);
     ``replicates``: their numbers (``RunBatch.seeds``; 0, 1, ... by default).
 
-    ``noise_free``: no drawn residual and no noise (truth coefficients only).
+    ``noise_free``: no drawn residual and no noise (truth coefficients only). ``floor``: also the
+    end-of-run errors of the same INS (draws, noise) with its coefficients removed
+    (``RunBatch.final_floor``, the exact-coefficient compensation of §8).
     """
     streams = [run_streams(s, study.platform_index(platform), study.run_index(platform, run)) for s in seeds]
     seeds = np.arange(len(streams)) if replicates is None else np.asarray(replicates, dtype=np.int64)
-    prof = build_profile(study, platform, run)
-    kin = kinematics(prof, study.centrifuge)
+    prof, kin, ft = fine_truth(study, platform, run)
     n = prof.t.size
     dt = prof.dt
-    lat = np.radians(study.latitude_deg)
-    sl, cl, tl = np.sin(lat), np.cos(lat), np.tan(lat)
     res = study.residuals
     coeffs = coeff_vector(study, platform)
     s_acc = res["accel_noise_ug_rthz"] * 1e-6 * G0 / np.sqrt(dt)
@@ -175,28 +166,29 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
     phi = np.empty((nseed, n, 3)) if keep_phi else None
     v_ind = np.empty((nseed, n, 2))
     p_ind = np.empty((nseed, n, 2))
+    f_meas = np.empty((nseed, n, 2))
+    final_floor = np.empty((nseed, 4)) if floor else None
     psi = np.empty((nseed, n))
-    dr = {k: np.zeros((nseed, m)) for k, m in (("k0", 2), ("sk", 2), ("eps", 3), ("phi0", 3))}
-    none2 = np.zeros((0, 2))
-    none3 = np.zeros((0, 3))
-    nophi = np.zeros((0, 3))
+    dr = {k: np.zeros((nseed, m)) for k, m in (("k0", 2), ("sk", 2), ("eps", 3), ("phi0", 3), ("gg", 18))}
     for i, (param_seed, noise_seed) in enumerate(streams):
         if noise_free:
-            k0, sk, eps, phi0 = np.zeros(2), np.zeros(2), np.zeros(3), np.zeros(3)
+            k0, sk, eps, phi0, gg = np.zeros(2), np.zeros(2), np.zeros(3), np.zeros(3), np.zeros(18)
         else:
-            k0, sk, eps, phi0 = draw_params(study, np.random.default_rng(param_seed))
-        for key, val in (("k0", k0), ("sk", sk), ("eps", eps), ("phi0", phi0)):
+            k0, sk, eps, phi0, gg = draw_params(study, np.random.default_rng(param_seed))
+        for key, val in (("k0", k0), ("sk", sk), ("eps", eps), ("phi0", phi0), ("gg", gg)):
             dr[key][i] = val
         coef = np.concatenate([k0, sk, coeffs]) * 1e-6
-        x0 = np.concatenate([np.zeros(4), phi0])
-        if noise_free:
-            acc_w, gyro_w = none2, none3
-        else:
+        acc_w = gyro_w = None
+        if not noise_free:
             rng = np.random.default_rng(noise_seed)
             acc_w = rng.standard_normal((n, 2)) * s_acc
             gyro_w = rng.standard_normal((n, 3)) * s_gyro
-        _integrate(dt, kin.f, coef, eps * DEG_H, x0, acc_w, gyro_w, sl, cl, tl, err[i],
-                   phi[i] if keep_phi else nophi)
+        err[i], ph, f_meas[i] = ft.navigate(n, coef, gyro_vector(gg), eps * DEG_H, phi0, acc_w, gyro_w, keep_phi)
+        if keep_phi:
+            phi[i] = ph
+        if floor:
+            final_floor[i] = ft.navigate(n, np.concatenate([k0, sk, np.zeros(4)]) * 1e-6, gyro_vector(gg), eps * DEG_H,
+                                         phi0, acc_w, gyro_w)[0][-1]
         v_ind[i] = kin.v + err[i, :, :2]
         p_ind[i] = kin.p - kin.p[0] + err[i, :, 2:]
         psi[i] = kin.theta
@@ -208,7 +200,8 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
     for j in range(VARIANTS):
         coef = np.zeros(8)
         coef[4 + j] = 1e-6
-        _integrate(dt, kin.f, coef, np.zeros(3), np.zeros(7), none2, none3, sl, cl, tl, sens[j], nophi)
-    draws = Draws(k0_ug=dr["k0"], scale_ppm=dr["sk"], drift_deg_h=dr["eps"], phi0_rad=dr["phi0"])
+        sens[j] = ft.navigate(n, coef, np.zeros(N_FULL), np.zeros(3), np.zeros(3))[0]
+    draws = Draws(k0_ug=dr["k0"], scale_ppm=dr["sk"], drift_deg_h=dr["eps"], phi0_rad=dr["phi0"], gyro_g=dr["gg"])
     return RunBatch(platform=platform, run=run, seeds=seeds, coeffs=coeffs, prof=prof, kin=kin, draws=draws,
-                    err=err, phi=phi, sens=sens, v_ind=v_ind, p_ind=p_ind, psi=psi)
+                    err=err, phi=phi, sens=sens, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi,
+                    final_floor=final_floor)

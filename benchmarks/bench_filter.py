@@ -294,6 +294,9 @@ def main(argv=None) -> None:
     load1 = os.getloadavg()
     print(f"load average at end: {load1[0]:.2f}")
     best = rows[-1]
+    # issue 22's machine-normalised cost: wall s per replicate x this run's matrix-multiply peak
+    print(f"normalised cost (run_ekf, B={best[0]}, {get_threads()} thread(s)): wall s per replicate x peak "
+          f"GFLOP/s = {best[2] * peak:.2f}; CPU s per replicate x peak = {best[6] * peak:.2f}")
     print(f"speedup on CPU time (FilterPy CPU s / platcal CPU s per replicate, B={best[0]}): "
           f"{c_fp / best[6]:.1f}")
     print(f"speedup_vs_filterpy={t_fp / best[2]:.1f}")

@@ -311,7 +311,7 @@ V_RATE, V_JA, V_T, V_A, V_U, V_DU = 0, 3, 12, 21, 30, 33
 (3x3 row-major, 1/s), T (3x3 row-major), aI, aO, aS of gyros x, y, z (g); then scratch."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu, v):
     """Eq. 18 and its angle Jacobian from the sines and cosines of the angles and the base
     specific force (m/s^2); results into ``v`` (42,) laid out as :data:`V_RATE` ... :data:`V_A`.
@@ -366,16 +366,17 @@ def rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu, v):
     u0 = v[V_U] + c01 * wn + c02 * wu
     u1 = v[V_U + 1] + c11 * wn + c12 * wu
     u2 = v[V_U + 2] + c21 * wn + c22 * wu
-    du = v[V_DU:V_DU + 9].reshape((3, 3))
+    # du (3 x 3, row-major) is indexed in v itself: a reshaped view would cost a call and two
+    # atomic reference-count updates per stage (issue 22)
     # Earth-rate terms of du: d C[r, 1:3] / d angle
-    du[0, 0] += -c02 * wn + c01 * wu
-    du[1, 0] += -c12 * wn + c11 * wu
-    du[2, 0] += -c22 * wn + c21 * wu
-    du[0, 1] += b01 * wn + b02 * wu
-    du[1, 1] += b11 * wn + b12 * wu
-    du[2, 1] += b21 * wn + b22 * wu
-    du[0, 2] += c11 * wn + c12 * wu
-    du[1, 2] += -c01 * wn - c02 * wu
+    v[V_DU] += -c02 * wn + c01 * wu
+    v[V_DU + 3] += -c12 * wn + c11 * wu
+    v[V_DU + 6] += -c22 * wn + c21 * wu
+    v[V_DU + 1] += b01 * wn + b02 * wu
+    v[V_DU + 4] += b11 * wn + b12 * wu
+    v[V_DU + 7] += b21 * wn + b22 * wu
+    v[V_DU + 2] += c11 * wn + c12 * wu
+    v[V_DU + 5] += -c01 * wn - c02 * wu
     v[V_RATE] = -(t00 * u0 + t01 * u1)
     v[V_RATE + 1] = -(t10 * u0 + t11 * u1)
     v[V_RATE + 2] = -(t20 * u0 + t21 * u1 + u2)
@@ -387,9 +388,9 @@ def rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu, v):
     dtg1 = cg * u0 - sg * u1
     dtg2 = tb * sg * u0 + tb * cg * u1
     for i in range(3):
-        v[V_JA + i] = -(t00 * du[0, i] + t01 * du[1, i])
-        v[V_JA + 3 + i] = -(t10 * du[0, i] + t11 * du[1, i])
-        v[V_JA + 6 + i] = -(t20 * du[0, i] + t21 * du[1, i] + du[2, i])
+        v[V_JA + i] = -(t00 * v[V_DU + i] + t01 * v[V_DU + 3 + i])
+        v[V_JA + 3 + i] = -(t10 * v[V_DU + i] + t11 * v[V_DU + 3 + i])
+        v[V_JA + 6 + i] = -(t20 * v[V_DU + i] + t21 * v[V_DU + 3 + i] + v[V_DU + 6 + i])
     v[V_JA + 1] -= dtb0
     v[V_JA + 7] -= dtb2
     v[V_JA + 2] -= dtg0
@@ -406,7 +407,7 @@ def rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu, v):
     v[V_T + 8] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rk4_jac_sc(ang, coef, fr3, h, params, out, phi_a, phi_g, scratch):
     """RK4 step of eq. 18 and the exact Jacobian of the RK4 map, like :func:`rk4_step_jac`,
     built on :func:`rate_jac_sc`. ``scratch`` from :func:`make_sc_rk4_scratch`.
@@ -508,7 +509,7 @@ def rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr3, h, params, out):
     out[2] = a2 + h6 * (k12 + 2.0 * k22 + 2.0 * k32 + k42)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def measure_jac_sc(ang, coef, fr0, fr1, fr2, g, out, hm, ha):
     """Accelerometer outputs (g) and their Jacobians for the filter, on scalars.
 

@@ -71,7 +71,7 @@ class Centrifuge:
         return np.stack([self.params(g) for g in levels])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def specific_force_into(t, params, out):
     """Specific force on the base in r, eq. 10 (m/s^2), at ``t`` s since the position's start."""
     wc = params[P_RATE]

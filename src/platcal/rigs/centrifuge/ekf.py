@@ -275,7 +275,7 @@ def attitude_reset(xb, Pb, cmd, reset_var):
         Pb[nc + r, nc + r] = reset_var
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new, pa, pgyro, phi, q, Wd,
                        blk, scratch):
     """The EKF's propagation over ``dt`` s (docs/centrifuge-model.md §9): the attitude (rad) through
@@ -341,6 +341,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     innov = np.zeros(3)
     fr3 = np.empty((3, 3))
     fr_now = np.empty(3)
+    fr_mid = np.empty(3)
     ang = xb[nc:]
     nis = nis_start
     bad = 0
@@ -366,9 +367,12 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
             # the end-of-step force is the one measured at t[m]: computed once, used twice
             for r in range(3):
                 fr3[0, r] = fr_now[r]
-            specific_force_into(t_prev + 0.5 * h, pb, fr3[1])
+            # the mid-step force through a scratch vector, not a row view of fr3 (a view per
+            # step costs two atomic reference-count updates, issue 22)
+            specific_force_into(t_prev + 0.5 * h, pb, fr_mid)
             specific_force_into(t[m], pb, fr_now)
             for r in range(3):
+                fr3[1, r] = fr_mid[r]
                 fr3[2, r] = fr_now[r]
             propagate_attitude(Pb, ang, coef, fr3, h, pb, q_rate, dyn, pcols, pg, ang_new, pa, pgyro, phi, q, Wd,
                                blk, scratch)

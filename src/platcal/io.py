@@ -15,7 +15,7 @@ from pathlib import Path
 
 import yaml
 
-from .errors import InputError
+from .errors import InputError, WriteError
 
 
 def _umask() -> int:
@@ -49,6 +49,13 @@ def glob_escape(name: str) -> str:
     return re.sub(r"([*?\[])", r"[\1]", name)
 
 
+def _raise_write_error(exc: BaseException, path: Path) -> None:
+    """Turn an OSError of a write (ENOSPC, EACCES, ...) into a :class:`WriteError` naming the final
+    ``path``, the temporaries already removed; anything else is left to propagate as it is."""
+    if isinstance(exc, OSError) and not isinstance(exc, WriteError):
+        raise WriteError(exc.errno, exc.strerror or str(exc), str(path)) from exc
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike):
     """Yield a temporary path in the target's folder; rename it to ``path`` on success."""
@@ -62,8 +69,9 @@ def atomic_path(path: str | os.PathLike):
         # mkstemp makes 0600; the final file gets the mode open() would give it
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        _raise_write_error(exc, path)
         raise
 
 
@@ -95,9 +103,11 @@ def atomic_files(folder: str | os.PathLike):
             os.chmod(t, mode)
         for t, final in temps:
             os.replace(t, final)
-    except BaseException:
+    except BaseException as exc:
         for t, _ in temps:
             t.unlink(missing_ok=True)
+        # name the file being written (the last asked for), else the folder
+        _raise_write_error(exc, temps[-1][1] if temps else folder)
         raise
 
 

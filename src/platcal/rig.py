@@ -137,6 +137,63 @@ def option(*flags: str, **kwargs) -> Option:
     return Option(tuple(flags), dict(kwargs))
 
 
+def _bound_text(minimum, maximum, above) -> str:
+    def fmt(v):  # whole bounds in full (2**63 - 1, not 9.2e+18)
+        return str(v) if isinstance(v, int) else f"{v:g}"
+    low = f"> {fmt(above)}" if above is not None else f">= {fmt(minimum)}" if minimum is not None else ""
+    high = f"<= {fmt(maximum)}" if maximum is not None else ""
+    return " and ".join(x for x in (low, high) if x)
+
+
+def real(minimum: float | None = None, maximum: float | None = None, above: float | None = None,
+         unit: str = "") -> Callable[[str], float]:
+    """The ``type=`` of a numeric option (every rig's and the common ones): a finite number within
+    ``[minimum, maximum]`` (``above``: strictly greater than it), in ``unit``. NaN, infinities and
+    text are refused by the parser (exit 2, the option named), so a command never runs on them."""
+    bounds = _bound_text(minimum, maximum, above)
+    kind = f"a finite number{' ' + bounds if bounds else ''}{' (' + unit + ')' if unit else ''}"
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number; give {kind}") from None
+        if (not np.isfinite(v) or (minimum is not None and v < minimum) or (maximum is not None and v > maximum)
+                or (above is not None and v <= above)):
+            raise argparse.ArgumentTypeError(f"got {text}; give {kind}")
+        return v
+
+    parse.__name__ = "number"
+    parse.kind = kind
+    return parse
+
+
+def whole(minimum: int = 0, maximum: int | None = None) -> Callable[[str], int]:
+    """The ``type=`` of a whole-number option (seeds, counts): an integer within ``[minimum,
+    maximum]``, refused by the parser otherwise (exit 2, the option named)."""
+    bounds = _bound_text(minimum, maximum, None)
+    kind = f"a whole number {bounds}"
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number; give {kind}") from None
+        if v < minimum or (maximum is not None and v > maximum):
+            raise argparse.ArgumentTypeError(f"got {text}; give {kind}")
+        return v
+
+    parse.__name__ = "whole number"
+    parse.kind = kind
+    return parse
+
+
+SEED = whole(0, 2 ** 63 - 1)
+"""``--seed`` (a replicate number or an entropy of a ``numpy.random.SeedSequence``)."""
+COUNT = whole(0, 10 ** 6)
+"""A number of replicates (0: none)."""
+
+
 @dataclass(frozen=True)
 class NoiseAxis:
     """The noise level a rig's Monte Carlo sweeps: ``name`` in its config and tables (e.g.
@@ -256,6 +313,9 @@ class Rig:
     """The rig's own options per sub-command, beyond the common ones of :mod:`platcal.cli`."""
     campaign: CampaignHooks | None = None
     """The campaign hooks (optional; see the module docstring)."""
+    sizes: Callable[[str, object, argparse.Namespace], list] | None = None
+    """``sizes(command, cfg, args) -> list[platcal.sizes.Size]``: the data each command's inputs
+    imply, checked against ``--max-memory-gb`` before the command runs (:mod:`platcal.sizes`)."""
     rules: str | None = None
     """Path of the rig's own Snakemake rules file, when it ships one outside the project's
     ``workflow/rules/<name>.smk``; a rig with Monte Carlo hooks needs none."""

@@ -36,6 +36,10 @@ def remove_orphans(path: str | os.PathLike) -> list[Path]:
         return []
     gone = []
     for orphan in path.parent.glob(f".{glob_escape(path.name)}.*.part"):
+        # mkstemp's random part holds no dot: ".rec.csv.truth.json.<random>.part" is the temporary
+        # of another file written in the same step (platcal.records.write_record), not an orphan
+        if "." in orphan.name[len(path.name) + 2:-len(".part")]:
+            continue
         try:
             orphan.unlink()
             gone.append(orphan)

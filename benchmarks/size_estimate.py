@@ -30,7 +30,7 @@ CASES = {  # rig: (config with {d} for the duration, simulate options, identify 
                       ["--scheme", "big"], ["--scheme", "big"], 60, 3600),
     "sled": ("rig: sled\ntrajectory: {static_after_s: {d}}\n", [], [], 60, 1200),
     "lowprec_centrifuge": ("rig: lowprec_centrifuge\nprofile: {rest_between_s: {d}}\n",
-                           ["--platform", "P1", "--run", "run1"], [], 60, 3000),
+                           ["--platform", "P1", "--run", "run1"], None, 60, 3000),   # identify: not estimated
 }
 PEAK = ("import resource, sys\nfrom platcal.cli import main\nrc = main(sys.argv[1:])\n"
         "print(rc, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)")
@@ -64,7 +64,7 @@ def main() -> None:
         d = Path(tmp)
         for rig in a.rig or CASES:
             text, sim, ident, short, long_ = CASES[rig]
-            for command in ("simulate", "identify"):
+            for command in ("simulate", "identify") if ident is not None else ("simulate",):
                 pts = []
                 for dur in (short, long_ * a.scale):
                     cfg = d / f"{rig}_{dur:g}.yaml"

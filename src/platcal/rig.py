@@ -134,6 +134,11 @@ class Option:
 
 
 def option(*flags: str, **kwargs) -> Option:
+    """An :class:`Option`; a ``type=`` of :func:`real` or :func:`whole` adds its range to the help,
+    so ``--help`` states what the parser accepts."""
+    kind = getattr(kwargs.get("type"), "kind", None)
+    if kind and kwargs.get("help"):
+        kwargs["help"] = f"{kwargs['help']}; {kind}"
     return Option(tuple(flags), dict(kwargs))
 
 

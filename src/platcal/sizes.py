@@ -1,13 +1,14 @@
 """Sizes before allocation: the memory a command's inputs imply, refused past a limit the user sets.
 
 Every rig gives :attr:`platcal.rig.Rig.sizes`, ``sizes(command, cfg, args) -> list[Size]``: for
-each array a command would build whose length follows from its inputs (a dwell, a run length, a
-number of sub-steps or replicates), the samples, channels and replicates held at once and the
-config key or option that drives it. :func:`check_sizes` multiplies them out (float64, 8 bytes a
-value) and refuses, before any allocation, one above ``--max-memory-gb`` (InputError naming the
-driving field: exit 2), so a dwell of 1e12 s is a clear message, not a ``MemoryError`` traceback
-or a machine swapping for an hour. The estimate counts the data (the record or the simulated
-truth), not every temporary, so the limit is on the data a command holds.
+the data a command would hold whose size follows from its inputs (a dwell, a run length,
+replicates): the samples, the float64 values held per sample (the rig's peak resident memory per
+sample, measured by ``benchmarks/size_estimate.py``), the replicates held at once, and the config
+key or option that drives it. :func:`check_sizes` multiplies them out (8 bytes a value) and
+refuses, before any allocation, one above ``--max-memory-gb`` (InputError naming the driving
+field: exit 2), so a dwell of a day is a clear message, not a ``MemoryError`` traceback or a
+machine swapping for an hour. The fixed cost of Python, numpy and numba (about 0.35 GB) is not
+counted.
 """
 
 from __future__ import annotations
@@ -32,8 +33,8 @@ BYTES_PER_VALUE = 8
 
 @dataclass(frozen=True)
 class Size:
-    """The data one array of a command holds: ``samples`` (float: 1e12 s / 5 ms does not
-    overflow) x ``channels`` x ``replicates`` values, driven by ``field`` (the config key or
+    """The data one command holds: ``samples`` (float: 1e12 s / 5 ms does not overflow) x
+    ``channels`` (values held per sample) x ``replicates`` values, driven by ``field`` (the config key or
     option to change); ``what`` says in words where the samples come from (for the message)."""
 
     field: str

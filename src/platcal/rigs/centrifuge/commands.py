@@ -190,8 +190,10 @@ def compensate_command(study: Study, args: argparse.Namespace) -> int:
                           lambda df: compensate_frame(df, coef), "accelerometers compensated")
 
 
-RECORD_CHANNELS = len(LOG_COLUMNS) + len(TRUTH_COLUMNS)
-"""Values per sample of a simulated record (docs/centrifuge-model.md §13)."""
+VALUES_PER_SAMPLE = {"simulate": 24, "identify": 96}
+"""float64 values a command holds per sample at its peak (resident memory), measured by
+benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 176 and 664 bytes),
+rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
 def _dwell_field(study: Study, scheme) -> str:
@@ -199,22 +201,23 @@ def _dwell_field(study: Study, scheme) -> str:
     return f"schemes.{scheme.name}.dwell_s" if scheme.name in study.schemes else "--scheme (its dwell_s)"
 
 
-def _scheme_size(study: Study, scheme, replicates: float = 1) -> Size:
+def _scheme_size(study: Study, scheme, command: str, replicates: float = 1) -> Size:
     return Size(_dwell_field(study, scheme), scheme.n_positions * samples_in(scheme.dwell_s, study.sample_s),
-                RECORD_CHANNELS, replicates,
+                VALUES_PER_SAMPLE[command], replicates,
                 f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
                 f"{study.sample_s * 1000:g} ms")
 
 
 def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
-    """The data each command's inputs imply (:mod:`platcal.sizes`): the scheme's record (samples
-    of every position x its columns) for simulate and identify, once per replicate of a batch
-    for the Monte Carlo, and the estimation errors of every replicate (replicates x 45)."""
+    """The data each command's inputs imply (:mod:`platcal.sizes`): the scheme's samples (every
+    position) x :data:`VALUES_PER_SAMPLE` for simulate and identify (observability simulates its
+    replicates one batch at a time; a Monte Carlo cell simulates and identifies ``study.batch``
+    replicates at once), and the estimates of every replicate (replicates x 45)."""
     if command in ("simulate", "identify") and args.scheme:
-        return [_scheme_size(study, resolve_scheme(args.scheme, study.schemes))]
+        return [_scheme_size(study, resolve_scheme(args.scheme, study.schemes), command)]
     if command == "observability" and args.scheme:
         scheme = resolve_scheme(args.scheme, study.schemes)
-        out = [_scheme_size(study, scheme)]
+        out = [_scheme_size(study, scheme, "simulate")]
         if args.replicates:
             out += [Size("--replicates", args.replicates, len(load_catalogue().frame()), 1,
                          "the Monte Carlo's estimation errors")]
@@ -223,7 +226,8 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
         hooks = CentrifugeMonteCarlo()
         cfg = hooks.check(study.config)
         st = hooks.settings(cfg)
-        return [_scheme_size(study, hooks.case(cfg, args.scheme, args.scheme_file), min(st.batch, st.replicates)),
+        return [_scheme_size(study, hooks.case(cfg, args.scheme, args.scheme_file), "identify",
+                             min(st.batch, st.replicates)),
                 Size("study.replicates", st.replicates, len(load_catalogue().frame()), 1, "the cell's estimates")]
     return []
 

@@ -165,14 +165,21 @@ def _segment_field(study: Study, seg: tuple) -> str:
     return "profile.jerk_g_s"
 
 
+VALUES_PER_SAMPLE = 64
+"""float64 values simulate holds per sample at its peak (resident memory), measured by
+benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 465 bytes for simulate),
+rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
+
+
 def sizes(command: str, study: Study, args) -> list[Size]:
     """The data a command's inputs imply (:mod:`platcal.sizes`): simulate holds the run's record
-    (its duration at ``profile.rate_hz`` x the record's columns, truth included)."""
+    (its duration at ``profile.rate_hz``) x :data:`VALUES_PER_SAMPLE`. identify holds the record
+    it is given, whose size the file bounds, and is not estimated."""
     if command != "simulate" or args.platform not in study.platforms or args.run not in study.run_names(args.platform):
         return []   # the command names a missing platform or run itself
     seconds, longest = run_duration(study, args.platform, args.run)
     return [Size(_segment_field(study, longest), samples_in(seconds, 1.0 / study.rate_hz),
-                 len(REQUIRED) + len(NUMERIC) + len(TRUTH_COLUMNS), 1,
+                 VALUES_PER_SAMPLE, 1,
                  f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz")]
 
 

@@ -224,14 +224,20 @@ def cmd_compensate(cfg, args) -> int:
 
 COMMANDS = {"inspect": cmd_inspect, "compensate": cmd_compensate, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
 
+VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
+"""float64 values a command holds per sample at its peak (resident memory), measured by
+benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 324 and 651 bytes),
+rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
+
+
 def sizes(command: str, cfg, args) -> list[Size]:
     """The data a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold the
-    scheme's record (every position's samples at ``sampling.ts_ms`` x the record's columns)."""
+    scheme's samples (every position, at ``sampling.ts_ms``) x :data:`VALUES_PER_SAMPLE`."""
     if command not in ("simulate", "identify"):
         return []
     scheme = cfg.scheme(args.scheme)
     field = f"schemes.{scheme.name}.dwell_s" if scheme.name in cfg.raw["schemes"] else "--scheme (its dwell_s)"
-    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), len(COLUMNS) + len(TRUTH_COLUMNS), 1,
+    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), VALUES_PER_SAMPLE[command], 1,
                  f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
                  f"{cfg.ts * 1000:g} ms")]
 

@@ -114,10 +114,16 @@ def cmd_compensate(cfg: SledConfig, args) -> int:
                           "along-track X(t), V(t) navigated and compensated")
 
 
+VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
+"""float64 values a command holds per sample at its peak (resident memory), measured by
+benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 344 and 614 bytes),
+rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
+
+
 def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
     """The data a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold the
     run's IMU samples (static before, the phases, the braking, static after, at ``imu.rate_hz``)
-    x the record's columns; the longest part names the field."""
+    x :data:`VALUES_PER_SAMPLE`; the longest part names the field."""
     if command not in ("simulate", "identify"):
         return []
     v_end = sum(ph.accel_g * G * ph.duration_s for ph in cfg.phases)
@@ -125,7 +131,7 @@ def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
              "trajectory.brake_g": max(v_end, 0.0) / (cfg.brake_g * G)}
     parts.update({f"trajectory.phases[{i}].duration_s": ph.duration_s for i, ph in enumerate(cfg.phases)})
     seconds = sum(parts.values())
-    return [Size(max(parts, key=parts.get), samples_in(seconds, cfg.dt), len(IMU_COLUMNS) + len(TRUTH_COLUMNS), 1,
+    return [Size(max(parts, key=parts.get), samples_in(seconds, cfg.dt), VALUES_PER_SAMPLE[command], 1,
                  f"a run of {seconds:g} s at {cfg.rate_hz:g} Hz")]
 
 

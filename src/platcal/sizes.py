@@ -60,6 +60,6 @@ def check_sizes(sizes: list[Size], limit_gb: float) -> None:
         if gb > limit_gb:
             reps = f" x {s.replicates:.3g} replicates" if s.replicates != 1 else ""
             raise InputError(s.field, f"{s.what + ': ' if s.what else ''}{s.samples:.3g} samples x {s.channels} "
-                             f"channels{reps} x {BYTES_PER_VALUE} bytes = {gb:.3g} GB, more than "
+                             f"values held per sample{reps} x {BYTES_PER_VALUE} bytes = {gb:.3g} GB, more than "
                              f"{MAX_MEMORY_OPTION} {limit_gb:g}; make {s.field} smaller or raise "
                              f"{MAX_MEMORY_OPTION}")

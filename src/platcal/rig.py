@@ -150,47 +150,39 @@ def _bound_text(minimum, maximum, above) -> str:
     return " and ".join(x for x in (low, high) if x)
 
 
-def real(minimum: float | None = None, maximum: float | None = None, above: float | None = None,
-         unit: str = "") -> Callable[[str], float]:
-    """The ``type=`` of a numeric option (every rig's and the common ones): a finite number within
-    ``[minimum, maximum]`` (``above``: strictly greater than it), in ``unit``. NaN, infinities and
-    text are refused by the parser (exit 2, the option named), so a command never runs on them."""
+def _ranged(convert, noun: str, minimum, maximum, above, unit: str) -> Callable[[str], float]:
+    """An argparse ``type=``: ``convert(text)`` (ValueError: not a number), then finite and within
+    the bounds; ``.kind`` states what it takes (:func:`option` puts it in the help)."""
     bounds = _bound_text(minimum, maximum, above)
-    kind = f"a finite number{' ' + bounds if bounds else ''}{' (' + unit + ')' if unit else ''}"
+    kind = f"{noun}{' ' + bounds if bounds else ''}{' (' + unit + ')' if unit else ''}"
 
-    def parse(text: str) -> float:
+    def parse(text: str):
         try:
-            v = float(text)
+            v = convert(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number; give {kind}") from None
+            raise argparse.ArgumentTypeError(f"{text!r} is not {noun.replace('finite ', '')}; give {kind}") from None
         if (not np.isfinite(v) or (minimum is not None and v < minimum) or (maximum is not None and v > maximum)
                 or (above is not None and v <= above)):
             raise argparse.ArgumentTypeError(f"got {text}; give {kind}")
         return v
 
-    parse.__name__ = "number"
+    parse.__name__ = noun
     parse.kind = kind
     return parse
+
+
+def real(minimum: float | None = None, maximum: float | None = None, above: float | None = None,
+         unit: str = "") -> Callable[[str], float]:
+    """The ``type=`` of a numeric option (every rig's and the common ones): a finite number within
+    ``[minimum, maximum]`` (``above``: strictly greater than it), in ``unit``. NaN, infinities and
+    text are refused by the parser (exit 2, the option named), so a command never runs on them."""
+    return _ranged(float, "a finite number", minimum, maximum, above, unit)
 
 
 def whole(minimum: int = 0, maximum: int | None = None) -> Callable[[str], int]:
     """The ``type=`` of a whole-number option (seeds, counts): an integer within ``[minimum,
     maximum]``, refused by the parser otherwise (exit 2, the option named)."""
-    bounds = _bound_text(minimum, maximum, None)
-    kind = f"a whole number {bounds}"
-
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number; give {kind}") from None
-        if v < minimum or (maximum is not None and v > maximum):
-            raise argparse.ArgumentTypeError(f"got {text}; give {kind}")
-        return v
-
-    parse.__name__ = "whole number"
-    parse.kind = kind
-    return parse
+    return _ranged(int, "a whole number", minimum, maximum, None, "")
 
 
 SEED = whole(0, 2 ** 63 - 1)

@@ -223,12 +223,11 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
                          "the Monte Carlo's estimation errors")]
         return out
     if command == "montecarlo":
-        hooks = CentrifugeMonteCarlo()
-        cfg = hooks.check(study.config)
-        st = hooks.settings(cfg)
-        return [_scheme_size(study, hooks.case(cfg, args.scheme, args.scheme_file), "identify",
-                             min(st.batch, st.replicates)),
-                Size("study.replicates", st.replicates, len(load_catalogue().frame()), 1, "the cell's estimates")]
+        # the config as validated (the study section's cross-checks are the cell's, after --out's)
+        st = study.config["study"]
+        case = CentrifugeMonteCarlo().case(study.config, args.scheme, args.scheme_file)
+        return [_scheme_size(study, case, "identify", min(st["batch"], st["replicates"])),
+                Size("study.replicates", st["replicates"], len(load_catalogue().frame()), 1, "the cell's estimates")]
     return []
 
 

@@ -35,6 +35,10 @@ What a rig must provide (the fields of :class:`Rig`)
   ``group`` (e.g. gyro / accel / attitude), ``unit`` and ``truth`` (default truth; NaN where
   there is none); the study layer's tables and figures group and label by these columns.
 - ``estimators``: names accepted by ``--estimator`` and ``study.estimators``.
+- ``sizes`` (optional, every built-in rig has it): ``sizes(command, cfg, args) -> [Size]``, the
+  memory each command's inputs imply, refused past ``--max-memory-gb`` before the command runs
+  (:mod:`platcal.sizes`). Numeric options take ``type=real(...)`` or ``whole(...)`` (below): the
+  one finite/range check, whose range the help states.
 
 Optional: the Monte Carlo hooks (field ``montecarlo``)
 -------------------------------------------------------

@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 
 from platcal.cli import main
+from platcal.records import truth_path
 from platcal.rigs.sled.config import load_config as sled_config
 from platcal.rigs.sled.trajectory import build_trajectory
 
@@ -83,7 +84,7 @@ def test_sled_recorded_log(tmp_path, suffix):
     df = df[~((df["t"] > 1012.0025) & (df["t"] < 1012.0125))]           # 2 samples lost in the coast
     log = tmp_path / f"log{suffix}"
     _save(df, log)
-    shutil.copy(str(rec) + ".truth.json", str(log) + ".truth.json")
+    shutil.copy(truth_path(rec), truth_path(log))
     got = _identify(cfg, log, tmp_path / "id_log")
     assert got["samples"] == clean["samples"] - 2
     assert got["samples_used_per_phase"]["phase 2 (-0.3 g)"] == clean["samples_used_per_phase"]["phase 2 (-0.3 g)"] - 2
@@ -108,7 +109,7 @@ def test_lowprec_recorded_log(tmp_path, suffix):
     df = df.drop(drop)
     log = tmp_path / f"log{suffix}"
     _save(df, log)
-    shutil.copy(tmp_path / "clean.truth.json", tmp_path / "log.truth.json")
+    shutil.copy(truth_path(rec), truth_path(log))
     got = _identify(cfg, log, tmp_path / "id_log")
     assert got["samples_per_phase"]["static"] == clean["samples_per_phase"]["static"] - 1
     assert got["matches_runs"] == ["P1.run1"] and got["windows"] == clean["windows"]

@@ -10,13 +10,15 @@ option is refused, and ``--help`` with ``--config`` lists the rig's. Bad input e
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 
-from .errors import InputError
+from .errors import InputError, WriteError
 from .io import read_config
 from .logs.calibration import read_calibration
-from .rig import option, rig_of
+from .rig import COUNT, SEED, option, rig_of, whole
+from .sizes import MAX_MEMORY, check_sizes
 from .study import campaign
 
 CONFIG_HELP = "study configuration (YAML); its 'rig:' selects the rig"
@@ -31,7 +33,7 @@ COMMANDS = {
     "compensate": "apply an identification (calibration.yaml) to a log",
 }
 COMMON = {
-    "simulate": (option("--seed", type=int, default=None, help="which run: replicate N of the study's Monte Carlo for the rigs with one, else seed N of its study (default: the config's)"),
+    "simulate": (option("--seed", type=SEED, default=None, help="which run: replicate N of the study's Monte Carlo for the rigs with one, else seed N of its study (default: the config's)"),
                  option("--noise-free", action="store_true", help="no sensor noise and no setting error"),
                  option("--out", required=True, help="test record to write (.csv or .parquet)")),
     "identify": (option("--data", required=True, help="test record (.csv or .parquet)"),
@@ -39,7 +41,7 @@ COMMON = {
                  option("--no-truth", action="store_true", help="do not compare with the config's truth")),
     "observability": (option("--out", required=True, help="output folder (observability.json, ...)"),),
     "design": (option("--out", required=True, help="scheme file to write (SCHEME.yaml; history, population beside)"),),
-    "montecarlo": (option("--threads", type=int, default=1, help="threads (numba) or joblib workers"),
+    "montecarlo": (option("--threads", type=whole(1, 1024), default=1, help="threads (numba) or joblib workers"),
                    option("--out", required=True, help="output folder (coef.parquet, runs.parquet, timing.json)")),
     "report": (option("--results", default=None, help="the rig's results folder (default: results/<rig>)"),),
     "inspect": (option("--data", required=True, help="the log (.csv or .parquet), read through the config's "
@@ -55,7 +57,7 @@ GENERIC = {
              (option("--campaign", required=True, help="campaign file (YAML; schema: platcal/study/data/"
                                                        "campaign.schema.yaml)"),
               option("--out", required=True, help="output folder (plan.csv, coefficients.csv, alternatives.csv, ...)"),
-              option("--replicates", type=int, default=None,
+              option("--replicates", type=COUNT, default=None,
                      help="Monte Carlo replicates of the plan's check (default: the campaign's; 0: none)"))),
 }
 """Sub-commands of no one rig (no ``--config``): each asks the rigs its input names through
@@ -64,7 +66,16 @@ GENERIC_RUN = {"plan": campaign.plan_command}
 
 
 class _ParseError(Exception):
-    """A command line the parser refuses (unknown option, missing value): exit status 2."""
+    """A command line the parser refuses (unknown option, missing value): exit status 2.
+    ``unknown``: the option is not one of the rig's (the message then points at ``--help``)."""
+
+    def __init__(self, message: str, unknown: bool = False):
+        super().__init__(message)
+        self.unknown = unknown
+
+
+_BAD_VALUE = re.compile(r"^argument ([^\s:/]+)(?:/\S+)?: (.*)$", re.S)
+"""argparse's "argument --noise/--sigma-a: got nan; give ..." (a ``type=`` refusal)."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -72,7 +83,10 @@ class _Parser(argparse.ArgumentParser):
         extra = message.split(":", 1)[1].split() if message.startswith("unrecognized arguments:") else []
         flag = next((a.split("=")[0] for a in extra if a.startswith("-")), None)
         # name the option first, as every other refusal does ("error: FIELD: what")
-        raise _ParseError(f"{flag}: not an option here ({message})" if flag else message)
+        if flag:
+            raise _ParseError(f"{flag}: not an option here ({message})", unknown=True)
+        bad = _BAD_VALUE.match(message)
+        raise _ParseError(f"{bad.group(1)}: {bad.group(2)}" if bad else message)
 
 
 def build_parser(rig=None) -> argparse.ArgumentParser:
@@ -87,7 +101,7 @@ def build_parser(rig=None) -> argparse.ArgumentParser:
         c = sub.add_parser(command, help=help_, description=help_, epilog=epilog)
         if command != "compensate":  # compensate applies the config the calibration was identified with
             c.add_argument("--config", required=True, help=CONFIG_HELP)
-        for opt in COMMON[command] + tuple(own):
+        for opt in COMMON[command] + (MAX_MEMORY,) + tuple(own):
             c.add_argument(*opt.flags, **opt.kwargs)
     for command, (help_, options) in GENERIC.items():
         c = sub.add_parser(command, help=help_, description=help_)
@@ -121,7 +135,10 @@ def run(args: argparse.Namespace, raw: dict, rig) -> int:
         raise InputError("rig", f"rig {rig.name!r} has no '{args.command}' command; it has {sorted(rig.commands)}")
     if getattr(args, "results", "") is None:
         args.results = f"results/{rig.name}"
-    return rig.commands[args.command](rig.load_config(raw), args)
+    cfg = rig.load_config(raw)
+    if rig.sizes is not None:  # the data the inputs imply, refused before any allocation
+        check_sizes(rig.sizes(args.command, cfg, args), args.max_memory_gb)
+    return rig.commands[args.command](cfg, args)
 
 
 def main(argv=None) -> int:
@@ -137,11 +154,18 @@ def main(argv=None) -> int:
             return GENERIC_RUN[args.command](args)
         return run(args, raw, rig)
     except _ParseError as exc:
-        where = f"; 'platcal {command} --config {path} --help' lists the options of rig {rig.name!r}" if rig else ""
+        where = (f"; 'platcal {command} --config {path} --help' lists the options of rig {rig.name!r}"
+                 if rig and exc.unknown else "")
         print(f"platcal {command}: error: {exc}{where}", file=sys.stderr)
         return 2
     except InputError as exc:
         print(f"platcal {command}: error: {exc.field}: {exc.message}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a full disk, no permission: one line naming the path, not a traceback
+        done = ("; nothing was written under that name (the files already there are untouched)"
+                if isinstance(exc, WriteError) else "")
+        print(f"platcal {command}: error: {exc.filename or '(no path)'}: {exc.strerror or exc}{done}; "
+              "free space or fix the permissions and run again", file=sys.stderr)
         return 2
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import yaml
 
-from .errors import InputError
+from .errors import InputError, WriteError
 
 
 def _umask() -> int:
@@ -36,6 +36,10 @@ def remove_orphans(path: str | os.PathLike) -> list[Path]:
         return []
     gone = []
     for orphan in path.parent.glob(f".{glob_escape(path.name)}.*.part"):
+        # mkstemp's random part holds no dot: ".rec.csv.truth.json.<random>.part" is the temporary
+        # of another file written in the same step (platcal.records.write_record), not an orphan
+        if "." in orphan.name[len(path.name) + 2:-len(".part")]:
+            continue
         try:
             orphan.unlink()
             gone.append(orphan)
@@ -47,6 +51,13 @@ def remove_orphans(path: str | os.PathLike) -> list[Path]:
 def glob_escape(name: str) -> str:
     """``name`` with the glob metacharacters quoted."""
     return re.sub(r"([*?\[])", r"[\1]", name)
+
+
+def _raise_write_error(exc: BaseException, path: Path) -> None:
+    """Turn an OSError of a write (ENOSPC, EACCES, ...) into a :class:`WriteError` naming the final
+    ``path``, the temporaries already removed; anything else is left to propagate as it is."""
+    if isinstance(exc, OSError) and not isinstance(exc, WriteError):
+        raise WriteError(exc.errno, exc.strerror or str(exc), str(path)) from exc
 
 
 @contextmanager
@@ -62,8 +73,9 @@ def atomic_path(path: str | os.PathLike):
         # mkstemp makes 0600; the final file gets the mode open() would give it
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        _raise_write_error(exc, path)
         raise
 
 
@@ -95,9 +107,11 @@ def atomic_files(folder: str | os.PathLike):
             os.chmod(t, mode)
         for t, final in temps:
             os.replace(t, final)
-    except BaseException:
+    except BaseException as exc:
         for t, _ in temps:
             t.unlink(missing_ok=True)
+        # name the file being written (the last asked for), else the folder
+        _raise_write_error(exc, temps[-1][1] if temps else folder)
         raise
 
 

@@ -12,6 +12,7 @@ in plain numbers, and the :class:`~platcal.errors.InputError` names the column.
 from __future__ import annotations
 
 import codecs
+import json
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -23,7 +24,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .errors import InputError
-from .io import atomic_path, atomic_to_csv, atomic_to_parquet
+from .io import atomic_files, atomic_path
 from .logs.mapping import RecordMapping
 
 PARQUET_MAGIC = b"PAR1"
@@ -320,12 +321,44 @@ def nearest_samples(t: np.ndarray, period_s: float, tol_s: float, first: int | N
     return np.unique(j[ok])
 
 
-def write_record(df: pd.DataFrame, path: str | os.PathLike) -> None:
-    """Write a test record atomically: ``.parquet`` as Parquet, anything else as CSV."""
-    if str(path).endswith(".parquet"):
-        atomic_to_parquet(df, path)
-    else:
-        atomic_to_csv(df, path, float_format=None)
+TRUTH_SUFFIX = ".truth.json"
+"""A simulated record's side file (its drawn truth) is named from the record's FULL file name:
+``rec.csv.truth.json`` and ``rec.parquet.truth.json``, so two records never share one."""
+
+
+def truth_path(record: str | os.PathLike) -> Path:
+    """The truth side file of ``record`` (:data:`TRUTH_SUFFIX`), for every rig that writes one."""
+    return Path(str(record) + TRUTH_SUFFIX)
+
+
+def write_record(df: pd.DataFrame, path: str | os.PathLike, truth: dict | None = None,
+                 float_format: str | None = None) -> None:
+    """Write a test record atomically: ``.parquet`` as Parquet, anything else as CSV (floats at
+    ``float_format``, default full precision). With ``truth``, its side file (:func:`truth_path`,
+    JSON) is written as a pair with it: both go to temporaries first and are renamed together,
+    the side file first (a record never appears without its truth); a failed write (a full disk)
+    removes both temporaries and leaves the files already there untouched, so no orphan side
+    file and nothing half-written."""
+    path = Path(path)
+    with atomic_files(path.parent) as tmp:
+        if truth is not None:
+            tmp(truth_path(path).name).write_text(json.dumps(truth, indent=1) + "\n")
+        if path.suffix == ".parquet":
+            df.to_parquet(tmp(path.name), index=False)
+        else:
+            df.to_csv(tmp(path.name), index=False, float_format=float_format)
+
+
+def read_truth(record: str | os.PathLike) -> dict | None:
+    """The truth side file of ``record`` as a mapping; None when there is none; InputError naming
+    the side file when it is not JSON."""
+    side = truth_path(record)
+    if not side.is_file():
+        return None
+    try:
+        return json.loads(side.read_text())
+    except (ValueError, UnicodeDecodeError):
+        raise InputError(str(side), "not a JSON truth file (delete it or simulate the record again)") from None
 
 
 @contextmanager

@@ -35,6 +35,10 @@ What a rig must provide (the fields of :class:`Rig`)
   ``group`` (e.g. gyro / accel / attitude), ``unit`` and ``truth`` (default truth; NaN where
   there is none); the study layer's tables and figures group and label by these columns.
 - ``estimators``: names accepted by ``--estimator`` and ``study.estimators``.
+- ``sizes`` (optional, every built-in rig has it): ``sizes(command, cfg, args) -> [Size]``, the
+  memory each command's inputs imply, refused past ``--max-memory-gb`` before the command runs
+  (:mod:`platcal.sizes`). Numeric options take ``type=real(...)`` or ``whole(...)`` (below): the
+  one finite/range check, whose range the help states.
 
 Optional: the Monte Carlo hooks (field ``montecarlo``)
 -------------------------------------------------------
@@ -134,7 +138,61 @@ class Option:
 
 
 def option(*flags: str, **kwargs) -> Option:
+    """An :class:`Option`; a ``type=`` of :func:`real` or :func:`whole` adds its range to the help,
+    so ``--help`` states what the parser accepts."""
+    kind = getattr(kwargs.get("type"), "kind", None)
+    if kind and kwargs.get("help"):
+        kwargs["help"] = f"{kwargs['help']}; {kind}"
     return Option(tuple(flags), dict(kwargs))
+
+
+def _bound_text(minimum, maximum, above) -> str:
+    def fmt(v):  # whole bounds in full (2**63 - 1, not 9.2e+18)
+        return str(v) if isinstance(v, int) else f"{v:g}"
+    low = f"> {fmt(above)}" if above is not None else f">= {fmt(minimum)}" if minimum is not None else ""
+    high = f"<= {fmt(maximum)}" if maximum is not None else ""
+    return " and ".join(x for x in (low, high) if x)
+
+
+def _ranged(convert, noun: str, minimum, maximum, above, unit: str) -> Callable[[str], float]:
+    """An argparse ``type=``: ``convert(text)`` (ValueError: not a number), then finite and within
+    the bounds; ``.kind`` states what it takes (:func:`option` puts it in the help)."""
+    bounds = _bound_text(minimum, maximum, above)
+    kind = f"{noun}{' ' + bounds if bounds else ''}{' (' + unit + ')' if unit else ''}"
+
+    def parse(text: str):
+        try:
+            v = convert(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {noun.replace('finite ', '')}; give {kind}") from None
+        if (not np.isfinite(v) or (minimum is not None and v < minimum) or (maximum is not None and v > maximum)
+                or (above is not None and v <= above)):
+            raise argparse.ArgumentTypeError(f"got {text}; give {kind}")
+        return v
+
+    parse.__name__ = noun
+    parse.kind = kind
+    return parse
+
+
+def real(minimum: float | None = None, maximum: float | None = None, above: float | None = None,
+         unit: str = "") -> Callable[[str], float]:
+    """The ``type=`` of a numeric option (every rig's and the common ones): a finite number within
+    ``[minimum, maximum]`` (``above``: strictly greater than it), in ``unit``. NaN, infinities and
+    text are refused by the parser (exit 2, the option named), so a command never runs on them."""
+    return _ranged(float, "a finite number", minimum, maximum, above, unit)
+
+
+def whole(minimum: int = 0, maximum: int | None = None) -> Callable[[str], int]:
+    """The ``type=`` of a whole-number option (seeds, counts): an integer within ``[minimum,
+    maximum]``, refused by the parser otherwise (exit 2, the option named)."""
+    return _ranged(int, "a whole number", minimum, maximum, None, "")
+
+
+SEED = whole(0, 2 ** 63 - 1)
+"""``--seed`` (a replicate number or an entropy of a ``numpy.random.SeedSequence``)."""
+COUNT = whole(0, 10 ** 6)
+"""A number of replicates (0: none)."""
 
 
 @dataclass(frozen=True)
@@ -256,6 +314,9 @@ class Rig:
     """The rig's own options per sub-command, beyond the common ones of :mod:`platcal.cli`."""
     campaign: CampaignHooks | None = None
     """The campaign hooks (optional; see the module docstring)."""
+    sizes: Callable[[str, object, argparse.Namespace], list] | None = None
+    """``sizes(command, cfg, args) -> list[platcal.sizes.Size]``: the data each command's inputs
+    imply, checked against ``--max-memory-gb`` before the command runs (:mod:`platcal.sizes`)."""
     rules: str | None = None
     """Path of the rig's own Snakemake rules file, when it ships one outside the project's
     ``workflow/rules/<name>.smk``; a rig with Monte Carlo hooks needs none."""

@@ -42,7 +42,7 @@ def test_record_columns_and_side_file(records):
     assert set(df["schedule"]) == {"static", "spinning"}
     assert df["heading_deg"].between(0, 360).all()
     assert df["pE"].iloc[0] == pytest.approx(0, abs=0.1)
-    meta = json.loads((d / "rec.truth.json").read_text())
+    meta = json.loads((d / "rec.csv.truth.json").read_text())
     assert meta["coefficients"] == {"kA_x": -40.0, "k2_x": -8.0, "kA_y": 25.0, "k2_y": -5.0}
     assert meta["seed"] == 7 and meta["levels_g"] == [5, 8]
     tr = pd.read_parquet(d / "trad.parquet")
@@ -139,7 +139,7 @@ def test_bad_simulate_input_exits_2(tmp_path, capsys, over, args, field):
     flat = [x for kv in argv.items() for x in kv] + extra
     assert main(["simulate", "--config", cfg] + flat) == 2
     assert f"error: {field}" in capsys.readouterr().err
-    assert not out.exists() and not (tmp_path / "r.truth.json").exists() and not (tmp_path / "r.txt").exists()
+    assert not out.exists() and not (tmp_path / "r.csv.truth.json").exists() and not (tmp_path / "r.txt").exists()
 
 
 def test_missing_platform_and_bad_method(records, tmp_path, capsys):

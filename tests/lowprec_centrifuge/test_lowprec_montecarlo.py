@@ -62,7 +62,7 @@ def test_simulate_seed_n_writes_replicate_n(hooks, tmp_path):
     out = tmp_path / "rec.csv"
     assert main(["simulate", "--config", str(path), "--platform", "P1", "--run", "run2", "--seed", "2",
                  "--out", str(out)]) == 0
-    truth = json.loads(out.with_name("rec.truth.json").read_text())
+    truth = json.loads(out.with_name("rec.csv.truth.json").read_text())
     _, runs, _ = run_cell(rig, cfg, h.case(cfg, "default"), h.noise_levels(cfg)[0], "proposed")
     row = runs.set_index("replicate").loc[2]
     for e, k in (("VE", "dVE"), ("VN", "dVN"), ("pE", "dpE"), ("pN", "dpN")):

@@ -13,7 +13,7 @@ from ...rig import Rig
 from .campaign import CAMPAIGN
 from . import claims
 from .catalogue import load_catalogue
-from .commands import COMMANDS, OPTIONS
+from .commands import COMMANDS, OPTIONS, sizes
 from .config import study_from_config
 from .estimators import kind_names
 from .study import CentrifugeMonteCarlo
@@ -21,4 +21,4 @@ from .study import CentrifugeMonteCarlo
 RIG = Rig(name="centrifuge", title="precision centrifuge, 48-state EKF", spec="centrifuge-model.md",
           load_config=study_from_config, commands=COMMANDS, catalogue=lambda: load_catalogue().frame(),
           extras={"claims": claims}, estimators=kind_names(), montecarlo=CentrifugeMonteCarlo(), options=OPTIONS,
-          campaign=CAMPAIGN)
+          campaign=CAMPAIGN, sizes=sizes)

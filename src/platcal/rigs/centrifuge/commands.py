@@ -14,14 +14,16 @@ import time
 
 from ...errors import InputError
 from ...estimation.fit import fit_exit_status
-from ...rig import option
+from ...rig import COUNT, SEED, option, real, whole
 from ...io import check_writable
 from ...logs.calibration import read_calibration
 from ...logs.compensate import compensate_log, read_mapped
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from ...scheme import resolve_scheme
+from ...sizes import Size, samples_in
 from ...study.montecarlo import cell_job, replicate_seed
+from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
@@ -33,6 +35,7 @@ from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, Filt
 from ...records import CHUNK_ROWS, iter_table, record_writer
 from .report import report_from_results
 from .simulate import simulate_chunks
+from .study import CentrifugeMonteCarlo
 
 def _scheme(study: Study, args: argparse.Namespace):
     if not args.scheme:
@@ -43,8 +46,6 @@ def _scheme(study: Study, args: argparse.Namespace):
 def simulate_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal simulate``: one test record (docs/centrifuge-model.md §13)."""
     scheme = _scheme(study, args)
-    if args.seed is not None and args.seed < 0:
-        raise InputError("--seed", "must be a whole number >= 0")
     check_writable(args.out, "--out")
     replicate = 0 if args.seed is None else int(args.seed)
     # replicate N of the Monte Carlo cell (this scheme, the config's sigma_a): a run of the study
@@ -147,12 +148,6 @@ def observability_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal observability``: covariance-only analysis of a scheme."""
     check_filter(study.filter)
     scheme = _scheme(study, args)
-    if args.replicates < 0:
-        raise InputError("--replicates", "must be a whole number >= 0")
-    if args.arw is not None and args.arw < 0:
-        raise InputError("--arw", "must be >= 0 (deg/sqrt(h))")
-    if args.rate is not None and args.rate < 0:
-        raise InputError("--rate", "must be >= 0 (deg/s; 0 = centrifuge off, static 1 g)")
     check_writable(args.out, "--out", folder=True)
     t0 = time.perf_counter()
     res = write_observability(args.out, study, scheme, replicates=args.replicates, arw_deg_rth=args.arw,
@@ -228,34 +223,75 @@ def compensate_command(study: Study, args: argparse.Namespace) -> int:
                           lambda df: compensate_frame(df, coef), "accelerometers compensated")
 
 
+VALUES_PER_SAMPLE = {"simulate": 24, "identify": 96}
+"""float64 values a command holds per sample at its peak (resident memory), measured by
+benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 176 and 664 bytes),
+rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
+
+
+def _dwell_field(study: Study, scheme) -> str:
+    """The config key (or option) whose dwell sets a scheme's length, for a size message."""
+    return f"schemes.{scheme.name}.dwell_s" if scheme.name in study.schemes else "--scheme (its dwell_s)"
+
+
+def _scheme_size(study: Study, scheme, command: str, replicates: float = 1) -> Size:
+    return Size(_dwell_field(study, scheme), scheme.n_positions * samples_in(scheme.dwell_s, study.sample_s),
+                VALUES_PER_SAMPLE[command], replicates,
+                f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
+                f"{study.sample_s * 1000:g} ms")
+
+
+def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
+    """The data each command's inputs imply (:mod:`platcal.sizes`): the scheme's samples (every
+    position) x :data:`VALUES_PER_SAMPLE` for simulate and identify (observability simulates its
+    replicates one batch at a time; a Monte Carlo cell simulates and identifies ``study.batch``
+    replicates at once), and the estimates of every replicate (replicates x 45)."""
+    if command in ("simulate", "identify") and args.scheme:
+        return [_scheme_size(study, resolve_scheme(args.scheme, study.schemes), command)]
+    if command == "observability" and args.scheme:
+        scheme = resolve_scheme(args.scheme, study.schemes)
+        out = [_scheme_size(study, scheme, "simulate")]
+        if args.replicates:
+            out += [Size("--replicates", args.replicates, len(load_catalogue().frame()), 1,
+                         "the Monte Carlo's estimation errors")]
+        return out
+    if command == "montecarlo":
+        # the config as validated (the study section's cross-checks are the cell's, after --out's)
+        st = study.config["study"]
+        case = CentrifugeMonteCarlo().case(study.config, args.scheme, args.scheme_file)
+        return [_scheme_size(study, case, "identify", min(st["batch"], st["replicates"])),
+                Size("study.replicates", st["replicates"], len(load_catalogue().frame()), 1, "the cell's estimates")]
+    return []
+
+
 COMMANDS = {"inspect": inspect_command, "simulate": simulate_command, "identify": identify_command, "observability": observability_command,
             "design": design_command, "montecarlo": montecarlo_command, "report": report_command,
             "compensate": compensate_command}
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
-CHUNK = option("--chunk-rows", type=int, default=None,
+CHUNK = option("--chunk-rows", type=whole(0), default=None,
                help=f"rows of the record held at a time (default {CHUNK_ROWS}; 0: the whole record at once)")
 OPTIONS = {
     "simulate": (SCHEME, CHUNK),
     "identify": (SCHEME, CHUNK, option("--estimator", default=None,
                                        help="estimator kind or study.estimators name (default: filter.estimator)")),
     "observability": (SCHEME,
-                      option("--arw", type=float, default=None, help="override the filter's ARW, deg/sqrt(h)"),
-                      option("--rate", type=float, default=None, help="override the centrifuge rate, deg/s (0: static 1 g)"),
+                      option("--arw", type=real(0, unit="deg/sqrt(h)"), default=None, help="override the filter's ARW, deg/sqrt(h)"),
+                      option("--rate", type=real(0, unit="deg/s"), default=None, help="override the centrifuge rate, deg/s (0: static 1 g)"),
                       option("--doo", action="store_true", help="51-state filter with DOO_x/y/z as states"),
-                      option("--replicates", type=int, default=0,
+                      option("--replicates", type=COUNT, default=0,
                              help="also run this many Monte Carlo replicates to compare with the CRB")),
     "design": (option("--criterion", choices=("J", "A", "D", "maxrel"), default=None, help="override design.criterion"),
-               option("--positions", type=int, default=None, help="override design.positions"),
-               option("--population", type=int, default=None, help="override design.population"),
-               option("--generations", type=int, default=None, help="override design.generations"),
-               option("--seed", type=int, default=None, help="override design.seed"),
+               option("--positions", type=whole(1), default=None, help="override design.positions"),
+               option("--population", type=whole(1), default=None, help="override design.population"),
+               option("--generations", type=whole(1), default=None, help="override design.generations"),
+               option("--seed", type=SEED, default=None, help="override design.seed"),
                option("--name", default=None, help="override design.name"),
                option("--preset", default=None, help="a named design of the workflow (e.g. ga_A, ga_J_n8, ga_doo)"),
                option("-v", "--verbose", action="store_true", help="log every generation")),
     "montecarlo": (option("--scheme", required=True, help="scheme name (config, classical, random_<i>, or generated)"),
                    option("--scheme-file", default=None, help="scheme file of a generated scheme"),
-                   option("--noise", "--sigma-a", dest="noise", type=float, default=None,
+                   option("--noise", "--sigma-a", dest="noise", type=real(0, unit="ug per sample"), default=None,
                           help="sigma_a, ug per sample (default: the config's noise.sigma_a_ug)"),
                    option("--estimator", required=True, help="a key of study.estimators")),
 }

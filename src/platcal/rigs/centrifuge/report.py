@@ -18,7 +18,8 @@ import numpy as np
 import pandas as pd
 
 from ...estimation.consistency import nees_band
-from ...io import atomic_to_csv, atomic_write_text
+from ...errors import InputError
+from ...io import atomic_to_csv, atomic_write_text, check_writable
 from ...log import job_logger
 from ...model.instruments import NAMES, unit_of
 from ...study.claims import ledger_section, read_ledger
@@ -329,6 +330,14 @@ def report_from_results(cfg: dict, results) -> Path:
     """Rewrite ``<results>/report.md`` from a results folder's tables (``platcal report``), opening
     on its ``claims.csv`` when the workflow wrote one."""
     res = Path(results)
+    if not res.is_dir():
+        raise InputError("--results", f"no such folder: {res}; give the results folder of a finished study "
+                         "(snakemake --cores 2 results/centrifuge/report.md writes one)")
+    for need in (res / "montecarlo" / "timing.csv", res / "tables"):
+        if not need.exists():
+            raise InputError("--results", f"{res} holds no {need.relative_to(res)}: it is not the results folder "
+                             "of a finished centrifuge study (snakemake --cores 2 results/centrifuge/report.md)")
+    check_writable(res / "report.md", "--results")
     timing = pd.read_csv(res / "montecarlo" / "timing.csv")
     claims = read_ledger(res / "claims.csv") if (res / "claims.csv").exists() else None
     write_report(check_study(cfg), res / "tables", res / "figures", res / "report.md", timing, claims)

@@ -17,7 +17,7 @@ import pandas as pd
 
 from ...rig import Rig
 from . import claims
-from .commands import OPTIONS, compensate, identify, inspect, simulate
+from .commands import OPTIONS, compensate, identify, inspect, simulate, sizes
 from .config import COEFFS, load_config
 from .montecarlo import LowprecMonteCarlo
 
@@ -33,4 +33,4 @@ RIG = Rig(name="lowprec_centrifuge",
           spec="lowprec-centrifuge.md", load_config=load_config,
           commands={"inspect": inspect, "simulate": simulate, "identify": identify, "compensate": compensate},
           catalogue=catalogue, extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS,
-          montecarlo=LowprecMonteCarlo())
+          montecarlo=LowprecMonteCarlo(), sizes=sizes)

@@ -24,8 +24,10 @@ from ...logs.calibration import calibration_of, calibration_values, read_calibra
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
+from ...sizes import Size, samples_in
 from .config import COEFFS, G0, Study
 from .montecarlo import SEED_KEY
+from .profile import run_duration
 from .proposed import K_SLICE, identify_proposed
 from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, check_plausible,
                      compensated_frame, estimates_frame,
@@ -47,8 +49,6 @@ def simulate(study: Study, args) -> int:
     if args.run is None or args.run not in runs:
         raise InputError("--run", f"{'required' if args.run is None else 'unknown run ' + repr(args.run)}: "
                                   f"one of {runs}")
-    if args.seed is not None and args.seed < 0:
-        raise InputError("--seed", "must be a whole number >= 0")
     check_out_path(args.out)
     check_writable(args.out, "--out")
     seed = 0 if args.seed is None else int(args.seed)
@@ -153,6 +153,34 @@ def compensate(study: Study, args) -> int:
                                     max_gap_s=float(study.raw["record"]["max_gap_s"]), mapping=mapping)
     return compensate_log(args, "lowprec_centrifuge", read, lambda rec: compensated_frame(rec, coeffs, study.latitude_deg),
                           "velocity and position compensated")
+
+
+def _segment_field(study: Study, seg: tuple) -> str:
+    """The config key that sets a segment's length (for a size message)."""
+    if seg[0] == "hold":
+        return "traditional.hold_s"
+    if seg[0] == "rest":
+        keys = (("profile", "rest_first_s"), ("profile", "rest_between_s"), ("traditional", "rest_last_s"))
+        return next((f"{a}.{b}" for a, b in keys if study.raw[a][b] == seg[1]), "profile.rest_first_s")
+    return "profile.jerk_g_s"
+
+
+VALUES_PER_SAMPLE = 64
+"""float64 values simulate holds per sample at its peak (resident memory), measured by
+benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 465 bytes for simulate),
+rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
+
+
+def sizes(command: str, study: Study, args) -> list[Size]:
+    """The data a command's inputs imply (:mod:`platcal.sizes`): simulate holds the run's record
+    (its duration at ``profile.rate_hz``) x :data:`VALUES_PER_SAMPLE`. identify holds the record
+    it is given, whose size the file bounds, and is not estimated."""
+    if command != "simulate" or args.platform not in study.platforms or args.run not in study.run_names(args.platform):
+        return []   # the command names a missing platform or run itself
+    seconds, longest = run_duration(study, args.platform, args.run)
+    return [Size(_segment_field(study, longest), samples_in(seconds, 1.0 / study.rate_hz),
+                 VALUES_PER_SAMPLE, 1,
+                 f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz")]
 
 
 OPTIONS = {

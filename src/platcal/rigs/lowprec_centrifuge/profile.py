@@ -106,6 +106,14 @@ def _duration(seg, cen: Centrifuge) -> float:
     return (seg[2] - seg[1]) / cen.jerk_g_s
 
 
+def run_duration(study: Study, platform: str, run: str) -> tuple[float, tuple]:
+    """``(seconds, longest segment)`` of a run (§3), from its segments alone: no array is built
+    (the size check of :mod:`platcal.sizes` runs before any allocation)."""
+    segs = segments(study, platform, run)
+    durations = [_duration(seg, study.centrifuge) for seg in segs]
+    return float(sum(durations)), segs[max(range(len(segs)), key=durations.__getitem__)]
+
+
 def build_profile(study: Study, platform: str, run: str, substeps: int = 1) -> Profile:
     """The commanded rate of a run on the data grid (``profile.rate_hz``, §3), or on a grid
     ``substeps`` times finer with the same span (the truth simulation's, :mod:`.insim`): its

@@ -7,12 +7,12 @@ is differentiated from VE, VN),
 ``schedule`` (``static`` | ``spinning`` | ``hold``). A simulated record adds simulation-only
 truth columns ``truth_dVE, truth_dVN`` (m/s), ``truth_dpE, truth_dpN`` (m), ``truth_phi_x/y/z``
 (rad) and ``truth_theta_deg``; the identification never reads them. [D] The drawn parameters
-and the true coefficients go to a side file ``<record stem>.truth.json`` next to the record.
+and the true coefficients go to a side file ``<record>.truth.json`` next to the record (:func:`platcal.records.truth_path`:
+``rec.csv.truth.json``).
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,8 +22,8 @@ from scipy.interpolate import CubicSpline
 
 from ...errors import InputError
 from ...logs.mapping import RecordMapping
-from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
 from ...plausibility import refuse_recognised
+from ... import records
 from ...records import check_times, read_table
 from .config import COEFFS, G0
 from .profile import HOLD, SCHEDULE_NAMES, SPINNING, STATIC
@@ -56,11 +56,6 @@ class Record:
     f: np.ndarray          # (N, 2)
     schedule: np.ndarray   # (N,) int8
     truth: dict | None
-
-
-def truth_path(record_path) -> Path:
-    p = Path(record_path)
-    return p.with_name(p.stem + ".truth.json")
 
 
 def check_out_path(path, field: str = "--out") -> Path:
@@ -100,13 +95,9 @@ def truth_json(rb: RunBatch, study, i: int = 0) -> dict:
 
 
 def write_record(df: pd.DataFrame, meta: dict, path) -> None:
-    """Record and side JSON, each written atomically (the JSON first: a record never lacks its truth)."""
+    """Record and its truth side file, as a pair (:func:`platcal.records.write_record`)."""
     path = check_out_path(path)
-    atomic_write_text(truth_path(path), json.dumps(meta, indent=1) + "\n")
-    if path.suffix == ".parquet":
-        atomic_to_parquet(df, path)
-    else:
-        atomic_to_csv(df, path)
+    records.write_record(df, path, truth=meta)
 
 
 def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s: float = 0.05,
@@ -143,12 +134,8 @@ def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s:
     else:  # [D] no specific-force columns: differentiate the INS velocity (nav frame, Coriolis neglected)
         f = velocity_derivative(t, v)
     truth = None
-    tp = truth_path(p)
-    if use_truth and tp.is_file():
-        try:
-            truth = json.loads(tp.read_text())
-        except ValueError:
-            raise InputError(tp.name, "not a JSON file") from None
+    if use_truth:
+        truth = records.read_truth(p)
     return Record(t=t, v=v, p=df[["pE", "pN"]].to_numpy(), psi=np.radians(df["heading_deg"].to_numpy()), f=f,
                   schedule=schedule, truth=truth)
 

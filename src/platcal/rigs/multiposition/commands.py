@@ -29,6 +29,7 @@ from ...logs.dwells import dwell_figure
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
 from ...plausibility import refuse_recognised
+from ...sizes import Size, samples_in
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
@@ -40,8 +41,6 @@ from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, TRUTH_COLU
 
 def cmd_simulate(cfg, args) -> int:
     scheme = cfg.scheme(args.scheme)
-    if args.seed is not None and args.seed < 0:
-        raise InputError("--seed", "must be a whole number >= 0")
     replicate = 0 if args.seed is None else int(args.seed)
     check_writable(args.out, "--out")
     t0 = time.perf_counter()
@@ -224,6 +223,24 @@ def cmd_compensate(cfg, args) -> int:
 
 
 COMMANDS = {"inspect": cmd_inspect, "compensate": cmd_compensate, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+
+VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
+"""float64 values a command holds per sample at its peak (resident memory), measured by
+benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 324 and 651 bytes),
+rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
+
+
+def sizes(command: str, cfg, args) -> list[Size]:
+    """The data a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold the
+    scheme's samples (every position, at ``sampling.ts_ms``) x :data:`VALUES_PER_SAMPLE`."""
+    if command not in ("simulate", "identify"):
+        return []
+    scheme = cfg.scheme(args.scheme)
+    field = f"schemes.{scheme.name}.dwell_s" if scheme.name in cfg.raw["schemes"] else "--scheme (its dwell_s)"
+    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), VALUES_PER_SAMPLE[command], 1,
+                 f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
+                 f"{cfg.ts * 1000:g} ms")]
+
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "
                                               "default: the config's default_scheme")

@@ -16,6 +16,7 @@ from ...logs.compensate import compensate_log
 from ...logs.increments import increment_units
 from ...logs.summary import inspect_log
 from ...logs.mapping import RecordMapping
+from ...sizes import Size, samples_in
 from ...study.tables import write_table
 from .config import G, SledConfig
 from .identify import (calibration, compensated_track, estimates, identify, metrics, phi_from_calibration, record_fit,
@@ -31,8 +32,6 @@ def cmd_simulate(cfg: SledConfig, args) -> int:
     """One simulated record (+ ``.truth.json``): replicate ``--seed`` (default 0) of the study's
     ``default`` case, the same SeedSequence as its Monte Carlo cell (:mod:`.montecarlo`)."""
     replicate = 0 if args.seed is None else args.seed
-    if replicate < 0:
-        raise InputError("--seed", "must be a whole number >= 0")
     out = check_out_path(args.out)
     check_writable(out, "--out")
     t0 = time.perf_counter()
@@ -113,6 +112,27 @@ def cmd_compensate(cfg: SledConfig, args) -> int:
 
     return compensate_log(args, "sled", lambda path: read_record(path, cfg), apply,
                           "along-track X(t), V(t) navigated and compensated")
+
+
+VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
+"""float64 values a command holds per sample at its peak (resident memory), measured by
+benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 344 and 614 bytes),
+rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
+
+
+def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
+    """The data a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold the
+    run's IMU samples (static before, the phases, the braking, static after, at ``imu.rate_hz``)
+    x :data:`VALUES_PER_SAMPLE`; the longest part names the field."""
+    if command not in ("simulate", "identify"):
+        return []
+    v_end = sum(ph.accel_g * G * ph.duration_s for ph in cfg.phases)
+    parts = {"trajectory.static_before_s": cfg.static_before_s, "trajectory.static_after_s": cfg.static_after_s,
+             "trajectory.brake_g": max(v_end, 0.0) / (cfg.brake_g * G)}
+    parts.update({f"trajectory.phases[{i}].duration_s": ph.duration_s for i, ph in enumerate(cfg.phases)})
+    seconds = sum(parts.values())
+    return [Size(max(parts, key=parts.get), samples_in(seconds, cfg.dt), VALUES_PER_SAMPLE[command], 1,
+                 f"a run of {seconds:g} s at {cfg.rate_hz:g} Hz")]
 
 
 COMMANDS = {"compensate": cmd_compensate, "inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

@@ -4,14 +4,14 @@ Columns ``t`` (s), ``fx, fy, fz`` (m/s^2), ``wx, wy, wz`` (rad/s) in the record'
 (the navigation's initial axes, see :mod:`.simulate`); a simulated record adds the
 simulation-only truth columns ``x_true``, ``vx_true`` (error-free run) and ``x_inst``
 (instrument-only run), m and m/s at the row's time. The drawn error parameters go to a side
-file ``<record>.truth.json`` (JSON: seed, the replicate's SeedSequence as entropy and spawn key;
-phi0, accelerometer and gyro errors in engineering units). CSV (``.csv``) or Parquet (``.parquet``) by suffix; both files written atomically, the
-side file first, so a record never appears without its truth.
+file ``<record>.truth.json`` (``rec.csv.truth.json``, :func:`platcal.records.truth_path`; JSON: seed, the
+replicate's SeedSequence as entropy and spawn key;
+phi0, accelerometer and gyro errors in engineering units). CSV (``.csv``) or Parquet (``.parquet``) by suffix; both files written as a pair
+(:func:`platcal.records.write_record`), so a record never appears without its truth.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -20,8 +20,8 @@ import pandas as pd
 from ...errors import InputError
 from ...logs.increments import increment_units, rates_from_increments
 from ...logs.mapping import RecordMapping
-from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text
 from ...plausibility import refuse_recognised
+from ... import records
 from ...records import check_times, grid_origin, num, read_table
 from .config import G, SledConfig
 from .sensors import ErrorParams
@@ -34,11 +34,6 @@ UNITS = {"t": "s", "fx": "m/s^2", "fy": "m/s^2", "fz": "m/s^2", "wx": "rad/s", "
          "x_true": "m", "vx_true": "m/s", "x_inst": "m"}
 """The record's columns and their units (§10), for a config's ``record:`` mapping; g converts by
 :data:`.config.G` (9.80665 m/s^2)."""
-
-
-def truth_path(record: str | Path) -> Path:
-    """``<record>.truth.json`` beside the record."""
-    return Path(str(record) + ".truth.json")
 
 
 def check_out_path(path: str | Path, option: str = "--out") -> Path:
@@ -62,18 +57,14 @@ def sim_frame(sb: SimBatch, s: int = 0) -> pd.DataFrame:
 
 
 def write_record(sb: SimBatch, path: str | Path, s: int = 0) -> None:
-    """Write seed slot ``s`` as a record plus its ``.truth.json`` (atomic)."""
+    """Write seed slot ``s`` as a record plus its truth side file, as a pair
+    (:func:`platcal.records.write_record`)."""
     path = check_out_path(path)
     ss = sb.seeds[s]
     side = {"seed": {"entropy": int(ss.entropy), "spawn_key": [int(k) for k in ss.spawn_key]},
             "nabla_static_ug": (sb.truth.nabla_static[s] / G * 1e6).tolist(),
             **sb.truth.params.to_json(s)}
-    atomic_write_text(truth_path(path), json.dumps(side, indent=1) + "\n")
-    df = sim_frame(sb, s)
-    if path.suffix == ".parquet":
-        atomic_to_parquet(df, path)
-    else:
-        atomic_to_csv(df, path, float_format="%.17g")
+    records.write_record(sim_frame(sb, s), path, truth=side, float_format="%.17g")
 
 
 PHASE_TOL_G = 0.1
@@ -179,14 +170,15 @@ def record_arrays(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
 
 def record_truth(path: str | Path, df: pd.DataFrame) -> Truth | None:
     """The truth of a simulated record (columns + side file), or None when either is absent."""
-    side = truth_path(path)
-    if not all(c in df.columns for c in TRUTH_COLUMNS) or not side.is_file():
+    if not all(c in df.columns for c in TRUTH_COLUMNS):
+        return None
+    d = records.read_truth(path)
+    if d is None:
         return None
     try:
-        d = json.loads(side.read_text())
         p = ErrorParams.from_json([d])
         nab = np.asarray(d["nabla_static_ug"], dtype=float)[None] * G * 1e-6
     except (ValueError, KeyError, TypeError) as exc:
-        raise InputError(str(side), f"not a sled truth file ({exc.__class__.__name__}: {exc})") from None
+        raise InputError(str(records.truth_path(path)), f"not a sled truth file ({exc.__class__.__name__}: {exc})") from None
     return Truth(params=p, x_true=df["x_true"].to_numpy(float)[None], vx_true=df["vx_true"].to_numpy(float)[None],
                  x_inst=df["x_inst"].to_numpy(float)[None], nabla_static=nab)

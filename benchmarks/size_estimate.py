@@ -1,0 +1,89 @@
+"""How well the size check (platcal.sizes, issue 25 item 3) predicts a command's memory.
+
+For each rig, ``platcal simulate`` then ``platcal identify`` of a short and a long run (the same
+config with one duration changed), each in a fresh process; the process's peak resident memory
+(``ru_maxrss``) is compared with the rig's estimate (``Rig.sizes``). The slope between the two
+runs, bytes per sample, is what the data cost (the fixed cost of Python, numpy and numba is the
+intercept); the estimate should be at or above it.
+
+    NUMBA_NUM_THREADS=1 python benchmarks/size_estimate.py [--rig sled] [--scale 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from platcal.cli import build_parser
+from platcal.io import read_yaml
+from platcal.rig import rig_of
+
+CASES = {  # rig: (config with {d} for the duration, simulate options, identify options, short, long durations)
+    "centrifuge": ("rig: centrifuge\nschemes: {big: {dwell_s: {d}, positions: [[0, 0, 0], [90, 0, 0]]}}\n",
+                   ["--scheme", "big"], ["--scheme", "big"], 60, 600),
+    "multiposition": ("rig: multiposition\ngimbal: {beta_max_deg: 85}\n"
+                      "schemes: {big: {dwell_s: {d}, positions: [[0, 0, 0], [180, 0, 0]]}}\n",
+                      ["--scheme", "big"], ["--scheme", "big"], 60, 3600),
+    "sled": ("rig: sled\ntrajectory: {static_after_s: {d}}\n", [], [], 60, 1200),
+    "lowprec_centrifuge": ("rig: lowprec_centrifuge\nprofile: {rest_between_s: {d}}\n",
+                           ["--platform", "P1", "--run", "run1"], None, 60, 3000),   # identify: not estimated
+}
+PEAK = ("import resource, sys\nfrom platcal.cli import main\nrc = main(sys.argv[1:])\n"
+        "print(rc, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)")
+
+
+def peak(argv: list[str]) -> int:
+    """Peak resident bytes of ``platcal argv`` in a fresh process (exit status 0 or 3 expected)."""
+    out = subprocess.run([sys.executable, "-c", PEAK, *argv], capture_output=True, text=True, check=True)
+    rc, rss = out.stdout.split()[-2:]
+    if int(rc) not in (0, 3):
+        raise SystemExit(f"platcal {' '.join(argv)} exited {rc}: {out.stderr[-400:]}")
+    return int(rss)
+
+
+def estimate(config: Path, argv: list[str]) -> tuple[float, float]:
+    """``(samples, bytes)`` the rig's size hook gives for ``platcal argv``."""
+    raw = read_yaml(config.read_text())
+    rig = rig_of(raw)
+    args = build_parser(rig).parse_args(argv)
+    sizes = rig.sizes(args.command, rig.load_config(raw), args)
+    return sizes[0].samples, sum(s.gigabytes for s in sizes) * 1e9
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rig", choices=sorted(CASES), action="append")
+    ap.add_argument("--scale", type=float, default=1.0, help="multiply the long durations")
+    a = ap.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        for rig in a.rig or CASES:
+            text, sim, ident, short, long_ = CASES[rig]
+            for command in ("simulate", "identify") if ident is not None else ("simulate",):
+                pts = []
+                for dur in (short, long_ * a.scale):
+                    cfg = d / f"{rig}_{dur:g}.yaml"
+                    cfg.write_text(text.replace("{d}", f"{dur:g}"))
+                    rec = d / f"{rig}_{dur:g}.csv"
+                    argv = (["simulate", "--config", str(cfg), *sim, "--out", str(rec)] if command == "simulate" else
+                            ["identify", "--config", str(cfg), *ident, "--data", str(rec), "--out", str(d / "id")])
+                    samples, est = estimate(cfg, argv)
+                    pts.append((samples, est, peak(argv + ["--max-memory-gb", "1000"])))
+                (n0, e0, p0), (n1, e1, p1) = pts
+                row = {"rig": rig, "command": command, "samples": [n0, n1], "peak_MB": [p0 / 1e6, p1 / 1e6],
+                       "measured_B_per_sample": (p1 - p0) / (n1 - n0), "estimated_B_per_sample": e1 / n1}
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+    for r in rows:
+        print(f"{r['rig']:20s} {r['command']:9s} measured {r['measured_B_per_sample']:7.1f} B/sample, "
+              f"estimated {r['estimated_B_per_sample']:7.1f} B/sample "
+              f"(ratio {r['estimated_B_per_sample'] / r['measured_B_per_sample']:.2f})")
+
+
+if __name__ == "__main__":
+    main()

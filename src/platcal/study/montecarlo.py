@@ -41,7 +41,7 @@ from joblib import Parallel, delayed, parallel_config
 from ..io import atomic_files, json_safe
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
-from ..rig import Rig, get_rig
+from ..rig import Rig, RunSettings, get_rig
 from ..seeding import seed_sequence
 from .stats import rel_err_pct
 
@@ -117,6 +117,27 @@ def failed_runs(batch) -> np.ndarray:
         finite &= (np.isfinite(sig).all(axis=1) & np.isfinite(np.asarray(batch.nees, float))
                    & np.isfinite(np.asarray(batch.mean_nis, float)))
     return (np.asarray(batch.failed_updates) > 0) | ~finite
+
+
+class StudySectionHooks:
+    """Defaults of :class:`~platcal.rig.MonteCarloHooks` for a rig whose config's ``study``
+    section holds the sweep: the noise levels in ``study.<noise.name>`` (the rig's
+    :class:`~platcal.rig.NoiseAxis`), the estimators in ``study.estimators``, the replicates per
+    cell in ``study.<replicates_key>`` and the speed knobs ``study.batch``, ``backend``,
+    ``threads``; the root seed is the config's ``seed``. A rig subclasses it and adds the rest."""
+
+    replicates_key = "replicates"
+
+    def noise_levels(self, cfg: dict) -> list[float]:
+        return [float(v) for v in cfg["study"][self.noise.name]]
+
+    def estimators(self, cfg: dict) -> list[str]:
+        return list(cfg["study"]["estimators"])
+
+    def settings(self, cfg: dict) -> RunSettings:
+        st = cfg["study"]
+        return RunSettings(seed=int(cfg["seed"]), replicates=int(st[self.replicates_key]), batch=int(st["batch"]),
+                           backend=st["backend"], threads=int(st["threads"]))
 
 
 def _run_chunk(rig_name: str, cfg: dict, case, level: float, estimator: str, replicates, numba_threads: int):

@@ -32,9 +32,9 @@ from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text, normalise
 from ...log import job_logger
 from ...model.instruments import group_of, unit_of
 from ...parallel import set_threads
-from ...rig import NoiseAxis, ReplicateBatch, RunSettings
+from ...rig import NoiseAxis, ReplicateBatch
 from ...seeding import stable_key
-from ...study.montecarlo import noise_key, noise_label, replicate_seed
+from ...study.montecarlo import StudySectionHooks, noise_key, noise_label, replicate_seed
 from .config import check_filter, study_from_config, validate_config
 from .estimators import check_kind
 from .identify import simulate_identify
@@ -254,7 +254,7 @@ MODEL_KEYS = ("site", "centrifuge", "sampling", "truth", "noise", "filter", "see
 """Config sections that every run's numbers depend on (not batch, backend, threads)."""
 
 
-class CentrifugeMonteCarlo:
+class CentrifugeMonteCarlo(StudySectionHooks):
     """The centrifuge's :class:`~platcal.rig.MonteCarloHooks`: schemes x sigma_a x estimators."""
 
     noise = NoiseAxis(name="sigma_a_ug", unit="ug", label="accelerometer noise sigma_a, ug per 5 ms sample")
@@ -264,17 +264,6 @@ class CentrifugeMonteCarlo:
 
     def cases(self, cfg: dict) -> list[str]:
         return scheme_names(cfg)
-
-    def noise_levels(self, cfg: dict) -> list[float]:
-        return [float(v) for v in cfg["study"]["sigma_a_ug"]]
-
-    def estimators(self, cfg: dict) -> list[str]:
-        return list(cfg["study"]["estimators"])
-
-    def settings(self, cfg: dict) -> RunSettings:
-        st = cfg["study"]
-        return RunSettings(seed=int(cfg["seed"]), replicates=int(st["replicates"]), batch=int(st["batch"]),
-                           backend=st["backend"], threads=int(st["threads"]))
 
     def case(self, cfg: dict, name: str, case_file: str | None = None):
         return resolve_scheme_for_job(cfg, name, case_file)

@@ -32,9 +32,9 @@ import pandas as pd
 from ...errors import InputError
 from ...io import read_yaml
 from ...parallel import get_threads
-from ...rig import NoiseAxis, ReplicateBatch, RunSettings
+from ...rig import NoiseAxis, ReplicateBatch
 from ...scheme import Scheme
-from ...study.montecarlo import noise_key, noise_label
+from ...study.montecarlo import StudySectionHooks, noise_key, noise_label
 from .config import load_config, make_scheme, scheme_table
 from .estimators import estimate, raw_variant_choice, variant_choice
 from .filter import nees, simulate
@@ -112,8 +112,10 @@ def run_cell_batch(cfg, scheme: Scheme, sigma_a_ug: float, estimator: str, seeds
         extra={"linearisations": np.asarray(res.linearisations, float)})
 
 
-class MultipositionMonteCarlo:
+class MultipositionMonteCarlo(StudySectionHooks):
     """The multiposition rig's :class:`~platcal.rig.MonteCarloHooks` (see the module docstring)."""
+
+    replicates_key = "seeds"
 
     noise = NoiseAxis(name="sigma_a_ug", unit="ug",
                       label="accelerometer noise sigma_a, ug per sample (20 ms by default)")
@@ -123,17 +125,6 @@ class MultipositionMonteCarlo:
 
     def cases(self, cfg: dict) -> list[str]:
         return list(cfg["study"]["schemes"])
-
-    def noise_levels(self, cfg: dict) -> list[float]:
-        return [float(v) for v in cfg["study"]["sigma_a_ug"]]
-
-    def estimators(self, cfg: dict) -> list[str]:
-        return list(cfg["study"]["estimators"])
-
-    def settings(self, cfg: dict) -> RunSettings:
-        st = cfg["study"]
-        return RunSettings(seed=int(cfg["seed"]), replicates=int(st["seeds"]), batch=int(st["batch"]),
-                           backend=st["backend"], threads=int(st["threads"]))
 
     # case, case_file and cell_params are called for every job while Snakemake builds its DAG:
     # they read the checked mapping directly (the schema validation is for check and run_batch)

@@ -121,23 +121,17 @@ def solve_map(evaluate: Evaluate, theta0: np.ndarray, prior_mean: np.ndarray, pr
         for i, b in enumerate(active):
             A, bb, u = _normalised(N[i], g[i], pending[b], mu[b], sig[b])
             new_cost = float(c[i] + u @ u)
-            if not np.isfinite(new_cost):
-                if have_point[b]:
-                    # a damped step into non-finite territory: reject it
-                    lam[b] *= 10.0
-                    rejections[b] += 1
-                    if rejections[b] > max_rejections:
-                        continue
-                    pending[b] = _step(A_cur[b], b_cur[b], theta[b], sig[b], lam[b], damping)
-                    still.append(b)
-                continue
-            if have_point[b] and damping and new_cost >= cost[b]:
+            finite = np.isfinite(new_cost)
+            if have_point[b] and (not finite or (damping and new_cost >= cost[b])):
+                # a damped step into non-finite territory or uphill: reject it, retry shorter
                 lam[b] *= 10.0
                 rejections[b] += 1
                 if rejections[b] > max_rejections:
                     continue
                 pending[b] = _step(A_cur[b], b_cur[b], theta[b], sig[b], lam[b], damping)
                 still.append(b)
+                continue
+            if not finite:  # the starting point itself is not finite: the problem stops here
                 continue
             if have_point[b]:
                 steps[b] += 1

@@ -206,6 +206,28 @@ def innovation_covariance(P, hcols, hnnz, hval, r_var, U, S):
 
 
 @njit(cache=True, inline="always")
+def joseph_update(x, P, U, S, innov, K, D, F, nu, update_x):
+    """Measurement update from the cross-covariance ``U`` (m, n) (``U[r, i] = cov(x_i, z_r)``)
+    and the innovation covariance ``S`` (m, m) (noise included), Joseph-safe (module docstring).
+
+    ``K``, ``D`` (m, n) and ``F`` (m, m) are scratch; ``nu`` (m,) receives the standardised
+    innovation ``L_S^-1 innov`` (NIS = its squared norm). ``x`` moves by ``K innov`` when
+    ``update_x``. Returns False (nothing changed) if ``S`` is not positive definite.
+
+    The correction is ``P - K U^T - D K^T`` on the lower triangle, mirrored (written out for
+    m = 3): the EKF's :func:`joseph_update_sparse` calls it with ``U = P H^T``, the unscented
+    filters (:mod:`platcal.estimation.unscented`) with the transform's cross-covariance.
+    """
+    if not cholesky_inverse(S, F, nu, innov):
+        return False
+    if S.shape[0] == 3:
+        _correct3(x, P, innov, U, K, D, S, F, update_x)
+    else:
+        _correct(x, P, innov, U, K, D, S, F, update_x)
+    return True
+
+
+@njit(cache=True, inline="always")
 def joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu, update_x):
     """Kalman update with an m-dimensional measurement whose Jacobian rows are sparse, in Joseph
     form, O(m n^2) with a small constant.
@@ -231,13 +253,7 @@ def joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv
     bool : False if ``S`` was not positive definite (the update is skipped).
     """
     innovation_covariance(P, hcols, hnnz, hval, r_var, U, S)
-    if not cholesky_inverse(S, Sinv, nu, innov):
-        return False
-    if hnnz.shape[0] == 3:
-        _correct3(x, P, innov, U, K, D, S, Sinv, update_x)
-    else:
-        _correct(x, P, innov, U, K, D, S, Sinv, update_x)
-    return True
+    return joseph_update(x, P, U, S, innov, K, D, Sinv, nu, update_x)
 
 
 @njit(cache=True)

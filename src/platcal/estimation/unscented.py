@@ -49,7 +49,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .kalman import _correct, _correct3, add_row_combinations, cholesky_inverse
+from .kalman import add_row_combinations, joseph_update  # joseph_update: the update from U and S (below)
 
 
 def ut_spread(n: int, alpha: float, beta: float, kappa: float) -> tuple[float, float]:
@@ -200,28 +200,6 @@ def regression_cross_into(P, idx, R, Dp, Dm, h, Y, C):
         for j in range(n):
             cr[j] = 0.0
     add_row_combinations(Y.T, P, idx, nl, C)
-
-
-@njit(cache=True)
-def joseph_update(x, P, U, S, innov, K, D, F, nu, update_x):
-    """Measurement update from the cross-covariance ``U`` (m, n) (``U[r, i] = cov(x_i, z_r)``)
-    and the innovation covariance ``S`` (m, m) (noise included), Joseph-safe (module docstring).
-
-    ``K``, ``D`` (m, n) and ``F`` (m, m) are scratch; ``nu`` (m,) receives the standardised
-    innovation ``L_S^-1 innov`` (NIS = its squared norm). ``x`` moves by ``K innov`` when
-    ``update_x``. Returns False (nothing changed) if ``S`` is not positive definite.
-
-    The correction is the EKF's (:mod:`platcal.estimation.kalman`: ``P - K U^T - D K^T`` on the
-    lower triangle, mirrored; written out for m = 3), which takes ``U = P H^T``; here ``U`` is the
-    transform's cross-covariance.
-    """
-    if not cholesky_inverse(S, F, nu, innov):
-        return False
-    if S.shape[0] == 3:
-        _correct3(x, P, innov, U, K, D, S, F, update_x)
-    else:
-        _correct(x, P, innov, U, K, D, S, F, update_x)
-    return True
 
 
 def unscented_transform(f, mean, cov, alpha=1.0, beta=2.0, kappa=None):

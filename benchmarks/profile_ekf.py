@@ -19,7 +19,7 @@ import time
 import numpy as np
 from numba import njit
 
-from platcal.estimation.kalman import joseph_update_sparse, propagate_sparse
+from platcal.estimation.kalman import joseph_update_sparse, propagate_sparse, update_scratch
 from platcal.rigs.centrifuge.attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from platcal.rigs.centrifuge.base import specific_force_into
 from platcal.rigs.centrifuge.ekf import _structure, run_ekf
@@ -74,12 +74,7 @@ def _loop_copy(steps, P):
 @njit(cache=True)
 def _loop_update(steps, x, P, hcols, hnnz, hval, innov, r_var):
     n = P.shape[0]
-    U = np.empty((3, n))
-    K = np.empty((3, n))
-    D = np.empty((3, n))
-    S = np.empty((3, 3))
-    Sinv = np.empty((3, 3))
-    nu = np.empty(3)
+    U, K, D, S, Sinv, nu = update_scratch(3, n)
     Q = P.copy()
     x0 = x.copy()
     for _ in range(steps):

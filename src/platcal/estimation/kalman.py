@@ -205,6 +205,15 @@ def innovation_covariance(P, hcols, hnnz, hval, r_var, U, S):
         S[r, r] += r_var[r]
 
 
+@njit(cache=True)
+def update_scratch(m, n):
+    """The scratch arrays of a measurement update of ``m`` measurements on ``n`` states:
+    ``(U, K, D)`` (m, n), ``(S, Sinv)`` (m, m) and ``nu`` (m,), as :func:`joseph_update` and
+    :func:`joseph_update_sparse` take them (allocated once per filter run, not per update)."""
+    return (np.empty((m, n)), np.empty((m, n)), np.empty((m, n)), np.empty((m, m)), np.empty((m, m)),
+            np.empty(m))
+
+
 @njit(cache=True, inline="always")
 def joseph_update(x, P, U, S, innov, K, D, F, nu, update_x):
     """Measurement update from the cross-covariance ``U`` (m, n) (``U[r, i] = cov(x_i, z_r)``)

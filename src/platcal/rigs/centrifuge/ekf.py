@@ -39,7 +39,8 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from ...estimation.kalman import cholesky_inverse, innovation_covariance, joseph_update_sparse, propagate_sparse
+from ...estimation.kalman import (cholesky_inverse, innovation_covariance, joseph_update_sparse, propagate_sparse,
+                                 update_scratch)
 from .attitude import GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of
@@ -260,7 +261,7 @@ def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, 
         n_bad[b] += int(stats[1])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def attitude_reset(xb, Pb, cmd, reset_var):
     """A position's start (docs/centrifuge-model.md §9): the attitude states (the last 3) set to
     the commanded angles ``cmd`` (rad) with variance ``reset_var`` (rad^2) and no
@@ -292,6 +293,16 @@ def propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_n
     for r in range(3):
         ang[r] = ang_new[r]
     propagate_sparse(Pb, dyn, pcols, phi, q, Wd, blk)
+
+
+@njit(cache=True, inline="always")
+def store_history(hi, xb, Pb, hist_x, hist_s):
+    """Row ``hi`` of the estimate history (skipped when ``hi < 0``): the state and its 1-sigma
+    (-1 where the variance is not positive)."""
+    if hi >= 0:
+        for i in range(xb.shape[0]):
+            hist_x[hi, i] = xb[i]
+            hist_s[hi, i] = np.sqrt(Pb[i, i]) if Pb[i, i] > 0.0 else -1.0
 
 
 @njit(cache=True)
@@ -329,12 +340,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     q = np.zeros((3, 3))
     blk = np.empty((3, 3))
     Wd = np.empty((3, n))
-    U = np.empty((3, n))
-    K = np.empty((3, n))
-    D = np.empty((3, n))
-    S = np.empty((3, 3))
-    Sinv = np.empty((3, 3))
-    nu = np.empty(3)
+    U, K, D, S, Sinv, nu = update_scratch(3, n)
     out = np.empty(3)
     ha = np.empty((3, 3))
     hval = np.zeros((3, mh))
@@ -424,11 +430,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
                 for r in range(3):
                     rec[m, r] = innov[r]
                     rec[m, 3 + r] = np.nan
-        hi = hist_idx[m]
-        if hi >= 0:
-            for i in range(n):
-                hist_x[hi, i] = xb[i]
-                hist_s[hi, i] = np.sqrt(Pb[i, i]) if Pb[i, i] > 0.0 else -1.0
+        store_history(hist_idx[m], xb, Pb, hist_x, hist_s)
     return nis, bad
 
 

@@ -56,13 +56,15 @@ import numpy as np
 from numba import njit, prange
 
 from ...errors import InputError
+from ...estimation.kalman import update_scratch
 from ...estimation.unscented import (check_ut_params, cholesky_upper_into, joseph_update,
                                      regression_cross_into, ut_moments_into)
 from .attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch, measure_scalar,
                        rk4_scalar)
 from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
 from .base import specific_force_into
-from .ekf import Estimate, FilterSettings, attitude_reset, drive_passes, filter_start, propagate_attitude
+from .ekf import (Estimate, FilterSettings, attitude_reset, drive_passes, filter_start, propagate_attitude,
+                  store_history)
 
 SIGMA_POINT_MODES = ("nonlinear", "update", "all")
 
@@ -312,12 +314,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     Dp = np.empty((nsig, 3))
     Dm = np.empty((nsig, 3))
     Y = np.empty((q, 3))
-    U = np.empty((3, n))
-    K = np.empty((3, n))
-    D = np.empty((3, n))
-    S = np.empty((3, 3))
-    F = np.empty((3, 3))
-    nu = np.empty(3)
+    U, K, D, S, F, nu = update_scratch(3, n)
     innov = np.zeros(3)
     a = np.empty(3)
     a0 = np.empty(3)
@@ -372,11 +369,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
         for r in range(3):
             fr_prev[r] = fr_now[r]
         t_prev = t[m]
-        hi = hist_idx[m]
-        if hi >= 0:
-            for i in range(n):
-                hist_x[hi, i] = xb[i]
-                hist_s[hi, i] = np.sqrt(Pb[i, i]) if Pb[i, i] > 0.0 else -1.0
+        store_history(hist_idx[m], xb, Pb, hist_x, hist_s)
     return nis, bad
 
 

@@ -39,7 +39,7 @@ from numba import njit
 
 from ...errors import InputError
 from ...estimation.iterated import gauss_newton_point, make_iterated_scratch
-from ...estimation.kalman import joseph_update_sparse, propagate_sparse
+from ...estimation.kalman import joseph_update_sparse, propagate_sparse, update_scratch
 from ...model.frames import ARCSEC, DEG
 from ...study.montecarlo import replicate_seed
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
@@ -214,12 +214,7 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     for i in range(3):
         hca[i, 0] = i
         ha[i, 0] = 1.0 / ARCSEC
-    U = np.empty((3, n))
-    Kg = np.empty((3, n))
-    D = np.empty((3, n))
-    S = np.empty((3, 3))
-    Sinv = np.empty((3, 3))
-    nu = np.empty(3)
+    U, Kg, D, S, Sinv, nu = update_scratch(3, n)
     innov = np.empty(3)
     ra = r_var[:3].copy()
     rn = r_var[3:].copy()

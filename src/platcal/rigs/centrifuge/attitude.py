@@ -476,6 +476,14 @@ def make_sc_rk4_scratch():
 
 
 @njit(cache=True)
+def make_step_scratch():
+    """Scratch of one attitude step with its Jacobians (the EKF, UKF and ML kernels): the
+    :func:`make_sc_rk4_scratch` tuple, the new angles (3,), the attitude block (3, 3) and the
+    gyro-coefficient block (3, N_GYRO)."""
+    return make_sc_rk4_scratch(), np.empty(3), np.empty((3, 3)), np.empty((3, N_GYRO))
+
+
+@njit(cache=True)
 def measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g):
     """Accelerometer outputs x, y, z (g), no Jacobians, from the sines and cosines of the
     angles and the base specific force (m/s^2): the simulator's measurement (eq. 13)."""

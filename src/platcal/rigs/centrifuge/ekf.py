@@ -41,7 +41,7 @@ from numba import njit, prange
 
 from ...estimation.kalman import (cholesky_inverse, innovation_covariance, joseph_update_sparse, propagate_sparse,
                                  update_scratch)
-from .attitude import GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
+from .attitude import GYRO_COLS, MEAS_COLS, P_G, make_step_scratch, measure_jac_sc, rk4_jac_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of
 from .base import broadcast_params, specific_force_into
@@ -329,13 +329,10 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     npc = pcols.shape[0]
     mh = hcols.shape[1]
     dyn = np.arange(nc, n)
-    scratch = make_sc_rk4_scratch()
+    scratch, ang_new, pa, pgyro = make_step_scratch()
     hm = np.zeros((3, MEAS_COLS.shape[1]))
     g = pb[P_G]
     coef = coef_fixed.copy()
-    ang_new = np.empty(3)
-    pa = np.empty((3, 3))
-    pgyro = np.empty((3, N_GYRO))
     phi = np.empty((3, npc))
     q = np.zeros((3, 3))
     blk = np.empty((3, 3))

@@ -62,7 +62,7 @@ from numba import njit, prange
 
 from ...errors import InputError
 from ...estimation.gauss_newton import GNResult, one_step, solve_map
-from .attitude import GYRO_COLS, MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
+from .attitude import GYRO_COLS, MEAS_COLS, P_G, make_step_scratch, measure_jac_sc, rk4_jac_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import N_FULL
 from .base import broadcast_params, specific_force_into
@@ -158,11 +158,8 @@ def _replicate(theta, z, t, offs, est_idx, coef_fixed, params, r_var, q_rate, gs
     stats[0] = 0.0
     stats[1] = 0.0
     stats[2] = 0.0
-    scratch = make_sc_rk4_scratch()
+    scratch, ang_new, pa, pgyro = make_step_scratch()
     ang = np.empty(3)
-    ang_new = np.empty(3)
-    pa = np.empty((3, 3))
-    pgyro = np.empty((3, N_GYRO))
     Phi_a = np.empty((3, 3))
     Phi_g = np.empty((3, ng))
     tmp3 = np.empty((3, 3))
@@ -541,11 +538,8 @@ def _predict_replicate(theta, t, offs, est_idx, coef_fixed, params, out):
     coef = coef_fixed.copy()
     for k in range(nc):
         coef[est_idx[k]] = theta[k]
-    scratch = make_sc_rk4_scratch()
+    scratch, ang_new, pa, pgyro = make_step_scratch()
     ang = np.empty(3)
-    ang_new = np.empty(3)
-    pa = np.empty((3, 3))
-    pgyro = np.empty((3, N_GYRO))
     fr3 = np.empty((3, 3))
     fr_now = np.empty(3)
     hm = np.zeros((3, MEAS_COLS.shape[1]))

@@ -59,7 +59,7 @@ from ...errors import InputError
 from ...estimation.kalman import update_scratch
 from ...estimation.unscented import (check_ut_params, cholesky_upper_into, joseph_update,
                                      regression_cross_into, ut_moments_into)
-from .attitude import (GYRO_COLS, N_GYRO, P_G, _shift, c_rp_sc, make_sc_rk4_scratch, measure_scalar,
+from .attitude import (GYRO_COLS, P_G, _shift, c_rp_sc, make_step_scratch, measure_scalar,
                        rk4_scalar)
 from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
 from .base import specific_force_into
@@ -299,10 +299,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     dyn = np.arange(nc, n)
     coef = coef_fixed.copy()
     cs = coef_fixed.copy()
-    scratch = make_sc_rk4_scratch()
-    ang_new = np.empty(3)
-    pa = np.empty((3, 3))
-    pgyro = np.empty((3, N_GYRO))
+    scratch, ang_new, pa, pgyro = make_step_scratch()
     phi = np.empty((3, npc))
     qm = np.zeros((3, 3))
     blk = np.empty((3, 3))

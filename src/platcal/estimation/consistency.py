@@ -7,6 +7,8 @@ reports (docs/centrifuge-model.md §11 for the centrifuge).
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 from scipy import stats as sps
 
@@ -46,3 +48,19 @@ def estimate_problems(x: np.ndarray, P: np.ndarray | None, names=None) -> list[s
         except np.linalg.LinAlgError:
             out.append("the final covariance is not positive definite")
     return out
+
+
+EXIT_RUN_FAILED = 1
+"""Exit status of ``platcal identify`` when the estimator's run over the record cannot be trusted
+(nothing written); 2 is bad input, 3 a record that does not fit (:mod:`.fit`)."""
+
+
+def failed_run_status(problems: list[str], what: str, data, out, check: str) -> int:
+    """0 when ``problems`` (a run's :func:`estimate_problems` and the like) is empty; else one
+    line on stderr naming ``what`` ran over the record ``data``, the problems, the untouched
+    output ``out`` and what to ``check``, and :data:`EXIT_RUN_FAILED`."""
+    if not problems:
+        return 0
+    print(f"platcal identify: error: {what} over {data} failed: {'; '.join(problems)}. "
+          f"Nothing was written to {out}. Check {check}.", file=sys.stderr)
+    return EXIT_RUN_FAILED

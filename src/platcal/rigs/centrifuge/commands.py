@@ -13,6 +13,7 @@ import sys
 import time
 
 from ...errors import InputError
+from ...estimation.consistency import EXIT_RUN_FAILED, failed_run_status
 from ...estimation.fit import fit_exit_status
 from ...rig import COUNT, SEED, option, real, whole
 from ...io import check_writable
@@ -121,12 +122,9 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
         est, seconds = timed(identify_input, study, scheme, fin)
         fit = None
         known = truth_known(df)
-    problems = run_problems(est)
-    if problems:
-        print(f"platcal identify: error: the filter run over {args.data} failed: {'; '.join(problems)}. "
-              f"Nothing was written to {args.out}. Check the record's units (Ax, Ay, Az in g) and the "
-              "config's noise and filter settings.", file=sys.stderr)
-        return 1
+    if failed_run_status(run_problems(est), "the filter run", args.data, args.out,
+                         "the record's units (Ax, Ay, Az in g) and the config's noise and filter settings"):
+        return EXIT_RUN_FAILED
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
     if fit is None:
         fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from ...estimation.consistency import estimate_problems
+from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option
@@ -91,11 +91,9 @@ def identify(study: Study, args) -> int:
         sig = np.full(4, np.nan)   # eq. (2) gives no uncertainty
         extra = "eq. (2)"
         problems = run_problems(est, None)
-    if problems:
-        print(f"platcal identify: error: the lowprec_centrifuge {method} identification over {args.data} failed: "
-              f"{'; '.join(problems)}. Nothing was written to {args.out}. Check the record's units (VE, VN in "
-              "m/s, heading_deg in deg) and its schedule.", file=sys.stderr)
-        return 1
+    if failed_run_status(problems, f"the lowprec_centrifuge {method} identification", args.data, args.out,
+                         "the record's units (VE, VN in m/s, heading_deg in deg) and its schedule"):
+        return EXIT_RUN_FAILED
     seconds = time.perf_counter() - t0
     truth = rec.truth["coefficients"] if rec.truth and "coefficients" in rec.truth else None
     df = estimates_frame(COEFFS, est, sig, truth)

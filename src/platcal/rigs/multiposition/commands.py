@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ...estimation.consistency import estimate_problems
+from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...errors import InputError
 from ...rig import option
@@ -134,12 +134,10 @@ def cmd_identify(cfg, args) -> int:
     innovations = innovation_buffer(rec)
     est, P, nis, failed = identify(cfg, rec, choice, innovations)
     seconds = time.perf_counter() - t0
-    problems = run_problems(est, P, nis, failed)
-    if problems:
-        print(f"platcal identify: error: the multiposition EKF run over {args.data} failed: {'; '.join(problems)}. "
-              f"Nothing was written to {args.out}. Check the record's units (Ax, Ay, Az in g, angles in deg) "
-              "and the config's noise and filter settings.", file=sys.stderr)
-        return 1
+    if failed_run_status(run_problems(est, P, nis, failed), "the multiposition EKF run", args.data, args.out,
+                         "the record's units (Ax, Ay, Az in g, angles in deg) and the config's noise and filter "
+                         "settings"):
+        return EXIT_RUN_FAILED
     used = rec.samples_used()
     names = coef_names()
     sig = np.sqrt(np.diag(P))

@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit
 
 from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into, c_rp_sc_into, euler_t_sc_into
-from ...model.instruments import GYRO_AXES
+from ...model.instruments import GYRO_AXES, gyro_axis_components
 from ...model.platform import default_platform
 
 AXES = ("x", "y", "z")
@@ -164,9 +164,7 @@ def gyro_drift_k(c, lay, f, eps, deps, greg):
     :func:`layout_index`) so that ``d eps_j / d c[lay[m] + j] = greg[j, m]``.
     """
     for j in range(3):
-        aI = GYRO_AXES[j, 0, 0] * f[0] + GYRO_AXES[j, 0, 1] * f[1] + GYRO_AXES[j, 0, 2] * f[2]
-        aO = GYRO_AXES[j, 1, 0] * f[0] + GYRO_AXES[j, 1, 1] * f[1] + GYRO_AXES[j, 1, 2] * f[2]
-        aS = GYRO_AXES[j, 2, 0] * f[0] + GYRO_AXES[j, 2, 1] * f[1] + GYRO_AXES[j, 2, 2] * f[2]
+        aI, aO, aS = gyro_axis_components(j, f[0], f[1], f[2])
         greg[j, 0] = 1.0
         greg[j, 1] = aI
         greg[j, 2] = aS

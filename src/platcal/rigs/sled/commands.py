@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
+from ...estimation.consistency import EXIT_RUN_FAILED, failed_run_status
 from ...estimation.fit import fit_exit_status
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import read_calibration, write_calibration_files
@@ -52,12 +53,9 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     f, w = record_arrays(df)
     check_plausible(cfg, traj, f[0], w[0], t)
     idn = identify(cfg, traj, f, w, t=t)
-    problems = run_problems(idn)
-    if problems:
-        print(f"platcal identify: error: the sled filters over {args.data} failed: {'; '.join(problems)}. "
-              f"Nothing was written to {args.out}. Check the record's units (f in m/s^2, w in rad/s) and the "
-              "config's filter settings.", file=sys.stderr)
-        return 1
+    if failed_run_status(run_problems(idn), "the sled filters", args.data, args.out,
+                         "the record's units (f in m/s^2, w in rad/s) and the config's filter settings"):
+        return EXIT_RUN_FAILED
     met = metrics(idn, truth).iloc[0]
     est = estimates(idn, truth)
     seconds = time.perf_counter() - t0

@@ -14,17 +14,11 @@ import pandas as pd
 import pytest
 
 from platcal.cli import main
+from centrifuge_short import SHORT_POSITIONS, short_config, with_sections
 from file_snapshot import snapshot
 
-SCHEME = [[45, 0, 167], [350, 0, 325], [209, 0, 182]]
-BASE = """
-site: {latitude_deg: 28.2}
-centrifuge: {rate_deg_s: 180, g_level: 10}
-noise: {sigma_a_ug: 10, arw_deg_rth: 0.001, sigma_set_arcsec: 10}
-filter: {period_ms: 20, passes: 1}
-schemes:
-  short: {dwell_s: 4, positions: [[45, 0, 167], [350, 0, 325], [209, 0, 182]]}
-"""
+SCHEME = SHORT_POSITIONS
+BASE = short_config(passes=1)
 SAMPLE_S = 0.005
 
 
@@ -45,14 +39,7 @@ def record(n: int = 800) -> pd.DataFrame:
 
 def with_section(text: str) -> str:
     """BASE with the top-level sections of ``text`` replacing (or added to) BASE's."""
-    keys = {line.split(":")[0] for line in text.splitlines() if line and not line.startswith(" ")}
-    out, skip = [], False
-    for line in BASE.splitlines():
-        if line and not line.startswith(" "):
-            skip = line.split(":")[0] in keys
-        if not skip:
-            out.append(line)
-    return "\n".join(out) + "\n" + text + "\n"
+    return with_sections(BASE, text)
 
 
 # ---- configs: (config text, command, expected field) --------------------------------------------

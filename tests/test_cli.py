@@ -8,20 +8,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from centrifuge_short import short_config, with_sections
 from platcal.cli import main
 from platcal.rigs.centrifuge.config import load_config
 from platcal.rigs.centrifuge.record import sim_to_frame
 from platcal.rigs.centrifuge.simulate import simulate
 from platcal.study.montecarlo import replicate_seed
 
-SMALL = """
-site: {latitude_deg: 28.2}
-centrifuge: {rate_deg_s: 180, g_level: 10}
-noise: {sigma_a_ug: 10, arw_deg_rth: 0.001, sigma_set_arcsec: 10}
-filter: {period_ms: 20, passes: 2}
-schemes:
-  short: {dwell_s: 4, positions: [[45, 0, 167], [350, 0, 325], [209, 0, 182]]}
-"""
+SMALL = short_config(passes=2)
 
 
 @pytest.fixture()
@@ -147,26 +141,8 @@ CONFIG_CASES = {
 @pytest.mark.parametrize("case", sorted(CONFIG_CASES))
 def test_bad_config_exits_2_naming_the_field(case, tmp_path):
     override, field = CONFIG_CASES[case]
-    base = {k: v for k, v in (("truth", ""), ("noise", ""), ("filter", ""), ("schemes", ""))}
-    text = SMALL
-    key = override.split(":")[0]
-    if key in base and key in SMALL:
-        # replace the section of SMALL with the override
-        lines, out, skip = SMALL.splitlines(), [], False
-        for line in lines:
-            if line.startswith(key + ":"):
-                skip = True
-                out.append(override)
-                continue
-            if skip and line.startswith("  "):
-                continue
-            skip = False
-            out.append(line)
-        text = "\n".join(out) + "\n"
-    else:
-        text = SMALL + override + "\n"
     cfg = tmp_path / "bad.yaml"
-    cfg.write_text(text)
+    cfg.write_text(with_sections(SMALL, override))  # the override's section replaces SMALL's
     out = tmp_path / "out.csv"
     r = run_cli("simulate", "--config", str(cfg), "--scheme", "short", "--out", str(out))
     assert r.returncode == 2, r.stderr

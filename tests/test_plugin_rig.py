@@ -3,16 +3,11 @@ through the ``platcal.rigs`` entry points, runs end to end through the generic r
 Carlo cells, tidy tables, generic report, claims ledger, index) with no edit to the project."""
 
 import os
-import shutil
-import subprocess
-import sys
-from pathlib import Path
 
 import pandas as pd
 import pytest
 import yaml
-
-ROOT = Path(__file__).resolve().parents[1]
+from workflow_copy import ROOT, copy_workflow, snakemake
 
 TOY = '''
 """A toy rig: one constant measured n times with noise; the estimate is the sample mean."""
@@ -81,17 +76,12 @@ def test_a_rig_from_another_package_runs_through_the_generic_rules(tmp_path):
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: toyrig\nVersion: 0.1\n")
     (dist / "entry_points.txt").write_text("[platcal.rigs]\ntoy = toyrig\n")
-    wf = tmp_path / "wf"
-    wf.mkdir()
-    shutil.copy(ROOT / "Snakefile", wf)
-    shutil.copytree(ROOT / "workflow", wf / "workflow")
-    shutil.copytree(ROOT / "config", wf / "config")
+    wf = copy_workflow(tmp_path / "wf")
     index = {"rigs": {"centrifuge": None, "multiposition": None, "sled": None, "lowprec_centrifuge": None,
                       "toy": {"truth": 3.0, "study": {"sigma_v": [0.1, 1.0], "replicates": 6}}}}
     (wf / "toy.yaml").write_text(yaml.safe_dump(index))
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(pkg), os.environ.get("PYTHONPATH", "")]))
-    p = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2", "--configfile", "toy.yaml"], cwd=wf,
-                       env=env, capture_output=True, text=True, timeout=600)
+    p = snakemake(wf, "--cores", "2", "--configfile", "toy.yaml", env=env, timeout=600)
     assert p.returncode == 0, p.stderr[-3000:]
     res = wf / "results"
     coef = pd.read_parquet(res / "toy" / "montecarlo" / "coef.parquet")

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from centrifuge_short import short_config
 from platcal.cli import main
 from platcal.io import read_yaml
 from platcal.model.frames import DEG
@@ -20,15 +21,7 @@ from platcal.rigs.centrifuge.config import study_from_config
 from platcal.rigs.centrifuge.record import nearest_samples, position_origin
 from platcal.rigs.centrifuge.simulate import simulate
 
-CONFIG = """
-site: {latitude_deg: 28.2}
-centrifuge: {rate_deg_s: 180, g_level: 10}
-noise: {sigma_a_ug: 10, arw_deg_rth: 0.001, sigma_set_arcsec: 10}
-filter: {period_ms: 20, passes: 2}
-sampling: {sample_ms: 5}
-schemes:
-  short: {dwell_s: 4, positions: [[45, 0, 167], [350, 0, 325], [209, 0, 182]]}
-"""
+CONFIG = short_config(passes=2, extra="sampling: {sample_ms: 5}\n")
 FINE_MS = 0.05
 SUB = 100  # fine samples per 5 ms sample
 JITTER = 2  # +- 2 fine samples = +- 0.1 ms

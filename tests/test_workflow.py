@@ -4,50 +4,20 @@ Each test copies the workflow (Snakefile, workflow/, config/) into a temporary f
 repository's results/ is never touched. The tiny study is ``config/test.yaml``.
 """
 
-import os
-import shutil
-import signal
-import subprocess
-import sys
 import textwrap
 from pathlib import Path
 
 import pandas as pd
 import pytest
+from workflow_copy import ROOT, copy_workflow, needs_snakemake
+from workflow_copy import snakemake as smk  # the tiny study's 29 jobs: ~2 min quiet, several times that loaded
 
-ROOT = Path(__file__).resolve().parents[1]
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
-
-pytestmark = pytest.mark.skipif(shutil.which("snakemake") is None and
-                                subprocess.run(SNAKEMAKE + ["--version"], capture_output=True).returncode != 0,
-                                reason="snakemake is not installed")
+pytestmark = needs_snakemake
 
 
 def workdir(tmp_path: Path) -> Path:
-    """A copy of the workflow; symlinks (the schema) are copied as files."""
-    d = tmp_path / "wf"
-    d.mkdir(parents=True)
-    shutil.copy(ROOT / "Snakefile", d)
-    shutil.copytree(ROOT / "workflow", d / "workflow", symlinks=False)
-    shutil.copytree(ROOT / "config", d / "config", symlinks=False)
-    shutil.copytree(ROOT / "profiles", d / "profiles", symlinks=False)
-    return d
-
-
-def smk(d: Path, *args, timeout=300):
-    """Run snakemake in ``d``; on timeout, end its whole process group (its jobs too). The timeout
-    guards against a hang, not the speed: the tiny study's 29 jobs take about 2 min on a quiet
-    2-core machine and several times that on a loaded one."""
-    env = dict(os.environ, PYTHONHASHSEED="0")
-    p = subprocess.Popen(SNAKEMAKE + list(args), cwd=d, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         env=env, start_new_session=True)
-    try:
-        out, err = p.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGKILL)
-        p.communicate()
-        raise
-    return subprocess.CompletedProcess(p.args, p.returncode, out, err)
+    """A copy of the workflow with its profiles."""
+    return copy_workflow(tmp_path / "wf", profiles=True)
 
 
 def outputs(d: Path) -> dict[str, bytes]:

@@ -8,25 +8,19 @@ path must give the same jobs with the same params (nothing listed after the swit
 """
 
 import re
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import yaml
 
 from platcal.rig import rig_names
+from workflow_copy import copy_workflow, needs_snakemake, snakemake
 
-ROOT = Path(__file__).resolve().parents[1]
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
-
-pytestmark = pytest.mark.skipif(subprocess.run(SNAKEMAKE + ["--version"], capture_output=True).returncode != 0,
-                                reason="snakemake is not installed")
+pytestmark = needs_snakemake
 
 
 def smk(d: Path, *args) -> str:
-    p = subprocess.run(SNAKEMAKE + list(args), cwd=d, capture_output=True, text=True, timeout=600)
+    p = snakemake(d, *args, timeout=600)
     assert p.returncode == 0, p.stderr[-3000:]
     return p.stdout
 
@@ -35,10 +29,7 @@ def study_of(tmp_path: Path, rig: str, entry) -> Path:
     """A copy of the workflow whose index holds ``rig`` only (``entry``: a path or a mapping)."""
     d = tmp_path / "wf"
     if not d.exists():
-        d.mkdir()
-        shutil.copy(ROOT / "Snakefile", d)
-        shutil.copytree(ROOT / "workflow", d / "workflow")
-        shutil.copytree(ROOT / "config", d / "config")
+        copy_workflow(d)
     write_index(d, rig, entry)
     return d
 

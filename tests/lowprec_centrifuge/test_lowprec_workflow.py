@@ -2,24 +2,19 @@
 touched): the generic Monte Carlo cells, the rig's trace and report rules, staleness (an edited
 value reruns exactly its dependent jobs, a comment nothing) and the inline config form."""
 
-import os
 import re
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
 import yaml
+from workflow_copy import copy_workflow, needs_snakemake, snakemake
 
-ROOT = Path(__file__).resolve().parents[2]
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 OTHERS = ("centrifuge", "multiposition", "sled")
 
 pytestmark = [pytest.mark.slow,
-              pytest.mark.skipif(subprocess.run(SNAKEMAKE + ["--version"], capture_output=True).returncode != 0,
-                                 reason="snakemake is not installed")]
+              needs_snakemake]
 
 TINY = {"rig": "lowprec_centrifuge", "platforms": {"P1": {"kA_x": -40, "k2_x": -8, "kA_y": 25, "k2_y": -5}},
         "runs": {"P1": {"run1": [4, 6], "run2": [4, 7]}}, "profile": {"rest_first_s": 10, "rest_between_s": 20},
@@ -30,11 +25,7 @@ TINY_TEXT = "# the tiny study\n" + yaml.safe_dump(TINY)
 
 def setup(tmp_path: Path, rigs: bool = True, inline: bool = False) -> Path:
     """A copy of the whole workflow whose index names this rig alone (path or inline) or no rig."""
-    d = tmp_path / "wf"
-    d.mkdir(parents=True)
-    shutil.copy(ROOT / "Snakefile", d)
-    shutil.copytree(ROOT / "workflow", d / "workflow")
-    shutil.copytree(ROOT / "config", d / "config")
+    d = copy_workflow(tmp_path / "wf")
     (d / "config" / "lp.yaml").write_text(TINY_TEXT)
     entry = (TINY if inline else "config/lp.yaml") if rigs else None
     (d / "config" / "config.yaml").write_text(yaml.safe_dump({"rigs": {**{r: None for r in OTHERS},
@@ -43,8 +34,7 @@ def setup(tmp_path: Path, rigs: bool = True, inline: bool = False) -> Path:
 
 
 def smk(d: Path, *args):
-    env = dict(os.environ, PYTHONHASHSEED="0")
-    return subprocess.run(SNAKEMAKE + list(args), cwd=d, capture_output=True, text=True, env=env, timeout=600)
+    return snakemake(d, *args, timeout=600)
 
 
 def dry(d: Path) -> str:

@@ -1,43 +1,23 @@
 """The sled study through the whole Snakefile (generic Monte Carlo cells + the sled's own rules),
 on the tiny sled part of config/test.yaml (slow: about a minute)."""
 
-import os
 import re
-import shutil
-import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
 import yaml
+from workflow_copy import ROOT, copy_workflow, needs_snakemake
+from workflow_copy import snakemake as run
 
-ROOT = Path(__file__).resolve().parents[2]
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 OTHERS = ("centrifuge", "multiposition", "lowprec_centrifuge")
 
-pytestmark = [pytest.mark.slow,
-              pytest.mark.skipif(subprocess.run(SNAKEMAKE + ["--version"], capture_output=True).returncode != 0,
-                                 reason="snakemake is not installed")]
+pytestmark = [pytest.mark.slow, needs_snakemake]
 
 
 def tiny_sled() -> dict:
     """The sled part of config/test.yaml (an inline mapping)."""
     return yaml.safe_load((ROOT / "config" / "test.yaml").read_text())["rigs"]["sled"]
-
-
-def run(d: Path, *args, timeout=300):
-    env = dict(os.environ, PYTHONHASHSEED="0")
-    p = subprocess.Popen(SNAKEMAKE + list(args), cwd=d, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         env=env, start_new_session=True)
-    try:
-        out, err = p.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGKILL)
-        p.communicate()
-        raise
-    return subprocess.CompletedProcess(p.args, p.returncode, out, err)
 
 
 def index(d: Path, sled) -> None:
@@ -47,11 +27,7 @@ def index(d: Path, sled) -> None:
 
 def make(tmp_path: Path, sled_yaml: str) -> Path:
     """A copy of the workflow whose index names config/sled.yaml, holding ``sled_yaml``."""
-    d = tmp_path / "wf"
-    d.mkdir(parents=True)
-    shutil.copy(ROOT / "Snakefile", d)
-    shutil.copytree(ROOT / "workflow", d / "workflow", symlinks=False)
-    shutil.copytree(ROOT / "config", d / "config", symlinks=False)
+    d = copy_workflow(tmp_path / "wf")
     (d / "config" / "sled.yaml").write_text(sled_yaml)
     index(d, "config/sled.yaml")
     return d

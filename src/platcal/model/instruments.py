@@ -149,6 +149,22 @@ def accel_slopes(coef, j, aI, aP):
     return gI, gP
 
 
+@njit(cache=True, inline="always")
+def gyro_regressors_into(aI, aO, aS, out):
+    """The ten regressors of a gyro's drift, eqs. 11-12 (docs/centrifuge-model.md §4), from its
+    axis components (g): ``out = [1, aI, aO, aS, aI^2, aS^2, aI aO, aI aS, aO aS, aO^2]``."""
+    out[0] = 1.0
+    out[1] = aI
+    out[2] = aO
+    out[3] = aS
+    out[4] = aI * aI
+    out[5] = aS * aS
+    out[6] = aI * aO
+    out[7] = aI * aS
+    out[8] = aO * aS
+    out[9] = aO * aO
+
+
 @njit(cache=True)
 def gyro_drift_into(coef, f, eps, deps_df, reg):
     """Drift of the three gyros, eqs. 11-12 (docs/centrifuge-model.md §4).
@@ -164,16 +180,7 @@ def gyro_drift_into(coef, f, eps, deps_df, reg):
     """
     for j in range(3):
         aI, aO, aS = gyro_axis_components(j, f[0], f[1], f[2])
-        reg[j, 0] = 1.0
-        reg[j, 1] = aI
-        reg[j, 2] = aO
-        reg[j, 3] = aS
-        reg[j, 4] = aI * aI
-        reg[j, 5] = aS * aS
-        reg[j, 6] = aI * aO
-        reg[j, 7] = aI * aS
-        reg[j, 8] = aO * aS
-        reg[j, 9] = aO * aO
+        gyro_regressors_into(aI, aO, aS, reg[j])
         eps[j] = gyro_drift_scalar(coef, j, aI, aO, aS)
         gI, gO, gS = gyro_drift_slopes(coef, j, aI, aO, aS)
         for k in range(3):

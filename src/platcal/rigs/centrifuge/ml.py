@@ -135,6 +135,22 @@ def _normal_equations_serial(rows, theta, z, t, offs, est_idx, coef_fixed, param
                    pg, hstate, hsrc, hnnz, N[i], g[i], stats[i])
 
 
+@njit(cache=True, inline="always")
+def mul3_into(A, B, out):
+    """``out = A B`` for a (3, 3) ``A`` and a (3, m) ``B``, each sum in the order of the index."""
+    for r in range(3):
+        for j in range(B.shape[1]):
+            out[r, j] = A[r, 0] * B[0, j] + A[r, 1] * B[1, j] + A[r, 2] * B[2, j]
+
+
+@njit(cache=True, inline="always")
+def mul3t_into(A, B, out):
+    """``out = A B^T`` for (3, 3) ``A`` and ``B``."""
+    for r in range(3):
+        for j in range(3):
+            out[r, j] = A[r, 0] * B[j, 0] + A[r, 1] * B[j, 1] + A[r, 2] * B[j, 2]
+
+
 @njit(cache=True)
 def _replicate(theta, z, t, offs, est_idx, coef_fixed, params, r_var, q_rate, gstate, pg, hstate, hsrc,
                hnnz, N, gv, stats):
@@ -213,26 +229,19 @@ def _replicate(theta, z, t, offs, est_idx, coef_fixed, params, r_var, q_rate, gs
                         tmpg[r] = pa[r, 0] * Phi_g[0, q] + pa[r, 1] * Phi_g[1, q] + pa[r, 2] * Phi_g[2, q]
                     for r in range(3):
                         Phi_g[r, q] = tmpg[r] + pgyro[r, pg[q]]
-                for r in range(3):
-                    for j in range(3):
-                        tmp3[r, j] = pa[r, 0] * Phi_a[0, j] + pa[r, 1] * Phi_a[1, j] + pa[r, 2] * Phi_a[2, j]
+                mul3_into(pa, Phi_a, tmp3)
                 for r in range(3):
                     for j in range(3):
                         Phi_a[r, j] = tmp3[r, j]
                     ang[r] = ang_new[r]
                 # random-walk filter: predict (the gyro noise over h)
-                for r in range(3):
-                    for j in range(nl + 1):
-                        tmpX[r, j] = pa[r, 0] * X[0, j] + pa[r, 1] * X[1, j] + pa[r, 2] * X[2, j]
+                mul3_into(pa, X, tmpX)
                 for r in range(3):
                     for j in range(nl + 1):
                         X[r, j] = tmpX[r, j]
+                mul3_into(pa, Pd, tmp3)
+                mul3t_into(tmp3, pa, Pd)
                 for r in range(3):
-                    for j in range(3):
-                        tmp3[r, j] = pa[r, 0] * Pd[0, j] + pa[r, 1] * Pd[1, j] + pa[r, 2] * Pd[2, j]
-                for r in range(3):
-                    for j in range(3):
-                        Pd[r, j] = tmp3[r, 0] * pa[j, 0] + tmp3[r, 1] * pa[j, 1] + tmp3[r, 2] * pa[j, 2]
                     Pd[r, r] += q_rate * h
             else:
                 specific_force_into(tm, pb, fr_now)
@@ -253,12 +262,9 @@ def _replicate(theta, z, t, offs, est_idx, coef_fixed, params, r_var, q_rate, gs
             for r in range(3):
                 for j in range(nl + 1):
                     W[r, j] -= ha[r, 0] * X[0, j] + ha[r, 1] * X[1, j] + ha[r, 2] * X[2, j]
+            mul3_into(ha, Pd, HP)
+            mul3t_into(HP, ha, S)
             for r in range(3):
-                for j in range(3):
-                    HP[r, j] = ha[r, 0] * Pd[0, j] + ha[r, 1] * Pd[1, j] + ha[r, 2] * Pd[2, j]
-            for r in range(3):
-                for j in range(3):
-                    S[r, j] = HP[r, 0] * ha[j, 0] + HP[r, 1] * ha[j, 1] + HP[r, 2] * ha[j, 2]
                 S[r, r] += r_var[r]
             # Cholesky S = L L' (lower, in place)
             l00 = S[0, 0]
@@ -298,9 +304,7 @@ def _replicate(theta, z, t, offs, est_idx, coef_fixed, params, r_var, q_rate, gs
                     for j in range(3):
                         IKH[r, j] = (1.0 if r == j else 0.0) - (Kg[r, 0] * ha[0, j] + Kg[r, 1] * ha[1, j]
                                                                  + Kg[r, 2] * ha[2, j])
-                for r in range(3):
-                    for j in range(3):
-                        tmp3[r, j] = IKH[r, 0] * Pd[0, j] + IKH[r, 1] * Pd[1, j] + IKH[r, 2] * Pd[2, j]
+                mul3_into(IKH, Pd, tmp3)
                 for r in range(3):
                     for j in range(r + 1):
                         s = (tmp3[r, 0] * IKH[j, 0] + tmp3[r, 1] * IKH[j, 1] + tmp3[r, 2] * IKH[j, 2]

@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit
 
 from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into, c_rp_sc_into, euler_t_sc_into
-from ...model.instruments import GYRO_AXES, gyro_axis_components
+from ...model.instruments import GYRO_AXES, gyro_axis_components, gyro_regressors_into
 from ...model.platform import default_platform
 
 AXES = ("x", "y", "z")
@@ -165,16 +165,10 @@ def gyro_drift_k(c, lay, f, eps, deps, greg):
     """
     for j in range(3):
         aI, aO, aS = gyro_axis_components(j, f[0], f[1], f[2])
-        greg[j, 0] = 1.0
-        greg[j, 1] = aI
+        gyro_regressors_into(aI, aO, aS, greg[j])
+        # this rig's slot order (layout_index, §5) has the spin term before the output term
         greg[j, 2] = aS
         greg[j, 3] = aO
-        greg[j, 4] = aI * aI
-        greg[j, 5] = aS * aS
-        greg[j, 6] = aI * aO
-        greg[j, 7] = aI * aS
-        greg[j, 8] = aO * aS
-        greg[j, 9] = aO * aO
         e = 0.0
         gI = 0.0
         gO = 0.0

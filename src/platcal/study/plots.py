@@ -50,6 +50,18 @@ def save(fig, path: str | os.PathLike, dpi: float | None = None, tight: bool = T
     plt.close(fig)
 
 
+def finish(fig, ax, path, xlabel: str, ylabel: str, title: str, legend_fontsize: float | None = 8) -> None:
+    """Label the axes, title them, add the legend (none when ``legend_fontsize`` is None), lay
+    the figure out and save it (:func:`save`): the common end of the study figures."""
+    ax.set_ylabel(ylabel)
+    ax.set_xlabel(xlabel)
+    ax.set_title(title)
+    if legend_fontsize is not None:
+        ax.legend(fontsize=legend_fontsize)
+    fig.tight_layout()
+    save(fig, path)
+
+
 def _scheme_colors(schemes):
     cmap = plt.get_cmap("tab10")
     return {s: cmap(i % 10) for i, s in enumerate(schemes)}

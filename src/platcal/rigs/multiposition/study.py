@@ -20,7 +20,7 @@ from ...io import atomic_write_text
 from ...rig import get_rig
 from ...study.claims import ledger_section, read_ledger
 from ...study.montecarlo import compute_code_hash, package_code_hash
-from ...study.plots import nees_histogram, plt, save as save_figure
+from ...study.plots import finish, nees_histogram, plt, save as save_figure
 from ...study.stats import CELL, select_cell, with_timing
 from ...study.tables import frame_markdown, write_table
 from .config import load_config
@@ -150,12 +150,8 @@ def fig_montecarlo(coef: pd.DataFrame, path) -> None:
     ax.boxplot(data)
     ax.set_xticks(range(1, len(keys) + 1), [f"{s}\n{a:g} ug\n{e}" for s, a, e in keys], fontsize=7)
     ax.axhline(1.5, color="grey", ls="--", lw=0.8, label="spec: S8 median <= 1.5 % (5 ug, 1 pass)")
-    ax.set_ylabel("largest gyro |relative error| per seed (%)")
-    ax.set_xlabel("scheme / sigma_a / estimator")
-    ax.set_title("Monte Carlo: largest gyro relative error per seed")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    save_figure(fig, path)
+    finish(fig, ax, path, "scheme / sigma_a / estimator", "largest gyro |relative error| per seed (%)",
+           "Monte Carlo: largest gyro relative error per seed")
 
 
 def fig_extension(ef: pd.DataFrame, path) -> None:
@@ -165,12 +161,8 @@ def fig_extension(ef: pd.DataFrame, path) -> None:
     ax.bar(x + 0.2, ef["rel_sigma_centrifuge_pct"], 0.4, label="centrifuge, Table 1 (6 positions x 60 s)")
     ax.set_xticks(x, ef["name"], rotation=90, fontsize=8)
     ax.set_yscale("log")
-    ax.set_ylabel("covariance-only sigma/|truth| (%)")
-    ax.set_xlabel("higher-order coefficient")
-    ax.set_title("Why a centrifuge: higher-order terms at 1 g vs on the centrifuge")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    save_figure(fig, path)
+    finish(fig, ax, path, "higher-order coefficient", "covariance-only sigma/|truth| (%)",
+           "Why a centrifuge: higher-order terms at 1 g vs on the centrifuge")
 
 
 def fig_extension_draws(spread: pd.DataFrame, path) -> None:

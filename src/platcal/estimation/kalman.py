@@ -214,7 +214,7 @@ def update_scratch(m, n):
             np.empty(m))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always")  # inlined: the sparse update's code stays as before the split
 def joseph_update(x, P, U, S, innov, K, D, F, nu, update_x):
     """Measurement update from the cross-covariance ``U`` (m, n) (``U[r, i] = cov(x_i, z_r)``)
     and the innovation covariance ``S`` (m, m) (noise included), Joseph-safe (module docstring).

@@ -6,14 +6,14 @@ Each rig's default test (``platcal simulate --seed N``, seeds 0..N-1; the rig an
 ``platcal.cli.main`` (the command's own path: the record checks, the plausibility refusal, the
 filter and the fit check; the exit status is the command's, an InputError mapped to 2):
 
-- scale: one data column times (1 + e), e on a log grid 1e-4 .. 1;
+- scale: one data column times (1 + e), e on a log grid 1e-7 .. 1;
 - unit: one data column written in another unit of the same kind (m/s^2 for g, rad for deg,
   deg/s for rad/s, km for m, ...; the factor from ``platcal.logs.mapping.conversion_factor``), and
   ``t`` in ms; whether the message names the column and the scale (9.80665, 57.2958, 1000, 3600);
 - sign: one data column times -1;
-- clock jitter: ``t`` plus a uniform draw in [-a, a], a on a log grid 1 us .. 1 ms (the same
+- clock jitter: ``t`` plus a uniform draw in [-a, a], a on a log grid 10 ns .. 1 ms (the same
   draw, scaled, at every a; SeedSequence(config seed, "fit_sensitivity jitter", seed N));
-- clock rate: ``t`` times (1 + e), e on a log grid 1e-6 .. 0.1.
+- clock rate: ``t`` times (1 + e), e on a log grid 1e-10 .. 0.1.
 
 A size is *caught* when the identification exits non-zero on at least ``--need`` of the seeds
 (default 4 of 5). A size *shifts* the identification when, on at least as many seeds, some
@@ -62,12 +62,12 @@ sys.path.insert(0, str(HERE))
 
 from fit_false_alarm import RIGS  # noqa: E402  (each rig's default config, the false-alarm benchmark's)
 
-SCALE_GRID = np.logspace(-4, 0, 13)
+SCALE_GRID = np.logspace(-7, 0, 22)
 """Relative scale errors e (column times 1 + e): 3 per decade."""
-JITTER_GRID = np.logspace(-6, -3, 10)
+JITTER_GRID = np.logspace(-8, -3, 16)
 """Uniform timestamp jitter amplitudes a, s (t + U(-a, a)): 3 per decade, below half of every
 rig's sample period (5 ms and more), so the stamps stay in order."""
-RATE_GRID = np.logspace(-6, -1, 16)
+RATE_GRID = np.logspace(-10, -1, 28)
 """Clock-rate errors e (t times 1 + e): 3 per decade."""
 
 WRONG_UNITS = {"g": ("m/s^2", "mg"), "m/s^2": ("g", "mg"), "deg": ("rad",), "rad/s": ("deg/s", "rad/h"),
@@ -113,6 +113,7 @@ class Outcome:
     status: int
     message: str
     shift: float
+    most: str = ""
 
 
 class Runner:
@@ -125,7 +126,8 @@ class Runner:
         self.calls, self.cpu = 0, 0.0
         for n in range(seeds):
             rec = work / f"clean_{n}.parquet"
-            code = self._quiet(["simulate", "--config", case.config, *case.simulate, "--seed", str(n), "--out", str(rec)])
+            code = self._quiet(["simulate", "--config", case.config, *case.simulate, "--seed", str(n),
+                                "--out", str(rec)])
             if code[0] != 0:
                 raise SystemExit(f"{rig}: platcal simulate seed {n} exited {code[0]}: {code[1]}")
             self.frames.append(pd.read_parquet(rec))
@@ -161,7 +163,9 @@ class Runner:
         df = self.frames[n].copy()
         corrupt(df, n)
         code, msg, est = self.identify(df, n)
-        return Outcome(code, msg.strip(), np.nan if est is None else shift_sigmas(self.clean[n], est))
+        if est is None:
+            return Outcome(code, msg.strip(), np.nan)
+        return Outcome(code, msg.strip(), *shift_sigmas(self.clean[n], est))
 
     def jitter_draw(self, n: int) -> np.ndarray:
         """Seed ``n``'s uniform draw in [-1, 1] per row, scaled by the jitter amplitude."""
@@ -169,13 +173,17 @@ class Runner:
         return rng.uniform(-1.0, 1.0, len(self.frames[n]))
 
 
-def shift_sigmas(clean: pd.DataFrame, est: pd.DataFrame) -> float:
+def shift_sigmas(clean: pd.DataFrame, est: pd.DataFrame) -> tuple[float, str]:
     """The largest |estimate - clean estimate| / clean sigma over the estimates with a sigma
-    (rows in the same order: the same rig and config); inf for a non-finite estimate."""
+    (rows in the same order: the same rig and config; inf for a non-finite estimate) and the
+    estimate it is of."""
     sig = clean["sigma"].to_numpy(float)
-    ok = np.isfinite(sig) & (sig > 0)
-    d = est["estimate"].to_numpy(float)[ok] - clean["estimate"].to_numpy(float)[ok]
-    return float(np.max(np.abs(d) / sig[ok])) if np.all(np.isfinite(d)) else np.inf
+    ok = np.flatnonzero(np.isfinite(sig) & (sig > 0))
+    d = np.abs(est["estimate"].to_numpy(float)[ok] - clean["estimate"].to_numpy(float)[ok]) / sig[ok]
+    d = np.where(np.isfinite(d), d, np.inf)
+    i = int(np.argmax(d))
+    where = f" ({clean['filter'].iloc[ok[i]]})" if "filter" in clean else ""  # the sled: run and stop filter
+    return float(d[i]), str(clean["name"].iloc[ok[i]]) + where
 
 
 @dataclass
@@ -202,6 +210,11 @@ class Point:
         codes = [o.status for o in self.outcomes]
         return ", ".join(f"exit {c}: {codes.count(c)}" for c in sorted(set(codes)))
 
+    def most_shifted(self) -> str:
+        """The estimate that moved most (in clean sigmas) on the seeds with an estimate."""
+        shown = [o for o in self.outcomes if np.isfinite(o.shift)]
+        return max(shown, key=lambda o: o.shift).most if shown else "-"
+
     def first_message(self) -> str:
         return next((o.message for o in self.outcomes if o.status != 0), "")
 
@@ -224,7 +237,8 @@ def names(message: str, column: str, scale: float | None) -> str:
     """What a refusal's message names: the column, and (for a named scale of
     :data:`platcal.estimation.fit.UNIT_SCALES`, either way round) the scale."""
     said = [column] if column in message else []
-    named = [f"{s:.6g}" for s, _ in UNIT_SCALES if scale is not None and min(abs(scale / s - 1), abs(scale * s - 1)) < 1e-3]
+    named = [f"{s:.6g}" for s, _ in UNIT_SCALES
+             if scale is not None and min(abs(scale / s - 1), abs(scale * s - 1)) < 1e-3]
     if named and named[0] in message:
         said.append(f"scale {named[0]}")
     return " and ".join(said) or "no"
@@ -240,7 +254,8 @@ def sweep(r: Runner, kind: str, column: str, grid, corrupt, need: int, points: l
             p = cache[i]
             points.append({"rig": r.rig, "corruption": kind, "column": column, "size": float(grid[i]),
                            "caught": p.caught, "shifted": p.shifted, "by": p.by(),
-                           "passed_shift_max": p.passed_shift, "message": p.first_message()[:160]})
+                           "passed_shift_max": p.passed_shift, "most_shifted": p.most_shifted(),
+                           "message": p.first_message()[:160]})
         return cache[i]
 
     ic = smallest(grid, lambda i: at(i).caught >= need)
@@ -248,13 +263,17 @@ def sweep(r: Runner, kind: str, column: str, grid, corrupt, need: int, points: l
     caught = np.nan if ic is None else float(grid[ic])
     wrong = np.nan if iw is None else float(grid[iw])
     if iw is not None and (ic is None or iw < ic):
-        zone = f"{wrong:.2g} .. {caught:.2g}" if ic is not None else f">= {wrong:.2g} (never caught up to {grid[-1]:.2g})"
+        zone = (f"{wrong:.2g} .. {caught:.2g}" if ic is not None
+                else f">= {wrong:.2g} (never caught up to {grid[-1]:.2g})")
     else:
         zone = "none"
     top = at(ic) if ic is not None else None
+    first_wrong = at(iw).most_shifted() if iw is not None else "-"
     return {"rig": r.rig, "corruption": kind, "column": column, "smallest_caught": caught,
-            "caught": f"{top.caught}/{len(r.frames)}" if top else f"0-{max(p.caught for p in cache.values())}/{len(r.frames)}",
-            "by": top.by() if top else "-", "smallest_shift_1sigma": wrong, "dangerous_zone": zone,
+            "caught": (f"{top.caught}/{len(r.frames)}" if top
+                       else f"0-{max(p.caught for p in cache.values())}/{len(r.frames)}"),
+            "by": top.by() if top else "-", "smallest_shift_1sigma": wrong, "most_shifted": first_wrong,
+            "dangerous_zone": zone,
             "passed_shift_max": max(p.passed_shift for p in cache.values()),
             "message_names": names(top.first_message(), column, None) if top else "-",
             "sizes_evaluated": len(cache)}
@@ -265,10 +284,11 @@ def fixed(r: Runner, kind: str, column: str, corrupt, scale: float | None, point
     p = Point([r.outcome(corrupt, n) for n in range(len(r.frames))])
     points.append({"rig": r.rig, "corruption": kind, "column": column, "size": np.nan if scale is None else scale,
                    "caught": p.caught, "shifted": p.shifted, "by": p.by(), "passed_shift_max": p.passed_shift,
-                   "message": p.first_message()[:160]})
+                   "most_shifted": p.most_shifted(), "message": p.first_message()[:160]})
     return {"rig": r.rig, "corruption": kind, "column": column, "smallest_caught": np.nan,
             "caught": f"{p.caught}/{len(r.frames)}", "by": p.by(), "smallest_shift_1sigma": np.nan,
-            "dangerous_zone": "yes" if p.passed_shift > 1.0 else "none", "passed_shift_max": p.passed_shift,
+            "most_shifted": p.most_shifted(), "dangerous_zone": "yes" if p.passed_shift > 1.0 else "none",
+            "passed_shift_max": p.passed_shift,
             "message_names": names(p.first_message(), column, scale) if p.caught else "-", "sizes_evaluated": 1}
 
 

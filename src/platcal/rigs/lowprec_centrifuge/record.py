@@ -275,10 +275,12 @@ def check_plausible(rec: Record, arm_m: float) -> None:
         return
     for name, vel, ratio in zip(("fE", "fN"), ("VE", "VN"), specific_force_scale(rec)):
         if not abs(ratio - 1.0) <= F_SCALE_TOL:
-            raise InputError(f"--data column {name}", f"{ratio:.6g} x the time derivative of {vel} while spinning, "
-                             f"expected 1 within {F_SCALE_TOL:g} (docs/lowprec-centrifuge.md §12); a scale error of "
-                             "the specific force scales the identified coefficients: fE, fN must be the INS's own "
-                             "east and north specific force in m/s^2 (or leave both out: they are then "
+            raise InputError(f"--data column {name} (or {vel})",
+                             f"{ratio:.6g} x the time derivative of {vel} while spinning, expected 1 within "
+                             f"{F_SCALE_TOL:g} (docs/lowprec-centrifuge.md §12): one of the two is in another unit "
+                             "or scale, and a scale error of the specific force scales the identified coefficients "
+                             "unseen by the fit check; fE, fN must be the INS's own east and north specific force in "
+                             "m/s^2 and VE, VN its velocities in m/s (or leave fE, fN out: they are then "
                              "differentiated from VE, VN)")
 
 

@@ -90,14 +90,17 @@ class RigCase:
 
 def rig_cases() -> dict[str, RigCase]:
     """The four rigs' default tests (the centrifuge's table1 scheme, as ``fit_false_alarm.py``;
-    the low-precision centrifuge's first platform and run)."""
+    the multiposition rig's first scheme, named to identify as the README does, so that the
+    record's dwells are checked against it; the low-precision centrifuge's first platform and run)."""
+    mp_cfg = RIGS["multiposition"][1]
+    mp_scheme = ("--scheme", get_rig("multiposition").load_config(read_config(mp_cfg)).scheme(None).name)
     lp_cfg = RIGS["lowprec_centrifuge"][1]
     lp = get_rig("lowprec_centrifuge").load_config(read_config(lp_cfg))
     platform = lp.platform_names()[0]
     return {
         "centrifuge": RigCase(RIGS["centrifuge"][1], ("--scheme", "table1"), ("--scheme", "table1"),
                               ("Ax", "Ay", "Az"), CENTRIFUGE_UNITS),
-        "multiposition": RigCase(RIGS["multiposition"][1], (), (), ("Ax", "Ay", "Az", "alpha_m", "beta_m", "gamma_m"),
+        "multiposition": RigCase(mp_cfg, mp_scheme, mp_scheme, ("Ax", "Ay", "Az", "alpha_m", "beta_m", "gamma_m"),
                                  MULTIPOSITION_UNITS),
         "sled": RigCase(RIGS["sled"][1], (), (), ("fx", "fy", "fz", "wx", "wy", "wz"), SLED_UNITS, "metrics.json"),
         "lowprec_centrifuge": RigCase(lp_cfg, ("--platform", platform, "--run", lp.run_names(platform)[0]), (),

@@ -219,7 +219,9 @@ class Point:
         return max(shown, key=lambda o: o.shift).most if shown else "-"
 
     def first_message(self) -> str:
-        return next((o.message for o in self.outcomes if o.status != 0), "")
+        """The stderr of the first seed caught, its error line first (exit 3 prints a summary line before it)."""
+        text = next((o.message for o in self.outcomes if o.status != 0), "")
+        return "\n".join(sorted(text.splitlines(), key=lambda line: "error:" not in line))
 
 
 def smallest(grid, pred) -> int | None:
@@ -347,7 +349,10 @@ def main() -> None:
         notes.append(note)
         print(note, flush=True)
     note = (f"Seeds 0..{args.seeds - 1} of each rig's default test; caught: exit != 0 on >= {need} of "
-            f"{args.seeds} seeds; shift: max |estimate - clean| / clean sigma > 1 (or refused) on as many. "
+            f"{args.seeds} seeds; shift: max |estimate - clean| / clean sigma > 1 (or refused) on as many; "
+            "most_shifted: the estimate that moved most there ('-': every seed refused, so the shift itself "
+            "was not measured); dangerous zone: from the smallest shift to the smallest caught size; "
+            "passed_shift_max: the largest shift of a seed that exited 0 at any size evaluated. "
             "Command: python benchmarks/fit_sensitivity.py " + " ".join(sys.argv[1:]) + ". " + "; ".join(notes) + ".")
     write_table(pd.DataFrame(rows), args.out, "What the fit check catches (issue 25)", note, FORMATS)
     write_table(pd.DataFrame(points), f"{args.out}_points", "What the fit check catches: every size evaluated",

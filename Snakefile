@@ -25,8 +25,8 @@ for _rules in dict.fromkeys(f for f in RIG_RULES.values() if f):
     include: _rules
 
 
-include: "workflow/rules/report.smk"
 include: "workflow/rules/campaign.smk"
+include: "workflow/rules/report.smk"
 
 
 RIG_TARGETS = {

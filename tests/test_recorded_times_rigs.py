@@ -114,6 +114,9 @@ def test_lowprec_recorded_log(tmp_path, suffix):
     assert got["matches_runs"] == ["P1.run1"] and got["windows"] == clean["windows"]
     e_clean = pd.read_csv(tmp_path / "id_clean" / "estimates.csv")
     e_log = pd.read_csv(tmp_path / "id_log" / "estimates.csv")
-    worst_clean, worst_log = e_clean["error"].abs().max(), e_log["error"].abs().max()
-    assert abs(worst_log - worst_clean) <= 0.10 * worst_clean, (worst_log, worst_clean)
-    assert np.all(np.abs(e_log["estimate"] - e_clean["estimate"]) <= e_clean["sigma"])
+    # the jittered log identifies as well as the clean one: every estimate moves by less than a tenth
+    # of its sigma (the errors themselves are a fraction of a sigma, so a ratio of the worst errors
+    # would magnify a small move)
+    moved = (e_log["estimate"] - e_clean["estimate"]).abs() / e_clean["sigma"]
+    assert moved.max() <= 0.1, moved.round(3).tolist()
+    assert np.allclose(e_log["sigma"], e_clean["sigma"], rtol=0.05)

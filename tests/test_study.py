@@ -55,3 +55,17 @@ def test_index_links_every_section_of_each_rig_report(tmp_path):
     assert f"## centrifuge: {get_rig('centrifuge').title}" in text
     assert "[Centrifuge study](centrifuge/report.md)" in text
     assert "(centrifuge/report.md#table-2-one-run)" in text
+
+
+def test_index_links_the_campaign_report_when_one_is_planned(tmp_path):
+    rep = tmp_path / "centrifuge" / "report.md"
+    camp = tmp_path / "campaign" / "report.md"
+    for p, text in ((rep, "# Centrifuge study\n\n## Study\n"), (camp, "# Campaign plan\n\n## Plan\n\n## Monte Carlo check\n")):
+        p.parent.mkdir()
+        p.write_text(text)
+    write_index(["centrifuge"], [rep], tmp_path / "report.md")
+    assert "campaign" not in (tmp_path / "report.md").read_text()
+    write_index(["centrifuge"], [rep], tmp_path / "report.md", campaign=camp)
+    text = (tmp_path / "report.md").read_text()
+    assert "## The calibration campaign" in text and "[Campaign plan](campaign/report.md)" in text
+    assert "(campaign/report.md#monte-carlo-check)" in text

@@ -21,7 +21,8 @@ from platcal.parallel import max_threads, threads
 from platcal.rigs.centrifuge import ukf
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.catalogue import full_truth
-from platcal.rigs.centrifuge.ekf import FilterSettings
+from platcal.rigs.centrifuge.attitude import make_sc_rk4_scratch
+from platcal.rigs.centrifuge.ekf import FilterSettings, propagate_attitude
 from platcal.scheme import check_scheme
 from platcal.scheme import TABLE1_POSITIONS
 from platcal.rigs.centrifuge.simulate import Noise, simulate
@@ -253,7 +254,6 @@ def test_nonlinear_update_equals_full_update_with_permuted_square_root(short):
 def test_linearised_propagation_equals_unscented_propagation(short):
     # one 20 ms step from a state with correlated P: the EKF's propagation (used by the default
     # "update" and by "nonlinear") against the unscented one of "all"
-    from platcal.rigs.centrifuge.attitude import make_sc_rk4_scratch
     x, P, tm, _ = _state_after(short)
     fs = FilterSettings()
     n, est = x.size, fs.coef_index
@@ -270,9 +270,9 @@ def test_linearised_propagation_equals_unscented_propagation(short):
                              coef.copy(), np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty((3, 3)))
     x2, P2 = x.copy(), P.copy()
     pcols, pg = ukf.propagation_structure(est)
-    ukf._propagate_linear(x2, P2, x2[-3:], coef, fr3, dt, pb, q_rate, np.arange(n - 3, n), pcols, pg,
-                          np.empty(3), np.empty((3, 3)), np.empty((3, 30)), np.empty((3, pcols.size)),
-                          np.zeros((3, 3)), np.empty((3, n)), np.empty((3, 3)), make_sc_rk4_scratch())
+    propagate_attitude(P2, x2[-3:], coef, fr3, dt, pb, q_rate, np.arange(n - 3, n), pcols, pg,
+                       np.empty(3), np.empty((3, 3)), np.empty((3, 30)), np.empty((3, pcols.size)),
+                       np.zeros((3, 3)), np.empty((3, n)), np.empty((3, 3)), make_sc_rk4_scratch())
     sig = np.sqrt(np.diag(P1))
     # the attitude moves ~1e-6 rad in 20 ms: its second-order terms are far below its sigma
     assert np.max(np.abs(x1 - x2) / sig) < 1e-6

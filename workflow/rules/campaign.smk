@@ -13,20 +13,20 @@ CAMPAIGN_TARGETS = (
 rule campaign_plan:
     output:
         report(
-            "results/campaign/plan.csv", caption="../report/campaign.rst", category="9. Campaign"
+            "results/campaign/plan.csv", caption="../report/campaign.rst", category="All rigs: campaign"
         ),
         "results/campaign/coefficients.csv",
         "results/campaign/alternatives.csv",
         report(
-            "results/campaign/front.png", caption="../report/campaign.rst", category="9. Campaign"
+            "results/campaign/front.png", caption="../report/campaign.rst", category="All rigs: campaign"
         ),
         report(
             "results/campaign/progress.png",
             caption="../report/campaign.rst",
-            category="9. Campaign",
+            category="All rigs: campaign",
         ),
         report(
-            "results/campaign/report.md", caption="../report/campaign.rst", category="9. Campaign"
+            "results/campaign/report.md", caption="../report/campaign.rst", category="All rigs: campaign"
         ),
     params:
         campaign=CAMPAIGN,

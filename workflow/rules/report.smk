@@ -1,6 +1,7 @@
 # The claims ledger (every paper claim computed from the study, platcal.study.claims) and
 # results/report.md, the index of the study: it opens on the ledger of every rig, then one
-# section per rig linking its report.
+# section per rig linking its report, then the calibration campaign's report when one is planned
+# (workflow/rules/campaign.smk, included before this file).
 
 
 INDEX_REPORT = "results/report.md"
@@ -46,6 +47,7 @@ rule report_index:
     input:
         reports=[f"results/{r}/report.md" for r in RIGS],
         ledger=LEDGER[0],
+        campaign=[t for t in CAMPAIGN_TARGETS if t.endswith("report.md")],
     output:
         report(INDEX_REPORT, caption="../report/index.rst", category="All rigs: claims ledger"),
     params:

@@ -37,9 +37,16 @@ def _anchor(heading: str) -> str:
     return keep.replace(" ", "-")
 
 
-def write_index(rigs: list[str], reports: list, out_path, ledger=None) -> None:
+def _links(md, out: Path) -> list[str]:
+    """A Markdown list linking each ``## `` section of report ``md`` from the folder of ``out``."""
+    rel = os.path.relpath(md, out.parent)
+    return [f"- [{s}]({rel}#{_anchor(s)})" for s in _sections(Path(md))[1]] + [""]
+
+
+def write_index(rigs: list[str], reports: list, out_path, ledger=None, campaign=None) -> None:
     """``results/report.md``: the claims ledger (``ledger``, the CSV of every rig's claims) first,
-    then for each rig its title, spec and a link to each section of its report."""
+    then for each rig its title, spec and a link to each section of its report, then the
+    calibration campaign's report (``campaign``, ``results/campaign/report.md``) when one is given."""
     out = Path(out_path)
     lines = ["# platcal: identification studies, one section per test rig", "",
              "Written by the Snakemake workflow (`snakemake --cores 2`). Each rig's report holds its "
@@ -54,9 +61,14 @@ def write_index(rigs: list[str], reports: list, out_path, ledger=None) -> None:
     for name, md in zip(rigs, reports):
         rig = get_rig(name)
         rel = os.path.relpath(md, out.parent)
-        title, sections = _sections(Path(md))
+        title = _sections(Path(md))[0]
         lines += [f"## {name}: {rig.title}", "", f"Spec: `docs/{rig.spec}`. Report: [{title or rel}]({rel})", ""]
-        lines += [f"- [{s}]({rel}#{_anchor(s)})" for s in sections] + [""]
+        lines += _links(md, out)
+    if campaign is not None:
+        rel = os.path.relpath(campaign, out.parent)
+        title = _sections(Path(campaign))[0]
+        lines += ["## The calibration campaign", "", f"Planned across the rigs above (`platcal plan`): "
+                  f"[{title or rel}]({rel})", ""] + _links(campaign, out)
     atomic_write_text(out, "\n".join(lines))
 
 

@@ -103,6 +103,11 @@ REFUSED = [  # (rig, spoil, column named): refused before the filter, exit 2
     ("lowprec_centrifuge", _scale(("pE", "pN"), 1e-3), "pE"),  # positions in km
     ("lowprec_centrifuge", _flip("VE"), "VE"),
     ("lowprec_centrifuge", _swap("pE", "pN"), "pE"),
+    # the specific force: a scale the fit cannot see (the coefficients absorb it), checked against
+    # the derivative of VE, VN: 2e-3 moves an estimate by one sigma, mg for m/s^2 by hundreds
+    ("lowprec_centrifuge", _scale(("fE",), 1.002), "fE"),
+    ("lowprec_centrifuge", _scale(("fN",), 1 / (G * 1e-3)), "fN"),
+    ("lowprec_centrifuge", _scale(("VN",), 3.6), "fN (or VN)"),  # km/h: fN no longer d(VN)/dt
 ]
 
 
@@ -146,8 +151,10 @@ def test_sled_misfit_exits_3_with_outputs(tmp_path, clean, capsys):
 
 
 def test_lowprec_misfit_exits_3_with_outputs(tmp_path, clean, capsys):
-    df = clean["lowprec_centrifuge"][1].copy()
-    df["VN"] *= 3.6  # km/h: not a scale the plausibility check recognises, so the fit must catch it
+    # km/h: not a scale the plausibility check recognises; without fE, fN (differentiated from VE,
+    # VN, so nothing to compare them with) the fit must catch it
+    df = clean["lowprec_centrifuge"][1].drop(columns=["fE", "fN"])
+    df["VN"] *= 3.6
     code, err, out = identify(tmp_path, "lowprec_centrifuge", clean, df, capsys)
     assert code == 3, err
     assert "zVN" in err.split("worst channels:")[1]

@@ -56,6 +56,7 @@ class Record:
     f: np.ndarray          # (N, 2)
     schedule: np.ndarray   # (N,) int8
     truth: dict | None
+    f_recorded: bool = True  # False: f differentiated from v (no fE, fN columns)
 
 
 def check_out_path(path, field: str = "--out") -> Path:
@@ -137,7 +138,7 @@ def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s:
     if use_truth:
         truth = records.read_truth(p)
     return Record(t=t, v=v, p=df[["pE", "pN"]].to_numpy(), psi=np.radians(df["heading_deg"].to_numpy()), f=f,
-                  schedule=schedule, truth=truth)
+                  schedule=schedule, truth=truth, f_recorded="fE" in df.columns)
 
 
 def velocity_derivative(t: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -222,13 +223,47 @@ def nominal_velocity(rec: Record, arm_m: float) -> np.ndarray:
     return np.gradient(arm_m * np.stack([np.cos(psi), np.sin(psi)], axis=-1), rec.t, axis=0)
 
 
+F_SCALE_TOL = 1e-3
+"""Largest relative disagreement between the record's fE, fN and the derivative of its own VE, VN
+(docs/lowprec-centrifuge.md §10, "Data that do not fit"): the coefficients' responses are
+proportional to f and f^2, so a scale error e of f moves k2 by about 2 e k2, unseen by the fit
+check; on the default runs 2e-3 in fE (5e-3 in fN) moves an estimate by one sigma
+(benchmarks/fit_sensitivity.py), while clean records agree within 1.7e-4 (100 seeds of each
+platform's runs)."""
+
+
+def velocity_derivative(rec: Record) -> np.ndarray:
+    """(N, 2) m/s^2: d(VE, VN)/dt of the record by central differences, divided by the attenuation
+    sin(omega h)/(omega h) a central difference of step h gives a vector turning at the heading
+    rate omega (1.2e-3 at 30 g on the default arm and 100 Hz), so that it equals the horizontal
+    specific force the INS integrated (Coriolis and the INS's own errors, < 1e-4 of it, neglected)."""
+    d = np.gradient(rec.v, rec.t, axis=0)
+    x = np.gradient(np.unwrap(rec.psi), rec.t) * np.gradient(rec.t)
+    return d / np.sinc(x / np.pi)[:, None]
+
+
+def specific_force_scale(rec: Record) -> np.ndarray:
+    """(2,) the median ratio of fE (fN) to its velocity derivative (:func:`velocity_derivative`)
+    over the samples where that component exceeds half its 99th percentile (spinning, away from
+    its zero crossings; a median, so a single bad sample is left to the filter's own checks)."""
+    d = velocity_derivative(rec)
+    out = np.ones(2)
+    for c in range(2):
+        big = np.abs(d[:, c]) > 0.5 * np.quantile(np.abs(d[:, c]), 0.99)
+        if big.any():
+            out[c] = float(np.median(rec.f[big, c] / d[big, c]))
+    return out
+
+
 def check_plausible(rec: Record, arm_m: float) -> None:
     """Refuse (InputError naming the column, exit 2, before the filter) a record whose velocities
     are a unit, sign or swap of the motion the config's arm and the record's heading imply
     (:func:`nominal_velocity`), or whose positions are one of the integral of its velocities
     (the INS's own position drifts by hundreds of metres on a spinning arm, its integral of
     velocity with it; :func:`platcal.plausibility.refuse_recognised`): e.g. pE, pN in km are
-    1/1000 of the integrated VE, VN."""
+    1/1000 of the integrated VE, VN. Recorded ``fE``, ``fN`` must agree with the derivative of VE,
+    VN (:func:`specific_force_scale`) within :data:`F_SCALE_TOL`, a unit or a scale error of
+    theirs being invisible to the fit check (the coefficients absorb it)."""
     refuse_recognised(rec.v, nominal_velocity(rec, arm_m), ("VE", "VN"), "m/s",
                       f"VE, VN must be the INS's east and north velocities in m/s (on the arm of {arm_m:g} m: "
                       "arm x heading rate)")
@@ -236,6 +271,17 @@ def check_plausible(rec: Record, arm_m: float) -> None:
                       "pE, pN must be the INS's east and north positions in m (the integral of VE, VN); map "
                       "lat/lon or other units through the config's record.units",
                       source="the integral of the record's VE, VN")
+    if not rec.f_recorded:  # differentiated from VE, VN: nothing to compare
+        return
+    for name, vel, ratio in zip(("fE", "fN"), ("VE", "VN"), specific_force_scale(rec)):
+        if not abs(ratio - 1.0) <= F_SCALE_TOL:
+            raise InputError(f"--data column {name} (or {vel})",
+                             f"{ratio:.6g} x the time derivative of {vel} while spinning, expected 1 within "
+                             f"{F_SCALE_TOL:g} (docs/lowprec-centrifuge.md §10): one of the two is in another unit "
+                             "or scale, and a scale error of the specific force scales the identified coefficients "
+                             "unseen by the fit check; fE, fN must be the INS's own east and north specific force in "
+                             "m/s^2 and VE, VN its velocities in m/s (or leave fE, fN out: they are then "
+                             "differentiated from VE, VN)")
 
 
 def coefficient_responses(rec: Record, lat_deg: float) -> np.ndarray:

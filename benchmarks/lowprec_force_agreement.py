@@ -35,7 +35,7 @@ def main() -> None:
                 seeds = [replicate_seed(study.seed, SEED_KEY, noise, n) for n in ns]
                 rb = simulate_batch(study, platform, run, seeds, ns)
                 for s in range(len(ns)):
-                    rec = Record(t=rb.prof.t, v=rb.v_ind[s], p=rb.p_ind[s], psi=rb.psi[s], f=rb.kin.f,
+                    rec = Record(t=rb.prof.t, v=rb.v_ind[s], p=rb.p_ind[s], psi=rb.psi[s], f=rb.f_meas[s],
                                  schedule=rb.prof.schedule, truth=None)
                     worst = max(worst, float(np.max(np.abs(specific_force_scale(rec) - 1.0))))
             print(f"{platform} {run}: largest |fE, fN / d(VE, VN)/dt - 1| over {args.seeds} seeds {worst:.3g} "

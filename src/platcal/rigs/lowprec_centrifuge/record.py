@@ -228,25 +228,15 @@ F_SCALE_TOL = 1e-3
 (docs/lowprec-centrifuge.md §10, "Data that do not fit"): the coefficients' responses are
 proportional to f and f^2, so a scale error e of f moves k2 by about 2 e k2, unseen by the fit
 check; on the default runs 2e-3 in fE (5e-3 in fN) moves an estimate by one sigma
-(benchmarks/fit_sensitivity.py), while clean records agree within 1.7e-4 (100 seeds of each
+(benchmarks/fit_sensitivity.py), while clean records agree within 5.2e-5 (100 seeds of each
 platform's runs)."""
-
-
-def velocity_derivative(rec: Record) -> np.ndarray:
-    """(N, 2) m/s^2: d(VE, VN)/dt of the record by central differences, divided by the attenuation
-    sin(omega h)/(omega h) a central difference of step h gives a vector turning at the heading
-    rate omega (1.2e-3 at 30 g on the default arm and 100 Hz), so that it equals the horizontal
-    specific force the INS integrated (Coriolis and the INS's own errors, < 1e-4 of it, neglected)."""
-    d = np.gradient(rec.v, rec.t, axis=0)
-    x = np.gradient(np.unwrap(rec.psi), rec.t) * np.gradient(rec.t)
-    return d / np.sinc(x / np.pi)[:, None]
 
 
 def specific_force_scale(rec: Record) -> np.ndarray:
     """(2,) the median ratio of fE (fN) to its velocity derivative (:func:`velocity_derivative`)
     over the samples where that component exceeds half its 99th percentile (spinning, away from
     its zero crossings; a median, so a single bad sample is left to the filter's own checks)."""
-    d = velocity_derivative(rec)
+    d = velocity_derivative(rec.t, rec.v)
     out = np.ones(2)
     for c in range(2):
         big = np.abs(d[:, c]) > 0.5 * np.quantile(np.abs(d[:, c]), 0.99)

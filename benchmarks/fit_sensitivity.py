@@ -8,7 +8,7 @@ filter and the fit check; the exit status is the command's, an InputError mapped
 
 - scale: one data column times (1 + e), e on a log grid 1e-7 .. 1;
 - unit: one data column written in another unit of the same kind (m/s^2 for g, rad for deg,
-  deg/s for rad/s, km for m, ...; the factor from ``platcal.logs.mapping.conversion_factor``), and
+  deg/s for rad/s, km for m, ...; the factor from ``platcal.mapping.conversion_factor``), and
   ``t`` in ms; whether the message names the column and the scale (9.80665, 57.2958, 1000, 3600);
 - sign: one data column times -1;
 - clock jitter: ``t`` plus a uniform draw in [-a, a], a on a log grid 10 ns .. 1 ms (the same
@@ -48,7 +48,7 @@ import pandas as pd
 from platcal.cli import main as platcal
 from platcal.estimation.fit import UNIT_SCALES
 from platcal.io import read_config
-from platcal.logs.mapping import STANDARD_GRAVITY, conversion_factor
+from platcal.mapping import STANDARD_GRAVITY, conversion_factor
 from platcal.rig import get_rig
 from platcal.rigs.centrifuge.record import UNITS as CENTRIFUGE_UNITS
 from platcal.rigs.lowprec_centrifuge.record import UNITS as LOWPREC_UNITS

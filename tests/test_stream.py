@@ -15,7 +15,7 @@ import pytest
 
 from platcal.cli import main
 from platcal.errors import InputError
-from platcal.logs.mapping import RecordMapping
+from platcal.mapping import RecordMapping
 from platcal.records import TimeCheck, iter_table, read_table
 
 CONFIG = """

@@ -25,7 +25,7 @@ import pyarrow.parquet as pq
 
 from .errors import InputError
 from .io import atomic_files, atomic_path
-from .logs.mapping import RecordMapping
+from .mapping import RecordMapping
 
 PARQUET_MAGIC = b"PAR1"
 """The first (and last) four bytes of every Parquet file."""
@@ -207,7 +207,7 @@ def read_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     """:func:`read_frame` plus the columns: every ``required`` one present, nothing outside
     ``required + optional``, at least ``min_rows`` rows, every column except ``text`` a finite
     number (InputError naming the column and the file's line). Numeric columns come back as float.
-    With a config's ``mapping`` (:class:`platcal.logs.mapping.RecordMapping`) and the rig's column
+    With a config's ``mapping`` (:class:`platcal.mapping.RecordMapping`) and the rig's column
     ``units`` (None for a text column) the log is first renamed and converted to the rig's units
     (``increments``: the columns ``record.kind: increments`` applies to; ``positions``: the east
     and north position columns ``record.geodetic`` fills). The one-chunk case of :func:`iter_table`.

@@ -15,7 +15,7 @@ import yaml
 
 from platcal.cli import main
 from platcal.logs.increments import sample_intervals
-from platcal.logs.mapping import RecordMapping, conversion_factor
+from platcal.mapping import RecordMapping, conversion_factor
 from platcal.errors import InputError
 from platcal.rigs.sled.config import load_config
 from platcal.rigs.sled.identify import estimates, identify as sled_identify

@@ -1,4 +1,6 @@
-"""Real test logs, for every rig: the column/unit mapping of a vendor's log onto a rig's record
-(:mod:`.mapping`), what a log holds (:mod:`.inspect`) and the calibration file an identification
-writes and ``platcal compensate`` applies (:mod:`.calibration`). Nothing here names a rig: each
-rig passes its record's columns and units."""
+"""Real test logs, for every rig, on top of the one reader (:mod:`platcal.records`, which applies
+the column/unit mapping of :mod:`platcal.mapping`): what a log holds (:mod:`.summary`), the
+static dwells of a continuous log (:mod:`.dwells`), increments (:mod:`.increments`) and the
+calibration file an identification writes and ``platcal compensate`` applies
+(:mod:`.calibration`, :mod:`.compensate`). Nothing here names a rig: each rig passes its
+record's columns and units."""

@@ -17,7 +17,7 @@ import pandas as pd
 from ..errors import InputError
 from ..io import check_writable
 from ..records import read_table, write_record
-from .mapping import RecordMapping
+from ..mapping import RecordMapping
 
 OUT_SUFFIXES = (".csv", ".parquet")
 

@@ -20,7 +20,7 @@ from ...io import check_writable
 from ...logs.calibration import read_calibration
 from ...logs.compensate import compensate_log, read_mapped
 from ...logs.summary import inspect_log
-from ...logs.mapping import RecordMapping
+from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
 from ...sizes import Size, samples_in
 from ...study.montecarlo import cell_job, replicate_seed

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
-from ...logs.mapping import RecordMapping
+from ...mapping import RecordMapping
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
                         nearest_samples, read_table, write_record)  # noqa: F401 (write_record re-exported)
 from ...records import num as _num

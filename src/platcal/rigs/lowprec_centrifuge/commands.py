@@ -23,7 +23,7 @@ from ...study.montecarlo import replicate_seed
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
-from ...logs.mapping import RecordMapping
+from ...mapping import RecordMapping
 from ...sizes import Size, samples_in
 from .config import COEFFS, G0, Study
 from .montecarlo import SEED_KEY

@@ -21,7 +21,7 @@ import pandas as pd
 from scipy.interpolate import CubicSpline
 
 from ...errors import InputError
-from ...logs.mapping import RecordMapping
+from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
 from ... import records
 from ...records import check_times, read_table

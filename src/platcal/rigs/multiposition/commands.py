@@ -27,7 +27,7 @@ from ...logs.calibration import calibration_of, calibration_values, read_calibra
 from ...logs.compensate import compensate_log, read_mapped
 from ...logs.dwells import dwell_figure
 from ...logs.summary import inspect_log
-from ...logs.mapping import RecordMapping
+from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
 from ...sizes import Size, samples_in
 from .estimators import estimate, variant_choice

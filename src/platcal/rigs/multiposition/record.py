@@ -18,7 +18,7 @@ import pandas as pd
 
 from ...errors import InputError
 from ...logs.dwells import DwellRule, find_dwells
-from ...logs.mapping import RecordMapping
+from ...mapping import RecordMapping
 from ...model.frames import DEG
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
                          read_table, write_record)  # write_record: re-exported for the rig's commands
@@ -32,7 +32,7 @@ UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": 
          "Ax": "g", "Ay": "g", "Az": "g", "alpha_m": "deg", "beta_m": "deg", "gamma_m": "deg",
          "alpha": "deg", "beta": "deg", "gamma": "deg"}
 """The record's columns and their units (§12), for a config's ``record:`` mapping; g is standard
-gravity, 9.80665 m/s^2 (:data:`platcal.logs.mapping.STANDARD_GRAVITY`)."""
+gravity, 9.80665 m/s^2 (:data:`platcal.mapping.STANDARD_GRAVITY`)."""
 
 
 @dataclass

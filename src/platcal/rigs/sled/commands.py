@@ -16,7 +16,7 @@ from ...logs.calibration import read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log
 from ...logs.increments import increment_units
 from ...logs.summary import inspect_log
-from ...logs.mapping import RecordMapping
+from ...mapping import RecordMapping
 from ...sizes import Size, samples_in
 from ...study.tables import write_table
 from .config import G, SledConfig

@@ -19,7 +19,7 @@ import pandas as pd
 
 from ...errors import InputError
 from ...logs.increments import increment_units, rates_from_increments
-from ...logs.mapping import RecordMapping
+from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
 from ... import records
 from ...records import check_times, grid_origin, num, read_table

@@ -30,7 +30,7 @@ import pandas as pd
 import pint
 import pymap3d
 
-from ..errors import InputError
+from .errors import InputError
 
 STANDARD_GRAVITY = 9.80665
 """m/s^2: the value of the unit ``g`` unless a rig passes its own."""

@@ -245,7 +245,7 @@ def lowprec_centrifuge(B: int, repeat: int) -> dict:
 
     tp, fr = best_time(lambda: ident(0, B), repeat)
 
-    def run_filter_fp(T, z, m, valid, lat_rad):
+    def run_filter_fp(T, z, m, valid, lat_rad, keep_innovations=False):
         nb, nw = T.shape
         q = proposed.q_density()
         Fw = proposed.f_matrix(lat_rad, m)

@@ -4,7 +4,7 @@
 One source for every rig and every kernel: the scalar helpers (:func:`gyro_axis_components`,
 :func:`gyro_drift_scalar`, :func:`gyro_drift_slopes`, :func:`accel_axes`, :func:`accel_one`,
 :func:`accel_slopes`) hold the error terms; the array kernels (:func:`gyro_drift_into`,
-:func:`accel_output_into`) and the fast scalar kernels of :mod:`platcal.rigs.centrifuge.attitude` call them.
+:func:`accel_output_into`) and the rigs' own fast scalar kernels call them.
 
 The *full coefficient vector* has 48 entries: the 45 identified coefficients in the order of
 the paper's results table (``DF_x`` ... ``theta_oz``), then ``DOO_x, DOO_y, DOO_z`` which the

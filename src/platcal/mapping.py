@@ -55,6 +55,9 @@ SCHEMA_PROPERTIES = {
                  "description": "the log's latitude, longitude (and height, m) columns, converted to the rig's "
                                 "local east/north positions from the first sample (WGS84, pymap3d); only for "
                                 "a rig whose record holds positions"},
+    "header_lines": {"type": "integer", "minimum": 0, "maximum": 10000, "default": 0,
+                     "description": "lines of a logger's metadata above the column header of a CSV log, "
+                                    "skipped (line numbers in messages still count them)"},
 }
 """The ``record:`` keys every rig's config schema holds (:func:`with_mapping_schema`)."""
 
@@ -167,17 +170,20 @@ class RecordMapping:
     g: float = STANDARD_GRAVITY
     kind: str = "samples"
     geodetic: dict = field(default_factory=dict)
+    header_lines: int = 0
 
     @classmethod
     def from_config(cls, record: dict, g: float = STANDARD_GRAVITY) -> "RecordMapping":
         """The mapping of a validated config's ``record`` section."""
         return cls(columns=dict(record.get("columns") or {}), units=dict(record.get("units") or {}),
                    ignore_extra=bool(record.get("ignore_extra", False)), g=float(g),
-                   kind=str(record.get("kind", "samples")), geodetic=dict(record.get("geodetic") or {}))
+                   kind=str(record.get("kind", "samples")), geodetic=dict(record.get("geodetic") or {}),
+                   header_lines=int(record.get("header_lines", 0)))
 
     @property
     def empty(self) -> bool:
-        return not (self.columns or self.units or self.ignore_extra or self.kind != "samples" or self.geodetic)
+        return not (self.columns or self.units or self.ignore_extra or self.kind != "samples" or self.geodetic
+                    or self.header_lines)
 
     def check(self, native: dict) -> None:
         """Refuse, before reading any log, a mapping of a column the rig's record does not have,

@@ -59,11 +59,12 @@ CSV_BLOCK = 1 << 22
 """Bytes read at a time when a CSV record's text is checked (4 MiB: the check holds no more)."""
 
 
-def check_csv_file(path: Path, field: str = "--data", what: str = "a test record") -> None:
+def check_csv_file(path: Path, field: str = "--data", what: str = "a test record", skip: int = 0) -> None:
     """Refuse a CSV record that is not UTF-8 text without NUL bytes, or whose last line is
     incomplete, reading it in blocks of :data:`CSV_BLOCK` bytes (memory does not grow with the
-    file). A last line with fewer fields than the header is reported as a truncated file (a log
-    cut off while being written), not as a bad number."""
+    file). A last line with fewer fields than the header (the line after ``skip`` lines of
+    metadata, ``record.header_lines``) is reported as a truncated file (a log cut off while being
+    written), not as a bad number."""
     decoder = codecs.getincrementaldecoder("utf-8")()
     offset, breaks, head, tail = 0, 0, "", ""
     with open(path, "rb") as fh:
@@ -81,24 +82,28 @@ def check_csv_file(path: Path, field: str = "--data", what: str = "a test record
                 break
             offset += len(block)
             breaks += text.count("\n")
-            if len(head) < CSV_BLOCK and "\n" not in head:
+            if len(head) < (skip + 1) * CSV_BLOCK and head.count("\n") <= skip:
                 head += text
             tail = (tail + text)[-CSV_BLOCK:]  # the last line, unless one line is longer than a block
     stripped = tail.rstrip("\r\n")
     n_lines = breaks - tail[len(stripped):].count("\n") + 1
     lines = stripped.splitlines()
-    if n_lines >= 2 and lines:
-        n_head, n_last = head.splitlines()[0].count(","), lines[-1].count(",")
+    if n_lines <= skip:
+        raise InputError("record.header_lines", f"{path} has {n_lines} line(s), not more than the {skip} metadata "
+                         "line(s) the config skips; set record.header_lines to the lines above the column header")
+    if n_lines >= skip + 2 and lines:
+        n_head, n_last = head.splitlines()[skip].count(","), lines[-1].count(",")
         if n_last < n_head:
             raise InputError(f"{field} line {n_lines}", f"the last line is truncated: {n_last + 1} of "
                              f"{n_head + 1} fields (was the file cut off while being written?)")
 
 
 def iter_frames(path: str | os.PathLike, field: str = "--data", what: str = "a test record",
-                chunk_rows: int | None = None) -> Iterator[pd.DataFrame]:
+                chunk_rows: int | None = None, skip: int = 0) -> Iterator[pd.DataFrame]:
     """Read a record file as tables of at most ``chunk_rows`` rows (None: one table, the whole
     file): Parquet when named ``.parquet`` (its row batches, pyarrow ``iter_batches``), UTF-8
-    CSV otherwise (pandas ``chunksize``). Whole-file reading is the one-chunk case.
+    CSV otherwise (pandas ``chunksize``), its first ``skip`` lines (a logger's metadata above
+    the column header, ``record.header_lines``) skipped. Whole-file reading is the one-chunk case.
 
     Refused before the first table (InputError naming ``field``): a missing file, a folder, a
     file whose content is not what its name says (Parquet named .csv or the reverse), text that
@@ -123,16 +128,19 @@ def iter_frames(path: str | os.PathLike, field: str = "--data", what: str = "a t
     if not parquet and head == PARQUET_MAGIC:
         raise InputError(field, f"{path} is a Parquet file named {path.suffix or 'without .parquet'}; "
                          "rename it to .parquet")
+    if parquet and skip:
+        raise InputError("record.header_lines", f"{path} is Parquet, which has no lines above its columns; "
+                         "header_lines applies to CSV logs (set it to 0)")
     if not parquet:
-        check_csv_file(path, field, what)
+        check_csv_file(path, field, what, skip)
     try:
         if chunk_rows is None:
-            yield pd.read_parquet(path) if parquet else pd.read_csv(path, encoding="utf-8")
+            yield pd.read_parquet(path) if parquet else pd.read_csv(path, encoding="utf-8", skiprows=skip)
         elif parquet:
             for batch in pq.ParquetFile(path).iter_batches(batch_size=chunk_rows):
                 yield batch.to_pandas()
         else:
-            with pd.read_csv(path, encoding="utf-8", chunksize=chunk_rows) as reader:
+            with pd.read_csv(path, encoding="utf-8", chunksize=chunk_rows, skiprows=skip) as reader:
                 yield from reader
     except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise InputError(field, f"cannot read {path} as {what}: {exc}") from None
@@ -154,8 +162,11 @@ def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     memory does not grow with the record. ``min_rows`` is checked when the last chunk is read
     (before it is yielded, so a record that is too short yields nothing). Checks that span rows
     (time increasing, gaps) are the rig's, on the chunks it is handed (:class:`TimeCheck`)."""
-    carry: dict = {"row0": 0}
-    chunks = iter_frames(path, field, what, chunk_rows)
+    skip = 0 if mapping is None else mapping.header_lines
+    # row0 + row + 2 is a row's line in the file (the header line and 1-based counting), the
+    # metadata lines above the header included
+    carry: dict = {"row0": skip}
+    chunks = iter_frames(path, field, what, chunk_rows, skip)
     pending = None
     rows = 0
     for df in chunks:

@@ -17,6 +17,7 @@ from platcal.cli import main
 from platcal.logs.increments import sample_intervals
 from platcal.mapping import RecordMapping, conversion_factor
 from platcal.errors import InputError
+from platcal.records import iter_table, read_table
 from platcal.rigs.sled.config import load_config
 from platcal.rigs.sled.identify import estimates, identify as sled_identify
 from platcal.rigs.sled.record import read_record, record_arrays
@@ -86,6 +87,36 @@ def test_iso_times_and_ignore_extra():
     assert np.allclose(out["Ax"], [1e-3, 2e-3, 3e-3], rtol=1e-15)
 
 
+def test_metadata_header_lines(tmp_path):
+    """``record.header_lines``: the metadata above the column header is skipped, whole or in
+    chunks; a bad value's line number counts it; Parquet and a file shorter than its header are
+    refused naming the field."""
+    body = "t,Ax\n0.0,1.0\n0.02,2.0\n0.04,3.0\n0.06,4.0\n"
+    (tmp_path / "plain.csv").write_text(body)
+    (tmp_path / "meta.csv").write_text("Logger X, serial 12\nstarted 10:00\n" + body)
+    m = RecordMapping(header_lines=2)
+    units = {"t": "s", "Ax": "g"}
+    plain = read_table(tmp_path / "plain.csv", ("t", "Ax"))
+    pd.testing.assert_frame_equal(read_table(tmp_path / "meta.csv", ("t", "Ax"), mapping=m, units=units), plain)
+    chunks = list(iter_table(tmp_path / "meta.csv", ("t", "Ax"), mapping=m, units=units, chunk_rows=3))
+    assert [len(c) for c in chunks] == [3, 1]
+    pd.testing.assert_frame_equal(pd.concat(chunks, ignore_index=True), plain)
+    with pytest.raises(InputError):  # the metadata read as the header
+        read_table(tmp_path / "meta.csv", ("t", "Ax"))
+    (tmp_path / "bad.csv").write_text("Logger X\nstarted 10:00\n" + body.replace("0.04,3.0", "0.04,x"))
+    with pytest.raises(InputError) as e:
+        list(iter_table(tmp_path / "bad.csv", ("t", "Ax"), mapping=m, units=units, chunk_rows=2))
+    assert e.value.field == "--data column Ax, row 6"  # line 6 of the file
+    plain_df = pd.read_csv(tmp_path / "plain.csv")
+    plain_df.to_parquet(tmp_path / "p.parquet", index=False)
+    for path in (tmp_path / "p.parquet", tmp_path / "short.csv"):
+        (tmp_path / "short.csv").write_text("one\ntwo\n")
+        with pytest.raises(InputError) as e:
+            read_table(path, ("t", "Ax"), mapping=m if path.suffix == ".parquet" else RecordMapping(header_lines=5),
+                       units=units)
+        assert e.value.field == "record.header_lines"
+
+
 @pytest.mark.slow
 def test_centrifuge_vendor_log(tmp_path):
     cfg, rec = simulated(tmp_path, CENTRIFUGE, "--scheme", "short", "--seed", "1")
@@ -96,8 +127,10 @@ def test_centrifuge_vendor_log(tmp_path):
         log[c.upper()] = np.deg2rad(df[c])
     for c in ("Ax", "Ay", "Az"):
         log[f"acc_{c[1]}"] = df[c] * G
-    log.to_csv(tmp_path / "vendor.csv", index=False)
-    record = {"columns": {"position": "Pos", "t": "Time_ms", "alpha_cmd": "ALPHA_CMD", "beta_cmd": "BETA_CMD",
+    # a logger's metadata above the column header (record.header_lines)
+    meta = "# Logger: ACQ-9000 v2.1\n# Date: 2026-11-25 10:00:00\n# Site: lab 3, 10 g centrifuge\n"
+    (tmp_path / "vendor.csv").write_text(meta + log.to_csv(index=False))
+    record = {"header_lines": 3, "columns": {"position": "Pos", "t": "Time_ms", "alpha_cmd": "ALPHA_CMD", "beta_cmd": "BETA_CMD",
                           "gamma_cmd": "GAMMA_CMD", "Ax": "acc_x", "Ay": "acc_y", "Az": "acc_z"},
               "units": {"t": "ms", "alpha_cmd": "rad", "beta_cmd": "rad", "gamma_cmd": "rad",
                         "Ax": "m/s^2", "Ay": "m/s^2", "Az": "m/s^2"}, "ignore_extra": True}

@@ -1,5 +1,6 @@
 """Write vendor_log.csv: a simulated run of config.yaml's scheme 'short' as a vendor's system would
-log it (ms, rad, m/s^2, its own column names, a status column). Run from this folder."""
+log it (a metadata header, ms, rad, m/s^2, its own column names, a status column). Run from this
+folder."""
 
 import numpy as np
 import pandas as pd
@@ -22,4 +23,6 @@ if __name__ == "__main__":
     for a in "xyz":
         log[f"acc_{a}"] = df[f"A{a}"] * G
     log["status"] = 0
-    log.to_csv("vendor_log.csv", index=False)
+    # the acquisition system's header: three lines of metadata above the columns (record.header_lines)
+    meta = "# ACQ-9000 centrifuge logger, firmware 2.1\n# test: scheme short, seed 1\n# units: ms, rad, m/s^2\n"
+    open("vendor_log.csv", "w").write(meta + log.to_csv(index=False))

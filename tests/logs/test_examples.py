@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+import yaml
 
 from platcal.cli import main
 
@@ -32,7 +33,8 @@ def test_multiposition_example(tmp_path, monkeypatch, capsys):
     a, b = pd.read_csv("labelled/estimates.csv"), pd.read_csv("id/estimates.csv")
     assert ((a["estimate"] - b["estimate"]).abs() <= 0.1 * a["sigma"]).all()
     assert Path("id/dwells.png").stat().st_size > 0
-    assert len(pd.read_csv("compensated.csv")) == len(pd.read_csv("vendor_log.csv"))
+    skip = yaml.safe_load(open("config.yaml"))["record"].get("header_lines", 0)
+    assert len(pd.read_csv("compensated.csv")) == len(pd.read_csv("vendor_log.csv", skiprows=skip))
 
 
 VENDOR_EXAMPLES = {"centrifuge": ["--scheme", "short"], "sled": [], "lowprec_centrifuge": []}
@@ -59,4 +61,5 @@ def test_vendor_example(tmp_path, monkeypatch, capsys, rig):
     a, b = pd.read_csv("labelled/estimates.csv"), pd.read_csv("id/estimates.csv")
     ok = a["sigma"].notna()
     assert ((a["estimate"] - b["estimate"])[ok].abs() <= 1e-6 * a["sigma"][ok]).all()
-    assert len(pd.read_csv("compensated.csv")) == len(pd.read_csv("vendor_log.csv"))
+    skip = yaml.safe_load(open("config.yaml"))["record"].get("header_lines", 0)
+    assert len(pd.read_csv("compensated.csv")) == len(pd.read_csv("vendor_log.csv", skiprows=skip))

@@ -24,7 +24,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .errors import InputError
-from .io import atomic_files, atomic_path
+from .io import atomic_files
 from .mapping import RecordMapping
 
 PARQUET_MAGIC = b"PAR1"
@@ -344,20 +344,10 @@ def truth_path(record: str | os.PathLike) -> Path:
 
 def write_record(df: pd.DataFrame, path: str | os.PathLike, truth: dict | None = None,
                  float_format: str | None = None) -> None:
-    """Write a test record atomically: ``.parquet`` as Parquet, anything else as CSV (floats at
-    ``float_format``, default full precision). With ``truth``, its side file (:func:`truth_path`,
-    JSON) is written as a pair with it: both go to temporaries first and are renamed together,
-    the side file first (a record never appears without its truth); a failed write (a full disk)
-    removes both temporaries and leaves the files already there untouched, so no orphan side
-    file and nothing half-written."""
-    path = Path(path)
-    with atomic_files(path.parent) as tmp:
-        if truth is not None:
-            tmp(truth_path(path).name).write_text(json.dumps(truth, indent=1) + "\n")
-        if path.suffix == ".parquet":
-            df.to_parquet(tmp(path.name), index=False)
-        else:
-            df.to_csv(tmp(path.name), index=False, float_format=float_format)
+    """Write a whole test record atomically (:func:`record_writer` with one chunk): ``.parquet``
+    as Parquet, anything else as CSV, with its ``truth`` side file as a pair."""
+    with record_writer(path, truth, float_format) as write:
+        write(df)
 
 
 def read_truth(record: str | os.PathLike) -> dict | None:
@@ -373,24 +363,32 @@ def read_truth(record: str | os.PathLike) -> dict | None:
 
 
 @contextmanager
-def record_writer(path: str | os.PathLike) -> Iterator[Callable[[pd.DataFrame], None]]:
+def record_writer(path: str | os.PathLike, truth: dict | None = None,
+                  float_format: str | None = None) -> Iterator[Callable[[pd.DataFrame], None]]:
     """Write a test record chunk by chunk: yields ``write(df)``, each chunk appended (CSV rows
-    after one header, the same text :func:`write_record` gives the whole table; a Parquet row
-    group each) to a temporary file that is renamed to ``path`` when the block ends without
-    error (:func:`platcal.io.atomic_path`), so a long record is written without being held and
-    nothing half-written is left."""
-    parquet = str(path).endswith(".parquet")
-    with atomic_path(path) as tmp:
+    after one header, floats at ``float_format``, default full precision; a Parquet row group
+    each) to a temporary file, so a long record is written without being held. With ``truth``,
+    its side file (:func:`truth_path`, JSON) is written as a pair with it: both go to temporaries
+    and are renamed together when the block ends without error, the side file first (a record
+    never appears without its truth; :func:`platcal.io.atomic_files`); a failed write (a full
+    disk) removes both temporaries and leaves the files already there untouched, so no orphan
+    side file and nothing half-written."""
+    path = Path(path)
+    parquet = path.suffix == ".parquet"
+    with atomic_files(path.parent) as tmp:
+        if truth is not None:
+            tmp(truth_path(path).name).write_text(json.dumps(truth, indent=1) + "\n")
+        out = tmp(path.name)
         state: dict = {}
 
         def write(df: pd.DataFrame) -> None:
             if parquet:
                 table = pa.Table.from_pandas(df, preserve_index=False)
                 if "writer" not in state:
-                    state["writer"] = pq.ParquetWriter(tmp, table.schema)
+                    state["writer"] = pq.ParquetWriter(out, table.schema)
                 state["writer"].write_table(table)
             else:
-                df.to_csv(tmp, index=False, float_format=None, mode="a" if state else "w", header=not state)
+                df.to_csv(out, index=False, float_format=float_format, mode="a" if state else "w", header=not state)
                 state["csv"] = True
 
         try:

@@ -302,7 +302,7 @@ def gross_errors_moments(mo: Moments, names) -> list[tuple[int, str]]:
     """:func:`gross_errors` from the sums :class:`Moments` (least squares by its normal equations)."""
     names = [str(n) for n in names]
     m = mo.pp.shape[0]
-    rms = np.sqrt(np.diag(mo.pp) / max(mo.n, 1))
+    rms = mo.rms()[1]
     active = np.flatnonzero(rms > 0.05 * rms.max()) if rms.max() > 0 else np.array([], int)
     if active.size == 0:
         return []

@@ -20,9 +20,9 @@ from .catalogue import load_catalogue
 from .config import Study
 from .ekf import Estimate, FilterSettings, first_instant
 from .estimators import check_kind, run_estimator
-from .record import (TRUTH_COLUMNS, FilterInput, _ranges, check_position, check_record, filter_input,
+from .record import (FilterInput, check_commanded, check_every_position, check_position,
+                     check_position_numbers, check_record, filter_input, has_truth_columns,
                      select_instants)
-from .record import _num
 from ...errors import InputError
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
@@ -185,7 +185,6 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     until it ends (32 bytes per sample of the longest position); the nominal output at its
     instants comes from a noise-free simulation of that position in chunks.
     """
-    K = scheme.n_positions
     cmd = scheme.angles_deg
     max_gap = float(study.config["record"]["max_gap_s"])
     want = expected_g(study, scheme)
@@ -215,23 +214,10 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     row = 0
     for df in chunks:
         if truth is None:
-            present = [c for c in TRUTH_COLUMNS if c in df.columns]
-            if present and len(present) != 3:
-                raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in df.columns][0]}",
-                                 "the true angles come as all three of alpha, beta, gamma or not at all")
-            truth = len(present) == 3
+            truth = has_truth_columns(df.columns)
         pos = df["position"].to_numpy(float)
-        off = (pos != np.round(pos)) | (pos < 1) | (pos > K)
-        if off.any():
-            raise InputError("--data column position", f"index {_num(pos[off][0])} is not a position of scheme "
-                             f"{scheme.name!r}, which has positions 1..{K}; pick the right --scheme")
-        rec_cmd = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
-        bad = np.max(np.abs(rec_cmd - cmd[pos.astype(int) - 1]), axis=1) > 1e-6
-        if bad.any():
-            i = int(np.argmax(bad))
-            k = int(pos[i])
-            raise InputError(f"--data position {k}", f"commanded angles {rec_cmd[i].tolist()} differ from "
-                             f"scheme {scheme.name!r} position {k} {cmd[k - 1].tolist()}; pick the right --scheme")
+        check_position_numbers(pos, scheme)
+        check_commanded(pos, df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float), scheme)
         t = df["t"].to_numpy(float)
         a = df[["Ax", "Ay", "Az"]].to_numpy(float)
         cuts = np.r_[0, np.flatnonzero(np.diff(pos)) + 1, pos.size]
@@ -248,11 +234,7 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
             held["a"].append(a[i0:i1])
         row += len(df)
     finish()
-    missing = [k for k in range(1, K + 1) if k not in positions]
-    if missing:
-        raise InputError("--data column position", f"the record has positions {_ranges(positions)} but scheme "
-                         f"{scheme.name!r} has {K} (1..{K}): missing {_ranges(missing)}; pick the right --scheme "
-                         "or record every position")
+    check_every_position(positions, scheme)
     return StreamScan(positions, ts, np.concatenate(rows), bool(truth), jit, moments, cmd[np.array(positions) - 1])
 
 
@@ -413,7 +395,7 @@ def history_frame(est: Estimate, replicate: int = 0) -> pd.DataFrame:
 
 def truth_known(df: pd.DataFrame) -> bool:
     """A record carries its truth when it has the simulated true-angle columns."""
-    return all(c in df.columns for c in TRUTH_COLUMNS)
+    return has_truth_columns(df.columns)
 
 
 def timed(fn, *args, **kw):

@@ -90,11 +90,48 @@ def read_record(path: str | os.PathLike, mapping: RecordMapping | None = None) -
     NaN or infinite values.
     """
     df = read_table(path, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS)
-    present_truth = [c for c in TRUTH_COLUMNS if c in df.columns]
-    if present_truth and len(present_truth) != 3:
-        raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in df.columns][0]}",
-                         "the true angles come as all three of alpha, beta, gamma or not at all")
+    has_truth_columns(df.columns)
     return df
+
+
+def has_truth_columns(columns) -> bool:
+    """Whether a record's ``columns`` hold the true angles; refused when only some of the three do."""
+    present = [c for c in TRUTH_COLUMNS if c in columns]
+    if present and len(present) != 3:
+        raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in columns][0]}",
+                         "the true angles come as all three of alpha, beta, gamma or not at all")
+    return bool(present)
+
+
+def check_position_numbers(pos: np.ndarray, scheme: Scheme) -> None:
+    """Refuse a ``position`` value that is not one of the scheme's 1..K."""
+    K = scheme.n_positions
+    off = (pos != np.round(pos)) | (pos < 1) | (pos > K)
+    if off.any():
+        raise InputError("--data column position", f"index {_num(pos[off][0])} is not a position of scheme "
+                         f"{scheme.name!r}, which has positions 1..{K}; pick the right --scheme")
+
+
+def check_commanded(pos: np.ndarray, rec_cmd: np.ndarray, scheme: Scheme) -> None:
+    """Refuse rows whose commanded angles ``rec_cmd`` (N, 3) deg differ from the scheme's at their
+    position ``pos`` (N,) (by more than 1e-6 deg)."""
+    cmd = scheme.angles_deg
+    bad = np.max(np.abs(rec_cmd - cmd[pos.astype(int) - 1]), axis=1) > 1e-6
+    if bad.any():
+        i = int(np.argmax(bad))
+        k = int(pos[i])
+        raise InputError(f"--data position {k}", f"commanded angles {rec_cmd[i].tolist()} differ from "
+                         f"scheme {scheme.name!r} position {k} {cmd[k - 1].tolist()}; pick the right --scheme")
+
+
+def check_every_position(found: list[int], scheme: Scheme) -> None:
+    """Refuse a record whose positions ``found`` are not all of the scheme's 1..K."""
+    K = scheme.n_positions
+    missing = [k for k in range(1, K + 1) if k not in found]
+    if missing:
+        raise InputError("--data column position", f"the record has positions {_ranges(found)} but scheme "
+                         f"{scheme.name!r} has {K} (1..{K}): missing {_ranges(missing)}; pick the right --scheme "
+                         "or record every position")
 
 
 def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: float,
@@ -112,18 +149,10 @@ def check_record(df: pd.DataFrame, scheme: Scheme, sample_s: float, max_gap_s: f
     of it (so the accelerations are in g, not mg or m/s^2). Raises InputError naming the column
     and position.
     """
-    K = scheme.n_positions
     pos = df["position"].to_numpy(float)
-    off = (pos != np.round(pos)) | (pos < 1) | (pos > K)
-    if off.any():
-        raise InputError("--data column position", f"index {_num(pos[off][0])} is not a position of scheme "
-                         f"{scheme.name!r}, which has positions 1..{K}; pick the right --scheme")
+    check_position_numbers(pos, scheme)
     found = sorted({int(p) for p in pos})
-    missing = [k for k in range(1, K + 1) if k not in found]
-    if missing:
-        raise InputError("--data column position", f"the record has positions {_ranges(found)} but scheme "
-                         f"{scheme.name!r} has {K} (1..{K}): missing {_ranges(missing)}; pick the right --scheme "
-                         "or record every position")
+    check_every_position(found, scheme)
     a = df[["Ax", "Ay", "Az"]].to_numpy(float) if expected_g is not None else None
     for k in found:
         check_position(k, df["t"].to_numpy(float)[pos == k], None if a is None else a[pos == k], scheme, sample_s,
@@ -206,12 +235,8 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
     a position's reset instant t = 0 is not used; :func:`platcal.rigs.centrifuge.ekf.filter_times`);
     ``update_at_reset`` keeps instant 0 too (config ``filter.update_at_reset``).
     """
-    K = scheme.n_positions
-    pos = df["position"].to_numpy()
-    if not np.all(pos == np.round(pos)) or pos.min() < 1 or pos.max() > K:
-        bad = pos[(pos != np.round(pos)) | (pos < 1) | (pos > K)][0]
-        raise InputError("--data column position", f"index {_num(bad)} is not a position of scheme "
-                         f"{scheme.name!r} (1..{K})")
+    pos = df["position"].to_numpy(float)
+    check_position_numbers(pos, scheme)
     present = sorted(set(pos.astype(int)))
     cmd = scheme.angles_deg
     ts, zs = [], []
@@ -222,10 +247,8 @@ def filter_input(df: pd.DataFrame, scheme: Scheme, period_s: float,
             i = int(np.argmax(np.diff(t) <= 0)) + 1
             raise InputError(f"--data column t, position {k}",
                              f"time does not increase at sample {i} (t = {_num(t[i - 1])} then {_num(t[i])})")
-        rec_cmd = rows[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
-        if np.max(np.abs(rec_cmd - cmd[k - 1])) > 1e-6:
-            raise InputError(f"--data position {k}", f"commanded angles {rec_cmd[0].tolist()} differ from "
-                             f"scheme {scheme.name!r} position {k} {cmd[k - 1].tolist()}; pick the right --scheme")
+        check_commanded(np.full(len(rows), float(k)), rows[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float),
+                        scheme)
         keep, t = select_instants(k, t, period_s, max_gap_s, update_at_reset)
         ts.append(t[keep])
         zs.append(rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep][None])

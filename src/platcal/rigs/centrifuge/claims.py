@@ -4,8 +4,9 @@ evaluated by :mod:`platcal.study.claims`.
 
 The measures read, under the rig's results folder ``results/centrifuge``:
 
-- ``montecarlo/coef.parquet``, ``runs.parquet`` (the sweep): the cell compared with the paper,
-  ``study.paper`` at ``noise.sigma_a_ug`` unless ``study.paper.sigma_a_ug`` is set;
+- ``montecarlo/coef.parquet``, ``runs.parquet`` (the sweep) and ``compare/coef.parquet``: the cell
+  compared with the paper, ``study.paper`` at ``noise.sigma_a_ug`` unless ``study.paper.sigma_a_ug``
+  is set, from whichever of the two ran it with more replicates;
 - ``compare/coef.parquet``, ``compare/runs.parquet`` (the estimator comparison, issue 9);
 - ``design/<ga>.json`` (the GA's optimum, when the sweep has that GA scheme).
 
@@ -31,16 +32,34 @@ from .design import SchemeEvaluator
 from .report import resolve_cell
 
 
+def _same_estimator(cfg: dict, name: str) -> bool:
+    """Whether the comparison's estimator ``name`` is the sweep's ``name`` (the comparison's own
+    definitions override the sweep's on a shared name, :func:`.compare.with_compare_estimators`)."""
+    own = cfg["study"]["compare"]["estimators"]
+    return not isinstance(own, dict) or name not in own or own[name] == cfg["study"]["estimators"].get(name)
+
+
 def _paper_cell(results: Path, cfg: dict, table: str) -> tuple[pd.DataFrame, str] | None:
-    """Rows of ``montecarlo/<table>.parquet`` in the cell compared with the paper (``study.paper``)
-    and its settings text; None when the study did not write the table."""
-    path = Path(results) / "montecarlo" / f"{table}.parquet"
-    if not path.exists():
-        return None
+    """Rows of ``<table>.parquet`` in the cell compared with the paper (``study.paper``: scheme,
+    noise level, estimator) and its settings text; None when the study wrote no such cell.
+
+    The sweep (``montecarlo/``) and the estimator comparison (``compare/``) may both run that cell
+    with the same estimator; the Table 2 claims are judged on the one with more replicates (the
+    narrower interval), and the settings say which (docs/centrifuge-model.md §12)."""
     c = resolve_cell(cfg, "paper")
-    cell = select_cell(pd.read_parquet(path), c["scheme"], c["sigma_a_ug"], c["estimator"])
-    n = cell["replicate"].nunique()
-    return cell, f"scheme {c['scheme']}, sigma_a {c['sigma_a_ug']:g} ug, estimator {c['estimator']}, {n} replicates"
+    found = []
+    for source, label in (("montecarlo", ""), ("compare", "comparison, ")):
+        path = Path(results) / source / f"{table}.parquet"
+        if not path.exists() or (source == "compare" and not _same_estimator(cfg, c["estimator"])):
+            continue
+        cell = select_cell(pd.read_parquet(path), c["scheme"], c["sigma_a_ug"], c["estimator"])
+        if len(cell):
+            found.append((cell["replicate"].nunique(), label, cell))
+    if not found:
+        return None
+    n, label, cell = max(found, key=lambda f: f[0])
+    return cell, (f"{label}scheme {c['scheme']}, sigma_a {c['sigma_a_ug']:g} ug, estimator {c['estimator']}, "
+                  f"{n} replicates")
 
 
 def max_rel_err(results: Path, cfg: dict, group: str) -> Evidence | None:

@@ -45,6 +45,7 @@ from .attitude import GYRO_COLS, MEAS_COLS, P_G, make_step_scratch, measure_jac_
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of
 from .base import broadcast_params, specific_force_into
+from .ekf_lanes import run_pass_lanes
 
 ANGLE_NAMES = ("alpha", "beta", "gamma")
 
@@ -659,6 +660,7 @@ def run_ekf(
     warmup_s: float | None = None,
     z_source=None,
     on_innovations=None,
+    reference: bool = False,
 ) -> Estimate:
     """Run the EKF over every position of a scheme, for a batch of B runs.
 
@@ -689,6 +691,11 @@ def run_ekf(
     on_innovations : with ``z_source`` and ``settings.innovations``, called with ``(i0, i1,
         z_block, rec_block (1, i1 - i0, 6))`` after each block (every pass; the last pass's are
         the run's), instead of keeping them in ``Estimate.innovations``.
+    reference : run the reference kernel (:func:`_run_pass`: one replicate per thread, every
+        product and sum rounded on its own) instead of the state-major kernel
+        (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in SIMD lanes, fused
+        multiply-adds; the same filter, x and P equal to round-off, issue 22); for tests and
+        benchmarks.
 
     Returns
     -------
@@ -713,7 +720,10 @@ def run_ekf(
     structure = _structure(est_idx)
     p0 = np.asarray(settings.p0_sigma, float)
     it_ctl = iteration_control(p0) if iterate is None or cov_only else np.ascontiguousarray(iterate, float)
-    kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
+    if reference:
+        kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
+    else:
+        kernel = run_pass_lanes
     keep = settings.innovations and not cov_only
     # every full pass overwrites it, so it ends holding the last pass's innovations
     rec = np.zeros((B, sum(len(tk) for tk in t) if keep and z_source is None else 0, 6))

@@ -1,0 +1,536 @@
+"""The centrifuge EKF's state-major kernel: replicates in SIMD lanes (issue 22 item 1;
+docs/centrifuge-model.md §9-11, the filter of :mod:`platcal.rigs.centrifuge.ekf`).
+
+The same filter as :func:`platcal.rigs.centrifuge.ekf._filter_one` (propagation of the 3 attitude
+rows through the RK4 map's exact Jacobian, Joseph update with the 3 accelerometer outputs,
+position resets, the iterated update, the covariance-only run, segments of a streamed record),
+with the batch laid out replicate-innermost: the replicates go in blocks of :data:`LANES`, and
+a block's covariance is ``P[e, l]``, entry ``e`` of the lower triangle packed by rows
+(:func:`packed_index`), lane ``l`` = replicate ``block * LANES + l``. Every covariance
+operation is then one vector instruction over the lanes of a block, and a symmetric P is
+stored once (no mirror, 1176 entries at n = 48: the block's P is 37.6 kB at 4 lanes, in L1).
+
+Arithmetic: fused multiply-adds are allowed (``fastmath={"contract"}``), so x and P differ from
+the reference kernel at round-off (``tests/test_ekf_lanes.py`` bounds it: 1e-9 sigma);
+every lane runs the same instructions, so a replicate's numbers do not depend on its lane, on
+the batch size or on the number of threads (a short last block is filled with copies of its
+first replicate, whose results are dropped).
+
+How the code is made to vectorise (issue 22): numba runs LLVM's loop vectoriser but not its SLP
+vectoriser, and a loop over 4 lanes is unrolled before the loop vectoriser sees it; and without
+knowing that the arrays do not overlap LLVM cannot merge the lanes' loads and stores. The block
+kernel is therefore compiled with every array argument declared ``noalias``
+(:class:`NoAliasCompiler`: all its arrays, scratch included, are distinct arguments) and with
+SLP vectorisation on (:func:`slp_vectorize` around every call, so that a first compile or a
+cache miss compiles it that way; SLP merges identical scalar operations and changes no number).
+The model (the RK4 map with its Jacobian, the accelerometer outputs and Jacobian) stays the
+reference kernel's scalar code, run once per live lane.
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import numba
+import numpy as np
+from numba import njit, prange
+from numba.core import config as numba_config
+from numba.core.compiler import CompilerBase, DefaultPassBuilder
+
+from .attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
+from .base import specific_force_into
+from ...estimation.kalman import cholesky_inverse
+
+LANES = 4
+"""Replicates per block: one AVX2 register of doubles (numba's LLVM prefers 256-bit vectors on
+this machine); a block's packed P (1176 x 4 doubles) stays in the 48 kB L1 cache."""
+
+FASTMATH = {"contract"}
+"""LLVM fast-math flags of the block kernel: contraction of a product and a sum into one fused
+multiply-add only (no reassociation: every lane, and a lane in any block, rounds alike)."""
+
+
+class NoAliasCompiler(CompilerBase):
+    """numba's nopython pipeline with the compiled function's pointer arguments (the arrays'
+    data) marked ``noalias``: the callers pass distinct arrays, so LLVM may keep values in
+    registers across stores and merge the lanes' loads and stores into vectors."""
+
+    def define_pipelines(self):
+        self.state.flags.noalias = True
+        return [DefaultPassBuilder.define_nopython_pipeline(self.state)]
+
+
+@contextmanager
+def slp_vectorize():
+    """LLVM's SLP vectoriser on for numba compilations in this block (numba's default is off).
+    It turns identical scalar operations on adjacent lanes into vector operations; it changes
+    no floating-point result (no reassociation), so it is safe for any function compiled
+    meanwhile."""
+    old = numba_config.SLP_VECTORIZE
+    numba_config.SLP_VECTORIZE = 1
+    try:
+        yield
+    finally:
+        numba_config.SLP_VECTORIZE = old
+
+
+def packed_index(n: int) -> np.ndarray:
+    """(n, n) int64: the packed position of entry (i, j) of a symmetric n x n matrix stored as its
+    lower triangle by rows (``i (i + 1) / 2 + j`` for j <= i; symmetric)."""
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    hi, lo = np.maximum(i, j), np.minimum(i, j)
+    return np.ascontiguousarray(hi * (hi + 1) // 2 + lo, dtype=np.int64)
+
+
+@njit(cache=True)
+def _to_lanes(x, P, blk, xl, Pl, pidx):
+    """Block ``blk`` of the batch (x (B, n), P (B, n, n)) into lane layout; lanes past the batch
+    take a copy of the block's first replicate."""
+    B, n = x.shape
+    L = LANES
+    for l in range(L):
+        b = blk * L + l
+        src = b if b < B else blk * L
+        for i in range(n):
+            xl[i, l] = x[src, i]
+            for j in range(i + 1):
+                Pl[pidx[i, j], l] = P[src, i, j]
+
+
+@njit(cache=True)
+def _from_lanes(xl, Pl, blk, x, P, pidx):
+    """Block ``blk`` back into the batch's (B, n) and (B, n, n) arrays (live lanes only; P full
+    and exactly symmetric)."""
+    B, n = x.shape
+    L = LANES
+    for l in range(L):
+        b = blk * L + l
+        if b >= B:
+            break
+        for i in range(n):
+            x[b, i] = xl[i, l]
+            for j in range(n):
+                P[b, i, j] = Pl[pidx[i, j], l]
+
+
+@njit(cache=True, fastmath=FASTMATH, pipeline_class=NoAliasCompiler)
+def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+                  update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl,
+                  rec, seg_k, seg_t0, seg_last, seg_nis,
+                  pidx, xl, Pl, W, U, K, D, phi, hval, innov, S, Sinv, nu, ok, acc, nis, bad,
+                  coef_l, ang_l, fr_now, fr_mid, fr3, pb_l, ang_new, pa, pgyro, out, hm, ha,
+                  rk_k, rk_ka, rk_kg, rk_v, S1, F1, nu1, in1, U1, w1, xi, xnew, coef_i):
+    """Block ``blk`` (replicates ``blk * L .. blk * L + L - 1``) through every segment of one pass:
+    :func:`platcal.rigs.centrifuge.ekf._filter_replicate` and ``_filter_one`` with the lanes
+    innermost. Arguments up to ``seg_nis`` are those of the reference kernel (batch layout,
+    read and written for the live lanes only); the rest are the block's lane-layout state and
+    scratch (:func:`_run_block`), distinct arrays as the ``noalias`` compile requires.
+
+    The lane loops run over the constant :data:`LANES` (so that LLVM unrolls them and merges
+    the lanes into vector instructions); the sums over a row of Phi or H accumulate into the
+    output arrays column by column (a running sum in an array entry would be a chain of
+    dependent loads and stores).
+    """
+    B, n = x.shape
+    L = LANES
+    nc = n - 3
+    npc = pcols.shape[0]
+    b0 = blk * L
+    nact = min(L, B - b0)
+    it_max = int(it_ctl[0])
+    it_tol = it_ctl[1]
+    it_until = it_ctl[2]
+    it_ratio = it_ctl[3]
+    keep_rec = rec.shape[1] > 0
+    # packed positions of the attitude block's lower triangle
+    e00, e10, e11 = pidx[nc, nc], pidx[nc + 1, nc], pidx[nc + 1, nc + 1]
+    e20, e21, e22 = pidx[nc + 2, nc], pidx[nc + 2, nc + 1], pidx[nc + 2, nc + 2]
+    _to_lanes(x, P, blk, xl, Pl, pidx)
+    for l in range(nact):
+        for i in range(coef_fixed.shape[1]):
+            coef_l[l, i] = coef_fixed[b0 + l, i]
+    for s in range(offs.shape[0] - 1):
+        o0, o1 = offs[s], offs[s + 1]
+        k = seg_k[s]
+        reset = np.isnan(seg_t0[s])
+        t_prev = 0.0 if reset else seg_t0[s]
+        for l in range(nact):
+            b = b0 + l
+            nis[l] = 0.0 if reset else seg_nis[b]
+            bad[l] = 0.0
+            for c in range(params.shape[2]):
+                pb_l[l, c] = params[b, k, c]
+            specific_force_into(t_prev, pb_l[l], fr_now[l])
+        if reset:
+            # the position's start (docs/centrifuge-model.md §9): attitude = commanded angles,
+            # variance reset_var, no cross-covariance
+            for r in range(3):
+                for l in range(L):
+                    b = b0 + l if l < nact else b0
+                    xl[nc + r, l] = cmd[b, k, r]
+                for i in range(n):
+                    e = pidx[nc + r, i]
+                    for l in range(L):
+                        Pl[e, l] = 0.0
+                e = pidx[nc + r, nc + r]
+                for l in range(L):
+                    Pl[e, l] = reset_var
+        for m in range(o1 - o0):
+            tm = t[o0 + m]
+            for l in range(nact):
+                for kk in range(nc):
+                    coef_l[l, est_idx[kk]] = xl[kk, l]
+                for r in range(3):
+                    ang_l[l, r] = xl[nc + r, l]
+            if tm > t_prev:
+                h = tm - t_prev
+                for l in range(nact):
+                    for r in range(3):
+                        fr3[l, 0, r] = fr_now[l, r]
+                    specific_force_into(t_prev + 0.5 * h, pb_l[l], fr_mid[l])
+                    specific_force_into(tm, pb_l[l], fr_now[l])
+                    for r in range(3):
+                        fr3[l, 1, r] = fr_mid[l, r]
+                        fr3[l, 2, r] = fr_now[l, r]
+                    rk4_jac_sc(ang_l[l], coef_l[l], fr3[l], h, pb_l[l], ang_new[l], pa[l], pgyro[l],
+                               (rk_k, rk_ka, rk_kg, rk_v))
+                    for r in range(3):
+                        for kk in range(npc - 3):
+                            phi[r, kk, l] = pgyro[l, r, pg[kk]]
+                        for i in range(3):
+                            phi[r, npc - 3 + i, l] = pa[l, r, i]
+                        ang_l[l, r] = ang_new[l, r]
+                        xl[nc + r, l] = ang_new[l, r]
+                for l in range(nact, L):  # the filler lanes repeat lane 0
+                    for r in range(3):
+                        for kk in range(npc):
+                            phi[r, kk, l] = phi[r, kk, 0]
+                        xl[nc + r, l] = xl[nc + r, 0]
+                # P <- Phi P Phi^T + Q on the 3 attitude rows: W = Phi[dyn] P (rows through
+                # the packed index), the 3 x 3 block, then the rows (= the columns) written
+                qd = q_rate * h
+                for j in range(n):
+                    for l in range(L):
+                        W[0, j, l] = 0.0
+                        W[1, j, l] = 0.0
+                        W[2, j, l] = 0.0
+                for kk in range(npc):
+                    pc = pcols[kk]
+                    for j in range(n):
+                        e = pidx[pc, j]
+                        for l in range(L):
+                            p = Pl[e, l]
+                            W[0, j, l] += phi[0, kk, l] * p
+                            W[1, j, l] += phi[1, kk, l] * p
+                            W[2, j, l] += phi[2, kk, l] * p
+                for l in range(L):
+                    acc[0, l] = 0.0
+                    acc[1, l] = 0.0
+                    acc[2, l] = 0.0
+                    acc[3, l] = 0.0
+                    acc[4, l] = 0.0
+                    acc[5, l] = 0.0
+                for kk in range(npc):
+                    c = pcols[kk]
+                    for l in range(L):
+                        w0, w1_, w2 = W[0, c, l], W[1, c, l], W[2, c, l]
+                        p0, p1, p2 = phi[0, kk, l], phi[1, kk, l], phi[2, kk, l]
+                        acc[0, l] += w0 * p0
+                        acc[1, l] += w1_ * p0
+                        acc[2, l] += w1_ * p1
+                        acc[3, l] += w2 * p0
+                        acc[4, l] += w2 * p1
+                        acc[5, l] += w2 * p2
+                for r in range(3):
+                    for j in range(n):
+                        e = pidx[nc + r, j]
+                        for l in range(L):
+                            Pl[e, l] = W[r, j, l]
+                for l in range(L):
+                    Pl[e00, l] = acc[0, l] + qd
+                    Pl[e10, l] = acc[1, l]
+                    Pl[e11, l] = acc[2, l] + qd
+                    Pl[e20, l] = acc[3, l]
+                    Pl[e21, l] = acc[4, l]
+                    Pl[e22, l] = acc[5, l] + qd
+                t_prev = tm
+            # the outputs and H at the predicted state, lane by lane
+            for l in range(nact):
+                b = b0 + l
+                g = pb_l[l, P_G]
+                measure_jac_sc(ang_l[l], coef_l[l], fr_now[l, 0], fr_now[l, 1], fr_now[l, 2], g, out[l], hm[l],
+                               ha[l])
+                for r in range(3):
+                    for kk in range(hnnz[r]):
+                        src = hsrc[r, kk]
+                        hval[r, kk, l] = hm[l, r, src] if src >= 0 else ha[l, r, -1 - src]
+                    innov[r, l] = z[b, o0 + m, r] - out[l, r] if update_x else 0.0
+            if it_max > 1 and update_x and tm < it_until:
+                for l in range(nact):
+                    if _coef_ratio_lane(Pl, pidx, it_ctl, nc, l) > it_ratio:
+                        _iterate_lane(l, b0 + l, o0 + m, it_max, it_tol, z, Pl, xl, pidx, est_idx, hcols, hnnz,
+                                      hsrc, hval, innov, r_var, coef_l, fr_now, pb_l[l, P_G], U1, S1, F1, nu1,
+                                      in1, w1, xi, xnew, coef_i, out[l], hm[l], ha[l])
+            for l in range(nact, L):
+                for r in range(3):
+                    for kk in range(hnnz[r]):
+                        hval[r, kk, l] = hval[r, kk, 0]
+                    innov[r, l] = innov[r, 0]
+            # U = H P (3 x n), through the packed index; S = H U^T + R
+            for j in range(n):
+                for l in range(L):
+                    U[0, j, l] = 0.0
+                    U[1, j, l] = 0.0
+                    U[2, j, l] = 0.0
+            for r in range(3):
+                for kk in range(hnnz[r]):
+                    hc = hcols[r, kk]
+                    for j in range(n):
+                        e = pidx[hc, j]
+                        for l in range(L):
+                            U[r, j, l] += hval[r, kk, l] * Pl[e, l]
+            for r in range(3):
+                for c in range(r + 1):
+                    for l in range(L):
+                        acc[0, l] = 0.0
+                    for kk in range(hnnz[c]):
+                        hc = hcols[c, kk]
+                        for l in range(L):
+                            acc[0, l] += U[r, hc, l] * hval[c, kk, l]
+                    for l in range(L):
+                        S[r, c, l] = acc[0, l]
+                        S[c, r, l] = acc[0, l]
+                for l in range(L):
+                    S[r, r, l] += r_var[r]
+            _cholesky_inverse_lanes(S, Sinv, innov, nu, ok)
+            # K = S^-1 U, D = U - S K, x += K innov, P -= K U^T + D K^T (packed lower triangle)
+            for c in range(3):
+                for j in range(n):
+                    for l in range(L):
+                        K[c, j, l] = Sinv[c, 0, l] * U[0, j, l] + Sinv[c, 1, l] * U[1, j, l] + Sinv[c, 2, l] * U[2, j, l]
+            for c in range(3):
+                for j in range(n):
+                    for l in range(L):
+                        D[c, j, l] = U[c, j, l] - (S[c, 0, l] * K[0, j, l] + S[c, 1, l] * K[1, j, l]
+                                                   + S[c, 2, l] * K[2, j, l])
+            if update_x:
+                for j in range(n):
+                    for l in range(L):
+                        xl[j, l] += K[0, j, l] * innov[0, l] + K[1, j, l] * innov[1, l] + K[2, j, l] * innov[2, l]
+            e = 0
+            for i in range(n):
+                for j in range(i + 1):
+                    for l in range(L):
+                        Pl[e + j, l] -= ((K[0, i, l] * U[0, j, l] + K[1, i, l] * U[1, j, l] + K[2, i, l] * U[2, j, l])
+                                         + (D[0, i, l] * K[0, j, l] + D[1, i, l] * K[1, j, l]
+                                            + D[2, i, l] * K[2, j, l]))
+                e += i + 1
+            for l in range(nact):
+                b = b0 + l
+                if ok[l] > 0.0:
+                    nis[l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
+                else:
+                    bad[l] += 1.0
+                if keep_rec:
+                    for r in range(3):
+                        rec[b, o0 + m, r] = innov[r, l]
+                        rec[b, o0 + m, 3 + r] = S[r, r, l] if ok[l] > 0.0 else np.nan
+                hi = hist_idx[o0 + m]
+                if hi >= 0:
+                    for i in range(n):
+                        v = Pl[pidx[i, i], l]
+                        hist_x[b, hi, i] = xl[i, l]
+                        hist_s[b, hi, i] = np.sqrt(v) if v > 0.0 else -1.0
+        for l in range(nact):
+            b = b0 + l
+            if seg_last[s]:
+                nis_sum[b] += nis[l]
+            else:
+                seg_nis[b] = nis[l]
+            n_bad[b] += int(bad[l])
+    _from_lanes(xl, Pl, blk, x, P, pidx)
+
+
+@njit(cache=True, fastmath=FASTMATH, inline="always")
+def _cholesky_inverse_lanes(S, Sinv, innov, nu, ok):
+    """Per lane, :func:`platcal.estimation.kalman.cholesky_inverse` of the 3 x 3 ``S`` (3, 3, L):
+    ``Sinv`` = S^-1 and ``nu`` = L^-1 innov (the standardised innovation), written out so that
+    the lanes run as vectors. A lane whose S is not positive definite gets ``ok = 0`` and
+    ``Sinv = 0``, ``nu = 0``: its gain is then zero and the update leaves x and P as they were
+    (the reference kernel skips it)."""
+    for l in range(LANES):
+        a00 = S[0, 0, l]
+        p0 = a00 > 0.0
+        f00 = np.sqrt(a00 if p0 else 1.0)
+        f10 = S[1, 0, l] / f00
+        f20 = S[2, 0, l] / f00
+        a11 = S[1, 1, l] - f10 * f10
+        p1 = a11 > 0.0
+        f11 = np.sqrt(a11 if p1 else 1.0)
+        f21 = (S[2, 1, l] - f20 * f10) / f11
+        a22 = S[2, 2, l] - f20 * f20 - f21 * f21
+        p2 = a22 > 0.0
+        f22 = np.sqrt(a22 if p2 else 1.0)
+        good = p0 and p1 and p2
+        n0 = innov[0, l] / f00
+        n1 = (innov[1, l] - f10 * n0) / f11
+        n2 = (innov[2, l] - f20 * n0 - f21 * n1) / f22
+        # L^-1 (lower): diagonal reciprocals, then the two sub-diagonals and the corner
+        i00 = 1.0 / f00
+        i11 = 1.0 / f11
+        i22 = 1.0 / f22
+        i10 = -(f10 * i00) * i11
+        i21 = -(f21 * i11) * i22
+        i20 = -(f20 * i00 + f21 * i10) * i22
+        # S^-1 = L^-T L^-1
+        s00 = i00 * i00 + i10 * i10 + i20 * i20
+        s01 = i10 * i11 + i20 * i21
+        s02 = i20 * i22
+        s11 = i11 * i11 + i21 * i21
+        s12 = i21 * i22
+        s22 = i22 * i22
+        z = 1.0 if good else 0.0
+        Sinv[0, 0, l] = s00 * z
+        Sinv[0, 1, l] = s01 * z
+        Sinv[0, 2, l] = s02 * z
+        Sinv[1, 0, l] = s01 * z
+        Sinv[1, 1, l] = s11 * z
+        Sinv[1, 2, l] = s12 * z
+        Sinv[2, 0, l] = s02 * z
+        Sinv[2, 1, l] = s12 * z
+        Sinv[2, 2, l] = s22 * z
+        nu[0, l] = n0 * z
+        nu[1, l] = n1 * z
+        nu[2, l] = n2 * z
+        ok[l] = z
+
+
+@njit(cache=True, inline="always")
+def _coef_ratio_lane(Pl, pidx, it_ctl, nc, l):
+    """Lane l's mean over the coefficients of P_ii / P0_ii (the reference kernel's
+    ``_coef_ratio``); inf when the iteration does not depend on it."""
+    if it_ctl[3] <= 0.0:
+        return np.inf
+    s = 0.0
+    for k in range(nc):
+        s += Pl[pidx[k, k], l] / it_ctl[4 + k]
+    return s / nc
+
+
+@njit(cache=True)
+def _iterate_lane(l, b, mz, it_max, it_tol, z, Pl, xl, pidx, est_idx, hcols, hnnz, hsrc, hval, innov, r_var,
+                  coef_l, fr_now, g, U1, S1, F1, nu1, in1, w1, xi, xnew, coef_i, out, hm, ha):
+    """The iterated EKF's relinearisation (Gauss-Newton form, the reference kernel's loop in
+    ``_filter_one``) for lane ``l`` (replicate ``b``, output row ``mz``): leaves the last
+    linearisation's H in ``hval[:, :, l]`` and its innovation in ``innov[:, l]``; x and P are
+    untouched (the Joseph update that follows uses them)."""
+    n = xi.shape[0]
+    nc = n - 3
+    for i in range(n):
+        xi[i] = xl[i, l]
+    for it in range(it_max - 1):
+        # x_new = x_pred + P H^T S^-1 innov at the current linearisation
+        for r in range(3):
+            for j in range(n):
+                U1[r, j] = 0.0
+            for kk in range(hnnz[r]):
+                c = hval[r, kk, l]
+                e0 = hcols[r, kk]
+                for j in range(n):
+                    U1[r, j] += c * Pl[pidx[e0, j], l]
+        for r in range(3):
+            for c in range(r + 1):
+                s = 0.0
+                for kk in range(hnnz[c]):
+                    s += U1[r, hcols[c, kk]] * hval[c, kk, l]
+                S1[r, c] = s
+                S1[c, r] = s
+            S1[r, r] += r_var[r]
+            in1[r] = innov[r, l]
+        if not cholesky_inverse(S1, F1, nu1, in1):
+            break
+        for r in range(3):
+            w1[r] = F1[r, 0] * in1[0] + F1[r, 1] * in1[1] + F1[r, 2] * in1[2]
+        dmax = 0.0
+        for j in range(n):
+            xnew[j] = xl[j, l] + U1[0, j] * w1[0] + U1[1, j] * w1[1] + U1[2, j] * w1[2]
+            d = abs(xnew[j] - xi[j]) / np.sqrt(Pl[pidx[j, j], l])
+            if d > dmax:
+                dmax = d
+            xi[j] = xnew[j]
+        for i in range(coef_i.shape[0]):
+            coef_i[i] = coef_l[l, i]
+        for kk in range(nc):
+            coef_i[est_idx[kk]] = xi[kk]
+        measure_jac_sc(xi[nc:], coef_i, fr_now[l, 0], fr_now[l, 1], fr_now[l, 2], g, out, hm, ha)
+        for r in range(3):
+            v = z[b, mz, r] - out[r]
+            for kk in range(hnnz[r]):
+                src = hsrc[r, kk]
+                hv = hm[r, src] if src >= 0 else ha[r, -1 - src]
+                hval[r, kk, l] = hv
+                c = hcols[r, kk]
+                v -= hv * (xl[c, l] - xi[c])
+            innov[r, l] = v
+        if dmax < it_tol:
+            break
+
+
+@njit(cache=True)
+def _run_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
+               hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k, seg_t0,
+               seg_last, seg_nis, pidx):
+    """Block ``blk`` of one pass: allocates its lane-layout state and scratch and runs
+    :func:`_filter_block`."""
+    n = x.shape[1]
+    L = LANES
+    npc = pcols.shape[0]
+    mh = hcols.shape[1]
+    nco = coef_fixed.shape[1]
+    f3 = np.empty
+    _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
+                  hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k, seg_t0,
+                  seg_last, seg_nis,
+                  pidx, f3((n, L)), f3((pidx[n - 1, n - 1] + 1, L)), f3((3, n, L)), f3((3, n, L)), f3((3, n, L)),
+                  f3((3, n, L)), f3((3, npc, L)), np.zeros((3, mh, L)), np.zeros((3, L)), f3((3, 3, L)),
+                  f3((3, 3, L)), f3((3, L)), f3(L), f3((6, L)), f3(L), f3(L),
+                  f3((L, nco)), f3((L, 3)), f3((L, 3)), f3((L, 3)), f3((L, 3, 3)), f3((L, params.shape[2])),
+                  f3((L, 3)), f3((L, 3, 3)), f3((L, 3, N_GYRO)), f3((L, 3)), np.zeros((L, 3, MEAS_COLS.shape[1])),
+                  f3((L, 3, 3)),
+                  f3((4, 3)), f3((4, 3, 3)), f3((4, 3, N_GYRO)), f3(42), f3((3, 3)), f3((3, 3)), f3(3), f3(3),
+                  f3((3, n)), f3(3), f3(n), f3(n), f3(nco))
+
+
+@njit(parallel=True, cache=True)
+def _run_blocks(nblk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
+                hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k, seg_t0,
+                seg_last, seg_nis, pidx):
+    """Every block of one pass, one block per ``prange`` iteration (threads)."""
+    for blk in prange(nblk):
+        _run_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
+                   hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k,
+                   seg_t0, seg_last, seg_nis, pidx)
+
+
+@njit(cache=True)
+def _run_blocks_serial(nblk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+                       update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec,
+                       seg_k, seg_t0, seg_last, seg_nis, pidx):
+    """:func:`_run_blocks` without threads (one block, or one thread): the same block kernel."""
+    for blk in range(nblk):
+        _run_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
+                   hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k,
+                   seg_t0, seg_last, seg_nis, pidx)
+
+
+def run_pass_lanes(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
+                   hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg):
+    """One pass of the EKF over a batch, in place: the reference kernel's arguments and effect
+    (:func:`platcal.rigs.centrifuge.ekf._run_pass`), computed block by block in lanes."""
+    B, n = x.shape
+    nblk = -(-B // LANES)
+    kernel = _run_blocks_serial if nblk == 1 or numba.get_num_threads() == 1 else _run_blocks
+    with slp_vectorize():
+        kernel(nblk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
+               hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, *seg,
+               packed_index(n))

@@ -214,15 +214,32 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                         W[0, j, l] = 0.0
                         W[1, j, l] = 0.0
                         W[2, j, l] = 0.0
-                for kk in range(npc):
-                    pc = pcols[kk]
+                # two columns of Phi per pass over W (half its loads and stores), each row of W
+                # in its own lane loop (one lane loop updating three rows is not vectorised);
+                # every entry still sums in column order
+                for kk in range(0, npc - 1, 2):
+                    ea0 = pcols[kk]
+                    eb0 = pcols[kk + 1]
                     for j in range(n):
-                        e = pidx[pc, j]
+                        ea = pidx[ea0, j]
+                        eb = pidx[eb0, j]
                         for l in range(L):
-                            p = Pl[e, l]
-                            W[0, j, l] += phi[0, kk, l] * p
-                            W[1, j, l] += phi[1, kk, l] * p
-                            W[2, j, l] += phi[2, kk, l] * p
+                            W[0, j, l] = (W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
+                        for l in range(L):
+                            W[1, j, l] = (W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
+                        for l in range(L):
+                            W[2, j, l] = (W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
+                if npc % 2:
+                    kk = npc - 1
+                    ea0 = pcols[kk]
+                    for j in range(n):
+                        ea = pidx[ea0, j]
+                        for l in range(L):
+                            W[0, j, l] += phi[0, kk, l] * Pl[ea, l]
+                        for l in range(L):
+                            W[1, j, l] += phi[1, kk, l] * Pl[ea, l]
+                        for l in range(L):
+                            W[2, j, l] += phi[2, kk, l] * Pl[ea, l]
                 for l in range(L):
                     acc[0, l] = 0.0
                     acc[1, l] = 0.0

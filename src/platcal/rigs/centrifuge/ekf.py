@@ -693,9 +693,8 @@ def run_ekf(
         the run's), instead of keeping them in ``Estimate.innovations``.
     reference : run the reference kernel (:func:`_run_pass`: one replicate per thread, every
         product and sum rounded on its own) instead of the state-major kernel
-        (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in SIMD lanes, fused
-        multiply-adds; the same filter, x and P equal to round-off, issue 22); for tests and
-        benchmarks.
+        (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in SIMD lanes; the same filter,
+        x and P equal to round-off, issue 22); for tests and benchmarks.
 
     Returns
     -------

@@ -10,11 +10,15 @@ a block's covariance is ``P[e, l]``, entry ``e`` of the lower triangle packed by
 operation is then one vector instruction over the lanes of a block, and a symmetric P is
 stored once (no mirror, 1176 entries at n = 48: the block's P is 37.6 kB at 4 lanes, in L1).
 
-Arithmetic: fused multiply-adds are allowed (``fastmath={"contract"}``), so x and P differ from
-the reference kernel at round-off (``tests/test_ekf_lanes.py`` bounds it: 1e-9 sigma);
-every lane runs the same instructions, so a replicate's numbers do not depend on its lane, on
-the batch size or on the number of threads (a short last block is filled with copies of its
-first replicate, whose results are dropped).
+Arithmetic: every product and sum rounds on its own, as in the reference kernel (no fused
+multiply-add: LLVM contracts a product and a sum, or not, depending on how it vectorised a
+loop, which differs between the threaded and the serial build of the same code, so with FMAs
+a replicate's numbers depended on the thread count); every lane runs the same instructions,
+so a replicate's numbers do not depend on its lane, on the batch size or on the number of
+threads (a short last block is filled with copies of its first replicate, whose results are
+dropped). x and P differ from the reference kernel's at round-off, amplified by the filter as
+any round-off is (``tests/test_ekf_lanes.py``: as far as a one-ulp change of P0 moves the
+reference kernel's own result, 1e-8 sigma over 2 s positions, 2e-7 over 60 s).
 
 How the code is made to vectorise (issue 22): numba runs LLVM's loop vectoriser but not its SLP
 vectoriser, and a loop over 4 lanes is unrolled before the loop vectoriser sees it; and without
@@ -45,9 +49,9 @@ LANES = 4
 """Replicates per block: one AVX2 register of doubles (numba's LLVM prefers 256-bit vectors on
 this machine); a block's packed P (1176 x 4 doubles) stays in the 48 kB L1 cache."""
 
-FASTMATH = {"contract"}
-"""LLVM fast-math flags of the block kernel: contraction of a product and a sum into one fused
-multiply-add only (no reassociation: every lane, and a lane in any block, rounds alike)."""
+FASTMATH = False
+"""LLVM fast-math flags of the block kernel: none (``{"contract"}``, fused multiply-adds, was 13 %
+faster but made the numbers depend on the build: see the module docstring)."""
 
 
 class NoAliasCompiler(CompilerBase):

@@ -34,6 +34,8 @@ rule campaign_plan:
     threads: 1
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("campaign", "campaign_plan"),
     log:
         "results/logs/campaign_plan.log",
     script:

@@ -252,9 +252,11 @@ def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimator: 
 
 def warm_up(rig_name: str, cfg: dict, out_path, threads: int = 1, log_path=None) -> dict:
     """Compile a rig's kernels into numba's on-disk cache once per study, before its cells start
-    (rule montecarlo_warmup; issue 22 item 4): one replicate of each estimator on the rig's first
-    case that needs no generated file, at its first noise level, whose numbers are discarded. Cells
-    started side by side on a cold cache would each compile every kernel; after this they load them.
+    (rule montecarlo_warmup; issue 22 item 4): two replicates of each estimator on the rig's first
+    case that needs no generated file, at its first noise level, whose numbers are discarded (two,
+    not one: a batch of one can pass read-only arrays, another specialisation than the cells').
+    Cells started side by side on a cold cache would each compile every kernel; after this they
+    load them.
     Writes ``out_path`` (JSON: wall and CPU seconds per estimator, the case and level used) and
     returns it."""
     lg = job_logger(log_path)
@@ -268,7 +270,7 @@ def warm_up(rig_name: str, cfg: dict, out_path, threads: int = 1, log_path=None)
         out["noise"] = float(level)
         for est in hooks.estimators(cfg):
             t0, c0 = time.perf_counter(), time.process_time()
-            run_cell(rig, cfg, case, level, est, replicates=1, threads=threads)
+            run_cell(rig, cfg, case, level, est, replicates=min(2, hooks.settings(cfg).replicates), threads=threads)
             out["estimators"][est] = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
             lg.info("%s warm-up %s, %s: %.1f s wall, %.1f s CPU", rig.name, name, est,
                     out["estimators"][est]["wall_s"], out["estimators"][est]["cpu_s"])

@@ -19,6 +19,7 @@ from ...rig import COUNT, SEED, option, real, whole
 from ...io import check_writable
 from ...logs.calibration import read_calibration
 from ...logs.compensate import compensate_log, read_mapped
+from ...logs.dwells import lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
@@ -28,8 +29,9 @@ from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
 from .design import design_config, preset, run_design, write_design
-from .identify import (calibration, clock_finding, consistency_warning, identify_input, identify_streamed, record_fit,
-                       record_input, run_problems, streamable, timed, truth_known, write_identification)
+from .identify import (calibration, clock_finding, consistency_warning, continuous_input, identify_input,
+                       identify_streamed, record_fit, record_input, run_problems, streamable, timed, truth_known,
+                       write_identification)
 from .observability import write_observability
 from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, FilterInput, chunk_to_frame,
                      compensate_frame, full_coefficients, read_record)
@@ -109,7 +111,16 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     # a record longer than one chunk is streamed (memory does not grow with it); a shorter one,
     # or an estimator that needs it whole, is read whole as before
     chunks = read_chunks() if chunk_rows and streamable(study.filter) else None
-    if chunks is not None and next(chunks, None) is not None and next(chunks, None) is not None:
+    segmentation = None
+    try:
+        streamed = chunks is not None and next(chunks, None) is not None and next(chunks, None) is not None
+        df = None if streamed else read_record(args.data, mapping)
+    except InputError as exc:  # no position column: a continuous log, read whole and cut into dwells
+        if not lacks_position(exc):
+            raise
+        streamed = False
+        df, segmentation = continuous_input(study, scheme, args.data, mapping)
+    if streamed:
         chunks.close()
         t0 = time.perf_counter()
         est, scan, fit = identify_streamed(study, scheme, read_chunks)
@@ -117,7 +128,6 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
         fin = FilterInput(scan.positions, scan.t, [], scan.cmd_deg)
         known = scan.truth
     else:
-        df = read_record(args.data, mapping)
         fin = record_input(study, scheme, df)
         est, seconds = timed(identify_input, study, scheme, fin)
         fit = None
@@ -129,9 +139,12 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     if fit is None:
         fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
     summary = write_identification(args.out, est, study, known and not args.no_truth, seconds,
-                                   samples_used=used, calibration=calibration(est, study, args.data), fit=fit)
+                                   samples_used=used, calibration=calibration(est, study, args.data), fit=fit,
+                                   segmentation=segmentation)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
+    if segmentation is not None:
+        msg += " (dwells found in the continuous log: dwells.png)"
     if "nees" in summary:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.3f} %, NEES {summary['nees']:.1f} (dof {summary['nees_dof']})")

@@ -20,6 +20,7 @@ from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, chec
                         nearest_samples, read_table, write_record)  # noqa: F401 (write_record re-exported)
 from ...records import num as _num
 from ...logs.calibration import Calibration
+from ...logs.dwells import DwellRule, find_dwells, labelled_frame
 from ...model.frames import DEG
 from ...model.instruments import FULL_NAMES, INDEX, N_FULL, compensate_accelerometers
 from ...scheme import Scheme
@@ -267,6 +268,42 @@ def select_instants(k: int, t: np.ndarray, period_s: float, max_gap_s: float | N
     if keep.size < 1:
         raise InputError(f"--data column t, position {k}", f"no sample falls on a {period_s * 1e3:g} ms filter instant")
     return keep, t
+
+
+COMMANDED_COLUMNS = ("alpha_cmd", "beta_cmd", "gamma_cmd")
+CONTINUOUS_COLUMNS = ("t", "Ax", "Ay", "Az")
+"""What a continuous log (one clock, no ``position`` column) must hold; the commanded angles
+(:data:`COMMANDED_COLUMNS`) and the true angles may come too, all three of each or none."""
+LEVEL_SHARE = 0.01
+"""A sample of a continuous log is at a dwell's level when its ``|A|`` is within this share of
+the specific force of one of the scheme's positions (``hypot(g_level, 1)`` g): the table at its
+rate. Within a dwell ``|A|`` holds to the Coriolis term and the instrument's errors (below 1e-3
+of it at 10 g); a table spun down for a slew gives 1 g."""
+
+
+def continuous_record(df: pd.DataFrame, scheme: Scheme, level_g: np.ndarray, mean_g: np.ndarray, turning: bool,
+                      rule: DwellRule = DwellRule()) -> tuple[pd.DataFrame, tuple]:
+    """A continuous centrifuge log (docs/centrifuge-model.md §13, "Continuous logs") as a
+    labelled record: the dwells found (:func:`platcal.logs.dwells.find_dwells`) among the
+    samples at one of the positions' specific-force levels ``level_g`` (K,) g (:data:`LEVEL_SHARE`),
+    cut where the commanded angles step, ``|A|`` steps (``turning``: the outputs turn with the
+    table, their magnitude holds; otherwise the outputs themselves) or the clock jumps; matched
+    to the scheme's positions by the commanded angles when the log has them, else by the mean
+    outputs against ``mean_g`` (K, 3) g, the nominal instrument's over each position. Each dwell's
+    clock counts from its first sample (the position's start). Returns the record and ``(t,
+    |A|, dwells)`` for the figure; InputError naming ``--data`` when the dwells do not match
+    the scheme."""
+    present = [c for c in COMMANDED_COLUMNS if c in df.columns]
+    if present and len(present) != 3:
+        raise InputError(f"--data column {[c for c in COMMANDED_COLUMNS if c not in present][0]}",
+                         "the commanded angles come as all three of alpha_cmd, beta_cmd, gamma_cmd or not at all")
+    t = df["t"].to_numpy(float)
+    a = df[["Ax", "Ay", "Az"]].to_numpy(float)
+    size = np.linalg.norm(a, axis=1)
+    at_level = (np.abs(size[:, None] - level_g[None, :]) <= LEVEL_SHARE * level_g[None, :]).any(axis=1)
+    dwells = find_dwells(t, df[present].to_numpy(float), a, scheme.angles_deg, rule, at_level=at_level,
+                         level_g=size if turning else a, expected_g=mean_g)
+    return labelled_frame(df, dwells, scheme.angles_deg, scheme.name, COMMANDED_COLUMNS), (t, size, dwells)
 
 
 COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az")

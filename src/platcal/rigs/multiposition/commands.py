@@ -25,7 +25,7 @@ from ...rig import option
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log, read_mapped
-from ...logs.dwells import dwell_figure
+from ...logs.dwells import dwell_figure, dwells_found
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
@@ -149,10 +149,7 @@ def cmd_identify(cfg, args) -> int:
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
     if rec.segmentation is not None:
-        t_log = rec.segmentation[0]
-        summary["dwells_found"] = [{"position": d.position, "t_start": float(t_log[d.start]),
-                                    "t_end": float(t_log[d.stop - 1]), "samples": d.stop - d.start}
-                                   for d in rec.segmentation[2]]
+        summary["dwells_found"] = dwells_found(rec.segmentation[0], rec.segmentation[2])
     fit = record_fit(cfg, scheme, rec, innovations)
     summary["fit"] = fit.as_dict()
     use_truth = rec.has_truth and not args.no_truth

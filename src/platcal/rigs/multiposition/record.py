@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
-from ...logs.dwells import DwellRule, find_dwells
+from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_position
 from ...mapping import RecordMapping
 from ...model.frames import DEG
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
@@ -107,9 +107,9 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     try:
         df = read_table(path, COLUMNS, TRUTH_COLUMNS, what="a multiposition record", mapping=mapping, units=UNITS)
     except InputError as exc:  # no position column: a continuous log, cut into the scheme's dwells here
-        if scheme is None or exc.field not in ("--data column position", "record.columns.position"):
+        if scheme is None or not lacks_position(exc):
             raise
-        df, segmentation = labelled_frame(read_table(path, CONTINUOUS_COLUMNS, what="a continuous multiposition log",
+        df, segmentation = continuous_record(read_table(path, CONTINUOUS_COLUMNS, what="a continuous multiposition log",
                                                      mapping=mapping, units=UNITS), scheme)
     cols = list(df.columns)
     present_truth = [c for c in TRUTH_COLUMNS if c in cols]
@@ -174,29 +174,16 @@ CONTINUOUS_COLUMNS = ("t", "Ax", "Ay", "Az") + ANGLE_COLUMNS
 """A continuous log (no ``position`` and commanded angles): its dwells are found (:mod:`platcal.logs.dwells`)."""
 
 
-def labelled_frame(df: pd.DataFrame, scheme: Scheme, rule: DwellRule = DwellRule()) -> tuple[pd.DataFrame, tuple]:
+def continuous_record(df: pd.DataFrame, scheme: Scheme, rule: DwellRule = DwellRule()) -> tuple[pd.DataFrame, tuple]:
     """A continuous log as a record: its static dwells found and matched to ``scheme``'s
-    positions (:func:`platcal.logs.dwells.find_dwells`), each dwell's clock counted from its first
-    sample, the commanded angles filled in; slews are dropped. Returns the record and
-    ``(t, angles, dwells)`` for the figure. InputError when a position is found twice or not at all."""
+    positions by the angle sensors (:func:`platcal.logs.dwells.find_dwells`) and labelled
+    (:func:`platcal.logs.dwells.labelled_frame`: each dwell's clock counted from its first
+    sample, the commanded angles filled in, slews dropped). Returns the record and ``(t, angles,
+    dwells)`` for the figure. InputError when a position is found twice or not at all."""
     t = df["t"].to_numpy(float)
     ang = df[list(ANGLE_COLUMNS)].to_numpy(float)
     dwells = find_dwells(t, ang, df[["Ax", "Ay", "Az"]].to_numpy(float), scheme.angles_deg, rule)
-    found = [d.position for d in dwells]
-    for k in range(1, scheme.n_positions + 1):
-        if found.count(k) != 1:
-            raise InputError("--data", f"{found.count(k)} dwells of the log match position {k} of scheme "
-                             f"{scheme.name!r} (dwells found at positions {found}); a continuous log holds each "
-                             "position once")
-    parts = []
-    for d in dwells:
-        part = df.iloc[d.start:d.stop].copy()
-        part["t"] = t[d.start:d.stop] - t[d.start]
-        part.insert(0, "position", float(d.position))
-        for i, c in enumerate(("alpha_cmd", "beta_cmd", "gamma_cmd")):
-            part[c] = scheme.angles_deg[d.position - 1, i]
-        parts.append(part)
-    return pd.concat(parts, ignore_index=True), (t, ang, dwells)
+    return labelled_frame(df, dwells, scheme.angles_deg, scheme.name), (t, ang, dwells)
 
 
 COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az") + ANGLE_COLUMNS

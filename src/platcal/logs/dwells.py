@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
+from .summary import GAP_FACTOR
 from ..study.plots import save
 
 
@@ -198,8 +199,12 @@ def dwell_figure(t: np.ndarray, signals: np.ndarray, dwells: list[Dwell], path,
     user can check the segmentation."""
     fig, ax = plt.subplots(figsize=(9, 3.2))
     signals = columns(signals)
+    # a slew missing from the log is drawn as a break, not as a line across it
+    step = np.diff(t)
+    gaps = np.flatnonzero(step > GAP_FACTOR * np.median(step)) + 1 if step.size else np.array([], int)
+    tt, ss = np.insert(np.asarray(t, float), gaps, np.nan), np.insert(signals, gaps, np.nan, axis=0)
     for i, name in enumerate(names):
-        ax.plot(t, signals[:, i], lw=0.8, label=name)
+        ax.plot(tt, ss[:, i], lw=0.8, label=name)
     for d in dwells:
         ax.axvspan(t[d.start], t[d.stop - 1], color="0.85", zorder=0)
         ax.text(0.5 * (t[d.start] + t[d.stop - 1]), 1.0, str(d.position), transform=ax.get_xaxis_transform(),

@@ -33,8 +33,8 @@ from .identify import (calibration, clock_finding, consistency_warning, continuo
                        identify_streamed, record_fit, record_input, run_problems, streamable, timed, truth_known,
                        write_identification)
 from .observability import write_observability
-from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, FilterInput, chunk_to_frame,
-                     compensate_frame, full_coefficients, read_record)
+from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, FilterInput,
+                     chunk_to_frame, compensate_frame, full_coefficients, read_record)
 from ...records import CHUNK_ROWS, iter_table, record_writer
 from .report import report_from_results
 from .simulate import simulate_chunks
@@ -217,7 +217,9 @@ def report_command(study: Study, args: argparse.Namespace) -> int:
 def inspect_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
-    print(inspect_log(args.data, mapping, UNITS, LOG_COLUMNS, TRUTH_COLUMNS).text())
+    # a continuous log (no position column) is read too: identify finds its dwells
+    optional = tuple(c for c in LOG_COLUMNS + TRUTH_COLUMNS if c not in CONTINUOUS_COLUMNS)
+    print(inspect_log(args.data, mapping, UNITS, CONTINUOUS_COLUMNS, optional).text())
     return 0
 
 

@@ -18,7 +18,7 @@ from ...estimation.fit import fit_exit_status
 from ...rig import COUNT, SEED, option, real, whole
 from ...io import check_writable
 from ...logs.calibration import read_calibration
-from ...logs.compensate import compensate_log, read_mapped
+from ...logs.compensate import compensate_log, gyro_note, read_mapped
 from ...logs.dwells import lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
@@ -33,8 +33,8 @@ from .identify import (calibration, clock_finding, consistency_warning, continuo
                        identify_streamed, record_fit, record_input, run_problems, streamable, timed, truth_known,
                        write_identification)
 from .observability import write_observability
-from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, FilterInput,
-                     chunk_to_frame, compensate_frame, full_coefficients, read_record)
+from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, LOG_COLUMNS, OPTIONAL_COLUMNS, UNITS,
+                     FilterInput, chunk_to_frame, compensate_frame, full_coefficients, read_record)
 from ...records import CHUNK_ROWS, iter_table, record_writer
 from .report import report_from_results
 from .simulate import simulate_chunks
@@ -106,7 +106,8 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     chunk_rows = _chunk_rows(args)
 
     def read_chunks():
-        return iter_table(args.data, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS, chunk_rows=chunk_rows)
+        return iter_table(args.data, LOG_COLUMNS, OPTIONAL_COLUMNS, mapping=mapping, units=UNITS,
+                          chunk_rows=chunk_rows)
 
     # a record longer than one chunk is streamed (memory does not grow with it); a shorter one,
     # or an estimator that needs it whole, is read whole as before
@@ -218,7 +219,7 @@ def inspect_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
     # a continuous log (no position column) is read too: identify finds its dwells
-    optional = tuple(c for c in LOG_COLUMNS + TRUTH_COLUMNS if c not in CONTINUOUS_COLUMNS)
+    optional = tuple(c for c in LOG_COLUMNS + OPTIONAL_COLUMNS if c not in CONTINUOUS_COLUMNS)
     print(inspect_log(args.data, mapping, UNITS, CONTINUOUS_COLUMNS, optional).text())
     return 0
 
@@ -227,13 +228,15 @@ def compensate_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
     errors taken out (docs/centrifuge-model.md §5: the specific force whose modelled outputs are
     the recorded ones), written atomically to ``--out`` in the record's columns and units. The
-    gyros are not in the record (they are seen through the platform's attitude), so only the
-    accelerometers are compensated."""
+    record has no gyro channel (the gyros are seen through the platform's attitude, §6): a log
+    that holds the gyro outputs ``wx, wy, wz`` (deg/h) gets them less the modelled drift (§4);
+    otherwise the output says the gyro terms were not applied."""
     coef = full_coefficients(read_calibration(args.calibration), "centrifuge")
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
-    optional = tuple(c for c in LOG_COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    optional = tuple(c for c in LOG_COLUMNS + OPTIONAL_COLUMNS if c not in COMPENSATE_COLUMNS)
     return compensate_log(args, "centrifuge", read_mapped("centrifuge", mapping, UNITS, COMPENSATE_COLUMNS, optional),
-                          lambda df: compensate_frame(df, coef), "accelerometers compensated")
+                          lambda df: compensate_frame(df, coef),
+                          lambda out: gyro_note(out.columns, GYRO_COLUMNS, "DF, DI, ... DOS"))
 
 
 VALUES_PER_SAMPLE = {"simulate": 24, "identify": 96}

@@ -21,7 +21,7 @@ from .catalogue import load_catalogue
 from .config import Study
 from .ekf import Estimate, FilterSettings, first_instant
 from .estimators import check_kind, run_estimator
-from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, TRUTH_COLUMNS, UNITS, FilterInput, check_commanded,
+from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
                      check_every_position, check_position, check_position_numbers, check_record, continuous_record,
                      filter_input, has_truth_columns, select_instants)
 from ...mapping import RecordMapping
@@ -123,7 +123,7 @@ def continuous_input(study: Study, scheme: Scheme, path, mapping: RecordMapping 
     or, without them, by the mean outputs of the nominal instrument (every coefficient 0) over
     each position. Returns the labelled record, which then takes every check of a labelled one,
     and ``(t, |A|, dwells)`` for the figure."""
-    df = read_table(path, CONTINUOUS_COLUMNS, COMMANDED_COLUMNS + TRUTH_COLUMNS, what="a continuous centrifuge log",
+    df = read_table(path, CONTINUOUS_COLUMNS, COMMANDED_COLUMNS + OPTIONAL_COLUMNS, what="a continuous centrifuge log",
                     mapping=mapping, units=UNITS)
     has_truth_columns(df.columns)
     run = simulate(np.zeros_like(study.truth), scheme, study.centrifuge.scheme_params(scheme), study.noise, None,

@@ -17,16 +17,24 @@ import pandas as pd
 from ...errors import InputError
 from ...mapping import RecordMapping
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
-                        nearest_samples, read_table, write_record)  # noqa: F401 (write_record re-exported)
+                        nearest_samples, read_table, whole_group, write_record)  # noqa: F401 (write_record re-exported)
 from ...records import num as _num
 from ...logs.calibration import Calibration
 from ...logs.dwells import DwellRule, find_dwells, labelled_frame
 from ...model.frames import DEG
-from ...model.instruments import FULL_NAMES, INDEX, N_FULL, compensate_accelerometers
+from ...model.instruments import FULL_NAMES, INDEX, N_FULL, compensate_accelerometers, gyro_drifts
 from ...scheme import Scheme
 
+GYRO_COLUMNS = ("wx", "wy", "wz")
+"""The platform gyros' outputs, deg/h (the rate each measures about its input axis), optional in a
+log: identify does not read them (the model sees the gyros through the platform's attitude,
+docs/centrifuge-model.md §4, §6); compensate takes their modelled drift out when they are there."""
 UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": "deg", "gamma_cmd": "deg",
-         "Ax": "g", "Ay": "g", "Az": "g", "alpha": "deg", "beta": "deg", "gamma": "deg"}
+         "Ax": "g", "Ay": "g", "Az": "g", "alpha": "deg", "beta": "deg", "gamma": "deg",
+         "wx": "deg/h", "wy": "deg/h", "wz": "deg/h"}
+OPTIONAL_COLUMNS = TRUTH_COLUMNS + GYRO_COLUMNS
+"""Columns a log may hold besides :data:`platcal.records.LOG_COLUMNS`: the true angles
+(simulation) and the gyro outputs; each group all or none."""
 """The record's columns and their units (docs/centrifuge-model.md §13), for a config's ``record:`` mapping."""
 UNIT_FACTOR_G = 3.0
 """A record whose median specific-force magnitude is this many times larger or smaller than the
@@ -90,18 +98,14 @@ def read_record(path: str | os.PathLike, mapping: RecordMapping | None = None) -
     Raises InputError naming the column (and row) on missing or extra columns, non-numeric,
     NaN or infinite values.
     """
-    df = read_table(path, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS)
+    df = read_table(path, LOG_COLUMNS, OPTIONAL_COLUMNS, mapping=mapping, units=UNITS)
     has_truth_columns(df.columns)
     return df
 
 
 def has_truth_columns(columns) -> bool:
     """Whether a record's ``columns`` hold the true angles; refused when only some of the three do."""
-    present = [c for c in TRUTH_COLUMNS if c in columns]
-    if present and len(present) != 3:
-        raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in columns][0]}",
-                         "the true angles come as all three of alpha, beta, gamma or not at all")
-    return bool(present)
+    return whole_group(columns, TRUTH_COLUMNS, "the true angles")
 
 
 def check_position_numbers(pos: np.ndarray, scheme: Scheme) -> None:
@@ -294,10 +298,7 @@ def continuous_record(df: pd.DataFrame, scheme: Scheme, level_g: np.ndarray, mea
     clock counts from its first sample (the position's start). Returns the record and ``(t,
     |A|, dwells)`` for the figure; InputError naming ``--data`` when the dwells do not match
     the scheme."""
-    present = [c for c in COMMANDED_COLUMNS if c in df.columns]
-    if present and len(present) != 3:
-        raise InputError(f"--data column {[c for c in COMMANDED_COLUMNS if c not in present][0]}",
-                         "the commanded angles come as all three of alpha_cmd, beta_cmd, gamma_cmd or not at all")
+    present = list(COMMANDED_COLUMNS) if whole_group(df.columns, COMMANDED_COLUMNS, "the commanded angles") else []
     t = df["t"].to_numpy(float)
     a = df[["Ax", "Ay", "Az"]].to_numpy(float)
     size = np.linalg.norm(a, axis=1)
@@ -328,7 +329,12 @@ def full_coefficients(cal: Calibration, rig: str) -> np.ndarray:
 def compensate_frame(df: pd.DataFrame, coef: np.ndarray) -> pd.DataFrame:
     """``df`` with ``Ax, Ay, Az`` (g) compensated with ``coef`` (48,): each sample replaced by
     the error-free output, the specific force in p whose modelled outputs are the recorded ones
-    (:func:`platcal.model.instruments.compensate_accelerometers`, docs/centrifuge-model.md §5)."""
+    (:func:`platcal.model.instruments.compensate_accelerometers`, docs/centrifuge-model.md §5);
+    and, when the log has the gyro outputs ``wx, wy, wz`` (deg/h, :data:`GYRO_COLUMNS`), those
+    less the modelled drift at that specific force (§4)."""
     out = df.copy()
-    out[["Ax", "Ay", "Az"]] = compensate_accelerometers(df[["Ax", "Ay", "Az"]].to_numpy(float), coef)
+    f = compensate_accelerometers(df[["Ax", "Ay", "Az"]].to_numpy(float), coef)
+    out[["Ax", "Ay", "Az"]] = f
+    if whole_group(df.columns, GYRO_COLUMNS, "the gyro outputs"):
+        out[list(GYRO_COLUMNS)] = df[list(GYRO_COLUMNS)].to_numpy(float) - gyro_drifts(coef, f)
     return out

@@ -21,16 +21,20 @@ from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_positio
 from ...mapping import RecordMapping
 from ...model.frames import DEG
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
-                         read_table, write_record)  # write_record: re-exported for the rig's commands
+                         read_table, whole_group, write_record)  # write_record: re-exported for the rig's commands
 from ...scheme import Scheme
-from .model import measure
+from .model import drift, measure
 
 ANGLE_COLUMNS = ("alpha_m", "beta_m", "gamma_m")
+GYRO_COLUMNS = ("wx", "wy", "wz")
+"""The platform gyros' outputs, deg/h (the rate each measures about its input axis), optional in a
+log: identify does not read them (the gyros are seen through the gimbal angles, §6); compensate
+takes their modelled drift out when they are there (docs/multiposition-1g.md §5)."""
 COLUMNS = LOG_COLUMNS + ANGLE_COLUMNS
 UG = 1e-6
 UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": "deg", "gamma_cmd": "deg",
          "Ax": "g", "Ay": "g", "Az": "g", "alpha_m": "deg", "beta_m": "deg", "gamma_m": "deg",
-         "alpha": "deg", "beta": "deg", "gamma": "deg"}
+         "alpha": "deg", "beta": "deg", "gamma": "deg", "wx": "deg/h", "wy": "deg/h", "wz": "deg/h"}
 """The record's columns and their units (§12), for a config's ``record:`` mapping; g is standard
 gravity, 9.80665 m/s^2 (:data:`platcal.mapping.STANDARD_GRAVITY`)."""
 
@@ -105,17 +109,15 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     """
     segmentation = None
     try:
-        df = read_table(path, COLUMNS, TRUTH_COLUMNS, what="a multiposition record", mapping=mapping, units=UNITS)
+        df = read_table(path, COLUMNS, TRUTH_COLUMNS + GYRO_COLUMNS, what="a multiposition record", mapping=mapping,
+                        units=UNITS)
     except InputError as exc:  # no position column: a continuous log, cut into the scheme's dwells here
         if scheme is None or not lacks_position(exc):
             raise
-        df, segmentation = continuous_record(read_table(path, CONTINUOUS_COLUMNS, what="a continuous multiposition log",
-                                                     mapping=mapping, units=UNITS), scheme)
+        df, segmentation = continuous_record(read_table(path, CONTINUOUS_COLUMNS, GYRO_COLUMNS, mapping=mapping,
+                                                        what="a continuous multiposition log", units=UNITS), scheme)
     cols = list(df.columns)
-    present_truth = [c for c in TRUTH_COLUMNS if c in cols]
-    if present_truth and len(present_truth) != 3:
-        raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in cols][0]}",
-                         "the true angles come as all three of alpha, beta, gamma or not at all")
+    has_truth = whole_group(cols, TRUTH_COLUMNS, "the true angles")
     pos = df["position"].to_numpy()
     off = (pos != np.round(pos)) | (pos < 1)
     if scheme is not None:
@@ -166,7 +168,7 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     if scheme is None:
         dwell = max(float(t[-1]) for t in ts_used) or 1.0
         scheme = Scheme(name=f"record:{Path(path).name}", positions=tuple(map(tuple, cmd)), dwell_s=dwell)
-    return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=len(present_truth) == 3, positions=present,
+    return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=has_truth, positions=present,
                   segmentation=segmentation), scheme
 
 
@@ -195,11 +197,15 @@ def compensate_frame(df: pd.DataFrame, coef: np.ndarray) -> pd.DataFrame:
     angles (``alpha_m, beta_m, gamma_m``, deg) with coefficients ``coef`` (24, state order of
     :func:`.model.coef_names`) is taken out, leaving the error-free output of each accelerometer
     (the specific force along its nominal input axis, g). The angle sensors' own noise enters
-    through the modelled misalignment terms only (second order)."""
+    through the modelled misalignment terms only (second order). When the log has the gyro
+    outputs ``wx, wy, wz`` (deg/h, :data:`GYRO_COLUMNS`) they come out less the modelled drift of
+    §5 at the measured angles."""
     ang = df[list(ANGLE_COLUMNS)].to_numpy(float) * DEG
     x_cal = np.r_[np.zeros(3), coef]
     x_free = np.zeros_like(x_cal)
     err = np.array([measure(a, x_cal)[0][:3] - measure(a, x_free)[0][:3] for a in ang])  # ug
     out = df.copy()
     out[["Ax", "Ay", "Az"]] = df[["Ax", "Ay", "Az"]].to_numpy(float) - err * UG
+    if whole_group(df.columns, GYRO_COLUMNS, "the gyro outputs"):
+        out[list(GYRO_COLUMNS)] = df[list(GYRO_COLUMNS)].to_numpy(float) - np.array([drift(x_cal, a) for a in ang])
     return out

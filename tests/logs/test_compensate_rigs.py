@@ -173,3 +173,17 @@ def test_compensate_refuses_out_suffix(tmp_path, capsys):
     code = main(["compensate", "--calibration", str(cal), "--data", "x.csv", "--out", str(tmp_path / "out.txt")])
     err = capsys.readouterr().err
     assert code == 2 and "--out" in err and ".csv or .parquet" in err
+
+
+def test_compensate_refuses_some_gyro_columns(tmp_path, capsys):
+    """Gyro outputs come as all of wx, wy, wz or none: a log with some exits 2 naming the first
+    missing column, nothing written."""
+    df = pd.DataFrame({"t": [0.0, 0.005], "Ax": [0.1, 0.1], "Ay": [0.2, 0.2], "Az": [1.0, 1.0], "wx": [1.0, 1.0]})
+    df.to_csv(tmp_path / "log.csv", index=False)
+    out = tmp_path / "out.csv"
+    code = main(["compensate", "--calibration", str(_calibration(tmp_path / "cal.yaml", "centrifuge", ["DF_x"])),
+                 "--data", str(tmp_path / "log.csv"), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "--data column wy" in err and "gyro outputs" in err
+    assert not out.exists()

@@ -1,5 +1,6 @@
 """Write vendor_log.csv: a simulated run (platform P1, run1 of config.yaml) as the INS computer
-logs it: a metadata header, UTC date-times, positions in mm, azimuth in rad, specific force in mg. Run from this folder."""
+logs it: a metadata header, UTC date-times, positions in mm, azimuth in rad, specific force in mg.
+Run from this folder."""
 
 import numpy as np
 import pandas as pd
@@ -22,5 +23,6 @@ if __name__ == "__main__":
                         "azimuth": np.deg2rad(df["heading_deg"]), "f_e": df["fE"] / G * 1e3, "f_n": df["fN"] / G * 1e3,
                         "mode": df["schedule"]})
     # the INS computer's header: three lines of metadata above the columns (record.header_lines)
-    meta = "# INS computer export, platform P1, run1\n# times UTC; positions local east/north, mm\n# azimuth rad, f mg\n"
+    meta = ("# INS computer export, platform P1, run1\n# times UTC; positions local east/north, mm\n"
+            "# azimuth rad, f mg\n")
     open("vendor_log.csv", "w").write(meta + log.to_csv(index=False))

@@ -55,5 +55,6 @@ if __name__ == "__main__":
     assert main(["simulate", "--config", "simulated.yaml", "--scheme", "short", "--seed", "1",
                  "--out", "simulated.csv"]) == 0
     # the logger's header: three lines of metadata above the columns (record.header_lines)
-    meta = "# MPT-3 multi-position table logger, firmware 1.4\n# test: scheme short, seed 1, one clock\n# units: us, mg, rad\n"
+    meta = ("# MPT-3 multi-position table logger, firmware 1.4\n# test: scheme short, seed 1, one clock\n"
+            "# units: us, mg, rad\n")
     open("vendor_log.csv", "w").write(meta + vendor(continuous(pd.read_csv("simulated.csv"))).to_csv(index=False))

@@ -60,12 +60,14 @@ def labelled(tmp_path_factory):
 
 
 @pytest.mark.parametrize("commanded", [False, True])
-def test_continuous_log_identifies_as_the_labelled_one(tmp_path, labelled, commanded):
+def test_continuous_log_identifies_as_the_labelled_one(tmp_path, labelled, commanded, capsys):
     cfg, rec, a_dir = labelled
     df = pd.read_csv(rec)
     log = continuous(df, clock=5000.25, missing=(2,), commanded=commanded)  # the slew after position 2 not logged
     assert "position" not in log.columns and (("alpha_cmd" in log.columns) == commanded)
     log.to_csv(tmp_path / "log.csv", index=False)
+    assert main(["inspect", "--config", cfg, "--data", str(tmp_path / "log.csv")]) == 0   # inspect reads it too
+    assert "gaps (> 1.5 steps): 1" in capsys.readouterr().out                             # the slew not logged
     assert main(["identify", "--config", cfg, "--data", str(tmp_path / "log.csv"), "--scheme", "short", "--out",
                  str(tmp_path / "b")]) == 0
     a = pd.read_csv(a_dir / "estimates.csv")

@@ -79,7 +79,8 @@ def test_centrifuge_compensate(tmp_path):
                            wz=free_w[:, 2] + drift_true[:, 2])
     with_gyros.to_csv(tmp_path / "gyros.csv", index=False)
     out = tmp_path / "comp_gyro.csv"
-    assert main(["compensate", "--calibration", str(true), "--data", str(tmp_path / "gyros.csv"), "--out", str(out)]) == 0
+    assert main(["compensate", "--calibration", str(true), "--data", str(tmp_path / "gyros.csv"),
+                 "--out", str(out)]) == 0
     got = pd.read_csv(out)
     assert np.abs(got[["Ax", "Ay", "Az"]].to_numpy() - free_a).max() <= 1e-9 * scale
     assert np.abs(got[["wx", "wy", "wz"]].to_numpy() - free_w).max() <= 1e-9 * np.abs(free_w).max()

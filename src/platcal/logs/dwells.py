@@ -50,9 +50,13 @@ POSITION_MISSING = ("--data column position", "record.columns.position")
 through a ``record:`` mapping): such a log is a continuous one, whose dwells are found here."""
 
 
-def lacks_position(exc: InputError) -> bool:
-    """Whether a read refused a log only for having no ``position`` column (a continuous log)."""
-    return exc.field in POSITION_MISSING
+def lacks_position(exc: InputError, mapping=None) -> bool:
+    """Whether a read refused a log only for having no ``position`` column: a continuous log. Not
+    so when the config's ``record:`` ``mapping`` (:class:`platcal.mapping.RecordMapping`) gave the
+    log's own ``position`` column to another of the rig's columns: that log is labelled and the
+    mapping wrong, and the refusal stands."""
+    taken = mapping is not None and "position" in mapping.columns.values() and "position" not in mapping.columns
+    return exc.field in POSITION_MISSING and not taken
 
 
 @dataclass(frozen=True)

@@ -117,7 +117,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
         streamed = chunks is not None and next(chunks, None) is not None and next(chunks, None) is not None
         df = None if streamed else read_record(args.data, mapping)
     except InputError as exc:  # no position column: a continuous log, read whole and cut into dwells
-        if not lacks_position(exc):
+        if not lacks_position(exc, mapping):
             raise
         streamed = False
         df, segmentation = continuous_input(study, scheme, args.data, mapping)

@@ -112,7 +112,7 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
         df = read_table(path, COLUMNS, TRUTH_COLUMNS + GYRO_COLUMNS, what="a multiposition record", mapping=mapping,
                         units=UNITS)
     except InputError as exc:  # no position column: a continuous log, cut into the scheme's dwells here
-        if scheme is None or not lacks_position(exc):
+        if scheme is None or not lacks_position(exc, mapping):
             raise
         df, segmentation = continuous_record(read_table(path, CONTINUOUS_COLUMNS, GYRO_COLUMNS, mapping=mapping,
                                                         what="a continuous multiposition log", units=UNITS), scheme)

@@ -32,6 +32,15 @@ def test_sums_per_rig_and_rule(tmp_path):
     assert list(t["rule"])[:3] == ["cell", "report", TOTAL]
 
 
+def test_a_rig_left_out_of_the_study_is_left_out(tmp_path):
+    bench(tmp_path, "a", "cell", "job", 1.0, 1.0, 10)
+    bench(tmp_path, "b", "cell", "job", 2.0, 2.0, 10)
+    bench(tmp_path, "study", "ledger", "job", 0.5, 0.4, 10)
+    jobs = read_benchmarks(tmp_path, rigs=["a"])
+    assert sorted(jobs["rig"]) == ["a", "study"]
+    assert len(read_benchmarks(tmp_path)) == 3
+
+
 def test_written_by_the_one_table_writer(tmp_path):
     bench(tmp_path / "b", "a", "cell", "job", 1.5, 1.0, 10)
     write_timing(tmp_path / "b", tmp_path / "timing")

@@ -23,19 +23,26 @@ COLUMNS = ("s", "cpu_time", "max_rss")
 TOTAL = "all rules"
 TIMING_FORMATS = {"wall_s": ".1f", "cpu_s": ".1f", "share_pct": ".1f", "max_s": ".1f", "max_rss_mb": ".0f"}
 TIMING_NOTE = ("Job-seconds per rig and rule from the Snakemake benchmark files (results/benchmarks/"
-               "<rig>/<rule>/<job>.tsv) of the latest run of each job: wall_s sums the jobs' wall seconds "
+               "<rig>/<rule>/<job>.tsv) of the latest run of each job of this study's rigs: wall_s sums the jobs' wall seconds "
                "(jobs run side by side, so the sum exceeds the study's wall time), cpu_s their CPU seconds "
                "as Snakemake samples them (a lower bound for jobs over 30 s), max_s the longest job. "
                "report_index, which writes this table, is not in it.")
 
 
-def read_benchmarks(root) -> pd.DataFrame:
+STUDY_WIDE = ("study", "campaign")
+"""The ``<rig>`` folders of the rules of the whole study."""
+
+
+def read_benchmarks(root, rigs=None) -> pd.DataFrame:
     """One row per benchmark file under ``root`` (``<rig>/<rule>/<job>.tsv``): rig, rule, job,
     wall_s, cpu_s, max_rss_mb (NaN where Snakemake wrote NA: a job shorter than its first sample).
-    An empty frame when there is none (a study run without benchmarks)."""
+    ``rigs``: only theirs and the study-wide rules' (a rig left out of this study keeps its files
+    from an earlier one). An empty frame when there is none (a study run without benchmarks)."""
     rows = []
     for f in sorted(Path(root).glob("*/*/*.tsv")):
         rig, rule = f.parent.parent.name, f.parent.name
+        if rigs is not None and rig not in set(rigs) | set(STUDY_WIDE):
+            continue
         bench = pd.read_csv(f, sep="\t", na_values=["NA", "-"])
         missing = [c for c in COLUMNS if c not in bench.columns]
         if missing:
@@ -70,9 +77,10 @@ def where_the_time_goes(jobs: pd.DataFrame) -> pd.DataFrame:
     return out[cols]
 
 
-def write_timing(root, stem) -> pd.DataFrame:
+def write_timing(root, stem, rigs=None) -> pd.DataFrame:
     """``stem.{csv,md,html}``: :func:`where_the_time_goes` of the benchmark files under ``root``
-    (the one table writer); returns the table."""
-    table = where_the_time_goes(read_benchmarks(root))
+    (of ``rigs`` and the study-wide rules; all when None), with the one table writer; returns the
+    table."""
+    table = where_the_time_goes(read_benchmarks(root, rigs))
     write_table(table, stem, "Where the time goes", TIMING_NOTE, formats=TIMING_FORMATS)
     return table

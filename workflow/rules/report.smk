@@ -59,7 +59,9 @@ rule report_index:
     output:
         report(INDEX_REPORT, caption="../report/index.rst", category="0. Claims ledger (all rigs)"),
         timing=["results/timing.csv", "results/timing.md"],
-        timing_html=report("results/timing.html", caption="../report/timing.rst", category="Where the time goes (all rigs)"),
+        timing_html=report(
+            "results/timing.html", caption="../report/timing.rst", category="Where the time goes (all rigs)"
+        ),
     params:
         rigs=RIGS,
         benchmarks=BENCH_ROOT,

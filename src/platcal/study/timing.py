@@ -23,7 +23,8 @@ COLUMNS = ("s", "cpu_time", "max_rss")
 TOTAL = "all rules"
 TIMING_FORMATS = {"wall_s": ".1f", "cpu_s": ".1f", "share_pct": ".1f", "max_s": ".1f", "max_rss_mb": ".0f"}
 TIMING_NOTE = ("Job-seconds per rig and rule from the Snakemake benchmark files (results/benchmarks/"
-               "<rig>/<rule>/<job>.tsv) of the latest run of each job of this study's rigs: wall_s sums the jobs' wall seconds "
+               "<rig>/<rule>/<job>.tsv) of the latest run of each job of this study's rigs: wall_s sums the "
+               "jobs' wall seconds "
                "(jobs run side by side, so the sum exceeds the study's wall time), cpu_s their CPU seconds "
                "as Snakemake samples them (a lower bound for jobs over 30 s), max_s the longest job. "
                "report_index, which writes this table, is not in it.")

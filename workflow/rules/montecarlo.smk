@@ -39,8 +39,7 @@ rule montecarlo_cell:
     input:
         case=mc_case_input,
         requires=mc_requires_input,
-        # order only: the warm-up's date does not make a cell out of date
-        warmup=ancient("results/{rig}/montecarlo/warmup.json"),
+        warmup=ancient("results/{rig}/montecarlo/warmup.json"),  # order only (warmed, common.smk)
     output:
         coef="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/coef.parquet",
         runs="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/runs.parquet",

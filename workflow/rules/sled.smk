@@ -27,6 +27,8 @@ if "sled" in MC_CONFIG:
     SLED_EVIDENCE = ["results/sled/montecarlo/runs.parquet"]
 
     rule sled_series:
+        input:
+            warmup=warmed("sled"),  # after the rig's kernels are compiled
         output:
             "results/sled/series/{case}.csv",
         params:

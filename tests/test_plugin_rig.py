@@ -2,7 +2,6 @@
 through the ``platcal.rigs`` entry points, runs end to end through the generic rules (Monte
 Carlo cells, tidy tables, generic report, claims ledger, index) with no edit to the project."""
 
-import json
 import os
 
 import pandas as pd
@@ -100,10 +99,6 @@ def test_a_rig_from_another_package_runs_through_the_generic_rules(tmp_path):
     assert timing.loc[("toy", "montecarlo_cell"), "wall_s"] > 0
     assert {"collect", "generic_report", "claims"} <= set(timing.loc["toy"].index)
     assert "## Where the time goes" in (res / "report.md").read_text()
-    # the kernels' warm-up ran once, before the cells: every estimator on the first case
-    warm = json.loads((res / "toy" / "montecarlo" / "warmup.json").read_text())
-    assert warm["case"] == "const" and set(warm["estimators"]) == set(coef["estimator"])
-    assert timing.loc[("toy", "montecarlo_warmup"), "jobs"] == 1
     # nothing of the project names the toy rig
     assert "toy" not in (ROOT / "Snakefile").read_text()
     assert not any("toy" in f.read_text() for f in (ROOT / "workflow" / "rules").glob("*.smk"))

@@ -61,8 +61,6 @@ wildcard_constraints:
 
 
 rule centrifuge_single_run:
-    input:
-        warmup=warmed("centrifuge"),  # after the rig's kernels are compiled
     output:
         estimates="results/centrifuge/single/estimates.csv",
         covariance="results/centrifuge/single/covariance.csv",
@@ -187,8 +185,6 @@ CEN_COMPARE_DIRS = [f"results/centrifuge/compare/noise{n}/{e}" for n, e in CEN_C
 
 
 rule centrifuge_compare_cell:
-    input:
-        warmup=warmed("centrifuge"),  # after the rig's kernels are compiled
     output:
         coef="results/centrifuge/compare/noise{noise}/{estimator}/coef.parquet",
         runs="results/centrifuge/compare/noise{noise}/{estimator}/runs.parquet",
@@ -291,8 +287,6 @@ rule centrifuge_design_all:
 
 
 rule centrifuge_design_scheme:
-    input:
-        warmup=warmed("centrifuge"),  # after the rig's kernels are compiled
     output:
         scheme="results/centrifuge/design/{design}.yaml",
         history="results/centrifuge/design/{design}.history.csv",

@@ -122,8 +122,3 @@ def bench(rig, rule, job="job"):
     rig and rule into the "Where the time goes" table (platcal.study.timing)."""
     return f"{BENCH_ROOT}/{rig}/{rule}/{job}.tsv"
 
-
-def warmed(rig):
-    """An order-only input: the rig's kernels compiled once before the jobs that run them (rule
-    montecarlo_warmup, workflow/rules/montecarlo.smk); its date does not make a job out of date."""
-    return ancient(f"results/{rig}/montecarlo/warmup.json") if rig in MC_CONFIG else []

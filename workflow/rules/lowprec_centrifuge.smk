@@ -21,8 +21,6 @@ if "lowprec_centrifuge" in MC_CONFIG:
     LOWPREC_CENTRIFUGE_TARGETS = LOWPREC_FILES + ["results/lowprec_centrifuge/report.md"]
 
     rule lowprec_trace:
-        input:
-            warmup=warmed("lowprec_centrifuge"),  # after the rig's kernels are compiled
         output:
             "results/lowprec_centrifuge/trace.npz",
         params:

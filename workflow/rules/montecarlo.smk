@@ -2,7 +2,6 @@
 # one job per (case, noise level, estimator) cell, then the rig's tidy tables.
 #   results/<rig>/runs/<case>/noise<level>/<estimator>/{coef,runs}.parquet, timing.json
 #   results/<rig>/montecarlo/{coef,runs}.parquet, timing.csv
-#   results/<rig>/montecarlo/warmup.json: the kernels compiled once before the cells (cold cache)
 
 
 
@@ -13,33 +12,10 @@ wildcard_constraints:
     estimator=r"[A-Za-z0-9_-]+",
 
 
-rule montecarlo_warmup:
-    """The rig's numba kernels compiled once (numba's on-disk cache) before its cells start: on a
-    cold cache, cells started side by side would each compile them (platcal.study.montecarlo.warm_up).
-    After the rig's own prerequisites (a rig's own warm-up job among them: then this one loads)."""
-    input:
-        requires=mc_requires_input,
-    output:
-        "results/{rig}/montecarlo/warmup.json",
-    params:
-        code=lambda w: CODE_COMPUTE[w.rig],  # the kernels change with the code, not with the config
-    priority: 20  # every cell of the rig waits for it
-    threads: mc_threads
-    conda:
-        "../envs/platcal.yaml"
-    benchmark:
-        bench("{rig}", "montecarlo_warmup"),
-    log:
-        "results/{rig}/logs/montecarlo/warmup.log",
-    script:
-        "../scripts/montecarlo_warmup.py"
-
-
 rule montecarlo_cell:
     input:
         case=mc_case_input,
         requires=mc_requires_input,
-        warmup=ancient("results/{rig}/montecarlo/warmup.json"),  # order only (warmed, common.smk)
     output:
         coef="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/coef.parquet",
         runs="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/runs.parquet",

@@ -27,8 +27,6 @@ if "sled" in MC_CONFIG:
     SLED_EVIDENCE = ["results/sled/montecarlo/runs.parquet"]
 
     rule sled_series:
-        input:
-            warmup=warmed("sled"),  # after the rig's kernels are compiled
         output:
             "results/sled/series/{case}.csv",
         params:

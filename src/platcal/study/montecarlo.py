@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed, parallel_config
 
-from ..io import atomic_files, atomic_write_text, json_safe
+from ..io import atomic_files, json_safe
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
 from ..rig import Rig, RunSettings, get_rig
@@ -248,34 +248,6 @@ def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimator: 
     write_cell(out_dir, coef, runs, timing)
     lg.info("done: mean NEES %.1f (dof %d), %.2f s per run -> %s", runs["nees"].mean(),
             int(runs["nees_dof"].iloc[0]), timing["wall_s_per_run"], out_dir)
-
-
-def warm_up(rig_name: str, cfg: dict, out_path, threads: int = 1, log_path=None) -> dict:
-    """Compile a rig's kernels into numba's on-disk cache once per study, before its cells start
-    (rule montecarlo_warmup; issue 22 item 4): two replicates of each estimator on the rig's first
-    case that needs no generated file, at its first noise level, whose numbers are discarded (two,
-    not one: a batch of one can pass read-only arrays, another specialisation than the cells').
-    Cells started side by side on a cold cache would each compile every kernel; after this they
-    load them.
-    Writes ``out_path`` (JSON: wall and CPU seconds per estimator, the case and level used) and
-    returns it."""
-    lg = job_logger(log_path)
-    rig = get_rig(rig_name)
-    hooks = rig.montecarlo
-    cfg = hooks.check(cfg)
-    name = next((c for c in hooks.cases(cfg) if hooks.case_file(cfg, c) is None), None)
-    out = {"rig": rig.name, "case": name, "estimators": {}}
-    if name is not None:
-        case, level = hooks.case(cfg, name), hooks.noise_levels(cfg)[0]
-        out["noise"] = float(level)
-        for est in hooks.estimators(cfg):
-            t0, c0 = time.perf_counter(), time.process_time()
-            run_cell(rig, cfg, case, level, est, replicates=min(2, hooks.settings(cfg).replicates), threads=threads)
-            out["estimators"][est] = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
-            lg.info("%s warm-up %s, %s: %.1f s wall, %.1f s CPU", rig.name, name, est,
-                    out["estimators"][est]["wall_s"], out["estimators"][est]["cpu_s"])
-    atomic_write_text(out_path, json.dumps(json_safe(out), indent=2, sort_keys=True) + "\n")
-    return out
 
 
 # ---------------------------------------------------------------------------------------------

@@ -24,8 +24,8 @@ from ...errors import InputError
 from ...rig import option
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
-from ...logs.compensate import compensate_log, read_mapped
-from ...logs.dwells import dwell_figure
+from ...logs.compensate import compensate_log, gyro_note, read_mapped
+from ...logs.dwells import dwell_figure, dwells_found
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
@@ -34,8 +34,8 @@ from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
 from .observability import evaluate
-from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, TRUTH_COLUMNS, UG, UNITS, compensate_frame,
-                     read_record, to_frame, write_record)
+from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
+                     compensate_frame, read_record, to_frame, write_record)
 
 
 
@@ -149,10 +149,7 @@ def cmd_identify(cfg, args) -> int:
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
     if rec.segmentation is not None:
-        t_log = rec.segmentation[0]
-        summary["dwells_found"] = [{"position": d.position, "t_start": float(t_log[d.start]),
-                                    "t_end": float(t_log[d.stop - 1]), "samples": d.stop - d.start}
-                                   for d in rec.segmentation[2]]
+        summary["dwells_found"] = dwells_found(rec.segmentation[0], rec.segmentation[2])
     fit = record_fit(cfg, scheme, rec, innovations)
     summary["fit"] = fit.as_dict()
     use_truth = rec.has_truth and not args.no_truth
@@ -203,21 +200,22 @@ def cmd_observability(cfg, args) -> int:
 def cmd_inspect(cfg, args) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     # a continuous log (no position column) is read too: identify finds its dwells
-    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in CONTINUOUS_COLUMNS)
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS + GYRO_COLUMNS if c not in CONTINUOUS_COLUMNS)
     summary = inspect_log(args.data, RecordMapping.from_config(cfg.raw["record"]), UNITS, CONTINUOUS_COLUMNS, optional)
     print(summary.text())
     return 0
 
 
 def cmd_compensate(cfg, args) -> int:
-    """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
-    errors taken out (docs/multiposition-1g.md §6), written atomically to ``--out``."""
+    """``platcal compensate``: the log's accelerometer outputs (and gyro outputs, when it has them)
+    with the calibration's modelled errors taken out (docs/multiposition-1g.md §5, §6), written
+    atomically to ``--out``; the output says when the log has no gyro outputs to compensate."""
     coef = calibration_values(read_calibration(args.calibration), coef_names(), "multiposition")
-    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS + GYRO_COLUMNS if c not in COMPENSATE_COLUMNS)
     read = read_mapped("multiposition", RecordMapping.from_config(cfg.raw["record"]), UNITS, COMPENSATE_COLUMNS,
                        optional)
     return compensate_log(args, "multiposition", read, lambda df: compensate_frame(df, coef),
-                          "accelerometers compensated")
+                          lambda out: gyro_note(out.columns, GYRO_COLUMNS, "DF, DI, ... DOS"))
 
 
 COMMANDS = {"inspect": cmd_inspect, "compensate": cmd_compensate, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

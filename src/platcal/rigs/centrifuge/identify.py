@@ -8,9 +8,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
-from ...estimation.consistency import estimate_problems, nees
+from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
 from ...io import atomic_files, json_text
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files
@@ -331,7 +330,7 @@ def consistency_warning(summary: dict) -> str | None:
     if summary.get("nees") is None:
         return None
     dof = int(summary["nees_dof"])
-    bound = float(chi2.ppf(NEES_LEVEL, dof))
+    bound = chi2_quantile(NEES_LEVEL, dof)
     if summary["nees"] <= bound:
         return None
     return (f"NEES {summary['nees']:.4g} for {dof} dof is above its {NEES_LEVEL:.1%} bound {bound:.4g}: the "

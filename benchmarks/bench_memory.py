@@ -2,15 +2,20 @@
 (issue 22 item 3: long logs in constant memory).
 
 Each command runs as a child process; its peak resident set is the kernel's ``ru_maxrss`` of
-that child (``os.wait4``), with its CPU time. Lengths: the centrifuge (Table 1's 6 positions) and
-the multi-position rig (S8's 8 positions) at 1 min, 10 min, 1 h and 6 h of record (the dwell
-scaled; the multi-position rig reads its record whole, so its long cases show the growth); the
-sled and the low-precision centrifuge at their natural lengths (a sled run lasts seconds by
-physics; a low-precision run is the config's profile). The centrifuge is measured streamed
-(``--chunk-rows``, default) and, up to 1 h, read whole (``--chunk-rows 0``) for comparison.
+that child (``os.wait4``), with its CPU time. Every rig at 1 min, 10 min, 1 h and 6 h of record
+where its config can make one that long, at its default config's length otherwise (``natural``):
+the centrifuge (Table 1's 6 positions) and the multi-position rig (S8's 8 positions) with the
+dwell scaled; the sled with its rest after the run (``trajectory.static_after_s``) lengthened, the
+low-precision centrifuge with its rests between spin-ups (``profile.rest_between_s``; run1 of P1
+has two), each from its natural length up (a sled run lasts about 80 s, a low-precision run 17
+min). The centrifuge is measured streamed (``--chunk-rows``, default) and, up to 1 h, read whole
+(``--chunk-rows 0``) for comparison; the other rigs read their records whole. The ``import`` rows
+are ``platcal identify --config <rig> --help``: the command's imports and nothing else, the floor
+under every other row.
 
     python benchmarks/bench_memory.py                    # every case, 6 h included (minutes)
     python benchmarks/bench_memory.py --max-minutes 60   # skip the 6-hour cases
+    python benchmarks/bench_memory.py --imports-only --src /path/to/other/tree/src   # the floor of another tree
 
 Writes ``benchmarks/bench_memory.{csv,md}`` (platcal.study.tables; its .html is not kept in git). Run it niced on a shared
 machine; RSS does not depend on the load, wall time does (CPU time is given beside it).
@@ -52,31 +57,51 @@ def run(cmd: list[str], env: dict) -> dict:
             "exit": code}
 
 
-def scaled_config(rig_yaml: str, scheme: str, dwell_s: float, folder: Path) -> Path:
-    """The rig's config with ``scheme``'s dwell set to ``dwell_s`` s."""
+def scaled_config(rig_yaml: str, keys: tuple[str, ...], value: float, folder: Path) -> Path:
+    """The rig's default config with the entry at ``keys`` (a path of mapping keys) set to ``value``."""
     raw = read_yaml((ROOT / "config" / rig_yaml).read_text())
-    raw["schemes"][scheme]["dwell_s"] = dwell_s
-    out = folder / f"{Path(rig_yaml).stem}_{dwell_s:g}.yaml"
+    node = raw
+    for k in keys[:-1]:
+        node = node.setdefault(k, {})
+    node[keys[-1]] = value
+    out = folder / f"{Path(rig_yaml).stem}_{'_'.join(keys)}_{value:g}.yaml"
     out.write_text(yaml.safe_dump(raw, sort_keys=False))
     return out
 
 
+SLED_RUN_S = 26.0
+"""The default sled record up to the sled's stop, s (5 s still, 14 s of thrust and coast, braking:
+the stop at 25.9 s, `platcal simulate` of config/sled.yaml); its 60 s rest after makes 86 s."""
+LOWPREC_NATURAL_S, LOWPREC_REST_S = 1044.0, 300.0
+"""The default low-precision run P1/run1 (1044 s, `platcal simulate`) and its two rests between
+spin-ups (``profile.rest_between_s``), s."""
+
+
 def cases(max_minutes: float, folder: Path):
-    """(rig, length label, minutes, mode, config, simulate options, identify options)."""
+    """(rig, minutes or None for the natural length, mode, config, simulate options, identify options)."""
+    for rig in ("centrifuge", "multiposition", "sled", "lowprec_centrifuge"):
+        cfg = ROOT / "config" / f"{rig}.yaml"
+        yield rig, None, "import", cfg, None, ["--help"]
+    yield "sled", None, "whole", ROOT / "config" / "sled.yaml", [], []
+    yield ("lowprec_centrifuge", None, "whole", ROOT / "config" / "lowprec_centrifuge.yaml",
+           ["--platform", "P1", "--run", "run1"], [])
     for minutes in MINUTES:
         if minutes > max_minutes:
             continue
-        cfg = scaled_config("centrifuge.yaml", "table1", minutes * 60 / 6, folder)
+        cfg = scaled_config("centrifuge.yaml", ("schemes", "table1", "dwell_s"), minutes * 60 / 6, folder)
         yield "centrifuge", minutes, "streamed", cfg, ["--scheme", "table1"], ["--scheme", "table1"]
         if minutes <= 60:
             yield ("centrifuge", minutes, "whole", cfg, ["--scheme", "table1", "--chunk-rows", "0"],
                    ["--scheme", "table1", "--chunk-rows", "0"])
-        if minutes <= 60:
-            cfg = scaled_config("multiposition.yaml", "S8", minutes * 60 / 8, folder)
-            yield "multiposition", minutes, "whole", cfg, ["--scheme", "S8"], ["--scheme", "S8"]
-    yield "sled", None, "whole", ROOT / "config" / "sled.yaml", [], []
-    yield ("lowprec_centrifuge", None, "whole", ROOT / "config" / "lowprec_centrifuge.yaml",
-           ["--platform", "P1", "--run", "run1"], [])
+        cfg = scaled_config("multiposition.yaml", ("schemes", "S8", "dwell_s"), minutes * 60 / 8, folder)
+        yield "multiposition", minutes, "whole", cfg, ["--scheme", "S8"], ["--scheme", "S8"]
+        if minutes * 60 > SLED_RUN_S + 60:
+            cfg = scaled_config("sled.yaml", ("trajectory", "static_after_s"), minutes * 60 - SLED_RUN_S, folder)
+            yield "sled", minutes, "whole", cfg, [], []
+        if minutes * 60 > LOWPREC_NATURAL_S:
+            cfg = scaled_config("lowprec_centrifuge.yaml", ("profile", "rest_between_s"),
+                                LOWPREC_REST_S + (minutes * 60 - LOWPREC_NATURAL_S) / 2, folder)
+            yield "lowprec_centrifuge", minutes, "whole", cfg, ["--platform", "P1", "--run", "run1"], []
 
 
 def main(argv=None) -> int:
@@ -84,21 +109,38 @@ def main(argv=None) -> int:
     ap.add_argument("--max-minutes", type=float, default=360.0, help="longest record, min (default 360 = 6 h)")
     ap.add_argument("--format", default="csv", choices=("csv", "parquet"), help="record file format")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "bench_memory"))
+    ap.add_argument("--imports-only", action="store_true", help="only the import rows (seconds)")
+    ap.add_argument("--src", default=None, help="run the children on the platcal of this source folder "
+                                                "(PYTHONPATH), e.g. another worktree's src, to compare")
     a = ap.parse_args(argv)
     env = dict(os.environ, NUMBA_NUM_THREADS=os.environ.get("NUMBA_NUM_THREADS", "1"))
+    if a.src:
+        env["PYTHONPATH"] = str(Path(a.src).resolve())
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_memory_") as tmp:
         folder = Path(tmp)
         for rig, minutes, mode, cfg, sim_opts, id_opts in cases(a.max_minutes, folder):
-            data = folder / f"{rig}_{minutes}_{mode}.{a.format}"
             base = [sys.executable, "-m", "platcal.cli"]
-            sim = run(base + ["simulate", "--config", str(cfg), *sim_opts, "--out", str(data)], env)
+            if mode == "import":
+                res = run(base + ["identify", "--config", str(cfg), *id_opts], env)
+                rows.append({"rig": rig, "record_min": float("nan"), "mode": mode, "command": "identify --help",
+                             "rows": 0, "file_mb": 0.0, **res})
+                print(rows[-1], file=sys.stderr, flush=True)
+                continue
+            if a.imports_only:
+                continue
+            data = folder / f"{rig}_{minutes}_{mode}.{a.format}"
+            big = ["--max-memory-gb", "64"]  # measured, not refused by the size check
+            sim = run(base + ["simulate", "--config", str(cfg), *sim_opts, *big, "--out", str(data)], env)
             size_mb = data.stat().st_size / 1e6
-            n_rows = sum(1 for _ in open(data, "rb")) - 1 if a.format == "csv" else len(pd.read_parquet(data, columns=["t"]))
-            ident = run(base + ["identify", "--config", str(cfg), *id_opts, "--data", str(data),
+            t = (pd.read_csv(data, usecols=[0]).iloc[:, 0] if a.format == "csv"
+                 else pd.read_parquet(data, columns=["t"])["t"])  # every rig's records start with t, s
+            n_rows, length_min = len(t), float(t.iloc[-1] - t.iloc[0]) / 60.0
+            del t
+            ident = run(base + ["identify", "--config", str(cfg), *id_opts, *big, "--data", str(data),
                                 "--out", str(folder / f"id_{rig}_{minutes}_{mode}")], env)
             for command, res in (("simulate", sim), ("identify", ident)):
-                rows.append({"rig": rig, "record_min": minutes if minutes is not None else float("nan"),
+                rows.append({"rig": rig, "record_min": length_min,
                              "mode": mode, "command": command, "rows": n_rows, "file_mb": size_mb, **res})
                 print(rows[-1], file=sys.stderr, flush=True)
             data.unlink()
@@ -109,7 +151,7 @@ def main(argv=None) -> int:
             f"{os.cpu_count()} cores, NUMBA_NUM_THREADS={env['NUMBA_NUM_THREADS']}, {a.format} records. "
             "`python benchmarks/bench_memory.py`.")
     write_table(df, a.out, "Peak memory against record length", note,
-                {"record_min": "g", "file_mb": ".1f", "peak_rss_mb": ".0f", "cpu_s": ".1f", "wall_s": ".1f"})
+                {"record_min": ".3g", "file_mb": ".1f", "peak_rss_mb": ".0f", "cpu_s": ".1f", "wall_s": ".1f"})
     print(f"-> {a.out}.csv, .md", file=sys.stderr)
     return 0
 

@@ -155,7 +155,10 @@ def main(argv=None) -> int:
             size_mb = data.stat().st_size / 1e6
             t = (pd.read_csv(data, usecols=[0]).iloc[:, 0] if a.format == "csv"
                  else pd.read_parquet(data, columns=["t"])["t"])  # every rig's records start with t, s
-            n_rows, length_min = len(t), float(t.iloc[-1] - t.iloc[0]) / 60.0
+            # a natural-length record's span (the sled's and the low-precision run's t is one clock;
+            # the centrifuge's restarts at each position, so a scaled case gives its length)
+            n_rows = len(t)
+            length_min = float(minutes) if minutes is not None else float(t.iloc[-1] - t.iloc[0]) / 60.0
             del t
             ident = run(base + ["identify", "--config", str(cfg), *id_opts, *big, "--data", str(data),
                                 "--out", str(folder / f"id_{rig}_{minutes}_{mode}")], env)

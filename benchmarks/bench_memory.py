@@ -17,7 +17,9 @@ under every other row.
     python benchmarks/bench_memory.py --max-minutes 60   # skip the 6-hour cases
     python benchmarks/bench_memory.py --imports-only --src /path/to/other/tree/src   # the floor of another tree
 
-Writes ``benchmarks/bench_memory.{csv,md}`` (platcal.study.tables; its .html is not kept in git). Run it niced on a shared
+Writes ``benchmarks/bench_memory.{csv,md}`` (every run) and ``bench_memory_by_length.{csv,md}``
+(peak RSS by rig and length: the README's table) through platcal.study.tables (the .html is not
+kept in git). Run it niced on a shared
 machine; RSS does not depend on the load, wall time does (CPU time is given beside it).
 """
 
@@ -122,15 +124,54 @@ def warm_up(base: list[str], todo, folder: Path, env: dict) -> None:
         data.unlink()
 
 
+def by_length(df: pd.DataFrame) -> pd.DataFrame:
+    """The README's table: peak RSS, MB, one row per (rig, mode, command), one column per record
+    length (``import``: the command's imports alone; ``natural``: the default config's record,
+    its length in ``natural_min``)."""
+    runs = df[df["mode"] != "import"]
+    natural = runs["record_min"].where(~runs["record_min"].isin(MINUTES))
+    key = runs["record_min"].where(natural.isna(), -1.0)
+    wide = (runs.assign(length=key).pivot_table(index=["rig", "mode", "command"], columns="length",
+                                                values="peak_rss_mb", sort=False))
+    wide.columns = ["natural" if c < 0 else f"{c:g} min" for c in wide.columns]
+    out = wide.reset_index()
+    nat = runs.assign(natural_min=natural).dropna(subset=["natural_min"]).groupby("rig")["natural_min"].first()
+    out.insert(3, "natural_min", out["rig"].map(nat))
+    imports = df[df["mode"] == "import"].set_index("rig")["peak_rss_mb"]
+    out.insert(3, "import", out["rig"].map(imports))
+    cols = ["rig", "mode", "command", "import", "natural_min", "natural"] + [f"{m:g} min" for m in MINUTES]
+    order = {r: i for i, r in enumerate(dict.fromkeys(df["rig"]))}  # the rigs as run (import rows first)
+    out = out.sort_values(["rig", "mode", "command"], key=lambda c: c.map(order) if c.name == "rig" else
+                          c.map({"streamed": 0, "whole": 1, "simulate": 0, "identify": 1}), kind="stable")
+    return out[[c for c in cols if c in out.columns]]
+
+
+def write_tables(df: pd.DataFrame, out: str, note: str) -> None:
+    """``<out>.{csv,md}`` (every run) and ``<out>_by_length.{csv,md}`` (:func:`by_length`)."""
+    write_table(df, out, "Peak memory against record length", note,
+                {"record_min": ".3g", "file_mb": ".1f", "peak_rss_mb": ".0f", "cpu_s": ".1f", "wall_s": ".1f"})
+    wide = by_length(df)
+    write_table(wide, f"{out}_by_length", "Peak RSS (MB) against record length", note,
+                {c: (".3g" if c == "natural_min" else ".0f") for c in wide.columns[3:]})
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--max-minutes", type=float, default=360.0, help="longest record, min (default 360 = 6 h)")
     ap.add_argument("--format", default="csv", choices=("csv", "parquet"), help="record file format")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "bench_memory"))
     ap.add_argument("--imports-only", action="store_true", help="only the import rows (seconds)")
+    ap.add_argument("--from-csv", default=None, help="rewrite the tables from this earlier output's .csv "
+                                                     "(no run; the note is kept from its .md)")
     ap.add_argument("--src", default=None, help="run the children on the platcal of this source folder "
                                                 "(PYTHONPATH), e.g. another worktree's src, to compare")
     a = ap.parse_args(argv)
+    if a.from_csv:
+        md = Path(a.from_csv).with_suffix(".md").read_text().splitlines()
+        note = next((line for line in md if line.startswith("Peak RSS (ru_maxrss")), "")
+        write_tables(pd.read_csv(a.from_csv), a.out, note)
+        print(f"-> {a.out}.csv, .md, {a.out}_by_length.csv, .md", file=sys.stderr)
+        return 0
     env = dict(os.environ, NUMBA_NUM_THREADS=os.environ.get("NUMBA_NUM_THREADS", "1"))
     if a.src:
         env["PYTHONPATH"] = str(Path(a.src).resolve())
@@ -173,9 +214,8 @@ def main(argv=None) -> int:
             f"length; CPU and wall s. Load average at the end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} on "
             f"{os.cpu_count()} cores, NUMBA_NUM_THREADS={env['NUMBA_NUM_THREADS']}, {a.format} records. "
             "`python benchmarks/bench_memory.py`.")
-    write_table(df, a.out, "Peak memory against record length", note,
-                {"record_min": ".3g", "file_mb": ".1f", "peak_rss_mb": ".0f", "cpu_s": ".1f", "wall_s": ".1f"})
-    print(f"-> {a.out}.csv, .md", file=sys.stderr)
+    write_tables(df, a.out, note)
+    print(f"-> {a.out}.csv, .md, {a.out}_by_length.csv, .md", file=sys.stderr)
     return 0
 
 

@@ -32,7 +32,8 @@ rule ledger:
     output:
         LEDGER[0],
         LEDGER[1],
-        report(LEDGER[2], caption="../report/ledger.rst", category="All rigs: claims ledger"),
+        report(LEDGER[2], caption="../report/ledger.rst", category="0. Claims ledger (all rigs)"),
+        "results/claims_front.html",  # the compact ledger the HTML report's front page embeds
     params:
         code=CODE_ALL,
     conda:
@@ -49,7 +50,7 @@ rule report_index:
         ledger=LEDGER[0],
         campaign=[t for t in CAMPAIGN_TARGETS if t.endswith("report.md")],
     output:
-        report(INDEX_REPORT, caption="../report/index.rst", category="All rigs: claims ledger"),
+        report(INDEX_REPORT, caption="../report/index.rst", category="0. Claims ledger (all rigs)"),
     params:
         rigs=RIGS,
         code=CODE_ALL,

@@ -18,7 +18,8 @@ from ...estimation.fit import fit_exit_status
 from ...rig import COUNT, SEED, option, real, whole
 from ...io import check_writable
 from ...logs.calibration import read_calibration
-from ...logs.compensate import compensate_log, read_mapped
+from ...logs.compensate import compensate_log, gyro_note, read_mapped
+from ...logs.dwells import lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
@@ -27,10 +28,11 @@ from ...study.montecarlo import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
-from .identify import (calibration, clock_finding, consistency_warning, identify_input, identify_streamed, record_fit,
-                       record_input, run_problems, streamable, timed, truth_known, write_identification)
-from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, FilterInput, chunk_to_frame,
-                     compensate_frame, full_coefficients, read_record)
+from .identify import (calibration, clock_finding, consistency_warning, continuous_input, identify_input,
+                       identify_streamed, record_fit, record_input, run_problems, streamable, timed, truth_known,
+                       write_identification)
+from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, LOG_COLUMNS, OPTIONAL_COLUMNS, UNITS,
+                     FilterInput, chunk_to_frame, compensate_frame, full_coefficients, read_record)
 from ...records import CHUNK_ROWS, iter_table, record_writer
 from .simulate import simulate_chunks
 from .study import CentrifugeMonteCarlo
@@ -102,12 +104,22 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     chunk_rows = _chunk_rows(args)
 
     def read_chunks():
-        return iter_table(args.data, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS, chunk_rows=chunk_rows)
+        return iter_table(args.data, LOG_COLUMNS, OPTIONAL_COLUMNS, mapping=mapping, units=UNITS,
+                          chunk_rows=chunk_rows)
 
     # a record longer than one chunk is streamed (memory does not grow with it); a shorter one,
     # or an estimator that needs it whole, is read whole as before
     chunks = read_chunks() if chunk_rows and streamable(study.filter) else None
-    if chunks is not None and next(chunks, None) is not None and next(chunks, None) is not None:
+    segmentation = None
+    try:
+        streamed = chunks is not None and next(chunks, None) is not None and next(chunks, None) is not None
+        df = None if streamed else read_record(args.data, mapping)
+    except InputError as exc:  # no position column: a continuous log, read whole and cut into dwells
+        if not lacks_position(exc, mapping):
+            raise
+        streamed = False
+        df, segmentation = continuous_input(study, scheme, args.data, mapping)
+    if streamed:
         chunks.close()
         t0 = time.perf_counter()
         est, scan, fit = identify_streamed(study, scheme, read_chunks)
@@ -115,7 +127,6 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
         fin = FilterInput(scan.positions, scan.t, [], scan.cmd_deg)
         known = scan.truth
     else:
-        df = read_record(args.data, mapping)
         fin = record_input(study, scheme, df)
         est, seconds = timed(identify_input, study, scheme, fin)
         fit = None
@@ -127,9 +138,12 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     if fit is None:
         fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
     summary = write_identification(args.out, est, study, known and not args.no_truth, seconds,
-                                   samples_used=used, calibration=calibration(est, study, args.data), fit=fit)
+                                   samples_used=used, calibration=calibration(est, study, args.data), fit=fit,
+                                   segmentation=segmentation)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
+    if segmentation is not None:
+        msg += " (dwells found in the continuous log: dwells.png)"
     if "nees" in summary:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.3f} %, NEES {summary['nees']:.1f} (dof {summary['nees_dof']})")
@@ -143,7 +157,9 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
 def inspect_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
-    print(inspect_log(args.data, mapping, UNITS, LOG_COLUMNS, TRUTH_COLUMNS).text())
+    # a continuous log (no position column) is read too: identify finds its dwells
+    optional = tuple(c for c in LOG_COLUMNS + OPTIONAL_COLUMNS if c not in CONTINUOUS_COLUMNS)
+    print(inspect_log(args.data, mapping, UNITS, CONTINUOUS_COLUMNS, optional).text())
     return 0
 
 
@@ -151,13 +167,15 @@ def compensate_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
     errors taken out (docs/centrifuge-model.md §5: the specific force whose modelled outputs are
     the recorded ones), written atomically to ``--out`` in the record's columns and units. The
-    gyros are not in the record (they are seen through the platform's attitude), so only the
-    accelerometers are compensated."""
+    record has no gyro channel (the gyros are seen through the platform's attitude, §6): a log
+    that holds the gyro outputs ``wx, wy, wz`` (deg/h) gets them less the modelled drift (§4);
+    otherwise the output says the gyro terms were not applied."""
     coef = full_coefficients(read_calibration(args.calibration), "centrifuge")
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
-    optional = tuple(c for c in LOG_COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    optional = tuple(c for c in LOG_COLUMNS + OPTIONAL_COLUMNS if c not in COMPENSATE_COLUMNS)
     return compensate_log(args, "centrifuge", read_mapped("centrifuge", mapping, UNITS, COMPENSATE_COLUMNS, optional),
-                          lambda df: compensate_frame(df, coef), "accelerometers compensated")
+                          lambda df: compensate_frame(df, coef),
+                          lambda out: gyro_note(out.columns, GYRO_COLUMNS, "DF, DI, ... DOS"))
 
 
 VALUES_PER_SAMPLE = {"simulate": 24, "identify": 96}

@@ -13,15 +13,19 @@ from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
 from ...io import atomic_files, json_text
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files
+from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...plausibility import refuse_recognised, refuse_recognised_moments, timestamp_jitter
 from ...records import CHUNK_ROWS
+from ...rig import resolve
 from .catalogue import load_catalogue
 from .config import Study
 from .ekf import Estimate, FilterSettings, first_instant
 from .estimators import check_kind, run_estimator
-from .record import (FilterInput, check_commanded, check_every_position, check_position,
-                     check_position_numbers, check_record, filter_input, has_truth_columns,
-                     select_instants)
+from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
+                     check_every_position, check_position, check_position_numbers, check_record, continuous_record,
+                     filter_input, has_truth_columns, select_instants)
+from ...mapping import RecordMapping
+from ...records import read_table
 from ...errors import InputError
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
@@ -110,6 +114,22 @@ def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
     if cen.rate_deg_s == 0:
         levels = np.zeros_like(levels)
     return np.hypot(levels, 1.0)
+
+
+def continuous_input(study: Study, scheme: Scheme, path, mapping: RecordMapping | None) -> tuple[pd.DataFrame, tuple]:
+    """A continuous log (one clock, no ``position`` column; docs/centrifuge-model.md §13) read
+    whole and cut into the scheme's positions (:func:`.record.continuous_record`): the dwells
+    at the positions' specific-force levels (:func:`expected_g`), matched by the commanded angles
+    or, without them, by the mean outputs of the nominal instrument (every coefficient 0) over
+    each position. Returns the labelled record, which then takes every check of a labelled one,
+    and ``(t, |A|, dwells)`` for the figure."""
+    df = read_table(path, CONTINUOUS_COLUMNS, COMMANDED_COLUMNS + OPTIONAL_COLUMNS, what="a continuous centrifuge log",
+                    mapping=mapping, units=UNITS)
+    has_truth_columns(df.columns)
+    run = simulate(np.zeros_like(study.truth), scheme, study.centrifuge.scheme_params(scheme), study.noise, None,
+                   sample_s=study.sample_s)
+    return continuous_record(df, scheme, expected_g(study, scheme), run.A[0].mean(axis=1),
+                             turning=study.centrifuge.rate_deg_s != 0)
 
 
 def identify_input(study: Study, scheme: Scheme, fin: FilterInput) -> Estimate:
@@ -340,7 +360,8 @@ def consistency_warning(summary: dict) -> str | None:
 
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
                          seconds: float | None = None, samples_used: dict[int, int] | None = None,
-                         calibration: Calibration | None = None, fit: FitCheck | None = None) -> dict:
+                         calibration: Calibration | None = None, fit: FitCheck | None = None,
+                         segmentation: tuple | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
@@ -349,7 +370,9 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     last; it is strict JSON (``null`` for a number that is not finite). ``samples_used`` (position
     -> number of samples the filter used) goes into the summary as ``samples_used_per_position``;
     ``fit`` (:func:`record_fit`) as its ``fit`` block (``verdict: not available`` when None).
-    With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`).
+    With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`);
+    with ``segmentation`` (a continuous log's ``(t, |A|, dwells)``, :func:`continuous_input`) the
+    summary's ``dwells_found`` and ``dwells.png``, the log's ``|A|`` with the dwells shaded.
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
@@ -361,6 +384,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         summary["samples_used_per_position"] = {str(k): int(v) for k, v in samples_used.items()}
     if seconds is not None:
         summary["seconds"] = seconds
+    if segmentation is not None:
+        summary["dwells_found"] = dwells_found(segmentation[0], segmentation[2])
     summary["fit"] = fit.as_dict() if fit is not None else {
         "verdict": "not available", "reason": f"estimator {study.filter.estimator!r} keeps no innovations"}
     if truth is not None:
@@ -378,6 +403,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         tmp("table2.md").write_text(table2_markdown(df))
         if calibration is not None:
             write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state
+        if segmentation is not None:
+            resolve(DWELL_FIGURE)(*segmentation, tmp("dwells.png"), names=("|A|",), ylabel="specific force |A|, g")
         tmp("summary.json").write_text(json_text(summary))
     return summary
 

@@ -144,13 +144,15 @@ def inspect(study: Study, args) -> int:
 def compensate(study: Study, args) -> int:
     """``platcal compensate``: the log's velocities and positions with the errors the
     calibration's coefficients cause taken out (docs/lowprec-centrifuge.md §8), written
-    atomically to ``--out`` in the record's columns and units."""
+    atomically to ``--out`` in the record's columns and units. No gyro output is compensated: the
+    calibration holds accelerometer terms only and the record no gyro channel (the output says so)."""
     coeffs = calibration_values(read_calibration(args.calibration), COEFFS, "lowprec_centrifuge")
     mapping = RecordMapping.from_config(study.raw["record"], g=G0)
     read = lambda path: read_record(path, use_truth=False, rate_hz=study.rate_hz,  # noqa: E731
                                     max_gap_s=float(study.raw["record"]["max_gap_s"]), mapping=mapping)
     return compensate_log(args, "lowprec_centrifuge", read, lambda rec: compensated_frame(rec, coeffs, study.latitude_deg),
-                          "velocity and position compensated")
+                          "velocity and position compensated; no gyro output is compensated (the calibration holds "
+                          "the accelerometer terms kA, k2 only and the log no gyro channel)")
 
 
 def _segment_field(study: Study, seg: tuple) -> str:

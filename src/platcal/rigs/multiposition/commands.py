@@ -24,7 +24,8 @@ from ...errors import InputError
 from ...rig import option, resolve
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
-from ...logs.compensate import compensate_log, read_mapped
+from ...logs.compensate import compensate_log, gyro_note, read_mapped
+from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
@@ -32,8 +33,8 @@ from ...sizes import Size, samples_in
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
-from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, TRUTH_COLUMNS, UG, UNITS, compensate_frame,
-                     read_record, to_frame, write_record)
+from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
+                     compensate_frame, read_record, to_frame, write_record)
 
 
 
@@ -147,10 +148,7 @@ def cmd_identify(cfg, args) -> int:
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
     if rec.segmentation is not None:
-        t_log = rec.segmentation[0]
-        summary["dwells_found"] = [{"position": d.position, "t_start": float(t_log[d.start]),
-                                    "t_end": float(t_log[d.stop - 1]), "samples": d.stop - d.start}
-                                   for d in rec.segmentation[2]]
+        summary["dwells_found"] = dwells_found(rec.segmentation[0], rec.segmentation[2])
     fit = record_fit(cfg, scheme, rec, innovations)
     summary["fit"] = fit.as_dict()
     use_truth = rec.has_truth and not args.no_truth
@@ -183,21 +181,22 @@ def cmd_identify(cfg, args) -> int:
 def cmd_inspect(cfg, args) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     # a continuous log (no position column) is read too: identify finds its dwells
-    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in CONTINUOUS_COLUMNS)
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS + GYRO_COLUMNS if c not in CONTINUOUS_COLUMNS)
     summary = inspect_log(args.data, RecordMapping.from_config(cfg.raw["record"]), UNITS, CONTINUOUS_COLUMNS, optional)
     print(summary.text())
     return 0
 
 
 def cmd_compensate(cfg, args) -> int:
-    """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
-    errors taken out (docs/multiposition-1g.md §6), written atomically to ``--out``."""
+    """``platcal compensate``: the log's accelerometer outputs (and gyro outputs, when it has them)
+    with the calibration's modelled errors taken out (docs/multiposition-1g.md §5, §6), written
+    atomically to ``--out``; the output says when the log has no gyro outputs to compensate."""
     coef = calibration_values(read_calibration(args.calibration), coef_names(), "multiposition")
-    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS + GYRO_COLUMNS if c not in COMPENSATE_COLUMNS)
     read = read_mapped("multiposition", RecordMapping.from_config(cfg.raw["record"]), UNITS, COMPENSATE_COLUMNS,
                        optional)
     return compensate_log(args, "multiposition", read, lambda df: compensate_frame(df, coef),
-                          "accelerometers compensated")
+                          lambda out: gyro_note(out.columns, GYRO_COLUMNS, "DF, DI, ... DOS"))
 
 
 COMMANDS = {"inspect": f"{__name__}:cmd_inspect", "compensate": f"{__name__}:cmd_compensate",
@@ -205,9 +204,6 @@ COMMANDS = {"inspect": f"{__name__}:cmd_inspect", "compensate": f"{__name__}:cmd
             "observability": f"{__package__}.study_commands:cmd_observability"}
 """Each sub-command by module path (:func:`platcal.rig.resolve`): ``observability`` (the exact
 Lie-derivative rank, sympy) in :mod:`.study_commands`, imported only when it is chosen."""
-DWELL_FIGURE = "platcal.logs.dwell_figure:dwell_figure"
-"""The segmentation figure of a continuous log, by path: matplotlib is loaded only when a log
-was segmented, not for every ``identify`` (issue 22 item 3)."""
 
 VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
 """float64 values a command holds per sample at its peak (resident memory), measured by

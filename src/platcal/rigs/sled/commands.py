@@ -100,7 +100,9 @@ def cmd_inspect(cfg: SledConfig, args) -> int:
 
 def cmd_compensate(cfg: SledConfig, args) -> int:
     """``platcal compensate``: the record's along-track X(t), V(t) navigated and compensated with
-    the calibration's attitude errors (docs/rocket-sled.md §7), written atomically to ``--out``."""
+    the calibration's attitude errors (docs/rocket-sled.md §7), written atomically to ``--out``.
+    The calibration holds no gyro terms (the run filter estimates attitude errors), so the log's
+    rates are navigated as recorded, and the output says so."""
     phi = phi_from_calibration(read_calibration(args.calibration))
 
     def apply(rec):
@@ -109,7 +111,8 @@ def cmd_compensate(cfg: SledConfig, args) -> int:
         return compensated_track(cfg, f[0], w[0], t, phi)
 
     return compensate_log(args, "sled", lambda path: read_record(path, cfg), apply,
-                          "along-track X(t), V(t) navigated and compensated")
+                          "along-track X(t), V(t) navigated and compensated; the calibration holds attitude errors, "
+                          "no gyro terms, so the log's rates wx, wy, wz are navigated as recorded")
 
 
 VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}

@@ -7,15 +7,17 @@ where its config can make one that long, at its default config's length otherwis
 the centrifuge (Table 1's 6 positions) and the multi-position rig (S8's 8 positions) with the
 dwell scaled; the sled with its rest after the run (``trajectory.static_after_s``) lengthened, the
 low-precision centrifuge with its rests between spin-ups (``profile.rest_between_s``; run1 of P1
-has two), each from its natural length up (a sled run lasts about 80 s, a low-precision run 17
-min). The centrifuge is measured streamed (``--chunk-rows``, default) and, up to 1 h, read whole
+has two), each from its natural length up (a sled record lasts 86 s, its stop at 26 s; a
+low-precision run 17 min). The centrifuge is measured streamed (``--chunk-rows``, default) and, up to 1 h, read whole
 (``--chunk-rows 0``) for comparison; the other rigs read their records whole. The ``import`` rows
 are ``platcal identify --config <rig> --help``: the command's imports and nothing else, the floor
 under every other row.
 
     python benchmarks/bench_memory.py                    # every case, 6 h included (minutes)
     python benchmarks/bench_memory.py --max-minutes 60   # skip the 6-hour cases
-    python benchmarks/bench_memory.py --imports-only --src /path/to/other/tree/src   # the floor of another tree
+    python benchmarks/bench_memory.py --imports-only --src /path/to/other/tree/src --out /tmp/imports
+                                                         # the floor of another tree (default out:
+                                                         # benchmarks/bench_memory_imports)
 
 Writes ``benchmarks/bench_memory.{csv,md}`` (every run) and ``bench_memory_by_length.{csv,md}``
 (peak RSS by rig and length: the README's table) through platcal.study.tables (the .html is not
@@ -150,6 +152,8 @@ def write_tables(df: pd.DataFrame, out: str, note: str) -> None:
     """``<out>.{csv,md}`` (every run) and ``<out>_by_length.{csv,md}`` (:func:`by_length`)."""
     write_table(df, out, "Peak memory against record length", note,
                 {"record_min": ".3g", "file_mb": ".1f", "peak_rss_mb": ".0f", "cpu_s": ".1f", "wall_s": ".1f"})
+    if (df["mode"] == "import").all():
+        return
     wide = by_length(df)
     write_table(wide, f"{out}_by_length", "Peak RSS (MB) against record length", note,
                 {c: (".3g" if c == "natural_min" else ".0f") for c in wide.columns[3:]})
@@ -159,13 +163,16 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--max-minutes", type=float, default=360.0, help="longest record, min (default 360 = 6 h)")
     ap.add_argument("--format", default="csv", choices=("csv", "parquet"), help="record file format")
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "bench_memory"))
+    ap.add_argument("--out", default=None, help="output stem (default benchmarks/bench_memory, "
+                                                "benchmarks/bench_memory_imports with --imports-only)")
     ap.add_argument("--imports-only", action="store_true", help="only the import rows (seconds)")
     ap.add_argument("--from-csv", default=None, help="rewrite the tables from this earlier output's .csv "
                                                      "(no run; the note is kept from its .md)")
     ap.add_argument("--src", default=None, help="run the children on the platcal of this source folder "
                                                 "(PYTHONPATH), e.g. another worktree's src, to compare")
     a = ap.parse_args(argv)
+    if a.out is None:
+        a.out = str(ROOT / "benchmarks" / ("bench_memory_imports" if a.imports_only else "bench_memory"))
     if a.from_csv:
         md = Path(a.from_csv).with_suffix(".md").read_text().splitlines()
         note = next((line for line in md if line.startswith("Peak RSS (ru_maxrss")), "")

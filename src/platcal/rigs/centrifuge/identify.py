@@ -8,15 +8,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
-from ...estimation.consistency import estimate_problems, nees
+from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
 from ...io import atomic_files, json_text
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files
-from ...logs.dwells import dwell_figure, dwells_found
+from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...plausibility import refuse_recognised, refuse_recognised_moments, timestamp_jitter
 from ...records import CHUNK_ROWS
+from ...rig import resolve
 from .catalogue import load_catalogue
 from .config import Study
 from .ekf import Estimate, EstimatorInput, FilterSettings, first_instant
@@ -351,7 +351,7 @@ def consistency_warning(summary: dict) -> str | None:
     if summary.get("nees") is None:
         return None
     dof = int(summary["nees_dof"])
-    bound = float(chi2.ppf(NEES_LEVEL, dof))
+    bound = chi2_quantile(NEES_LEVEL, dof)
     if summary["nees"] <= bound:
         return None
     return (f"NEES {summary['nees']:.4g} for {dof} dof is above its {NEES_LEVEL:.1%} bound {bound:.4g}: the "
@@ -405,7 +405,7 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         if calibration is not None:
             write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state
         if segmentation is not None:
-            dwell_figure(*segmentation, tmp("dwells.png"), names=("|A|",), ylabel="specific force |A|, g")
+            resolve(DWELL_FIGURE)(*segmentation, tmp("dwells.png"), names=("|A|",), ylabel="specific force |A|, g")
         tmp("summary.json").write_text(json_text(summary))
     return summary
 

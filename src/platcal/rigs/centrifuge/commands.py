@@ -24,23 +24,21 @@ from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
 from ...sizes import Size, samples_in
-from ...study.montecarlo import cell_job, replicate_seed
+from ...study.montecarlo import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
-from .design import design_config, preset, run_design, write_design
 from .identify import (calibration, clock_finding, consistency_warning, continuous_input, identify_input,
                        identify_streamed, record_fit, record_input, run_problems, streamable, timed, truth_known,
                        write_identification)
-from .observability import write_observability
 from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, LOG_COLUMNS, OPTIONAL_COLUMNS, UNITS,
                      FilterInput, chunk_to_frame, compensate_frame, full_coefficients, read_record)
 from ...records import CHUNK_ROWS, iter_table, record_writer
-from .report import report_from_results
 from .simulate import simulate_chunks
 from .study import CentrifugeMonteCarlo
 
-def _scheme(study: Study, args: argparse.Namespace):
+def scheme_option(study: Study, args: argparse.Namespace):
+    """The scheme ``--scheme`` names (a config scheme or a scheme file); InputError when absent."""
     if not args.scheme:
         raise InputError("--scheme", "required for rig centrifuge: a scheme name of the config or a scheme YAML file")
     return resolve_scheme(args.scheme, study.schemes)
@@ -48,7 +46,7 @@ def _scheme(study: Study, args: argparse.Namespace):
 
 def simulate_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal simulate``: one test record (docs/centrifuge-model.md §13)."""
-    scheme = _scheme(study, args)
+    scheme = scheme_option(study, args)
     check_writable(args.out, "--out")
     replicate = 0 if args.seed is None else int(args.seed)
     # replicate N of the Monte Carlo cell (this scheme, the config's sigma_a): a run of the study
@@ -100,7 +98,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     test record."""
     study = with_estimator(study, args.estimator)
     check_filter(study.filter)
-    scheme = _scheme(study, args)
+    scheme = scheme_option(study, args)
     check_writable(args.out, "--out", folder=True)
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
     chunk_rows = _chunk_rows(args)
@@ -154,65 +152,6 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     if warning:
         print(f"platcal identify: warning: {warning}", file=sys.stderr)
     return fit_exit_status(fit, args.data, args.out)
-
-
-def observability_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal observability``: covariance-only analysis of a scheme."""
-    check_filter(study.filter)
-    scheme = _scheme(study, args)
-    check_writable(args.out, "--out", folder=True)
-    t0 = time.perf_counter()
-    res = write_observability(args.out, study, scheme, replicates=args.replicates, arw_deg_rth=args.arw,
-                              estimate_doo=True if args.doo else None, rate_deg_s=args.rate)
-    om = res["observability_matrix"]
-    msg = (f"platcal observability: scheme {scheme.name!r}: J = {res['J']:.2f} over {res['n_pairs']} pairs "
-           f"(ARW {res['settings']['arw_deg_rth']:g}), A = {res['criteria']['A']:.3g}, "
-           f"max rel sigma {res['criteria']['maxrel']:.3g} %, observability rank {om['rank']}/{om['n_cols']}")
-    if "monte_carlo" in res:
-        msg += f"; MC RMS rel err {res['monte_carlo']['rms_rel_err_pct_45']:.3f} % ({args.replicates} runs)"
-    print(msg + f" -> {args.out} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
-    return 0
-
-
-def design_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal design``: the genetic-algorithm scheme search."""
-    check_filter(study.filter)
-    if not str(args.out).endswith((".yaml", ".yml")):
-        raise InputError("--out", "must be a scheme file name ending in .yaml")
-    check_writable(args.out, "--out")
-    over = dict(criterion=args.criterion, positions=args.positions, population=args.population,
-                generations=args.generations, seed=args.seed, name=args.name)
-    if args.preset:
-        study, dcfg = preset(study, args.preset)
-        dcfg = design_config({**study.config, "design": dcfg}, **over)
-    else:
-        dcfg = design_config(study.config, **over)
-    log = (lambda m: print(m, file=sys.stderr)) if args.verbose else None
-    res = run_design(study, dcfg, log=log)
-    write_design(res, args.out)
-    print(f"platcal design: {res.scheme.name}: {dcfg['criterion']} = {res.value:.4g} "
-          f"(J {res.criteria['J']:.2f}, max rel sigma {res.criteria['maxrel']:.3g} %), "
-          f"{dcfg['population']} x {dcfg['generations']} generations, {res.position_runs} position runs, "
-          f"{res.seconds:.0f} s -> {args.out}", file=sys.stderr)
-    return 0
-
-
-def montecarlo_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal montecarlo``: one (scheme, sigma_a, estimator) cell of the sweep."""
-    check_filter(study.filter)
-    if args.noise is None:
-        raise InputError("--noise", "required for rig centrifuge: the accelerometer noise sigma_a, ug per sample")
-    check_writable(args.out, "--out", folder=True)
-    cell_job("centrifuge", study.config, args.scheme, args.noise, args.estimator, args.out, threads=args.threads,
-             case_file=args.scheme_file)
-    return 0
-
-
-def report_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal report``: rewrite ``report.md`` from a results folder's tables."""
-    out = report_from_results(study.config, args.results)
-    print(f"platcal report: -> {out}")
-    return 0
 
 
 def inspect_command(study: Study, args: argparse.Namespace) -> int:
@@ -280,9 +219,14 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
     return []
 
 
-COMMANDS = {"inspect": inspect_command, "simulate": simulate_command, "identify": identify_command, "observability": observability_command,
-            "design": design_command, "montecarlo": montecarlo_command, "report": report_command,
-            "compensate": compensate_command}
+_HERE, _STUDY = __name__, f"{__package__}.study_commands"
+COMMANDS = {"inspect": f"{_HERE}:inspect_command", "simulate": f"{_HERE}:simulate_command",
+            "identify": f"{_HERE}:identify_command", "observability": f"{_STUDY}:observability_command",
+            "design": f"{_STUDY}:design_command", "montecarlo": f"{_STUDY}:montecarlo_command",
+            "report": f"{_STUDY}:report_command", "compensate": f"{_HERE}:compensate_command"}
+"""Each sub-command by module path (:func:`platcal.rig.resolve`): the commands on a log live
+here, those of the study (observability, design, Monte Carlo cell, report: pymoo, matplotlib)
+in :mod:`.study_commands`, imported only when one of them is chosen."""
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
 CHUNK = option("--chunk-rows", type=whole(0), default=None,

@@ -18,7 +18,7 @@ from .errors import InputError, WriteError
 from .io import read_config
 from .logs.calibration import read_calibration
 from .rig import COUNT, SEED, option, rig_of, whole
-from .sizes import MAX_MEMORY, check_sizes
+from .sizes import MAX_HOURS, MAX_MEMORY, check_sizes
 from .study import campaign
 
 CONFIG_HELP = "study configuration (YAML); its 'rig:' selects the rig"
@@ -101,7 +101,7 @@ def build_parser(rig=None) -> argparse.ArgumentParser:
         c = sub.add_parser(command, help=help_, description=help_, epilog=epilog)
         if command != "compensate":  # compensate applies the config the calibration was identified with
             c.add_argument("--config", required=True, help=CONFIG_HELP)
-        for opt in COMMON[command] + (MAX_MEMORY,) + tuple(own):
+        for opt in COMMON[command] + (MAX_MEMORY, MAX_HOURS) + tuple(own):
             c.add_argument(*opt.flags, **opt.kwargs)
     for command, (help_, options) in GENERIC.items():
         c = sub.add_parser(command, help=help_, description=help_)
@@ -136,8 +136,8 @@ def run(args: argparse.Namespace, raw: dict, rig) -> int:
     if getattr(args, "results", "") is None:
         args.results = f"results/{rig.name}"
     cfg = rig.load_config(raw)
-    if rig.sizes is not None:  # the data the inputs imply, refused before any allocation
-        check_sizes(rig.sizes(args.command, cfg, args), args.max_memory_gb)
+    if rig.sizes is not None:  # the memory and time the inputs imply, refused before any allocation
+        check_sizes(rig.sizes(args.command, cfg, args), args.max_memory_gb, args.max_hours)
     return rig.commands[args.command](cfg, args)
 
 

@@ -24,7 +24,7 @@ from ...logs.calibration import calibration_of, calibration_values, read_calibra
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...sizes import Size, samples_in
+from ...sizes import Size, record_size, samples_in
 from .config import COEFFS, G0, Study
 from .montecarlo import SEED_KEY
 from .profile import run_duration
@@ -171,16 +171,28 @@ benchmarks/size_estimate.py (the slope of peak RSS between a short and a long ru
 rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
+RECORD_COST = {"inspect": (0.0, 0.0), "compensate": (0.0, 0.0), "identify": (0.0, 0.0)}
+"""Per byte of the record file a command reads whole: float64 values held at its peak and CPU
+seconds, measured by benchmarks/size_estimate.py (PLACEHOLDER), rounded up
+(:func:`platcal.sizes.record_size`)."""
+SECONDS_PER_SAMPLE = {"simulate": 0.0}
+"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (PLACEHOLDER),
+rounded up: the time check of :mod:`platcal.sizes`."""
+
+
 def sizes(command: str, study: Study, args) -> list[Size]:
-    """The data a command's inputs imply (:mod:`platcal.sizes`): simulate holds the run's record
-    (its duration at ``profile.rate_hz``) x :data:`VALUES_PER_SAMPLE`. identify holds the record
-    it is given, whose size the file bounds, and is not estimated."""
+    """The work a command's inputs imply (:mod:`platcal.sizes`): simulate holds and runs the run's
+    record (its duration at ``profile.rate_hz``) x :data:`VALUES_PER_SAMPLE` and
+    :data:`SECONDS_PER_SAMPLE`; identify, inspect and compensate read the record they are given,
+    sized by its file's bytes x :data:`RECORD_COST`."""
+    if command in RECORD_COST:
+        return [record_size(args.data, *RECORD_COST[command])]
     if command != "simulate" or args.platform not in study.platforms or args.run not in study.run_names(args.platform):
         return []   # the command names a missing platform or run itself
     seconds, longest = run_duration(study, args.platform, args.run)
     return [Size(_segment_field(study, longest), samples_in(seconds, 1.0 / study.rate_hz),
-                 VALUES_PER_SAMPLE, 1,
-                 f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz")]
+                 VALUES_PER_SAMPLE, 1, f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz",
+                 SECONDS_PER_SAMPLE["simulate"])]
 
 
 OPTIONS = {

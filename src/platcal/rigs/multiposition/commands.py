@@ -29,7 +29,7 @@ from ...logs.dwells import dwell_figure, dwells_found
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
-from ...sizes import Size, samples_in
+from ...sizes import Size, record_size, samples_in
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
@@ -226,16 +226,29 @@ benchmarks/size_estimate.py (the slope of peak RSS between a short and a long ru
 rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
+RECORD_COST = {"inspect": (0.0, 0.0), "compensate": (0.0, 0.0)}
+"""Per byte of the record file a command reads whole: float64 values held at its peak and CPU
+seconds, measured by benchmarks/size_estimate.py (PLACEHOLDER), rounded up
+(:func:`platcal.sizes.record_size`)."""
+SECONDS_PER_SAMPLE = {"simulate": 0.0, "identify": 0.0}
+"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (PLACEHOLDER),
+rounded up: the time check of :mod:`platcal.sizes`."""
+
+
 def sizes(command: str, cfg, args) -> list[Size]:
-    """The data a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold the
-    scheme's samples (every position, at ``sampling.ts_ms``) x :data:`VALUES_PER_SAMPLE`."""
-    if command not in ("simulate", "identify"):
-        return []
+    """The work a command's inputs imply (:mod:`platcal.sizes`): simulate, identify and
+    observability hold and run the scheme's samples (every position, at ``sampling.ts_ms``) x
+    :data:`VALUES_PER_SAMPLE` and :data:`SECONDS_PER_SAMPLE` (observability propagates the scheme
+    like identify, docs/multiposition-1g.md); inspect and compensate the record file's bytes x
+    :data:`RECORD_COST`."""
+    if command in RECORD_COST:
+        return [record_size(args.data, *RECORD_COST[command])]
     scheme = cfg.scheme(args.scheme)
+    kind = "simulate" if command == "simulate" else "identify"
     field = f"schemes.{scheme.name}.dwell_s" if scheme.name in cfg.raw["schemes"] else "--scheme (its dwell_s)"
-    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), VALUES_PER_SAMPLE[command], 1,
+    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), VALUES_PER_SAMPLE[kind], 1,
                  f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
-                 f"{cfg.ts * 1000:g} ms")]
+                 f"{cfg.ts * 1000:g} ms", SECONDS_PER_SAMPLE[kind])]
 
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "

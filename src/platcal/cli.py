@@ -14,7 +14,7 @@ import re
 import sys
 
 
-from .errors import InputError, WriteError
+from .errors import EXIT_REFUSED, InputError, error_line
 from .io import read_config
 from .logs.calibration import read_calibration
 from .rig import COUNT, SEED, option, rig_of, whole
@@ -158,16 +158,9 @@ def main(argv=None) -> int:
                  if rig and exc.unknown else "")
         print(f"platcal {command}: error: {exc}{where}", file=sys.stderr)
         return 2
-    except InputError as exc:
-        print(f"platcal {command}: error: {exc.field}: {exc.message}", file=sys.stderr)
-        return 2
-    except OSError as exc:  # a full disk, no permission: one line naming the path, not a traceback
-        done = ("; nothing was written under that name (the files already there are untouched)"
-                if isinstance(exc, WriteError) else "")
-        print(f"platcal {command}: error: {exc.filename or '(no path)'}: {exc.strerror or exc}{done}; "
-              "free space or fix the permissions and run again", file=sys.stderr)
-        return 2
-
+    except (InputError, OSError) as exc:  # bad input; a full disk, no permission: one line, not a traceback
+        print(f"platcal {command}: error: {error_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED
 
 if __name__ == "__main__":
     sys.exit(main())

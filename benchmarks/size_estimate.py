@@ -74,9 +74,9 @@ def main() -> None:
                     rec = d / f"{rig}_{dur:g}.csv"
                     argv = {"simulate": ["simulate", "--config", str(cfg), *sim, "--out", str(rec)],
                             "identify": ["identify", "--config", str(cfg), *ident, "--data", str(rec),
-                                         "--out", str(d / "id")],
+                                         "--out", str(d / f"id_{dur:g}")],
                             "inspect": ["inspect", "--config", str(cfg), "--data", str(rec)],
-                            "compensate": ["compensate", "--calibration", str(d / "id" / "calibration.yaml"),
+                            "compensate": ["compensate", "--calibration", str(d / f"id_{dur:g}" / "calibration.yaml"),
                                            "--data", str(rec), "--out", str(d / "comp.csv")]}[command]
                     samples, est, est_s = estimate(cfg, argv)
                     if dur == short:   # a first run compiles numba's cache: not the data's cost

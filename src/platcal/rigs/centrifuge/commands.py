@@ -246,17 +246,20 @@ benchmarks/size_estimate.py (the slope of peak RSS between a short and a long ru
 rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
-RECORD_COST = {"inspect": (0.0, 0.0), "compensate": (0.0, 0.0)}
+RECORD_COST = {"inspect": (0.5, 3e-8), "compensate": (0.5, 1.5e-7)}
 """Per byte of the record file a command reads whole: float64 values held at its peak and CPU
-seconds, measured by benchmarks/size_estimate.py (PLACEHOLDER), rounded up
+seconds, measured by benchmarks/size_estimate.py on a CSV record (inspect 2.8 B and 1.2e-8 s, compensate 3.1 B and 6.1e-8 s per byte; load 2-5 on
+2 cores), rounded up about 2x for the load's noise
 (:func:`platcal.sizes.record_size`)."""
-SECONDS_PER_SAMPLE = {"simulate": 0.0, "identify": 0.0}
-"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (PLACEHOLDER),
-rounded up: the time check of :mod:`platcal.sizes`."""
-SECONDS_PER_DESIGN_SECOND = 0.0
+SECONDS_PER_SAMPLE = {"simulate": 2e-5, "identify": 2e-5}
+"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (the slope
+between a short and a long run: simulate 9.6e-6, identify 5.4e-6 s per sample; identify rounded up to simulate's as a Monte Carlo replicate does both; load 2-5 on 2 cores), rounded up about 2x for the load's
+noise: the time check of :mod:`platcal.sizes`."""
+SECONDS_PER_DESIGN_SECOND = 2e-4
 """CPU seconds the design search takes per candidate position-second (population x generations x
 positions x dwell_s; an upper bound: the search caches repeated position runs), measured by
-benchmarks/size_estimate.py (PLACEHOLDER)."""
+benchmarks/size_estimate.py (population 8, 1 and 4 generations, 6 x 60 s: 0.85 CPU s over 8640,
+9.8e-5; load 4 on 2 cores), rounded up 2x for the load's noise."""
 
 
 def _dwell_field(study: Study, scheme) -> str:

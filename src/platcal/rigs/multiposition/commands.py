@@ -226,27 +226,31 @@ benchmarks/size_estimate.py (the slope of peak RSS between a short and a long ru
 rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
-RECORD_COST = {"inspect": (0.0, 0.0), "compensate": (0.0, 0.0)}
+RECORD_COST = {"inspect": (0.5, 1e-8), "compensate": (0.5, 4e-7)}
 """Per byte of the record file a command reads whole: float64 values held at its peak and CPU
-seconds, measured by benchmarks/size_estimate.py (PLACEHOLDER), rounded up
+seconds, measured by benchmarks/size_estimate.py on a CSV record (inspect 2.2 B and 5.2e-9 s, compensate 2.8 B and 1.9e-7 s per byte; load 2-5 on
+2 cores), rounded up about 2x for the load's noise
 (:func:`platcal.sizes.record_size`)."""
-SECONDS_PER_SAMPLE = {"simulate": 0.0, "identify": 0.0}
-"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (PLACEHOLDER),
-rounded up: the time check of :mod:`platcal.sizes`."""
+SECONDS_PER_SAMPLE = {"simulate": 2.5e-5, "identify": 2e-5}
+"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (the slope
+between a short and a long run: simulate 1.2e-5, identify 7.8e-6 s per sample; load 2-5 on 2 cores), rounded up about 2x for the load's
+noise: the time check of :mod:`platcal.sizes`."""
 
 
 def sizes(command: str, cfg, args) -> list[Size]:
-    """The work a command's inputs imply (:mod:`platcal.sizes`): simulate, identify and
-    observability hold and run the scheme's samples (every position, at ``sampling.ts_ms``) x
-    :data:`VALUES_PER_SAMPLE` and :data:`SECONDS_PER_SAMPLE` (observability propagates the scheme
-    like identify, docs/multiposition-1g.md); inspect and compensate the record file's bytes x
-    :data:`RECORD_COST`."""
+    """The work a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold and run
+    the scheme's samples (every position, at ``sampling.ts_ms``) x :data:`VALUES_PER_SAMPLE` and
+    :data:`SECONDS_PER_SAMPLE`; observability propagates a covariance over the same samples (or
+    fewer, at a coarser step) holding one matrix per position, so it is timed at identify's cost per
+    sample (an upper bound: the covariance step is a part of the filter's) and holds nothing per
+    sample; inspect and compensate the record file's bytes x :data:`RECORD_COST`."""
     if command in RECORD_COST:
         return [record_size(args.data, *RECORD_COST[command])]
     scheme = cfg.scheme(args.scheme)
     kind = "simulate" if command == "simulate" else "identify"
     field = f"schemes.{scheme.name}.dwell_s" if scheme.name in cfg.raw["schemes"] else "--scheme (its dwell_s)"
-    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), VALUES_PER_SAMPLE[kind], 1,
+    held = VALUES_PER_SAMPLE[kind] if command != "observability" else 0
+    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), held, 1,
                  f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
                  f"{cfg.ts * 1000:g} ms", SECONDS_PER_SAMPLE[kind])]
 

@@ -165,19 +165,22 @@ def _segment_field(study: Study, seg: tuple) -> str:
     return "profile.jerk_g_s"
 
 
-VALUES_PER_SAMPLE = 64
+VALUES_PER_SAMPLE = 160
 """float64 values simulate holds per sample at its peak (resident memory), measured by
-benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 465 bytes for simulate),
-rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
+benchmarks/size_estimate.py (the slope of peak RSS between a 60 s and a 1500 s rest: 1146 bytes,
+where an earlier 60 s / 3000 s measurement gave 465), rounded up: the size check
+(:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
-RECORD_COST = {"inspect": (0.0, 0.0), "compensate": (0.0, 0.0), "identify": (0.0, 0.0)}
+RECORD_COST = {"inspect": (0.5, 1.2e-8), "compensate": (0.5, 6e-8), "identify": (0.5, 3e-8)}
 """Per byte of the record file a command reads whole: float64 values held at its peak and CPU
-seconds, measured by benchmarks/size_estimate.py (PLACEHOLDER), rounded up
+seconds, measured by benchmarks/size_estimate.py on a CSV record (inspect 1.8 B and 5.6e-9 s, compensate 1.2 B and 3.0e-8 s, identify 1.5 B and 1.1e-8 s per byte; load 2-5 on
+2 cores), rounded up about 2x for the load's noise
 (:func:`platcal.sizes.record_size`)."""
-SECONDS_PER_SAMPLE = {"simulate": 0.0}
-"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (PLACEHOLDER),
-rounded up: the time check of :mod:`platcal.sizes`."""
+SECONDS_PER_SAMPLE = {"simulate": 5e-5}
+"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (the slope
+between a short and a long run: simulate 2.3e-5 s per sample; load 2-5 on 2 cores), rounded up about 2x for the load's
+noise: the time check of :mod:`platcal.sizes`."""
 
 
 def sizes(command: str, study: Study, args) -> list[Size]:

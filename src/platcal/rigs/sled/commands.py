@@ -121,13 +121,15 @@ benchmarks/size_estimate.py (the slope of peak RSS between a short and a long ru
 rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
-RECORD_COST = {"inspect": (0.0, 0.0), "compensate": (0.0, 0.0)}
+RECORD_COST = {"inspect": (0.5, 1e-8), "compensate": (0.5, 5e-8)}
 """Per byte of the record file a command reads whole: float64 values held at its peak and CPU
-seconds, measured by benchmarks/size_estimate.py (PLACEHOLDER), rounded up
+seconds, measured by benchmarks/size_estimate.py on a CSV record (inspect 2.1 B and 3.9e-9 s, compensate 1.7 B and 2.1e-8 s per byte; load 2-5 on
+2 cores), rounded up about 2x for the load's noise
 (:func:`platcal.sizes.record_size`)."""
-SECONDS_PER_SAMPLE = {"simulate": 0.0, "identify": 0.0}
-"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (PLACEHOLDER),
-rounded up: the time check of :mod:`platcal.sizes`."""
+SECONDS_PER_SAMPLE = {"simulate": 2.5e-5, "identify": 5e-6}
+"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (the slope
+between a short and a long run: simulate 1.1e-5, identify 2.1e-6 s per sample; load 2-5 on 2 cores), rounded up about 2x for the load's
+noise: the time check of :mod:`platcal.sizes`."""
 
 
 def sizes(command: str, cfg: SledConfig, args) -> list[Size]:

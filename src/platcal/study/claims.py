@@ -235,9 +235,9 @@ def verdict_counts(df: pd.DataFrame) -> str:
 
 
 def evaluate_rig(rig, results: Path, cfg: dict) -> pd.DataFrame:
-    """The ledger rows of a rig's declared claims (``rig.extras["claims"]``: a module-like object
+    """The ledger rows of a rig's declared claims (``rig.extra("claims")``: a module-like object
     with ``claims()`` and ``MEASURES``) on its results folder and config; no rows when it has none."""
-    spec = rig.extras.get("claims")
+    spec = rig.extra("claims")
     if spec is None:
         return pd.DataFrame(columns=LEDGER_COLUMNS)
     return evaluate(spec.claims(), spec.MEASURES, Path(results), cfg, seed=int(cfg.get("seed", 0) or 0))

@@ -16,7 +16,7 @@ import time
 from ...errors import InputError
 from ...estimation.consistency import EXIT_RUN_FAILED, failed_run_status
 from ...estimation.fit import fit_exit_status
-from ...rig import COUNT, SEED, option, real, whole
+from ...rig import COUNT, SEED, option, real, resolve, whole
 from ...io import check_writable
 from ...logs.calibration import read_calibration
 from ...logs.compensate import compensate_log, gyro_note, read_mapped
@@ -25,23 +25,21 @@ from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
 from ...sizes import Size, record_size, samples_in
-from ...study.montecarlo import cell_job, replicate_seed
+from ...study.montecarlo import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
-from .design import design_config, preset, run_design, write_design
 from .identify import (calibration, clock_finding, consistency_warning, continuous_input, identify_input,
                        identify_streamed, record_fit, record_input, run_problems, streamable, timed, truth_known,
                        write_identification)
-from .observability import write_observability
 from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, LOG_COLUMNS, OPTIONAL_COLUMNS, UNITS,
                      FilterInput, chunk_to_frame, compensate_frame, full_coefficients, read_record)
 from ...records import CHUNK_ROWS, iter_table, record_writer
-from .report import report_from_results
 from .simulate import simulate_chunks
 from .study import CentrifugeMonteCarlo
 
-def _scheme(study: Study, args: argparse.Namespace):
+def scheme_option(study: Study, args: argparse.Namespace):
+    """The scheme ``--scheme`` names (a config scheme or a scheme file); InputError when absent."""
     if not args.scheme:
         raise InputError("--scheme", "required for rig centrifuge: a scheme name of the config or a scheme YAML file")
     return resolve_scheme(args.scheme, study.schemes)
@@ -49,7 +47,7 @@ def _scheme(study: Study, args: argparse.Namespace):
 
 def simulate_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal simulate``: one test record (docs/centrifuge-model.md §13)."""
-    scheme = _scheme(study, args)
+    scheme = scheme_option(study, args)
     check_writable(args.out, "--out")
     replicate = 0 if args.seed is None else int(args.seed)
     # replicate N of the Monte Carlo cell (this scheme, the config's sigma_a): a run of the study
@@ -101,7 +99,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     test record."""
     study = with_estimator(study, args.estimator)
     check_filter(study.filter)
-    scheme = _scheme(study, args)
+    scheme = scheme_option(study, args)
     check_writable(args.out, "--out", folder=True)
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
     chunk_rows = _chunk_rows(args)
@@ -157,65 +155,6 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     return fit_exit_status(fit, args.data, args.out)
 
 
-def observability_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal observability``: covariance-only analysis of a scheme."""
-    check_filter(study.filter)
-    scheme = _scheme(study, args)
-    check_writable(args.out, "--out", folder=True)
-    t0 = time.perf_counter()
-    res = write_observability(args.out, study, scheme, replicates=args.replicates, arw_deg_rth=args.arw,
-                              estimate_doo=True if args.doo else None, rate_deg_s=args.rate)
-    om = res["observability_matrix"]
-    msg = (f"platcal observability: scheme {scheme.name!r}: J = {res['J']:.2f} over {res['n_pairs']} pairs "
-           f"(ARW {res['settings']['arw_deg_rth']:g}), A = {res['criteria']['A']:.3g}, "
-           f"max rel sigma {res['criteria']['maxrel']:.3g} %, observability rank {om['rank']}/{om['n_cols']}")
-    if "monte_carlo" in res:
-        msg += f"; MC RMS rel err {res['monte_carlo']['rms_rel_err_pct_45']:.3f} % ({args.replicates} runs)"
-    print(msg + f" -> {args.out} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
-    return 0
-
-
-def design_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal design``: the genetic-algorithm scheme search."""
-    check_filter(study.filter)
-    if not str(args.out).endswith((".yaml", ".yml")):
-        raise InputError("--out", "must be a scheme file name ending in .yaml")
-    check_writable(args.out, "--out")
-    over = dict(criterion=args.criterion, positions=args.positions, population=args.population,
-                generations=args.generations, seed=args.seed, name=args.name)
-    if args.preset:
-        study, dcfg = preset(study, args.preset)
-        dcfg = design_config({**study.config, "design": dcfg}, **over)
-    else:
-        dcfg = design_config(study.config, **over)
-    log = (lambda m: print(m, file=sys.stderr)) if args.verbose else None
-    res = run_design(study, dcfg, log=log)
-    write_design(res, args.out)
-    print(f"platcal design: {res.scheme.name}: {dcfg['criterion']} = {res.value:.4g} "
-          f"(J {res.criteria['J']:.2f}, max rel sigma {res.criteria['maxrel']:.3g} %), "
-          f"{dcfg['population']} x {dcfg['generations']} generations, {res.position_runs} position runs, "
-          f"{res.seconds:.0f} s -> {args.out}", file=sys.stderr)
-    return 0
-
-
-def montecarlo_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal montecarlo``: one (scheme, sigma_a, estimator) cell of the sweep."""
-    check_filter(study.filter)
-    if args.noise is None:
-        raise InputError("--noise", "required for rig centrifuge: the accelerometer noise sigma_a, ug per sample")
-    check_writable(args.out, "--out", folder=True)
-    cell_job("centrifuge", study.config, args.scheme, args.noise, args.estimator, args.out, threads=args.threads,
-             case_file=args.scheme_file)
-    return 0
-
-
-def report_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal report``: rewrite ``report.md`` from a results folder's tables."""
-    out = report_from_results(study.config, args.results)
-    print(f"platcal report: -> {out}")
-    return 0
-
-
 def inspect_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
@@ -255,11 +194,6 @@ SECONDS_PER_SAMPLE = {"simulate": 2e-5, "identify": 2e-5}
 """CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (the slope
 between a short and a long run: simulate 9.6e-6, identify 5.4e-6 s per sample; identify rounded up to simulate's as a Monte Carlo replicate does both; load 2-5 on 2 cores), rounded up about 2x for the load's
 noise: the time check of :mod:`platcal.sizes`."""
-SECONDS_PER_DESIGN_SECOND = 2e-4
-"""CPU seconds the design search takes per candidate position-second (population x generations x
-positions x dwell_s; an upper bound: the search caches repeated position runs), measured by
-benchmarks/size_estimate.py (population 8, 1 and 4 generations, 6 x 60 s: 0.85 CPU s over 8640,
-9.8e-5; load 4 on 2 cores), rounded up 2x for the load's noise."""
 
 
 def _dwell_field(study: Study, scheme) -> str:
@@ -280,7 +214,7 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
     (observability simulates its replicates one batch at a time and identifies each; a Monte Carlo
     cell simulates and identifies ``study.batch`` replicates at once, ``study.replicates`` in all),
     the estimates of every replicate (replicates x 45); the design's candidates (population x
-    generations x positions x dwell) x :data:`SECONDS_PER_DESIGN_SECOND`; inspect and compensate the record file's bytes x
+    generations x positions x dwell, :func:`.study_commands.design_sizes`); inspect and compensate the record file's bytes x
     :data:`RECORD_COST`. report reads the study's own result tables: nothing to size."""
     if command in RECORD_COST:
         return [record_size(args.data, *RECORD_COST[command])]
@@ -301,19 +235,19 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
         return [_scheme_size(study, case, "identify", min(st["batch"], st["replicates"]), 0),
                 Size("study.replicates", st["replicates"], len(load_catalogue().frame()), 1, "the cell's estimates"),
                 replace(_scheme_size(study, case, "identify", 1, st["replicates"]), field="study.replicates")]
-    if command == "design":
-        dcfg = design_config(study.config, population=args.population, generations=args.generations)
-        field = "--generations" if args.generations else "design.generations"
-        work = float(dcfg["population"]) * float(dcfg["generations"]) * dcfg["positions"] * dcfg["dwell_s"]
-        return [Size(field, work, 0, 1, f"the search's population {dcfg['population']} x {dcfg['generations']} "
-                     f"generations x {dcfg['positions']} positions x {dcfg['dwell_s']:g} s dwell",
-                     SECONDS_PER_DESIGN_SECOND, unit="candidate position-seconds")]
+    if command == "design":   # the design search's module (pymoo) is imported only when it is chosen
+        return resolve(f"{_STUDY}:design_sizes")(study, args)
     return []
 
 
-COMMANDS = {"inspect": inspect_command, "simulate": simulate_command, "identify": identify_command, "observability": observability_command,
-            "design": design_command, "montecarlo": montecarlo_command, "report": report_command,
-            "compensate": compensate_command}
+_HERE, _STUDY = __name__, f"{__package__}.study_commands"
+COMMANDS = {"inspect": f"{_HERE}:inspect_command", "simulate": f"{_HERE}:simulate_command",
+            "identify": f"{_HERE}:identify_command", "observability": f"{_STUDY}:observability_command",
+            "design": f"{_STUDY}:design_command", "montecarlo": f"{_STUDY}:montecarlo_command",
+            "report": f"{_STUDY}:report_command", "compensate": f"{_HERE}:compensate_command"}
+"""Each sub-command by module path (:func:`platcal.rig.resolve`): the commands on a log live
+here, those of the study (observability, design, Monte Carlo cell, report: pymoo, matplotlib)
+in :mod:`.study_commands`, imported only when one of them is chosen."""
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
 CHUNK = option("--chunk-rows", type=whole(0), default=None,

@@ -8,18 +8,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
-from ...estimation.consistency import estimate_problems, nees
+from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
 from ...io import atomic_files, json_text
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files
-from ...logs.dwells import dwell_figure, dwells_found
+from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...plausibility import refuse_recognised, refuse_recognised_moments, timestamp_jitter
 from ...records import CHUNK_ROWS
+from ...rig import resolve
 from .catalogue import load_catalogue
 from .config import Study
-from .ekf import Estimate, FilterSettings, first_instant
+from .ekf import Estimate, EstimatorInput, FilterSettings, first_instant
 from .estimators import check_kind, run_estimator
 from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
                      check_every_position, check_position, check_position_numbers, check_record, continuous_record,
@@ -46,7 +46,8 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
     K = scheme.n_positions
     # the samples at the reset instant (t = 0) are not used unless filter.update_at_reset
     i0 = first_instant(fs.update_at_reset)
-    return run_estimator([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, scheme.angles_deg, params, fs)
+    return run_estimator(EstimatorInput([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, scheme.angles_deg,
+                                        params), fs)
 
 
 FIT_CHANNELS = ("Ax", "Ay", "Az")
@@ -136,7 +137,7 @@ def identify_input(study: Study, scheme: Scheme, fin: FilterInput) -> Estimate:
     """Run the study's estimator (``filter.estimator``) over the selected samples of a record (one
     run: a batch of one), keeping the innovations for the fit check (EKF, IEKF)."""
     params = study.centrifuge.scheme_params(scheme)[np.array(fin.positions) - 1]
-    return run_estimator(fin.z, fin.t, fin.cmd_deg, params, replace(study.filter, innovations=True))
+    return run_estimator(EstimatorInput(fin.z, fin.t, fin.cmd_deg, params), replace(study.filter, innovations=True))
 
 
 def nominal_output(study: Study, scheme: Scheme, fin: FilterInput) -> np.ndarray:
@@ -307,8 +308,8 @@ def identify_streamed(study: Study, scheme: Scheme, read_chunks) -> tuple[Estima
         state["sums"].add(rb[0, :, :3], rb[0, :, 3:], segment)
 
     kind = check_kind(settings.estimator)
-    est = kind.run(None, scan.t, scan.cmd_deg, params, settings, z_source=z_source, on_innovations=on_innovations,
-                   **dict(settings.estimator_options))
+    est = kind.run(EstimatorInput(None, scan.t, scan.cmd_deg, params), settings, z_source=z_source,
+                   on_innovations=on_innovations, **dict(settings.estimator_options))
     diagnosis = [text for _, text in gross_errors_moments(scan.moments, FIT_CHANNELS)]
     clock = clock_text(study, scheme, scan.jitter_s)
     if not diagnosis and clock is not None:
@@ -350,7 +351,7 @@ def consistency_warning(summary: dict) -> str | None:
     if summary.get("nees") is None:
         return None
     dof = int(summary["nees_dof"])
-    bound = float(chi2.ppf(NEES_LEVEL, dof))
+    bound = chi2_quantile(NEES_LEVEL, dof)
     if summary["nees"] <= bound:
         return None
     return (f"NEES {summary['nees']:.4g} for {dof} dof is above its {NEES_LEVEL:.1%} bound {bound:.4g}: the "
@@ -404,7 +405,7 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         if calibration is not None:
             write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state
         if segmentation is not None:
-            dwell_figure(*segmentation, tmp("dwells.png"), names=("|A|",), ylabel="specific force |A|, g")
+            resolve(DWELL_FIGURE)(*segmentation, tmp("dwells.png"), names=("|A|",), ylabel="specific force |A|, g")
         tmp("summary.json").write_text(json_text(summary))
     return summary
 

@@ -1,4 +1,4 @@
-"""``platcal simulate | identify | observability`` for ``rig: multiposition``.
+"""``platcal simulate | identify | inspect | compensate`` for ``rig: multiposition`` (``observability``: :mod:`.study_commands`).
 
 ``platcal simulate --seed N`` writes replicate N (default 0) of the study's Monte Carlo cell of
 that scheme at the config's ``noise.sigma_a_ug``: the same ``SeedSequence(seed, spawn_key=
@@ -21,11 +21,11 @@ import pandas as pd
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...errors import InputError
-from ...rig import option
+from ...rig import option, resolve
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log, gyro_note, read_mapped
-from ...logs.dwells import dwell_figure, dwells_found
+from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
@@ -33,7 +33,6 @@ from ...sizes import Size, record_size, samples_in
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
-from .observability import evaluate
 from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
                      compensate_frame, read_record, to_frame, write_record)
 
@@ -168,7 +167,7 @@ def cmd_identify(cfg, args) -> int:
         df.to_csv(tmp("estimates.csv"), index=False)
         write_calibration_files(tmp, cal)
         if rec.segmentation is not None:
-            dwell_figure(*rec.segmentation, tmp("dwells.png"))
+            resolve(DWELL_FIGURE)(*rec.segmentation, tmp("dwells.png"))
         tmp("summary.json").write_text(json_text(summary))
     msg = (f"platcal identify: multiposition 27-state {choice.label}, {min(used.values())}-"
            f"{max(used.values())} samples per position, {seconds:.2f} s -> {out}")
@@ -177,24 +176,6 @@ def cmd_identify(cfg, args) -> int:
                 f"{summary['max_abs_rel_err_pct_accel']:.4f} %, NEES {summary['nees']:.1f} (dof 24)")
     print(msg, file=sys.stderr)
     return fit_exit_status(fit, args.data, out)
-
-
-def cmd_observability(cfg, args) -> int:
-    scheme = cfg.scheme(args.scheme)
-    check_writable(args.out, "--out", folder=True)
-    t0 = time.perf_counter()
-    res = evaluate(cfg, scheme)
-    res["seconds"] = time.perf_counter() - t0
-    out = Path(args.out)
-    with atomic_files(out) as tmp:
-        pd.DataFrame(res["coefficients"]).to_csv(tmp("coefficients.csv"), index=False)
-        tmp("observability.json").write_text(json_text(res))
-    v = res["verdict"]
-    print(f"platcal observability: multiposition scheme {scheme.name!r}: static rank {res['static_rank']}, "
-          f"exact Lie rank {res['exact_rank_nominal']}/{res['exact_rank_truth']} of {res['n_states']}, max "
-          f"sigma/|truth| {res['max_rel_sigma_pct']:.3g} % -> {v['decision'].upper()}: {'; '.join(v['reasons'])}"
-          f" -> {out} ({res['seconds']:.1f} s)", file=sys.stderr)
-    return 0
 
 
 def cmd_inspect(cfg, args) -> int:
@@ -218,7 +199,11 @@ def cmd_compensate(cfg, args) -> int:
                           lambda out: gyro_note(out.columns, GYRO_COLUMNS, "DF, DI, ... DOS"))
 
 
-COMMANDS = {"inspect": cmd_inspect, "compensate": cmd_compensate, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+COMMANDS = {"inspect": f"{__name__}:cmd_inspect", "compensate": f"{__name__}:cmd_compensate",
+            "simulate": f"{__name__}:cmd_simulate", "identify": f"{__name__}:cmd_identify",
+            "observability": f"{__package__}.study_commands:cmd_observability"}
+"""Each sub-command by module path (:func:`platcal.rig.resolve`): ``observability`` (the exact
+Lie-derivative rank, sympy) in :mod:`.study_commands`, imported only when it is chosen."""
 
 VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
 """float64 values a command holds per sample at its peak (resident memory), measured by

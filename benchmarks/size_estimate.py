@@ -107,8 +107,8 @@ def main() -> None:
     for r in rows:
         print(f"{r['rig']:20s} {r['command']:9s} measured {r['measured_B_per_sample']:7.1f} B/sample, "
               f"estimated {r['estimated_B_per_sample']:7.1f} B/sample; measured {r['measured_cpu_s_per_sample']:.3g} "
-              f"CPU s/sample, estimated {r['estimated_cpu_s_per_sample']:.3g} CPU s/sample (a sample of inspect: a byte "
-              "of the record file)")
+              f"CPU s/sample, estimated {r['estimated_cpu_s_per_sample']:.3g} CPU s/sample "
+              "(a sample of inspect, compensate: a byte of the record file; of design: a candidate position-second)")
 
 
 if __name__ == "__main__":

@@ -6,8 +6,10 @@ every command: for the work whose size follows from its inputs (a dwell, a run l
 replicates, a record file, a search's population x generations): the units of work (samples, a
 file's bytes, candidates), the float64 values held per unit (the rig's peak resident memory per
 unit), the CPU seconds per unit, the replicates held at once and run in all, and the config key or
-option that drives it; both costs are measured on this project's machine (2 cores, 8 GB) by
-``benchmarks/size_estimate.py`` and stated as such. :func:`check_sizes` multiplies them out and
+option that drives it; both costs are measured on this project's machine (2 cores, 8 GB, under a
+load of 2-5) by ``benchmarks/size_estimate.py`` (the slope between a short and a long run, so the
+fixed start-up cost is left out; per byte on a CSV record), stated next to each rig's constants
+and rounded up about 2x for the load's noise. :func:`check_sizes` multiplies them out and
 refuses, before any allocation, one above ``--max-memory-gb`` or ``--max-hours`` (InputError naming
 the driving field and the option to raise: exit 2), so a dwell of a day is a clear message, not a
 ``MemoryError`` traceback, a machine swapping for an hour or a job that would run for a month. The

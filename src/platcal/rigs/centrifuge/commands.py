@@ -186,14 +186,11 @@ rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by thes
 
 
 RECORD_COST = {"inspect": (0.5, 3e-8), "compensate": (0.5, 1.5e-7)}
-"""Per byte of the record file a command reads whole: float64 values held at its peak and CPU
-seconds, measured by benchmarks/size_estimate.py on a CSV record (inspect 2.8 B and 1.2e-8 s, compensate 3.1 B and 6.1e-8 s per byte; load 2-5 on
-2 cores), rounded up about 2x for the load's noise
-(:func:`platcal.sizes.record_size`)."""
+"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
+measured: inspect 2.8 B and 1.2e-8 s, compensate 3.1 B and 6.1e-8 s per byte."""
 SECONDS_PER_SAMPLE = {"simulate": 2e-5, "identify": 2e-5}
-"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (the slope
-between a short and a long run: simulate 9.6e-6, identify 5.4e-6 s per sample; identify rounded up to simulate's as a Monte Carlo replicate does both; load 2-5 on 2 cores), rounded up about 2x for the load's
-noise: the time check of :mod:`platcal.sizes`."""
+"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 9.6e-6, identify 5.4e-6 s per sample;
+identify rounded up to simulate's as a Monte Carlo replicate does both."""
 
 
 def _dwell_field(study: Study, scheme) -> str:
@@ -214,7 +211,8 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
     (observability simulates its replicates one batch at a time and identifies each; a Monte Carlo
     cell simulates and identifies ``study.batch`` replicates at once, ``study.replicates`` in all),
     the estimates of every replicate (replicates x 45); the design's candidates (population x
-    generations x positions x dwell, :func:`.study_commands.design_sizes`); inspect and compensate the record file's bytes x
+    generations x positions x dwell, :func:`.study_commands.design_sizes`); inspect and compensate
+    the record file's bytes x
     :data:`RECORD_COST`. report reads the study's own result tables: nothing to size."""
     if command in RECORD_COST:
         return [record_size(args.data, *RECORD_COST[command])]

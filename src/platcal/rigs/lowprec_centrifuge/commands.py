@@ -173,14 +173,11 @@ where an earlier 60 s / 3000 s measurement gave 465), rounded up: the size check
 
 
 RECORD_COST = {"inspect": (0.5, 1.2e-8), "compensate": (0.5, 6e-8), "identify": (0.5, 3e-8)}
-"""Per byte of the record file a command reads whole: float64 values held at its peak and CPU
-seconds, measured by benchmarks/size_estimate.py on a CSV record (inspect 1.8 B and 5.6e-9 s, compensate 1.2 B and 3.0e-8 s, identify 1.5 B and 1.1e-8 s per byte; load 2-5 on
-2 cores), rounded up about 2x for the load's noise
-(:func:`platcal.sizes.record_size`)."""
+"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
+measured: inspect 1.8 B and 5.6e-9 s, compensate 1.2 B and 3.0e-8 s, identify 1.5 B and 1.1e-8 s per
+byte."""
 SECONDS_PER_SAMPLE = {"simulate": 5e-5}
-"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (the slope
-between a short and a long run: simulate 2.3e-5 s per sample; load 2-5 on 2 cores), rounded up about 2x for the load's
-noise: the time check of :mod:`platcal.sizes`."""
+"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 2.3e-5 s per sample."""
 
 
 def sizes(command: str, study: Study, args) -> list[Size]:

@@ -122,14 +122,10 @@ rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by thes
 
 
 RECORD_COST = {"inspect": (0.5, 1e-8), "compensate": (0.5, 5e-8)}
-"""Per byte of the record file a command reads whole: float64 values held at its peak and CPU
-seconds, measured by benchmarks/size_estimate.py on a CSV record (inspect 2.1 B and 3.9e-9 s, compensate 1.7 B and 2.1e-8 s per byte; load 2-5 on
-2 cores), rounded up about 2x for the load's noise
-(:func:`platcal.sizes.record_size`)."""
+"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
+measured: inspect 2.1 B and 3.9e-9 s, compensate 1.7 B and 2.1e-8 s per byte."""
 SECONDS_PER_SAMPLE = {"simulate": 2.5e-5, "identify": 5e-6}
-"""CPU seconds a command takes per sample, measured by benchmarks/size_estimate.py (the slope
-between a short and a long run: simulate 1.1e-5, identify 2.1e-6 s per sample; load 2-5 on 2 cores), rounded up about 2x for the load's
-noise: the time check of :mod:`platcal.sizes`."""
+"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 1.1e-5, identify 2.1e-6 s per sample."""
 
 
 def sizes(command: str, cfg: SledConfig, args) -> list[Size]:

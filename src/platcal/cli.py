@@ -18,11 +18,11 @@ import re
 import sys
 
 
-from .errors import InputError, WriteError
+from .errors import EXIT_REFUSED, InputError, error_line
 from .io import read_config
 from .logs.calibration import read_calibration
 from .rig import COUNT, SEED, option, resolve, rig_of, whole
-from .sizes import MAX_MEMORY, check_sizes
+from .sizes import MAX_HOURS, MAX_MEMORY, check_sizes
 
 CONFIG_HELP = "study configuration (YAML); its 'rig:' selects the rig"
 COMMANDS = {
@@ -105,7 +105,7 @@ def build_parser(rig=None) -> argparse.ArgumentParser:
         c = sub.add_parser(command, help=help_, description=help_, epilog=epilog)
         if command != "compensate":  # compensate applies the config the calibration was identified with
             c.add_argument("--config", required=True, help=CONFIG_HELP)
-        for opt in COMMON[command] + (MAX_MEMORY,) + tuple(own):
+        for opt in COMMON[command] + (MAX_MEMORY, MAX_HOURS) + tuple(own):
             c.add_argument(*opt.flags, **opt.kwargs)
     for command, (help_, options) in GENERIC.items():
         c = sub.add_parser(command, help=help_, description=help_)
@@ -140,8 +140,8 @@ def run(args: argparse.Namespace, raw: dict, rig) -> int:
     if getattr(args, "results", "") is None:
         args.results = f"results/{rig.name}"
     cfg = rig.load_config(raw)
-    if rig.sizes is not None:  # the data the inputs imply, refused before any allocation
-        check_sizes(rig.sizes(args.command, cfg, args), args.max_memory_gb)
+    if rig.sizes is not None:  # the memory and time the inputs imply, refused before any allocation
+        check_sizes(rig.sizes(args.command, cfg, args), args.max_memory_gb, args.max_hours)
     return rig.command(args.command)(cfg, args)
 
 
@@ -162,15 +162,9 @@ def main(argv=None) -> int:
                  if rig and exc.unknown else "")
         print(f"platcal {command}: error: {exc}{where}", file=sys.stderr)
         return 2
-    except InputError as exc:
-        print(f"platcal {command}: error: {exc.field}: {exc.message}", file=sys.stderr)
-        return 2
-    except OSError as exc:  # a full disk, no permission: one line naming the path, not a traceback
-        done = ("; nothing was written under that name (the files already there are untouched)"
-                if isinstance(exc, WriteError) else "")
-        print(f"platcal {command}: error: {exc.filename or '(no path)'}: {exc.strerror or exc}{done}; "
-              "free space or fix the permissions and run again", file=sys.stderr)
-        return 2
+    except (InputError, OSError) as exc:  # bad input; a full disk, no permission: one line, not a traceback
+        print(f"platcal {command}: error: {error_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED
 
 
 if __name__ == "__main__":

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import argparse
 import copy
+from dataclasses import replace
 import sys
 import time
 
 from ...errors import InputError
 from ...estimation.consistency import EXIT_RUN_FAILED, failed_run_status
 from ...estimation.fit import fit_exit_status
-from ...rig import COUNT, SEED, option, real, whole
+from ...rig import COUNT, SEED, option, real, resolve, whole
 from ...io import check_writable
 from ...logs.calibration import read_calibration
 from ...logs.compensate import compensate_log, gyro_note, read_mapped
@@ -23,7 +24,7 @@ from ...logs.dwells import lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
-from ...sizes import Size, samples_in
+from ...sizes import Size, record_size, samples_in
 from ...study.montecarlo import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
@@ -184,23 +185,37 @@ benchmarks/size_estimate.py (the slope of peak RSS between a short and a long ru
 rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
+RECORD_COST = {"inspect": (0.5, 3e-8), "compensate": (0.5, 1.5e-7)}
+"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
+measured: inspect 2.8 B and 1.2e-8 s, compensate 3.1 B and 6.1e-8 s per byte."""
+SECONDS_PER_SAMPLE = {"simulate": 2e-5, "identify": 2e-5}
+"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 9.6e-6, identify 5.4e-6 s per sample;
+identify rounded up to simulate's as a Monte Carlo replicate does both."""
+
+
 def _dwell_field(study: Study, scheme) -> str:
     """The config key (or option) whose dwell sets a scheme's length, for a size message."""
     return f"schemes.{scheme.name}.dwell_s" if scheme.name in study.schemes else "--scheme (its dwell_s)"
 
 
-def _scheme_size(study: Study, scheme, command: str, replicates: float = 1) -> Size:
+def _scheme_size(study: Study, scheme, command: str, replicates: float = 1, runs: float | None = None) -> Size:
     return Size(_dwell_field(study, scheme), scheme.n_positions * samples_in(scheme.dwell_s, study.sample_s),
                 VALUES_PER_SAMPLE[command], replicates,
                 f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
-                f"{study.sample_s * 1000:g} ms")
+                f"{study.sample_s * 1000:g} ms", SECONDS_PER_SAMPLE[command], runs)
 
 
 def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
-    """The data each command's inputs imply (:mod:`platcal.sizes`): the scheme's samples (every
-    position) x :data:`VALUES_PER_SAMPLE` for simulate and identify (observability simulates its
-    replicates one batch at a time; a Monte Carlo cell simulates and identifies ``study.batch``
-    replicates at once), and the estimates of every replicate (replicates x 45)."""
+    """The work each command's inputs imply (:mod:`platcal.sizes`): the scheme's samples (every
+    position) x :data:`VALUES_PER_SAMPLE` and :data:`SECONDS_PER_SAMPLE` for simulate and identify
+    (observability simulates its replicates one batch at a time and identifies each; a Monte Carlo
+    cell simulates and identifies ``study.batch`` replicates at once, ``study.replicates`` in all),
+    the estimates of every replicate (replicates x 45); the design's candidates (population x
+    generations x positions x dwell, :func:`.study_commands.design_sizes`); inspect and compensate
+    the record file's bytes x
+    :data:`RECORD_COST`. report reads the study's own result tables: nothing to size."""
+    if command in RECORD_COST:
+        return [record_size(args.data, *RECORD_COST[command])]
     if command in ("simulate", "identify") and args.scheme:
         return [_scheme_size(study, resolve_scheme(args.scheme, study.schemes), command)]
     if command == "observability" and args.scheme:
@@ -208,14 +223,18 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
         out = [_scheme_size(study, scheme, "simulate")]
         if args.replicates:
             out += [Size("--replicates", args.replicates, len(load_catalogue().frame()), 1,
-                         "the Monte Carlo's estimation errors")]
+                         "the Monte Carlo's estimation errors"),
+                    replace(_scheme_size(study, scheme, "identify", 1, args.replicates), field="--replicates")]
         return out
     if command == "montecarlo":
         # the config as validated (the study section's cross-checks are the cell's, after --out's)
         st = study.config["study"]
         case = CentrifugeMonteCarlo().case(study.config, args.scheme, args.scheme_file)
-        return [_scheme_size(study, case, "identify", min(st["batch"], st["replicates"])),
-                Size("study.replicates", st["replicates"], len(load_catalogue().frame()), 1, "the cell's estimates")]
+        return [_scheme_size(study, case, "identify", min(st["batch"], st["replicates"]), 0),
+                Size("study.replicates", st["replicates"], len(load_catalogue().frame()), 1, "the cell's estimates"),
+                replace(_scheme_size(study, case, "identify", 1, st["replicates"]), field="study.replicates")]
+    if command == "design":   # the design search's module (pymoo) is imported only when it is chosen
+        return resolve(f"{_STUDY}:design_sizes")(study, args)
     return []
 
 

@@ -12,6 +12,7 @@ import time
 
 from ...errors import InputError
 from ...io import check_writable
+from ...sizes import Size
 from ...study.montecarlo import cell_job
 from .commands import scheme_option
 from .config import Study, check_filter
@@ -77,3 +78,22 @@ def report_command(study: Study, args: argparse.Namespace) -> int:
     out = report_from_results(study.config, args.results)
     print(f"platcal report: -> {out}")
     return 0
+
+
+SECONDS_PER_DESIGN_SECOND = 2e-4
+"""CPU seconds the design search takes per candidate position-second (population x generations x
+positions x dwell_s; an upper bound: the search caches repeated position runs), measured by
+benchmarks/size_estimate.py (population 8, 1 and 4 generations, 6 x 60 s: 0.85 CPU s over 8640,
+9.8e-5; load 4 on 2 cores), rounded up 2x for the load's noise."""
+
+
+def design_sizes(study: Study, args: argparse.Namespace) -> list[Size]:
+    """The design search's work (:mod:`platcal.sizes`): its candidate position-seconds (population
+    x generations x positions x dwell_s) x :data:`SECONDS_PER_DESIGN_SECOND`; it holds little."""
+    dcfg = design_config(study.config, population=args.population, generations=args.generations,
+                         positions=args.positions)
+    field = "--generations" if args.generations else "design.generations"
+    work = float(dcfg["population"]) * float(dcfg["generations"]) * dcfg["positions"] * dcfg["dwell_s"]
+    return [Size(field, work, 0, 1, f"the search's population {dcfg['population']} x {dcfg['generations']} "
+                 f"generations x {dcfg['positions']} positions x {dcfg['dwell_s']:g} s dwell",
+                 SECONDS_PER_DESIGN_SECOND, unit="candidate position-seconds")]

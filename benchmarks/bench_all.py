@@ -73,11 +73,11 @@ class Clock:
 def centrifuge(B: int, repeat: int) -> dict:
     """The centrifuge's EKF, Table 1 scheme 6 x 60 s (bench_filter's case)."""
     from platcal.model.frames import DEG
-    from platcal.rigs.centrifuge.ekf import run_ekf
+    from platcal.rigs.centrifuge.ekf import EstimatorInput, run_ekf
 
     scheme, params, settings, z, t = bench_filter.table1_case(B)
-    run_ekf([zk[:, :20] for zk in z], [tk[:20] for tk in t], scheme.angles_deg, params, settings)
-    tp, est = best_time(lambda: run_ekf(z, t, scheme.angles_deg, params, settings), repeat)
+    run_ekf(EstimatorInput([zk[:, :20] for zk in z], [tk[:20] for tk in t], scheme.angles_deg, params), settings)
+    tp, est = best_time(lambda: run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), settings), repeat)
     with Clock() as clock:
         x_fp, _ = bench_filter.filterpy_run([zk[0] for zk in z], t, scheme.angles_deg * DEG, params, settings)
     tf = clock.times

@@ -32,16 +32,23 @@ def child(dwell: float, B: int, kinds: list[str], out: str) -> None:
     """One round in this process (the tree on PYTHONPATH): per kind, the best of two calls,
     wall and CPU s per replicate, as JSON on stdout; the estimates into ``out`` (npz)."""
     from bench_filter import table1_case
+    from platcal.rigs.centrifuge import ekf
     from platcal.rigs.centrifuge.estimators import KINDS
+
+    def run(kind, z, t):
+        # a tree from before issue 19 takes the four arrays of ekf.EstimatorInput one by one
+        if hasattr(ekf, "EstimatorInput"):
+            return KINDS[kind].run(ekf.EstimatorInput(z, t, scheme.angles_deg, params), settings)
+        return KINDS[kind].run(z, t, scheme.angles_deg, params, settings)
 
     scheme, params, settings, z, t = table1_case(B, dwell)
     res, arrays = {}, {}
     for kind in kinds:
-        KINDS[kind].run([zk[:1, :20] for zk in z], [tk[:20] for tk in t], scheme.angles_deg, params, settings)
+        run(kind, [zk[:1, :20] for zk in z], [tk[:20] for tk in t])
         wall = cpu = np.inf
         for _ in range(2):
             t0, c0 = time.perf_counter(), time.process_time()
-            est = KINDS[kind].run(z, t, scheme.angles_deg, params, settings)
+            est = run(kind, z, t)
             wall = min(wall, time.perf_counter() - t0)
             cpu = min(cpu, time.process_time() - c0)
         res[kind] = (wall / B, cpu / B)

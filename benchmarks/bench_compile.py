@@ -28,7 +28,7 @@ import numpy as np
 def warm_centrifuge() -> None:
     from platcal.rigs.centrifuge.base import Centrifuge
     from platcal.rigs.centrifuge.catalogue import full_truth
-    from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
+    from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, run_ekf
     from platcal.rigs.centrifuge.estimators import KINDS
     from platcal.scheme import TABLE1_POSITIONS
     from platcal.rigs.centrifuge.simulate import Noise, simulate
@@ -41,8 +41,9 @@ def warm_centrifuge() -> None:
     d = simulate(truth, sch, params, Noise(), [np.random.SeedSequence([1, i]) for i in range(2)], keep_every=4)
     z, t = [d.A[:, k, 1:] for k in range(2)], [d.t[1:]] * 2
     for kind in KINDS:  # the registry's estimators (ekf, iekf, ukf, ml), as the study runs them
-        KINDS[kind].run(z, t, sch.angles_deg, params, settings)
-    run_ekf([None] * 2, t, sch.angles_deg, params, settings, linearise_about=np.repeat(truth[None], 2, axis=0))
+        KINDS[kind].run(EstimatorInput(z, t, sch.angles_deg, params), settings)
+    run_ekf(EstimatorInput([None] * 2, t, sch.angles_deg, params), settings,
+            linearise_about=np.repeat(truth[None], 2, axis=0))
 
 
 def warm_multiposition() -> None:

@@ -40,6 +40,7 @@ from platcal.model.instruments import N_FULL, N_IDENTIFIED
 from platcal.parallel import get_threads, set_threads
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.catalogue import full_truth
+from platcal.rigs.centrifuge import ekf as centrifuge_ekf
 from platcal.rigs.centrifuge.ekf import FilterSettings, _structure, first_instant, run_ekf
 from platcal.rigs.centrifuge.estimators import KINDS
 from platcal.scheme import check_scheme
@@ -201,19 +202,22 @@ def main(argv=None) -> None:
     # the filter's default instants: period, 2 period, ... < dwell (docs/centrifuge-model.md §14)
     i0 = first_instant(settings.update_at_reset)
 
+    def record(data, B):
+        return centrifuge_ekf.EstimatorInput([data.A[:B, k, i0:] for k in range(K)], [data.t[i0:]] * K,
+                                             scheme.angles_deg, params)
+
     def ekf(data, B):
-        return run_ekf([data.A[:B, k, i0:] for k in range(K)], [data.t[i0:]] * K, scheme.angles_deg, params,
-                       settings)
+        return run_ekf(record(data, B), settings)
 
     def estimator(kind, data, B):
-        return KINDS[kind].run([data.A[:B, k, i0:] for k in range(K)], [data.t[i0:]] * K, scheme.angles_deg,
-                               params, settings)
+        return KINDS[kind].run(record(data, B), settings)
 
     # compile (numba caches on disk; the first call of a process still loads and links)
     warm = check_scheme("w", {"dwell_s": 0.2, "positions": [list(p) for p in TABLE1_POSITIONS[:2]]})
     wd = simulate(truth, warm, cen.scheme_params(warm), Noise(), seeds[:2], keep_every=keep)
-    run_ekf([wd.A[:, k] for k in range(2)], [wd.t] * 2, warm.angles_deg, cen.scheme_params(warm), settings)
-    run_ekf([None] * 2, [wd.t] * 2, warm.angles_deg, cen.scheme_params(warm), settings,
+    wparams = cen.scheme_params(warm)
+    run_ekf(centrifuge_ekf.EstimatorInput([wd.A[:, k] for k in range(2)], [wd.t] * 2, warm.angles_deg, wparams), settings)
+    run_ekf(centrifuge_ekf.EstimatorInput([None] * 2, [wd.t] * 2, warm.angles_deg, wparams), settings,
             linearise_about=np.repeat(truth[None], 2, axis=0))
 
     peak = matmul_peak()
@@ -265,8 +269,8 @@ def main(argv=None) -> None:
     cmd[:, :, 2] = rng.integers(0, 360, (P, K))
     lin = np.repeat(truth[None], P, axis=0)
     cov_settings = FilterSettings(history_every_s=None)
-    tc, cc, _ = best_times(lambda: run_ekf([None] * K, [data.t[i0:]] * K, cmd, params, cov_settings,
-                                           linearise_about=lin), args.repeat)
+    cov_input = centrifuge_ekf.EstimatorInput([None] * K, [data.t[i0:]] * K, cmd, params)
+    tc, cc, _ = best_times(lambda: run_ekf(cov_input, cov_settings, linearise_about=lin), args.repeat)
 
     print()
     print("| run | B | wall s per replicate | CPU s per replicate | replicates/s (wall) "

@@ -25,7 +25,7 @@ import numpy as np
 from platcal.parallel import get_threads, set_threads
 from platcal.rigs.centrifuge.base import Centrifuge
 from platcal.rigs.centrifuge.catalogue import full_truth
-from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
+from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, run_ekf
 from platcal.scheme import check_scheme
 from platcal.scheme import TABLE1_POSITIONS
 from platcal.rigs.centrifuge.simulate import Noise, simulate
@@ -63,9 +63,10 @@ def main() -> None:
     fs = FilterSettings(history_every_s=None)
     print(f"load average at start: {os.getloadavg()[0]:.2f}; numba threads {get_threads()}; "
           f"Table 1, {K} x {args.dwell:g} s, {int(keep.sum())} filter instants per position")
-    runs = [("ekf (1 pass)", lambda zz: run_ekf(zz, t, scheme.angles_deg, params, fs)),
-            ("ukf (update)", lambda zz: run_ukf(zz, t, scheme.angles_deg, params, fs)),
-            ("ukf nonlinear", lambda zz: run_ukf(zz, t, scheme.angles_deg, params, fs, sigma_points="nonlinear"))]
+    runs = [("ekf (1 pass)", lambda zz: run_ekf(EstimatorInput(zz, t, scheme.angles_deg, params), fs)),
+            ("ukf (update)", lambda zz: run_ukf(EstimatorInput(zz, t, scheme.angles_deg, params), fs)),
+            ("ukf nonlinear", lambda zz: run_ukf(EstimatorInput(zz, t, scheme.angles_deg, params), fs,
+                                                 sigma_points="nonlinear"))]
     for _, fn in runs:  # compile / load from cache
         fn([zk[:1] for zk in z])
         fn(z)
@@ -79,8 +80,10 @@ def main() -> None:
             print(f"B = {B}: {name:14s} wall {wall / B:.4f} s, CPU {cpu / B:.4f} s per replicate")
     if args.full:
         z1 = [zk[:1] for zk in z]
-        run_ukf([zk[:, :2] for zk in z1], [tk[:2] for tk in t], scheme.angles_deg, params, fs, sigma_points="all")
-        wall, cpu = best_times(lambda: run_ukf(z1, t, scheme.angles_deg, params, fs, sigma_points="all"), 1)
+        run_ukf(EstimatorInput([zk[:, :2] for zk in z1], [tk[:2] for tk in t], scheme.angles_deg, params), fs,
+                sigma_points="all")
+        wall, cpu = best_times(lambda: run_ukf(EstimatorInput(z1, t, scheme.angles_deg, params), fs, sigma_points="all"),
+                               1)
         print(f"B = 1: ukf (2n+1 all)  wall {wall:.4f} s, CPU {cpu:.4f} s per replicate "
               f"({cpu / cpu1['ekf (1 pass)']:.1f}x one EKF pass)")
     print(f"load average at end: {os.getloadavg()[0]:.2f}")

@@ -30,7 +30,7 @@ from scipy.stats import chi2
 from platcal.estimation.consistency import nees
 from platcal.parallel import set_threads
 from platcal.rigs.centrifuge.config import load_config
-from platcal.rigs.centrifuge.ekf import first_instant, run_ekf, run_iekf
+from platcal.rigs.centrifuge.ekf import EstimatorInput, first_instant, run_ekf, run_iekf
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 from platcal.study.montecarlo import replicate_seed
 
@@ -68,7 +68,7 @@ def run_variant(fn, opts, passes, fs, sim, scheme, params, batch, positions=None
     for a in range(0, B, batch):
         z = [sim.A[a:a + batch, k, i0:] for k in range(K)]
         t0, c0 = time.perf_counter(), time.process_time()
-        est = fn(z, [sim.t[i0:]] * K, scheme.angles_deg[:K], params[:K] if params.ndim == 2 else params,
+        est = fn(EstimatorInput(z, [sim.t[i0:]] * K, scheme.angles_deg[:K], params[:K] if params.ndim == 2 else params),
                  replace(fs, passes=passes), **opts)
         wall += time.perf_counter() - t0
         cpu += time.process_time() - c0

@@ -40,7 +40,7 @@ from platcal.estimation.consistency import nees, nees_band
 from platcal.model.instruments import FULL_NAMES
 from platcal.rigs.centrifuge import observability as ob
 from platcal.rigs.centrifuge.config import load_config
-from platcal.rigs.centrifuge.ekf import run_ekf
+from platcal.rigs.centrifuge.ekf import EstimatorInput, run_ekf
 from platcal.rigs.centrifuge.ml import _Problem, solve_ml
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 from platcal.seeding import seed_sequence
@@ -94,8 +94,8 @@ def warm_up(study, scheme, params):
     for B in (1, 2):
         z = [np.ascontiguousarray(sim.A[:B, k, 1:20]) for k in range(K)]
         t = [sim.t[1:20]] * K
-        run_ekf(z, t, scheme.angles_deg, params, fs)
-        solve_ml(z, t, scheme.angles_deg, params, fs, start="zero", max_iter=1)
+        run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), fs)
+        solve_ml(EstimatorInput(z, t, scheme.angles_deg, params), fs, start="zero", max_iter=1)
 
 
 def main(argv=None):

@@ -22,7 +22,7 @@ from numba import njit
 from platcal.estimation.kalman import joseph_update_sparse, propagate_sparse, update_scratch
 from platcal.rigs.centrifuge.attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from platcal.rigs.centrifuge.base import specific_force_into
-from platcal.rigs.centrifuge.ekf import _structure, run_ekf
+from platcal.rigs.centrifuge.ekf import EstimatorInput, _structure, run_ekf
 
 from bench_filter import table1_case
 
@@ -101,13 +101,13 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=20000)
     args = ap.parse_args(argv)
     scheme, params, settings, z, tt = table1_case(1, 10.0)
-    run_ekf(z, tt, scheme.angles_deg, params, settings)
+    run_ekf(EstimatorInput(z, tt, scheme.angles_deg, params), settings)
     t0 = time.thread_time()
-    est = run_ekf(z, tt, scheme.angles_deg, params, settings)
+    est = run_ekf(EstimatorInput(z, tt, scheme.angles_deg, params), settings)
     whole = (time.thread_time() - t0) / sum(len(x) for x in tt) * 1e9
     for _ in range(4):
         t0 = time.thread_time()
-        run_ekf(z, tt, scheme.angles_deg, params, settings)
+        run_ekf(EstimatorInput(z, tt, scheme.angles_deg, params), settings)
         whole = min(whole, (time.thread_time() - t0) / sum(len(x) for x in tt) * 1e9)
 
     P = np.ascontiguousarray(est.P[0])

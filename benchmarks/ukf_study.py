@@ -40,7 +40,7 @@ from platcal.estimation.consistency import nees, nees_band
 from platcal.model.instruments import N_IDENTIFIED
 from platcal.parallel import set_threads
 from platcal.rigs.centrifuge.config import load_config
-from platcal.rigs.centrifuge.ekf import run_ekf
+from platcal.rigs.centrifuge.ekf import EstimatorInput, run_ekf
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 from platcal.rigs.centrifuge.ukf import run_ukf
 
@@ -129,7 +129,7 @@ def main() -> None:
         if n_full:
             sl = slice(0, n_full)
             c0 = time.process_time()
-            full = run_ukf([zk[sl] for zk in z], t, scheme.angles_deg, params, replace(fs, passes=1),
+            full = run_ukf(EstimatorInput([zk[sl] for zk in z], t, scheme.angles_deg, params), replace(fs, passes=1),
                            sigma_points="all")
             full_cpu = (time.process_time() - c0) / n_full
             sig = full.coef_sigma

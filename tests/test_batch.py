@@ -8,7 +8,7 @@ import pytest
 from platcal.estimation import kalman
 from platcal.rigs.centrifuge import attitude as platform
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
-from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf
+from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, run_ekf
 from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.parallel import get_threads, max_threads, set_threads, threads
 from platcal.scheme import check_scheme
@@ -38,8 +38,8 @@ def _sim(scheme, idx, truth=None):
 
 
 def _ekf(scheme, sim, settings, **kw):
-    return run_ekf([sim.A[:, k] for k in range(scheme.n_positions)], [sim.t] * scheme.n_positions,
-                   scheme.angles_deg, CEN.scheme_params(scheme), settings, **kw)
+    return run_ekf(EstimatorInput([sim.A[:, k] for k in range(scheme.n_positions)], [sim.t] * scheme.n_positions,
+                   scheme.angles_deg, CEN.scheme_params(scheme)), settings, **kw)
 
 
 def _close(a, b):
@@ -93,9 +93,9 @@ def test_covariance_only_batch_over_schemes_equals_one_by_one():
     t = np.arange(0.0, 2.0, 0.02)
     lin = np.repeat(full_truth()[None], B, axis=0)
     s = FilterSettings(history_every_s=None)
-    est = run_ekf([None] * K, [t] * K, cmd, CEN.params(), s, linearise_about=lin)
+    est = run_ekf(EstimatorInput([None] * K, [t] * K, cmd, CEN.params()), s, linearise_about=lin)
     for b in range(B):
-        one = run_ekf([None] * K, [t] * K, cmd[b], CEN.params(), s, linearise_about=lin[b:b + 1])
+        one = run_ekf(EstimatorInput([None] * K, [t] * K, cmd[b], CEN.params()), s, linearise_about=lin[b:b + 1])
         _close(one.P[0], est.P[b])
         _close(one.x[0], est.x[b])
     # different schemes really give different covariances
@@ -335,7 +335,8 @@ def test_sparse_batched_ekf_equals_dense_ekf(estimate_doo, first):
     s = FilterSettings(estimate_doo=estimate_doo, p0_sigma=default_p0_sigma(estimate_doo))
     t = sim.t[first:]
     assert t[0] == pytest.approx(0.02 * first)
-    est = run_ekf([sim.A[:, k, first:] for k in range(2)], [t] * 2, scheme.angles_deg, CEN.scheme_params(scheme), s)
+    est = run_ekf(EstimatorInput([sim.A[:, k, first:] for k in range(2)], [t] * 2, scheme.angles_deg,
+                                 CEN.scheme_params(scheme)), s)
     params = CEN.scheme_params(scheme)
     for b in range(2):
         x, P = _dense_ekf([sim.A[b, k, first:] for k in range(2)], [t] * 2, scheme.angles_deg * np.pi / 180,

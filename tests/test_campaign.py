@@ -14,7 +14,7 @@ from platcal.errors import InputError
 from platcal.estimation.information import marginal_information
 from platcal.io import read_config
 from platcal.rig import get_rig, rig_config
-from platcal.rigs.centrifuge.ekf import first_instant
+from platcal.rigs.centrifuge.ekf import EstimatorInput, first_instant
 from platcal.rigs.centrifuge.estimators import run_estimator
 from platcal.rigs.centrifuge.simulate import simulate as simulate_centrifuge
 from platcal.rigs.multiposition.config import make_scheme
@@ -197,10 +197,10 @@ def test_sequential_centrifuge_equals_one_filter_over_both_records():
 
     (z1, t1), (z2, t2) = record(s1, 1), record(s2, 2)
     nc = fs.coef_index.size
-    e1 = run_estimator(z1, t1, s1.angles_deg, study.centrifuge.scheme_params(s1), fs)
+    e1 = run_estimator(EstimatorInput(z1, t1, s1.angles_deg, study.centrifuge.scheme_params(s1)), fs)
     fs2 = replace(fs, prior_x=e1.x[:, :nc], prior_P=e1.P[:, :nc, :nc])
-    es = run_estimator(z2, t2, s2.angles_deg, study.centrifuge.scheme_params(s2), fs2)
-    ej = run_estimator(z1 + z2, t1 + t2, both.angles_deg, study.centrifuge.scheme_params(both), fs)
+    es = run_estimator(EstimatorInput(z2, t2, s2.angles_deg, study.centrifuge.scheme_params(s2)), fs2)
+    ej = run_estimator(EstimatorInput(z1 + z2, t1 + t2, both.angles_deg, study.centrifuge.scheme_params(both)), fs)
     sig = np.sqrt(np.diagonal(ej.P[:, :nc, :nc], axis1=1, axis2=2))
     assert np.all(np.abs(es.x[:, :nc] - ej.x[:, :nc]) <= 0.01 * sig)
     assert np.all(np.abs(np.sqrt(np.diagonal(es.P[:, :nc, :nc], axis1=1, axis2=2)) - sig) <= 0.01 * sig)

@@ -203,3 +203,21 @@ def test_table2_claims_take_the_larger_run_of_the_papers_cell(tmp_path, compare_
     assert np.all(ev.samples == expected)
     assert ev.settings.startswith("comparison, ") == (expected == 1.0)
     assert f"{len(ev.samples)} replicates" in ev.settings
+
+
+def test_the_ledger_for_people_puts_the_verdict_by_the_claim_and_rounds():
+    from platcal.study.claims import ledger_for_people
+    from platcal.study.tables import frame_html
+
+    rows = pd.DataFrame([{"rig": "r", "claim": "c", "source": "s", "statement": "st", "paper": "<= 2.67 %",
+                          "measured": 2.066941, "ci_low": 1.907048, "ci_high": 2.310652, "unit": "%",
+                          "criterion": "median <= 2.67", "verdict": REPRODUCED, "settings": "x"},
+                         {"rig": "r", "claim": "d", "source": "s", "statement": "st", "paper": "1",
+                          "measured": np.nan, "ci_low": np.nan, "ci_high": np.nan, "unit": "",
+                          "criterion": "value == 1", "verdict": INCONCLUSIVE, "settings": "not run"}])
+    shown = ledger_for_people(rows)
+    assert list(shown.columns[:5]) == ["rig", "claim", "verdict", "measured", "95 % interval"]
+    assert shown.loc[0, "measured"] == "2.07 %" and shown.loc[0, "95 % interval"] == "[1.91, 2.31]"
+    assert shown.loc[1, "measured"] == "-" and shown.loc[1, "95 % interval"] == "-"
+    html = frame_html(shown, "t")
+    assert "td:nth-child(3)" in html  # text columns left-aligned

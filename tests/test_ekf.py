@@ -8,7 +8,7 @@ import pytest
 
 from platcal.rigs.centrifuge.config import load_config
 from platcal.estimation.consistency import nees
-from platcal.rigs.centrifuge.ekf import filter_times, first_instant, run_ekf
+from platcal.rigs.centrifuge.ekf import EstimatorInput, filter_times, first_instant, run_ekf
 from platcal.rigs.centrifuge.identify import simulate_identify
 from platcal.model.instruments import INDEX, NAMES
 from platcal.rigs.centrifuge.catalogue import full_truth, load_catalogue
@@ -31,7 +31,7 @@ def run(study, truth, seeds, passes, scheme="table1", filt=None):
     fs = replace(filt or study.filter, passes=passes)
     K = sch.n_positions
     i0 = first_instant(fs.update_at_reset)  # the spec: no update with the sample at the reset
-    return run_ekf([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, sch.angles_deg, params, fs)
+    return run_ekf(EstimatorInput([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, sch.angles_deg, params), fs)
 
 
 @pytest.mark.parametrize("update_at_reset", [False, True])
@@ -49,8 +49,8 @@ def test_simulate_identify_selects_the_spec_instants(study, update_at_reset):
     assert sim.t[0] == 0.0 and sim.t.size == 20
     t = filter_times(0.4, 0.02, update_at_reset)
     np.testing.assert_allclose(t, sim.t[first_instant(update_at_reset):], rtol=0, atol=1e-15)
-    ref = run_ekf([sim.A[:, k, 20 - t.size:] for k in range(sch.n_positions)], [t] * sch.n_positions,
-                  sch.angles_deg, params, fs)
+    ref = run_ekf(EstimatorInput([sim.A[:, k, 20 - t.size:] for k in range(sch.n_positions)], [t] * sch.n_positions,
+                  sch.angles_deg, params), fs)
     assert np.array_equal(est.x, ref.x) and np.array_equal(est.P, ref.P)
     # one history entry per update: 19 (0.02 .. 0.38 s) or 20 (0 .. 0.38 s) per position
     assert est.history_t.size == sch.n_positions * t.size

@@ -8,7 +8,7 @@ from platcal.rigs.centrifuge import attitude as platform
 from platcal.parallel import threads
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.catalogue import full_truth
-from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf, run_iekf
+from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, run_ekf, run_iekf
 from platcal.scheme import check_scheme
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 
@@ -82,7 +82,7 @@ def _dense_iekf(z, t, cmd_rad, params, s: FilterSettings, iterations, tol, until
 def test_sparse_iekf_equals_dense_definition(iterations, tol, until_s):
     scheme, z, t = _data()
     s = FilterSettings(history_every_s=None)
-    est = run_iekf(z, t, scheme.angles_deg, CEN.scheme_params(scheme), s, iterations=iterations, tol=tol,
+    est = run_iekf(EstimatorInput(z, t, scheme.angles_deg, CEN.scheme_params(scheme)), s, iterations=iterations, tol=tol,
                    until_s=until_s)
     for b in range(2):
         x, P = _dense_iekf([zk[b] for zk in z], t, scheme.angles_deg * np.pi / 180, CEN.scheme_params(scheme), s,
@@ -98,13 +98,13 @@ def test_one_linearisation_is_the_ekf_and_iterating_changes_the_numbers():
     scheme, z, t = _data()
     s = FilterSettings(history_every_s=None)
     params = CEN.scheme_params(scheme)
-    ekf = run_ekf(z, t, scheme.angles_deg, params, s)
-    one = run_iekf(z, t, scheme.angles_deg, params, s, iterations=1)
+    ekf = run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), s)
+    one = run_iekf(EstimatorInput(z, t, scheme.angles_deg, params), s, iterations=1)
     assert np.array_equal(ekf.x, one.x) and np.array_equal(ekf.P, one.P)
-    three = run_iekf(z, t, scheme.angles_deg, params, s, iterations=3)
+    three = run_iekf(EstimatorInput(z, t, scheme.angles_deg, params), s, iterations=3)
     assert not np.allclose(three.x, ekf.x, rtol=1e-9, atol=0)
     # never iterating (the window closes before the first instant) is the EKF again
-    none = run_iekf(z, t, scheme.angles_deg, params, s, iterations=3, until_s=0.01)
+    none = run_iekf(EstimatorInput(z, t, scheme.angles_deg, params), s, iterations=3, until_s=0.01)
     assert np.array_equal(none.x, ekf.x)
 
 
@@ -114,8 +114,8 @@ def test_iekf_batch_and_threads_change_nothing():
     params = CEN.scheme_params(scheme)
     kw = dict(iterations=3, tol=1e-3, ratio=1e-4)
     with threads(2):
-        full = run_iekf(z, t, scheme.angles_deg, params, s, **kw)
+        full = run_iekf(EstimatorInput(z, t, scheme.angles_deg, params), s, **kw)
     with threads(1):
         for b in range(3):
-            one = run_iekf([zk[b:b + 1] for zk in z], t, scheme.angles_deg, params, s, **kw)
+            one = run_iekf(EstimatorInput([zk[b:b + 1] for zk in z], t, scheme.angles_deg, params), s, **kw)
             assert np.array_equal(one.x[0], full.x[b]) and np.array_equal(one.P[0], full.P[b])

@@ -16,7 +16,7 @@ from platcal.parallel import threads
 from platcal.rigs.centrifuge import ml
 from platcal.rigs.centrifuge import observability as ob
 from platcal.rigs.centrifuge.config import load_config
-from platcal.rigs.centrifuge.ekf import default_p0_sigma
+from platcal.rigs.centrifuge.ekf import EstimatorInput, default_p0_sigma
 from platcal.scheme import Scheme
 from platcal.rigs.centrifuge.simulate import simulate
 
@@ -127,7 +127,7 @@ def test_noise_free_record_is_recovered(study):
     sch, params, z, t, sim = _record(study, study.schemes["table1"].positions, 6.0, None, sample_s=0.02,
                                      keep_every=1)
     fs = replace(study.filter, sigma_a_ug=1e-3, arw_deg_rth=0.0, history_every_s=None)
-    est, info = ml.solve_ml(z, t, sch.angles_deg, params, fs, start="zero")
+    est, info = ml.solve_ml(EstimatorInput(z, t, sch.angles_deg, params), fs, start="zero")
     assert info.converged[0] and info.steps[0] <= 6
     np.testing.assert_allclose(est.coef[0], study.truth[:45], rtol=1e-6)
     np.testing.assert_allclose(est.x[0, 45:], sch.angles_deg[-1] * DEG, atol=1e-9)
@@ -137,7 +137,7 @@ def test_noise_free_record_is_recovered(study):
 def test_covariance_is_the_inverse_information_and_pd(study):
     sch, params, z, t, _ = _record(study, SHORT, 2.0, np.random.SeedSequence(11).spawn(1))
     fs = replace(study.filter, history_every_s=None)
-    est, info = ml.solve_ml(z, t, sch.angles_deg, params, fs, start="zero")
+    est, info = ml.solve_ml(EstimatorInput(z, t, sch.angles_deg, params), fs, start="zero")
     prob = ml._Problem(z, t, sch.angles_deg, params, fs)
     N, _, _ = prob.evaluate(info.theta, np.array([0]))
     s = prob.prior_sigma
@@ -158,10 +158,10 @@ def test_batch_and_threads_bit_identical(study):
     sch, params, z, t, _ = _record(study, SHORT, 1.0, np.random.SeedSequence(2).spawn(3))
     fs = replace(study.filter, history_every_s=None)
     with threads(min(2, numba.config.NUMBA_NUM_THREADS)):
-        whole = ml.run_ml(z, t, sch.angles_deg, params, fs, start="zero")
+        whole = ml.run_ml(EstimatorInput(z, t, sch.angles_deg, params), fs, start="zero")
     for b in range(3):
         with threads(1):
-            one = ml.run_ml([zk[b:b + 1] for zk in z], t, sch.angles_deg, params, fs, start="zero")
+            one = ml.run_ml(EstimatorInput([zk[b:b + 1] for zk in z], t, sch.angles_deg, params), fs, start="zero")
         np.testing.assert_array_equal(one.x[0], whole.x[b])
         np.testing.assert_array_equal(one.P[0], whole.P[b])
 
@@ -190,15 +190,16 @@ def test_covariance_agrees_with_observability_crb(study):
     sim = simulate(study.truth, sch, params, study.noise, seeds, sample_s=study.sample_s, keep_every=study.keep_every)
     idx = np.searchsorted(sim.t, setup.times - 1e-9)  # the record's samples at the filter instants
     np.testing.assert_allclose(sim.t[idx], setup.times, atol=1e-9)
-    est = ml.run_ml([sim.A[:, k][:, idx] for k in range(K)], t, sch.angles_deg, params, setup.filter, start="zero")
+    est = ml.run_ml(EstimatorInput([sim.A[:, k][:, idx] for k in range(K)], t, sch.angles_deg, params), setup.filter,
+                    start="zero")
     np.testing.assert_allclose(est.coef_sigma[0], np.sqrt(np.diag(crb)), rtol=1e-2)
 
 
 def test_damped_and_ekf_starts_reach_the_same_estimate(study):
     sch, params, z, t, _ = _record(study, SHORT, 1.0, np.random.SeedSequence(8).spawn(1))
     fs = replace(study.filter, history_every_s=None)
-    a, ia = ml.solve_ml(z, t, sch.angles_deg, params, fs, start="zero", tol=1e-3)
-    b, ib = ml.solve_ml(z, t, sch.angles_deg, params, fs, start="ekf", damping=True, tol=1e-3)
+    a, ia = ml.solve_ml(EstimatorInput(z, t, sch.angles_deg, params), fs, start="zero", tol=1e-3)
+    b, ib = ml.solve_ml(EstimatorInput(z, t, sch.angles_deg, params), fs, start="ekf", damping=True, tol=1e-3)
     assert ia.converged[0] and ib.converged[0]
     # both stop within 1e-3 posterior sigma of the optimum
     assert np.max(np.abs(a.coef[0] - b.coef[0]) / a.coef_sigma[0]) < 2e-3
@@ -209,9 +210,9 @@ def test_coarse_start_and_one_step_agree_with_the_converged_map(study):
     (b) one Gauss-Newton step: within 1e-3 sigma of it, same covariance to 1e-3 (measured 5e-5, 2e-5)."""
     sch, params, z, t, _ = _record(study, SHORT, 2.0, np.random.SeedSequence(12).spawn(2))
     fs = replace(study.filter, history_every_s=None)
-    ref, iref = ml.solve_ml(z, t, sch.angles_deg, params, fs, tol=1e-4)
-    c, ic = ml.solve_ml(z, t, sch.angles_deg, params, fs, tol=1e-4, coarse=4)
-    o, io = ml.solve_ml(z, t, sch.angles_deg, params, fs, coarse=4, final="one-step")
+    ref, iref = ml.solve_ml(EstimatorInput(z, t, sch.angles_deg, params), fs, tol=1e-4)
+    c, ic = ml.solve_ml(EstimatorInput(z, t, sch.angles_deg, params), fs, tol=1e-4, coarse=4)
+    o, io = ml.solve_ml(EstimatorInput(z, t, sch.angles_deg, params), fs, coarse=4, final="one-step")
     assert np.all(ic.coarse_steps >= 1) and np.all(ic.converged) and np.all(io.evaluations == 1)
     assert np.max(np.abs(c.coef - ref.coef) / ref.coef_sigma) < 1e-3
     assert np.max(np.abs(o.coef - ref.coef) / ref.coef_sigma) < 1e-3
@@ -225,7 +226,7 @@ def test_bad_options_are_refused(study, opts, field):
     fs = replace(study.filter, history_every_s=None)
     z = [np.zeros((1, 2, 3))]
     with pytest.raises(InputError) as err:
-        ml.run_ml(z, [np.array([0.02, 0.04])], np.zeros((1, 3)), study.centrifuge.params(), fs, **opts)
+        ml.run_ml(EstimatorInput(z, [np.array([0.02, 0.04])], np.zeros((1, 3)), study.centrifuge.params()), fs, **opts)
     assert field in str(err.value)
 
 
@@ -233,7 +234,7 @@ def test_estimate_doo_runs_with_48_coefficients(study):
     """With estimate_doo the DOO terms join the gyro sensitivities (51 states in the Estimate)."""
     sch, params, z, t, _ = _record(study, SHORT, 0.5, np.random.SeedSequence(6).spawn(1))
     fs = replace(study.filter, estimate_doo=True, p0_sigma=default_p0_sigma(True), history_every_s=None)
-    est = ml.run_ml(z, t, sch.angles_deg, params, fs)
+    est = ml.run_ml(EstimatorInput(z, t, sch.angles_deg, params), fs)
     assert est.x.shape == (1, 51) and est.names[45:48] == ("DOO_x", "DOO_y", "DOO_z")
     assert np.linalg.eigvalsh(est.P[0] / np.sqrt(np.outer(np.diag(est.P[0]), np.diag(est.P[0])))).min() > 0
     # DOO is not separable from DF at one g level: its sigma stays near its prior
@@ -243,4 +244,5 @@ def test_estimate_doo_runs_with_48_coefficients(study):
 def test_zero_measurement_noise_is_refused(study):
     fs = replace(study.filter, sigma_a_ug=0.0, history_every_s=None)
     with pytest.raises(InputError, match="filter.sigma_a_ug"):
-        ml.run_ml([np.zeros((1, 2, 3))], [np.array([0.02, 0.04])], np.zeros((1, 3)), study.centrifuge.params(), fs)
+        ml.run_ml(EstimatorInput([np.zeros((1, 2, 3))], [np.array([0.02, 0.04])], np.zeros((1, 3)),
+                                 study.centrifuge.params()), fs)

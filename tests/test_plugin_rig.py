@@ -92,6 +92,13 @@ def test_a_rig_from_another_package_runs_through_the_generic_rules(tmp_path):
     assert (res / "toy" / "figures" / "nees.png").stat().st_size > 5_000
     assert "toy" in (res / "report.md").read_text()
     assert (res / "claims.csv").exists()
+    # every job's benchmark file is summed in the index's "Where the time goes" (one job per cell)
+    timing = pd.read_csv(res / "timing.csv").set_index(["rig", "rule"])
+    cells = len(list((res / "toy" / "runs").glob("*/*/*/coef.parquet")))
+    assert cells == 2 and timing.loc[("toy", "montecarlo_cell"), "jobs"] == cells
+    assert timing.loc[("toy", "montecarlo_cell"), "wall_s"] > 0
+    assert {"collect", "generic_report", "claims"} <= set(timing.loc["toy"].index)
+    assert "## Where the time goes" in (res / "report.md").read_text()
     # nothing of the project names the toy rig
     assert "toy" not in (ROOT / "Snakefile").read_text()
     assert not any("toy" in f.read_text() for f in (ROOT / "workflow" / "rules").glob("*.smk"))

@@ -22,7 +22,7 @@ from platcal.rigs.centrifuge import ukf
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.rigs.centrifuge.attitude import make_sc_rk4_scratch
-from platcal.rigs.centrifuge.ekf import FilterSettings, propagate_attitude
+from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, propagate_attitude
 from platcal.scheme import check_scheme
 from platcal.scheme import TABLE1_POSITIONS
 from platcal.rigs.centrifuge.simulate import Noise, simulate
@@ -193,7 +193,7 @@ def _record(dwell, reps, noise=Noise()):
 
 def _run(scheme, z, t, settings=None, **opts):
     settings = settings or FilterSettings(history_every_s=None)
-    return ukf.run_ukf(z, t, scheme.angles_deg, CEN.scheme_params(scheme), settings, **opts)
+    return ukf.run_ukf(EstimatorInput(z, t, scheme.angles_deg, CEN.scheme_params(scheme)), settings, **opts)
 
 
 @pytest.fixture(scope="module")
@@ -206,7 +206,7 @@ def short():
 def _state_after(short, m=40):
     """A state with correlated P: the default UKF over the first m instants of position 1."""
     scheme, z, t, _ = short
-    sub = ukf.run_ukf([z[0][:1, :m]], [t[0][:m]], scheme.angles_deg[:1], CEN.scheme_params(scheme)[:1],
+    sub = ukf.run_ukf(EstimatorInput([z[0][:1, :m]], [t[0][:m]], scheme.angles_deg[:1], CEN.scheme_params(scheme)[:1]),
                       FilterSettings(history_every_s=None))
     return sub.x[0].copy(), sub.P[0].copy(), t[0][m - 1] + 0.02, z[0][0, m]
 

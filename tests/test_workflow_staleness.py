@@ -40,17 +40,18 @@ def write_index(d: Path, rig: str, entry) -> None:
                                                 sort_keys=False))
 
 
-def scheduled(dry: str) -> list[str]:
-    """The outputs of the jobs a dry run schedules."""
-    return sorted({o.strip() for line in dry.splitlines() if line.strip().startswith("output:")
-                   for o in line.split("output:", 1)[1].split(",")})
+def scheduled(dry: str, kinds=("output:",)) -> list[str]:
+    """The outputs (``kinds``: and e.g. the benchmark files) of the jobs a dry run schedules."""
+    return sorted({o.strip() for line in dry.splitlines() for k in kinds if line.strip().startswith(k)
+                   for o in line.split(k, 1)[1].split(",")})
 
 
 def mark_done(d: Path) -> list[str]:
     """Create every output of the study and record every job as done with its params
     (``--touch --forceall``); the outputs, sorted."""
-    outs = scheduled(smk(d, "-n", "--configfile", "index.yaml"))
-    for o in outs:
+    dry = smk(d, "-n", "--configfile", "index.yaml")
+    outs = scheduled(dry)
+    for o in scheduled(dry, ("output:", "benchmark:")):  # a job's benchmark file is one of its products
         (d / o).parent.mkdir(parents=True, exist_ok=True)
         (d / o).touch()
     smk(d, "--touch", "--forceall", "--cores", "1", "--configfile", "index.yaml")

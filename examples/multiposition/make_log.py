@@ -1,6 +1,6 @@
 """Write vendor_log.csv: a simulated run of config.yaml's scheme 'short' as a vendor's logger
-would record it (one clock in us, accelerations in mg, encoder angles in rad, 10-30 s slews at
-a constant rate between the dwells, two extra columns). Run from this folder."""
+would record it (a metadata header, one clock in us, accelerations in mg, encoder angles in rad,
+10-30 s slews at a constant rate between the dwells, two extra columns). Run from this folder."""
 
 import numpy as np
 import pandas as pd
@@ -54,4 +54,7 @@ if __name__ == "__main__":
     open("simulated.yaml", "w").write(yaml.safe_dump(plain))
     assert main(["simulate", "--config", "simulated.yaml", "--scheme", "short", "--seed", "1",
                  "--out", "simulated.csv"]) == 0
-    vendor(continuous(pd.read_csv("simulated.csv"))).to_csv("vendor_log.csv", index=False)
+    # the logger's header: three lines of metadata above the columns (record.header_lines)
+    meta = ("# MPT-3 multi-position table logger, firmware 1.4\n# test: scheme short, seed 1, one clock\n"
+            "# units: us, mg, rad\n")
+    open("vendor_log.csv", "w").write(meta + vendor(continuous(pd.read_csv("simulated.csv"))).to_csv(index=False))

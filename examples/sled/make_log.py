@@ -1,5 +1,6 @@
 """Write vendor_log.csv: a simulated sled run (config.yaml's trajectory) as a strapdown IMU logs it:
-increments per sample (delta-v m/s, delta-theta arcsec), time in ms, a status column. Run from
+a metadata header, increments per sample (delta-v m/s, delta-theta arcsec), time in ms, a status
+column. Run from
 this folder."""
 
 import numpy as np
@@ -21,4 +22,6 @@ if __name__ == "__main__":
         log[f"dv_{a}"] = df[f"f{a}"] * dts
         log[f"dth_{a}"] = np.rad2deg(df[f"w{a}"] * dts) * 3600.0
     log["status"] = 1
-    log.to_csv("vendor_log.csv", index=False)
+    # the IMU's header: two lines of metadata above the columns (record.header_lines)
+    meta = "# strapdown IMU log, unit S/N 1187, firmware 4.0\n# increments per sample: dv m/s, dth arcsec; time ms\n"
+    open("vendor_log.csv", "w").write(meta + log.to_csv(index=False))

@@ -1,10 +1,14 @@
 """The ``platcal`` command line: simulate, identify (and the study tools built on them).
 
 Every sub-command reads ``--config``, looks up the config's ``rig:`` (:mod:`platcal.rig`) and
-runs ``RIG.commands[<sub-command>](RIG.load_config(raw), args)``. The parser holds the common
+runs ``RIG.command(<sub-command>)(RIG.load_config(raw), args)``. The parser holds the common
 options (:data:`COMMON`) and the options the config's rig declares (``Rig.options``): any other
 option is refused, and ``--help`` with ``--config`` lists the rig's. Bad input exits with status
 2 and a message naming the field, before any output is written. No rig is named here.
+
+A command's module is imported when the command is chosen (the rigs' command tables and
+:data:`GENERIC_RUN` hold module paths, :func:`platcal.rig.resolve`): ``identify`` of one rig
+loads neither matplotlib nor the planner, the report or the design search (issue 22 item 3).
 """
 
 from __future__ import annotations
@@ -14,12 +18,11 @@ import re
 import sys
 
 
-from .errors import InputError, WriteError
+from .errors import EXIT_REFUSED, InputError, error_line
 from .io import read_config
 from .logs.calibration import read_calibration
-from .rig import COUNT, SEED, option, rig_of, whole
-from .sizes import MAX_MEMORY, check_sizes
-from .study import campaign
+from .rig import COUNT, SEED, option, resolve, rig_of, whole
+from .sizes import MAX_HOURS, MAX_MEMORY, check_sizes
 
 CONFIG_HELP = "study configuration (YAML); its 'rig:' selects the rig"
 COMMANDS = {
@@ -62,7 +65,8 @@ GENERIC = {
 }
 """Sub-commands of no one rig (no ``--config``): each asks the rigs its input names through
 their hooks (``plan``: :mod:`platcal.study.campaign`)."""
-GENERIC_RUN = {"plan": campaign.plan_command}
+GENERIC_RUN = {"plan": "platcal.study.campaign:plan_command"}
+"""The function of each generic sub-command, by module path (imported when it is chosen)."""
 
 
 class _ParseError(Exception):
@@ -101,7 +105,7 @@ def build_parser(rig=None) -> argparse.ArgumentParser:
         c = sub.add_parser(command, help=help_, description=help_, epilog=epilog)
         if command != "compensate":  # compensate applies the config the calibration was identified with
             c.add_argument("--config", required=True, help=CONFIG_HELP)
-        for opt in COMMON[command] + (MAX_MEMORY,) + tuple(own):
+        for opt in COMMON[command] + (MAX_MEMORY, MAX_HOURS) + tuple(own):
             c.add_argument(*opt.flags, **opt.kwargs)
     for command, (help_, options) in GENERIC.items():
         c = sub.add_parser(command, help=help_, description=help_)
@@ -136,9 +140,9 @@ def run(args: argparse.Namespace, raw: dict, rig) -> int:
     if getattr(args, "results", "") is None:
         args.results = f"results/{rig.name}"
     cfg = rig.load_config(raw)
-    if rig.sizes is not None:  # the data the inputs imply, refused before any allocation
-        check_sizes(rig.sizes(args.command, cfg, args), args.max_memory_gb)
-    return rig.commands[args.command](cfg, args)
+    if rig.sizes is not None:  # the memory and time the inputs imply, refused before any allocation
+        check_sizes(rig.sizes(args.command, cfg, args), args.max_memory_gb, args.max_hours)
+    return rig.command(args.command)(cfg, args)
 
 
 def main(argv=None) -> int:
@@ -151,22 +155,16 @@ def main(argv=None) -> int:
         rig = rig_of(raw) if raw is not None else None
         args = build_parser(rig).parse_args(argv)
         if args.command in GENERIC_RUN:
-            return GENERIC_RUN[args.command](args)
+            return resolve(GENERIC_RUN[args.command])(args)
         return run(args, raw, rig)
     except _ParseError as exc:
         where = (f"; 'platcal {command} --config {path} --help' lists the options of rig {rig.name!r}"
                  if rig and exc.unknown else "")
         print(f"platcal {command}: error: {exc}{where}", file=sys.stderr)
         return 2
-    except InputError as exc:
-        print(f"platcal {command}: error: {exc.field}: {exc.message}", file=sys.stderr)
-        return 2
-    except OSError as exc:  # a full disk, no permission: one line naming the path, not a traceback
-        done = ("; nothing was written under that name (the files already there are untouched)"
-                if isinstance(exc, WriteError) else "")
-        print(f"platcal {command}: error: {exc.filename or '(no path)'}: {exc.strerror or exc}{done}; "
-              "free space or fix the permissions and run again", file=sys.stderr)
-        return 2
+    except (InputError, OSError) as exc:  # bad input; a full disk, no permission: one line, not a traceback
+        print(f"platcal {command}: error: {error_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED
 
 
 if __name__ == "__main__":

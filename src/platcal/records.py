@@ -44,6 +44,16 @@ TRUTH_COLUMNS = ("alpha", "beta", "gamma")
 """The true gimbal angles (deg) of a simulated positioned-platform log."""
 
 
+def whole_group(columns, group: tuple[str, ...], what: str) -> bool:
+    """Whether a log's ``columns`` hold the optional ``group`` (e.g. the three true angles, named
+    ``what`` in the message); InputError naming the first missing column when only some do."""
+    present = [c for c in group if c in columns]
+    if present and len(present) != len(group):
+        raise InputError(f"--data column {[c for c in group if c not in columns][0]}",
+                         f"{what} come as all {len(group)} of {', '.join(group)} or not at all")
+    return bool(present)
+
+
 def num(v) -> int | float:
     """A plain Python number for messages (no ``np.float64(...)``, no float noise)."""
     v = float(f"{float(v):.10g}")  # no float noise such as 1.6500000000000001

@@ -26,7 +26,9 @@ What a rig must provide (the fields of :class:`Rig`)
   rig's schema) and return the rig's typed study object; bad input raises
   :class:`~platcal.errors.InputError` naming the field.
 - ``commands``: ``{"simulate": fn, "identify": fn, ...}``, each ``fn(cfg, args) -> int`` for
-  the ``platcal`` sub-command of that name; ``args`` is the parsed :mod:`argparse` namespace of
+  the ``platcal`` sub-command of that name, or its path ``"package.module:function"``
+  (:func:`resolve`; the CLI imports a command's module only when that command is chosen, so
+  ``identify`` does not load the report's, design's or study's libraries); ``args`` is the parsed :mod:`argparse` namespace of
   :func:`platcal.cli.build_parser` (a superset of every rig's options). A rig checks only the
   options it uses and refuses, with an InputError naming the option, one it requires and did
   not get (``--scheme``) or one it has no use for. Sub-commands a rig lacks are refused by the
@@ -124,6 +126,18 @@ def rig_modules() -> dict[str, str]:
 
 
 Command = Callable[[object, argparse.Namespace], int]
+
+
+def resolve(ref):
+    """``ref`` itself, or what a path names, imported now: ``"package.module:attribute"`` the
+    attribute, ``"package.module"`` the module. A rig names its commands and extras by path so
+    that choosing one imports only its module (issue 22 item 3: ``identify`` of one rig in little
+    memory)."""
+    if not isinstance(ref, str):
+        return ref
+    module, _, attr = ref.partition(":")
+    found = importlib.import_module(module)
+    return getattr(found, attr) if attr else found
 
 
 @dataclass(frozen=True)
@@ -303,11 +317,12 @@ class Rig:
     title: str
     spec: str
     load_config: Callable[[dict], object]
-    commands: Mapping[str, Command]
+    commands: Mapping[str, Command | str]
     catalogue: Callable[[], pd.DataFrame]
     estimators: tuple[str, ...] = ()
     extras: Mapping[str, object] = field(default_factory=dict)
-    """Optional capabilities by name (e.g. ``information`` for covariance-only analysis)."""
+    """Optional capabilities by name (e.g. ``information`` for covariance-only analysis), each
+    the object or its ``"package.module:attribute"`` path (:meth:`extra`)."""
     montecarlo: MonteCarloHooks | None = None
     """The Monte Carlo hooks (optional; see the module docstring)."""
     options: Mapping[str, tuple[Option, ...]] = field(default_factory=dict)
@@ -320,6 +335,14 @@ class Rig:
     rules: str | None = None
     """Path of the rig's own Snakemake rules file, when it ships one outside the project's
     ``workflow/rules/<name>.smk``; a rig with Monte Carlo hooks needs none."""
+
+    def command(self, name: str) -> Command:
+        """The sub-command ``name`` (its module imported now, :func:`resolve`)."""
+        return resolve(self.commands[name])
+
+    def extra(self, name: str, default=None):
+        """The capability ``name`` of :attr:`extras` (imported now, :func:`resolve`), else ``default``."""
+        return resolve(self.extras[name]) if name in self.extras else default
 
 
 def rig_config(index: dict, name: str) -> dict:

@@ -1,19 +1,25 @@
-"""Sizes before allocation: the memory a command's inputs imply, refused past a limit the user sets.
+"""Sizes before allocation: the memory and time a command's inputs imply, refused past limits the
+user sets (issue 25 item 3).
 
-Every rig gives :attr:`platcal.rig.Rig.sizes`, ``sizes(command, cfg, args) -> list[Size]``: for
-the data a command would hold whose size follows from its inputs (a dwell, a run length,
-replicates): the samples, the float64 values held per sample (the rig's peak resident memory per
-sample, measured by ``benchmarks/size_estimate.py``), the replicates held at once, and the config
-key or option that drives it. :func:`check_sizes` multiplies them out (8 bytes a value) and
-refuses, before any allocation, one above ``--max-memory-gb`` (InputError naming the driving
-field: exit 2), so a dwell of a day is a clear message, not a ``MemoryError`` traceback or a
-machine swapping for an hour. The fixed cost of Python, numpy and numba (about 0.35 GB) is not
-counted.
+Every rig gives :attr:`platcal.rig.Rig.sizes`, ``sizes(command, cfg, args) -> list[Size]``, for
+every command: for the work whose size follows from its inputs (a dwell, a run length,
+replicates, a record file, a search's population x generations): the units of work (samples, a
+file's bytes, candidates), the float64 values held per unit (the rig's peak resident memory per
+unit), the CPU seconds per unit, the replicates held at once and run in all, and the config key or
+option that drives it; both costs are measured on this project's machine (2 cores, 8 GB, under a
+load of 2-5) by ``benchmarks/size_estimate.py`` (the slope between a short and a long run, so the
+fixed start-up cost is left out; per byte on a CSV record), stated next to each rig's constants
+and rounded up about 2x for the load's noise. :func:`check_sizes` multiplies them out and
+refuses, before any allocation, one above ``--max-memory-gb`` or ``--max-hours`` (InputError naming
+the driving field and the option to raise: exit 2), so a dwell of a day is a clear message, not a
+``MemoryError`` traceback, a machine swapping for an hour or a job that would run for a month. The
+fixed cost of Python, numpy and numba (about 0.35 GB, a few seconds) is not counted.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 
 from .errors import InputError
@@ -26,26 +32,47 @@ MAX_MEMORY_OPTION = "--max-memory-gb"
 MAX_MEMORY = option(MAX_MEMORY_OPTION, type=real(above=0, unit="GB"), default=DEFAULT_MAX_MEMORY_GB,
                     help=f"refuse, before any work, a command whose inputs imply more data than this, GB "
                          f"(default {DEFAULT_MAX_MEMORY_GB:g})")
-"""The one size-limit option, common to every command of every rig (:mod:`platcal.cli`)."""
+"""The memory-limit option, common to every command of every rig (:mod:`platcal.cli`)."""
+DEFAULT_MAX_HOURS = 24.0
+"""Default limit (hours of CPU time on the machine the costs were measured on) on one command's
+estimated work: a day, far above any command of the default study (its longest job, a Monte Carlo
+cell, takes minutes), low enough that a typo in a duration or a replicate count is caught."""
+MAX_HOURS_OPTION = "--max-hours"
+MAX_HOURS = option(MAX_HOURS_OPTION, type=real(above=0, unit="h"), default=DEFAULT_MAX_HOURS,
+                   help=f"refuse, before any work, a command whose inputs imply more CPU time than this, hours, "
+                        f"estimated from per-sample costs measured by benchmarks/size_estimate.py "
+                        f"(default {DEFAULT_MAX_HOURS:g})")
+"""The time-limit option, common to every command of every rig (:mod:`platcal.cli`)."""
 BYTES_PER_VALUE = 8
 """float64."""
 
 
 @dataclass(frozen=True)
 class Size:
-    """The data one command holds: ``samples`` (float: 1e12 s / 5 ms does not overflow) x
-    ``channels`` (values held per sample) x ``replicates`` values, driven by ``field`` (the config key or
-    option to change); ``what`` says in words where the samples come from (for the message)."""
+    """The work of one command, driven by ``field`` (the config key or option to change): memory
+    ``samples`` (float: 1e12 s / 5 ms does not overflow) x ``channels`` (float64 values held per
+    sample; 0: none counted) x ``replicates`` (held at once) values; time ``samples`` x ``runs``
+    (replicates run in all; default ``replicates``) x ``seconds_per_sample`` (CPU s, measured; 0:
+    none counted). ``unit`` names what a sample is ("samples", "bytes of the record",
+    "candidates"); ``what`` says in words where they come from (for the message)."""
 
     field: str
     samples: float
-    channels: int
+    channels: float
     replicates: float = 1
     what: str = ""
+    seconds_per_sample: float = 0.0
+    runs: float | None = None
+    unit: str = "samples"
 
     @property
     def gigabytes(self) -> float:
         return float(self.samples) * self.channels * float(self.replicates) * BYTES_PER_VALUE / 1e9
+
+    @property
+    def hours(self) -> float:
+        runs = self.replicates if self.runs is None else self.runs
+        return float(self.samples) * float(runs) * self.seconds_per_sample / 3600.0
 
 
 def samples_in(seconds: float, period_s: float) -> float:
@@ -53,13 +80,43 @@ def samples_in(seconds: float, period_s: float) -> float:
     return math.floor(seconds / period_s) + 1.0
 
 
-def check_sizes(sizes: list[Size], limit_gb: float) -> None:
-    """Refuse (InputError naming the driving field) the first size above ``limit_gb``."""
+def file_bytes(path) -> float:
+    """The size of a record file in bytes (0 when it does not exist: the command names a missing
+    file itself, with its own message)."""
+    try:
+        return float(os.stat(path).st_size)
+    except (OSError, TypeError, ValueError):
+        return 0.0
+
+
+def check_sizes(sizes: list[Size], limit_gb: float, limit_hours: float = DEFAULT_MAX_HOURS) -> None:
+    """Refuse (InputError naming the driving field) the first size above ``limit_gb`` of memory or
+    ``limit_hours`` of CPU time."""
     for s in sizes:
         gb = s.gigabytes
+        unit = s.unit[:-1] if s.unit.endswith("s") else s.unit  # "per sample", "per byte of ..."
+        what = f"{s.what}: " if s.what else ""
         if gb > limit_gb:
             reps = f" x {s.replicates:.3g} replicates" if s.replicates != 1 else ""
-            raise InputError(s.field, f"{s.what + ': ' if s.what else ''}{s.samples:.3g} samples x {s.channels} "
-                             f"values held per sample{reps} x {BYTES_PER_VALUE} bytes = {gb:.3g} GB, more than "
+            raise InputError(s.field, f"{what}{s.samples:.3g} {s.unit} x {s.channels:.3g} values held per "
+                             f"{unit}{reps} x {BYTES_PER_VALUE} bytes = {gb:.3g} GB, more than "
                              f"{MAX_MEMORY_OPTION} {limit_gb:g}; make {s.field} smaller or raise "
                              f"{MAX_MEMORY_OPTION}")
+        hours = s.hours
+        if hours > limit_hours:
+            runs = s.replicates if s.runs is None else s.runs
+            reps = f" x {runs:.3g} runs" if runs != 1 else ""
+            raise InputError(s.field, f"{what}{s.samples:.3g} {s.unit}{reps} x {s.seconds_per_sample:.3g} CPU s per "
+                             f"{unit} (measured on the project's 2-core machine by benchmarks/size_estimate.py) = "
+                             f"{hours:.3g} h, more than {MAX_HOURS_OPTION} {limit_hours:g}; make {s.field} smaller "
+                             f"or raise {MAX_HOURS_OPTION}")
+
+
+def record_size(path, values_per_byte: float, seconds_per_byte: float, field: str = "--data") -> Size:
+    """The work of a command that reads a whole record file (inspect, compensate, an identification
+    sized by its record): the file's bytes x the values held and CPU seconds per byte (measured by
+    ``benchmarks/size_estimate.py`` on a CSV record; a Parquet file is smaller per sample, so it is
+    underestimated by its compression ratio, about 2 here)."""
+    n = file_bytes(path)
+    return Size(field, n, values_per_byte, 1, f"the record {path}, {n:.3g} bytes", seconds_per_byte,
+                unit="bytes of the record")

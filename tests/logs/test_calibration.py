@@ -9,9 +9,9 @@ import yaml
 
 from platcal.cli import main
 from platcal.logs.calibration import read_calibration
-from platcal.model.frames import DEG
+from platcal.model.frames import DEG, c_rp
 from platcal.rigs.multiposition.config import load_config as mp_config
-from platcal.rigs.multiposition.model import coef_names, measure
+from platcal.rigs.multiposition.model import coef_names, drift, measure
 
 from .test_record_mapping import CENTRIFUGE, LOWPREC, MULTIPOSITION, SLED, write_cfg
 
@@ -45,7 +45,7 @@ def test_identify_writes_calibration(tmp_path, rig):
 
 
 @pytest.mark.slow
-def test_multiposition_compensate(tmp_path):
+def test_multiposition_compensate(tmp_path, capsys):
     cfg = write_cfg(tmp_path / "c.yaml", MULTIPOSITION)
     clean, noisy = tmp_path / "clean.csv", tmp_path / "noisy.csv"
     assert main(["simulate", "--config", cfg, "--scheme", "short", "--noise-free", "--out", str(clean)]) == 0
@@ -63,6 +63,7 @@ def test_multiposition_compensate(tmp_path):
     (tmp_path / "true.yaml").write_text(yaml.safe_dump(true))
     assert main(["compensate", "--calibration", str(tmp_path / "true.yaml"), "--data", str(clean),
                  "--out", str(tmp_path / "comp_true.csv")]) == 0
+    assert "the log has no gyro outputs (wx, wy, wz, deg/h)" in capsys.readouterr().err   # said, not skipped
     got = pd.read_csv(tmp_path / "comp_true.csv")[["Ax", "Ay", "Az"]].to_numpy()
     raw_err = np.abs(df[["Ax", "Ay", "Az"]].to_numpy() - free).max()
     assert raw_err > 1e-5                                   # the record does carry the errors
@@ -76,6 +77,22 @@ def test_multiposition_compensate(tmp_path):
                     for H in (measure(a, x)[1][:3, 3:] for a in ang)])
     assert np.all(np.abs(res) <= 5 * sig + 1e-6)
     assert np.abs(res).max() < raw_err * 1e6
+    # gyro outputs in the log (wx, wy, wz, deg/h): an error-free rate (Earth's at the true angles)
+    # plus the model's drift (§5) at the true angles
+    truth = mp_config(yaml.safe_load(open(cfg))).truth()
+    lat = np.radians(45.0)
+    w_ie = 15.041 * np.array([0.0, np.cos(lat), np.sin(lat)])
+    free_w = np.array([c_rp(*a) @ w_ie for a in ang])
+    drift_true = np.array([drift(np.r_[np.zeros(3), truth], a) for a in ang])
+    assert np.abs(drift_true).max() > 1e-3                      # the gyro outputs carry the drift
+    gy = df.assign(**{c: free_w[:, i] + drift_true[:, i] for i, c in enumerate(("wx", "wy", "wz"))})
+    gy.to_csv(tmp_path / "gyros.csv", index=False)
+    assert main(["compensate", "--calibration", str(tmp_path / "true.yaml"), "--data", str(tmp_path / "gyros.csv"),
+                 "--out", str(tmp_path / "comp_gyro.csv")]) == 0
+    assert "accelerometers and gyros (wx, wy, wz) compensated" in capsys.readouterr().err
+    got = pd.read_csv(tmp_path / "comp_gyro.csv")
+    assert np.abs(got[["Ax", "Ay", "Az"]].to_numpy() - free).max() <= 1e-9
+    assert np.abs(got[["wx", "wy", "wz"]].to_numpy() - free_w).max() <= 1e-9 * np.abs(free_w).max()
 
 
 def test_compensate_refuses_bad_calibration(tmp_path, capsys):

@@ -10,7 +10,8 @@ import yaml
 from platcal.cli import main
 from platcal.io import read_config
 from platcal.logs.calibration import read_calibration
-from platcal.model.instruments import I_K0, I_THETA, INDEX
+from platcal.model.frames import c_rp
+from platcal.model.instruments import I_K0, I_THETA, INDEX, N_FULL, gyro_drift, gyro_drifts
 from platcal.rig import get_rig
 from platcal.rigs.centrifuge.simulate import simulate as centrifuge_simulate
 from platcal.rigs.sled.config import ARCSEC
@@ -66,6 +67,33 @@ def test_centrifuge_compensate(tmp_path):
     assert np.abs(got - free_a).max() <= 1e-9 * scale
     res = compensate(tmp_path, calfile, clean, "comp_id.csv")[["Ax", "Ay", "Az"]].to_numpy() - free_a
     assert np.abs(res).max() < 0.2 * np.abs(rec_a - free_a).max()
+    # gyro outputs in the log (wx, wy, wz, deg/h): an error-free rate (Earth's, seen at the true
+    # angles) plus the model's drift (eqs. 11-12) at the error-free specific force
+    ang = np.radians(df[["alpha", "beta", "gamma"]].to_numpy())
+    lat = np.radians(study.centrifuge.latitude_deg)
+    w_ie = 15.041 * np.array([0.0, np.cos(lat), np.sin(lat)])
+    free_w = np.array([c_rp(*a) @ w_ie for a in ang])
+    drift_true = np.array([gyro_drift(study.truth, f) for f in free_a])
+    assert np.abs(drift_true).max() > 1e-3                     # the gyro outputs carry the drift
+    with_gyros = df.assign(wx=free_w[:, 0] + drift_true[:, 0], wy=free_w[:, 1] + drift_true[:, 1],
+                           wz=free_w[:, 2] + drift_true[:, 2])
+    with_gyros.to_csv(tmp_path / "gyros.csv", index=False)
+    out = tmp_path / "comp_gyro.csv"
+    assert main(["compensate", "--calibration", str(true), "--data", str(tmp_path / "gyros.csv"),
+                 "--out", str(out)]) == 0
+    got = pd.read_csv(out)
+    assert np.abs(got[["Ax", "Ay", "Az"]].to_numpy() - free_a).max() <= 1e-9 * scale
+    assert np.abs(got[["wx", "wy", "wz"]].to_numpy() - free_w).max() <= 1e-9 * np.abs(free_w).max()
+    # identified coefficients: the gyro residual within the identification's sigma (5 sigma, every
+    # sample); the drift is linear in the coefficients, so its Jacobian is the drift of unit vectors
+    out = tmp_path / "comp_gyro_id.csv"
+    assert main(["compensate", "--calibration", str(calfile), "--data", str(tmp_path / "gyros.csv"),
+                 "--out", str(out)]) == 0
+    res_w = pd.read_csv(out)[["wx", "wy", "wz"]].to_numpy() - free_w
+    J = np.stack([gyro_drifts(np.eye(N_FULL)[INDEX[n]], free_a) for n in cal.names], axis=-1)   # (N, 3, n)
+    sig_w = np.sqrt(np.einsum("tij,jk,tik->ti", J, cal.covariance, J))
+    assert np.all(np.abs(res_w) <= 5 * sig_w + 1e-9)
+    assert np.abs(res_w).max() < np.abs(drift_true).max()
 
 
 @pytest.mark.slow
@@ -146,3 +174,17 @@ def test_compensate_refuses_out_suffix(tmp_path, capsys):
     code = main(["compensate", "--calibration", str(cal), "--data", "x.csv", "--out", str(tmp_path / "out.txt")])
     err = capsys.readouterr().err
     assert code == 2 and "--out" in err and ".csv or .parquet" in err
+
+
+def test_compensate_refuses_some_gyro_columns(tmp_path, capsys):
+    """Gyro outputs come as all of wx, wy, wz or none: a log with some exits 2 naming the first
+    missing column, nothing written."""
+    df = pd.DataFrame({"t": [0.0, 0.005], "Ax": [0.1, 0.1], "Ay": [0.2, 0.2], "Az": [1.0, 1.0], "wx": [1.0, 1.0]})
+    df.to_csv(tmp_path / "log.csv", index=False)
+    out = tmp_path / "out.csv"
+    code = main(["compensate", "--calibration", str(_calibration(tmp_path / "cal.yaml", "centrifuge", ["DF_x"])),
+                 "--data", str(tmp_path / "log.csv"), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "--data column wy" in err and "gyro outputs" in err
+    assert not out.exists()

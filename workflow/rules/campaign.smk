@@ -13,20 +13,20 @@ CAMPAIGN_TARGETS = (
 rule campaign_plan:
     output:
         report(
-            "results/campaign/plan.csv", caption="../report/campaign.rst", category="All rigs: campaign"
+            "results/campaign/plan.csv", caption="../report/campaign.rst", category="Campaign (all rigs)"
         ),
         "results/campaign/coefficients.csv",
         "results/campaign/alternatives.csv",
         report(
-            "results/campaign/front.png", caption="../report/campaign.rst", category="All rigs: campaign"
+            "results/campaign/front.png", caption="../report/campaign.rst", category="Campaign (all rigs)"
         ),
         report(
             "results/campaign/progress.png",
             caption="../report/campaign.rst",
-            category="All rigs: campaign",
+            category="Campaign (all rigs)",
         ),
         report(
-            "results/campaign/report.md", caption="../report/campaign.rst", category="All rigs: campaign"
+            "results/campaign/report.md", caption="../report/campaign.rst", category="Campaign (all rigs)"
         ),
     params:
         campaign=CAMPAIGN,
@@ -34,6 +34,8 @@ rule campaign_plan:
     threads: 1
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("campaign", "campaign_plan"),
     log:
         "results/logs/campaign_plan.log",
     script:

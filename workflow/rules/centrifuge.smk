@@ -73,6 +73,8 @@ rule centrifuge_single_run:
     threads: 1
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_single_run"),
     log:
         "results/centrifuge/logs/single_run.log",
     script:
@@ -112,6 +114,8 @@ rule centrifuge_tables:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_tables"),
     log:
         "results/centrifuge/logs/tables.log",
     script:
@@ -166,6 +170,8 @@ rule centrifuge_figures:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_figures"),
     log:
         "results/centrifuge/logs/figures.log",
     script:
@@ -190,6 +196,8 @@ rule centrifuge_compare_cell:
     threads: 1
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_compare_cell", "noise{noise}_{estimator}"),
     log:
         "results/centrifuge/logs/compare/noise{noise}_{estimator}.log",
     script:
@@ -209,6 +217,8 @@ rule centrifuge_compare_collect:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_compare_collect"),
     log:
         "results/centrifuge/logs/compare/collect.log",
     script:
@@ -238,6 +248,8 @@ rule centrifuge_compare:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_compare"),
     log:
         "results/centrifuge/logs/compare/tables.log",
     script:
@@ -258,6 +270,8 @@ rule centrifuge_report:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_report"),
     log:
         "results/centrifuge/logs/report_md.log",
     script:
@@ -284,6 +298,8 @@ rule centrifuge_design_scheme:
     threads: 2
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_design_scheme", "{design}"),
     log:
         "results/centrifuge/logs/design/{design}.log",
     script:
@@ -308,6 +324,8 @@ rule centrifuge_design_compare:
     threads: 2
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_design_compare"),
     log:
         "results/centrifuge/logs/design/compare.log",
     script:
@@ -331,6 +349,8 @@ rule centrifuge_design_npos:
     threads: 2
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_design_npos"),
     log:
         "results/centrifuge/logs/design/npos.log",
     script:
@@ -349,6 +369,8 @@ rule centrifuge_design_static:
     threads: 1
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_design_static"),
     log:
         "results/centrifuge/logs/design/static.log",
     script:
@@ -367,6 +389,8 @@ rule centrifuge_design_doo:
     threads: 2
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_design_doo"),
     log:
         "results/centrifuge/logs/design/doo.log",
     script:
@@ -391,6 +415,8 @@ rule centrifuge_design_report:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("centrifuge", "centrifuge_design_report"),
     log:
         "results/centrifuge/logs/design/report.log",
     script:

@@ -110,3 +110,15 @@ def claims_evidence(w):
     """What a rig's claims read: its <RIG>_EVIDENCE when its report opens on its claims.csv (no
     cycle), else every target of the rig."""
     return globals().get(f"{w.ledger_rig.upper()}_EVIDENCE") or RIG_TARGETS[w.ledger_rig]
+
+
+BENCH_ROOT = "results/benchmarks"
+
+
+def bench(rig, rule, job="job"):
+    """A rule's ``benchmark:`` file (Snakemake writes the job's wall s, CPU s and peak RSS):
+    results/benchmarks/<rig>/<rule>/<job>.tsv, ``job`` the wildcards' part (one file per job). The
+    rig is ``study`` or ``campaign`` for the rules of the whole study; report_index sums them by
+    rig and rule into the "Where the time goes" table (platcal.study.timing)."""
+    return f"{BENCH_ROOT}/{rig}/{rule}/{job}.tsv"
+

@@ -29,6 +29,8 @@ if "lowprec_centrifuge" in MC_CONFIG:
             code=LOWPREC_CODE,
         conda:
             "../envs/platcal.yaml"
+        benchmark:
+            bench("lowprec_centrifuge", "lowprec_trace"),
         log:
             "results/lowprec_centrifuge/logs/trace.log",
         script:
@@ -51,6 +53,8 @@ if "lowprec_centrifuge" in MC_CONFIG:
             code=LOWPREC_CODE,
         conda:
             "../envs/platcal.yaml"
+        benchmark:
+            bench("lowprec_centrifuge", "lowprec_report"),
         log:
             "results/lowprec_centrifuge/logs/report.log",
         script:

@@ -27,6 +27,8 @@ rule montecarlo_cell:
     threads: mc_threads
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("{rig}", "montecarlo_cell", "{scheme}_noise{noise}_{estimator}"),
     log:
         "results/{rig}/logs/montecarlo/{scheme}_noise{noise}_{estimator}.log",
     script:
@@ -46,6 +48,8 @@ rule collect:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("{rig}", "collect"),
     log:
         "results/{rig}/logs/collect.log",
     script:

@@ -34,6 +34,8 @@ rule multiposition_kernels:
         code=MP_SETUP.compute_code,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("multiposition", "multiposition_kernels"),
     log:
         "results/multiposition/logs/kernels.log",
     script:
@@ -48,6 +50,8 @@ rule multiposition_lie_cache:
         code=MP_SETUP.code,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("multiposition", "multiposition_lie_cache"),
     log:
         "results/multiposition/logs/lie_cache.log",
     script:
@@ -67,6 +71,8 @@ rule multiposition_observability:
         outdirs=[f"results/multiposition/observability/{s}" for s in MP_SETUP.study["rank_schemes"]],
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("multiposition", "multiposition_observability"),
     log:
         "results/multiposition/logs/observability.log",
     script:
@@ -86,6 +92,8 @@ rule multiposition_design:
         code=MP_SETUP.code,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("multiposition", "multiposition_design"),
     log:
         "results/multiposition/logs/design.log",
     script:
@@ -105,6 +113,8 @@ rule multiposition_extension:
         code=MP_SETUP.code,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("multiposition", "multiposition_extension"),
     log:
         "results/multiposition/logs/extension.log",
     script:
@@ -118,6 +128,8 @@ rule multiposition_centrifuge_table1:
         config=lambda w: {k: v for k, v in RAW["centrifuge"].items() if k != "study"},
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("multiposition", "multiposition_centrifuge_table1"),
     log:
         "results/multiposition/logs/centrifuge_table1.log",
     script:
@@ -155,6 +167,8 @@ rule multiposition_report:
         code=MP_SETUP.code,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("multiposition", "multiposition_report"),
     log:
         "results/multiposition/logs/report.log",
     script:

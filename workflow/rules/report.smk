@@ -1,7 +1,10 @@
 # The claims ledger (every paper claim computed from the study, platcal.study.claims) and
 # results/report.md, the index of the study: it opens on the ledger of every rig, then one
 # section per rig linking its report, then the calibration campaign's report when one is planned
-# (workflow/rules/campaign.smk, included before this file).
+# (workflow/rules/campaign.smk, included before this file), then "Where the time goes": every
+# job's benchmark file (results/benchmarks/, written by the rules' benchmark: directives) summed
+# per rig and rule, also results/timing.{csv,md,html}. report_index runs last (its inputs close
+# over every rig's targets), so the files it sums are this study's.
 
 
 INDEX_REPORT = "results/report.md"
@@ -20,6 +23,8 @@ rule claims:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("{ledger_rig}", "claims"),
     log:
         "results/{ledger_rig}/logs/claims.log",
     script:
@@ -32,11 +37,14 @@ rule ledger:
     output:
         LEDGER[0],
         LEDGER[1],
-        report(LEDGER[2], caption="../report/ledger.rst", category="All rigs: claims ledger"),
+        report(LEDGER[2], caption="../report/ledger.rst", category="0. Claims ledger (all rigs)"),
+        "results/claims_front.html",  # the compact ledger the HTML report's front page embeds
     params:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("study", "ledger"),
     log:
         "results/logs/ledger.log",
     script:
@@ -49,12 +57,19 @@ rule report_index:
         ledger=LEDGER[0],
         campaign=[t for t in CAMPAIGN_TARGETS if t.endswith("report.md")],
     output:
-        report(INDEX_REPORT, caption="../report/index.rst", category="All rigs: claims ledger"),
+        report(INDEX_REPORT, caption="../report/index.rst", category="0. Claims ledger (all rigs)"),
+        timing=["results/timing.csv", "results/timing.md"],
+        timing_html=report(
+            "results/timing.html", caption="../report/timing.rst", category="Where the time goes (all rigs)"
+        ),
     params:
         rigs=RIGS,
+        benchmarks=BENCH_ROOT,
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("study", "report_index"),
     log:
         "results/logs/report_index.log",
     script:
@@ -76,6 +91,8 @@ rule generic_report:
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
+    benchmark:
+        bench("{generic_rig}", "generic_report"),
     log:
         "results/{generic_rig}/logs/generic_report.log",
     script:

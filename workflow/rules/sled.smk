@@ -36,6 +36,8 @@ if "sled" in MC_CONFIG:
             case="|".join(SLED_CASES),
         conda:
             "../envs/platcal.yaml"
+        benchmark:
+            bench("sled", "sled_series", "series_{case}"),
         log:
             "results/sled/logs/series_{case}.log",
         script:
@@ -52,6 +54,8 @@ if "sled" in MC_CONFIG:
             code=SLED_CODE,
         conda:
             "../envs/platcal.yaml"
+        benchmark:
+            bench("sled", "sled_observability"),
         log:
             "results/sled/logs/observability.log",
         script:
@@ -76,6 +80,8 @@ if "sled" in MC_CONFIG:
             code=SLED_CODE,
         conda:
             "../envs/platcal.yaml"
+        benchmark:
+            bench("sled", "sled_summary"),
         log:
             "results/sled/logs/summary.log",
         script:

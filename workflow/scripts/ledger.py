@@ -1,14 +1,18 @@
-"""Snakemake wrapper: results/claims.{csv,md,html}, the ledger of every rig's claims."""
+"""Snakemake wrapper: results/claims.{csv,md,html}, the ledger of every rig's claims, and
+results/claims_front.html, its short form on the HTML report's front page."""
 from pathlib import Path
 
 import pandas as pd
 
+from platcal.io import atomic_write_text
 from platcal.log import job_logger
-from platcal.study.claims import ledger_note
-from platcal.study.tables import write_table
+from platcal.study.claims import ledger_for_people, ledger_note
+from platcal.study.tables import frame_html, write_table
 
 sm = snakemake  # noqa: F821
 rows = pd.concat([pd.read_csv(f) for f in sm.input], ignore_index=True)
 write_table(rows, Path(sm.output[0]).with_suffix(""), "The claims ledger: every paper claim, computed from this study",
-            ledger_note(rows))
+            ledger_note(rows), shown=ledger_for_people(rows))
+front = ledger_for_people(rows)[["rig", "claim", "verdict", "measured", "95 % interval", "paper"]]
+atomic_write_text(sm.output[3], frame_html(front, "The claims ledger", ledger_note(rows)))
 job_logger(sm.log[0]).info(ledger_note(rows))

@@ -2,7 +2,7 @@
 from types import SimpleNamespace
 
 from platcal.log import job_logger
-from platcal.rigs.multiposition.commands import cmd_observability
+from platcal.rigs.multiposition.study_commands import cmd_observability
 from platcal.rigs.multiposition.study import load
 
 log = job_logger(snakemake.log[0])  # noqa: F821

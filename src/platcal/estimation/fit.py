@@ -28,7 +28,8 @@ import sys
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
-from scipy import stats as sps
+
+from .consistency import chi2_quantile, normal_quantile
 
 EXIT_DOES_NOT_FIT = 3
 """Exit status of ``platcal identify`` when the record does not fit the model (0 fitted, 2 refused)."""
@@ -169,8 +170,8 @@ class FitSums:
         n, m = self.n, self.se.size
         # Bonferroni: the check's false-alarm level is split over m channels x 3 figures
         lv = tol.level / (3 * m)
-        nis_bound = float(sps.chi2.ppf(1.0 - lv, n) / n) if n else np.inf
-        zq = float(sps.norm.ppf(1.0 - lv / 2))
+        nis_bound = chi2_quantile(1.0 - lv, n) / n if n else np.inf
+        zq = normal_quantile(1.0 - lv / 2)
         mean_bound = zq / np.sqrt(max(n, 1))
         lag1_bound = zq / np.sqrt(max(n - 1, 1))
         mean = self.se / n if n else np.zeros(m)

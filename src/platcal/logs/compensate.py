@@ -38,12 +38,24 @@ def read_mapped(rig: str, mapping: RecordMapping, units: dict, required: tuple, 
 
 
 def compensate_log(args, rig: str, read: Callable[[str], object], apply: Callable[[object], pd.DataFrame],
-                   what: str) -> int:
+                   what: str | Callable[[pd.DataFrame], str]) -> int:
     """Check ``args.out``, read ``args.data`` with ``read`` (the rig's checks, InputError naming
     the column), write ``apply(log)`` to ``args.out`` in the rig's columns and units, and say so
-    on stderr naming ``what`` was compensated. Returns the exit status 0."""
+    on stderr naming ``what`` was compensated (and what was not: ``what(out)`` when it depends on
+    the log's columns). Returns the exit status 0."""
     check_compensate_out(args.out)
     out = apply(read(args.data))
     write_record(out, args.out)
-    print(f"platcal compensate: {rig}, {len(out)} samples, {what} -> {args.out}", file=sys.stderr)
+    said = what(out) if callable(what) else what
+    print(f"platcal compensate: {rig}, {len(out)} samples, {said} -> {args.out}", file=sys.stderr)
     return 0
+
+
+def gyro_note(columns, gyro: tuple[str, ...], terms: str) -> str:
+    """What ``compensate`` did with the gyros of a rig whose log may hold their outputs
+    ``gyro``: compensated when the log's ``columns`` hold them; otherwise said plainly that the
+    calibration's gyro ``terms`` were not applied, rather than skipped silently."""
+    if all(c in columns for c in gyro):
+        return f"accelerometers and gyros ({', '.join(gyro)}) compensated"
+    return (f"accelerometers compensated; the log has no gyro outputs ({', '.join(gyro)}, deg/h), so the "
+            f"calibration's gyro drift terms ({terms}) were not applied")

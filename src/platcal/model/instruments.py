@@ -260,6 +260,19 @@ def accel_outputs(coef: np.ndarray, f: np.ndarray) -> np.ndarray:
     return out
 
 
+def gyro_drifts(coef: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """(N, 3) deg/h: the drift of gyros x, y, z at the specific forces ``f`` (N, 3) in p, g, with
+    the full coefficient vector ``coef`` (48,), eqs. 11-12 (docs/centrifuge-model.md §4); the
+    scalar helpers applied to whole columns."""
+    coef = np.asarray(coef, float)
+    f = np.asarray(f, float)
+    out = np.empty_like(f)
+    for j in range(3):
+        aI, aO, aS = gyro_axis_components(j, f[:, 0], f[:, 1], f[:, 2])
+        out[:, j] = gyro_drift_scalar(coef, j, aI, aO, aS)
+    return out
+
+
 def compensate_accelerometers(A: np.ndarray, coef: np.ndarray, iterations: int = 10) -> np.ndarray:
     """(N, 3) g: the specific force in p whose outputs with ``coef`` (48,) are the measured ``A``
     (N, 3) g, i.e. the error-free accelerometer outputs (docs/centrifuge-model.md §5). Solved by

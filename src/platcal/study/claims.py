@@ -30,11 +30,14 @@ import pandas as pd
 from ..errors import InputError
 from ..io import read_yaml
 from ..seeding import seed_sequence
+from .tables import frame_markdown
 
 REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE = "reproduced", "not reproduced", "inconclusive"
 VERDICTS = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE)
 LEDGER_COLUMNS = ["rig", "claim", "source", "statement", "paper", "measured", "ci_low", "ci_high", "unit",
                   "criterion", "verdict", "settings"]
+LEDGER_PEOPLE_COLUMNS = ["rig", "claim", "verdict", "measured", "95 % interval", "paper", "criterion", "statement",
+                         "source", "settings"]
 OPS = ("<=", ">=", "between", "==")
 
 
@@ -201,17 +204,28 @@ def evaluate(claims: list[Claim], measures: Mapping[str, Measure], results: Path
     return pd.DataFrame(rows, columns=LEDGER_COLUMNS)
 
 
+def ledger_for_people(df: pd.DataFrame) -> pd.DataFrame:
+    """The ledger rows as people read them (Markdown, HTML): the verdict beside the claim, the
+    measured value with its unit and 95 % interval to 3 significant digits, then the paper's value,
+    the criterion, the statement, the source and the settings (the CSV keeps full precision)."""
+    def num(v, unit=""):
+        return "-" if not np.isfinite(v) else f"{v:.3g} {unit}".strip()
+
+    return pd.DataFrame({
+        "rig": df["rig"], "claim": df["claim"], "verdict": df["verdict"],
+        "measured": [num(v, u) for v, u in zip(df["measured"], df["unit"])],
+        "95 % interval": ["-" if not np.isfinite(lo) else f"[{lo:.3g}, {hi:.3g}]"
+                          for lo, hi in zip(df["ci_low"], df["ci_high"])],
+        "paper": df["paper"], "criterion": df["criterion"], "statement": df["statement"],
+        "source": df["source"], "settings": df["settings"]}, columns=LEDGER_PEOPLE_COLUMNS)
+
+
 def ledger_markdown(df: pd.DataFrame) -> str:
-    """The ledger rows as a Markdown table for people (3 significant digits)."""
-    cols = ["claim", "source", "paper", "measured", "ci", "criterion", "verdict", "settings"]
-    lines = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
-    for _, r in df.iterrows():
-        ci = "-" if not np.isfinite(r["ci_low"]) else f"[{r['ci_low']:.3g}, {r['ci_high']:.3g}]"
-        meas = "-" if not np.isfinite(r["measured"]) else f"{r['measured']:.3g} {r['unit']}".strip()
-        cells = [r["claim"], r["source"], r["paper"], meas, ci, r["criterion"], f"**{r['verdict']}**",
-                 r["settings"]]
-        lines.append("| " + " | ".join(str(v).replace("|", "/") for v in cells) + " |")
-    return "\n".join(lines) + "\n"
+    """The ledger rows of one rig as a Markdown table for people (:func:`ledger_for_people`, the
+    verdict in bold, no rig column)."""
+    shown = ledger_for_people(df).drop(columns=["rig"])
+    shown["verdict"] = [f"**{v}**" for v in shown["verdict"]]
+    return frame_markdown(shown.astype(str).apply(lambda c: c.str.replace("|", "/", regex=False)))
 
 
 def verdict_counts(df: pd.DataFrame) -> str:
@@ -221,17 +235,21 @@ def verdict_counts(df: pd.DataFrame) -> str:
 
 
 def evaluate_rig(rig, results: Path, cfg: dict) -> pd.DataFrame:
-    """The ledger rows of a rig's declared claims (``rig.extras["claims"]``: a module-like object
+    """The ledger rows of a rig's declared claims (``rig.extra("claims")``: a module-like object
     with ``claims()`` and ``MEASURES``) on its results folder and config; no rows when it has none."""
-    spec = rig.extras.get("claims")
+    spec = rig.extra("claims")
     if spec is None:
         return pd.DataFrame(columns=LEDGER_COLUMNS)
     return evaluate(spec.claims(), spec.MEASURES, Path(results), cfg, seed=int(cfg.get("seed", 0) or 0))
 
 
 def ledger_note(df: pd.DataFrame) -> str:
-    """One paragraph on how the verdicts were reached, with the counts."""
-    return (f"{len(df)} claims: {verdict_counts(df)}. Measured: the statistic over the study's replicates, with its "
+    """One paragraph on how the verdicts were reached, with the counts (per rig when there are
+    several)."""
+    rigs = list(dict.fromkeys(df["rig"]))
+    per_rig = "" if len(rigs) < 2 else " (" + "; ".join(f"{r}: {verdict_counts(df[df['rig'] == r])}"
+                                                        for r in rigs) + ")"
+    return (f"{len(df)} claims: {verdict_counts(df)}{per_rig}. Measured: the statistic over the study's replicates, with its "
             "95 % percentile-bootstrap interval; reproduced when the whole interval meets the criterion, not reproduced "
             "when none of it does, inconclusive when it straddles the criterion or the study did not run the cells.")
 

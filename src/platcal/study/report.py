@@ -18,6 +18,7 @@ from .claims import ledger_markdown, ledger_note
 from .plots import nees_histogram
 from .stats import summary
 from .tables import frame_markdown, write_table
+from .timing import TIMING_FORMATS, TIMING_NOTE
 
 
 def _sections(md: Path) -> tuple[str, list[str]]:
@@ -43,10 +44,11 @@ def _links(md, out: Path) -> list[str]:
     return [f"- [{s}]({rel}#{_anchor(s)})" for s in _sections(Path(md))[1]] + [""]
 
 
-def write_index(rigs: list[str], reports: list, out_path, ledger=None, campaign=None) -> None:
+def write_index(rigs: list[str], reports: list, out_path, ledger=None, campaign=None, timing=None) -> None:
     """``results/report.md``: the claims ledger (``ledger``, the CSV of every rig's claims) first,
     then for each rig its title, spec and a link to each section of its report, then the
-    calibration campaign's report (``campaign``, ``results/campaign/report.md``) when one is given."""
+    calibration campaign's report (``campaign``, ``results/campaign/report.md``) when one is given,
+    then "Where the time goes" (``timing``, :func:`platcal.study.timing.where_the_time_goes`)."""
     out = Path(out_path)
     lines = ["# platcal: identification studies, one section per test rig", "",
              "Written by the Snakemake workflow (`snakemake --cores 2`). Each rig's report holds its "
@@ -69,6 +71,8 @@ def write_index(rigs: list[str], reports: list, out_path, ledger=None, campaign=
         title = _sections(Path(campaign))[0]
         lines += ["## The calibration campaign", "", f"Planned across the rigs above (`platcal plan`): "
                   f"[{title or rel}]({rel})", ""] + _links(campaign, out)
+    if timing is not None:
+        lines += ["## Where the time goes", "", TIMING_NOTE, "", frame_markdown(timing, TIMING_FORMATS)]
     atomic_write_text(out, "\n".join(lines))
 
 

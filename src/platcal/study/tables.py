@@ -38,17 +38,22 @@ def frame_html(df: pd.DataFrame, title: str, note: str = "", formats: dict[str, 
         if c in formats:
             shown[c] = [_fmt(v, formats[c]) for v in shown[c]]
     body = shown.to_html(index=False, border=0, classes="t", na_rep="-")
+    # text columns read left-aligned, numbers right-aligned (the columns' dtypes before formatting)
+    left = "".join(f"table.t td:nth-child({i + 1}),table.t th:nth-child({i + 1}){{text-align:left}}"
+                   for i, c in enumerate(df.columns) if not pd.api.types.is_numeric_dtype(df[c]))
     return ("<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>" + title + "</title>\n"
             "<style>body{font-family:sans-serif;margin:1em}table.t{border-collapse:collapse;font-size:13px}"
             "table.t td,table.t th{border-bottom:1px solid #ddd;padding:2px 8px;text-align:right}"
-            "table.t th{background:#f0f0f0}</style></head><body>\n"
+            "table.t th{background:#f0f0f0}" + left + "</style></head><body>\n"
             f"<h2>{title}</h2>\n<p>{note}</p>\n{body}\n</body></html>\n")
 
 
 def write_table(df: pd.DataFrame, stem: str | os.PathLike, title: str, note: str = "",
-                formats: dict[str, str] | None = None, md_extra: str = "") -> None:
-    """Write ``stem.csv`` (full precision), ``stem.md`` and ``stem.html`` (formatted), atomically."""
+                formats: dict[str, str] | None = None, md_extra: str = "", shown: pd.DataFrame | None = None) -> None:
+    """Write ``stem.csv`` (``df``, full precision), ``stem.md`` and ``stem.html`` (formatted; of
+    ``shown`` when given: the same rows as people read them), atomically."""
     stem = Path(stem)
+    people = df if shown is None else shown
     atomic_to_csv(df, stem.with_suffix(".csv"))
-    atomic_write_text(stem.with_suffix(".md"), f"# {title}\n\n{note}\n\n" + frame_markdown(df, formats) + md_extra)
-    atomic_write_text(stem.with_suffix(".html"), frame_html(df, title, note, formats))
+    atomic_write_text(stem.with_suffix(".md"), f"# {title}\n\n{note}\n\n" + frame_markdown(people, formats) + md_extra)
+    atomic_write_text(stem.with_suffix(".html"), frame_html(people, title, note, formats))

@@ -11,7 +11,6 @@ Carlo hooks), :mod:`.tables` and :mod:`.report` (Table 2, figures, report sectio
 
 from ...rig import Rig
 from .campaign import CAMPAIGN
-from . import claims
 from .catalogue import load_catalogue
 from .commands import COMMANDS, OPTIONS, sizes
 from .config import study_from_config
@@ -20,5 +19,5 @@ from .study import CentrifugeMonteCarlo
 
 RIG = Rig(name="centrifuge", title="precision centrifuge, 48-state EKF", spec="centrifuge-model.md",
           load_config=study_from_config, commands=COMMANDS, catalogue=lambda: load_catalogue().frame(),
-          extras={"claims": claims}, estimators=kind_names(), montecarlo=CentrifugeMonteCarlo(), options=OPTIONS,
+          extras={"claims": f"{__name__}.claims"}, estimators=kind_names(), montecarlo=CentrifugeMonteCarlo(), options=OPTIONS,
           campaign=CAMPAIGN, sizes=sizes)

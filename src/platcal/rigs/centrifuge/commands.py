@@ -9,36 +9,37 @@ from __future__ import annotations
 
 import argparse
 import copy
+from dataclasses import replace
 import sys
 import time
 
 from ...errors import InputError
 from ...estimation.consistency import EXIT_RUN_FAILED, failed_run_status
 from ...estimation.fit import fit_exit_status
-from ...rig import COUNT, SEED, option, real, whole
+from ...rig import COUNT, SEED, option, real, resolve, whole
 from ...io import check_writable
 from ...logs.calibration import read_calibration
-from ...logs.compensate import compensate_log, read_mapped
+from ...logs.compensate import compensate_log, gyro_note, read_mapped
+from ...logs.dwells import lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
-from ...sizes import Size, samples_in
-from ...study.montecarlo import cell_job, replicate_seed
+from ...sizes import Size, record_size, samples_in
+from ...study.montecarlo import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
-from .design import design_config, preset, run_design, write_design
-from .identify import (calibration, clock_finding, consistency_warning, identify_input, identify_streamed, record_fit,
-                       record_input, run_problems, streamable, timed, truth_known, write_identification)
-from .observability import write_observability
-from .record import (COMPENSATE_COLUMNS, LOG_COLUMNS, TRUTH_COLUMNS, UNITS, FilterInput, chunk_to_frame,
-                     compensate_frame, full_coefficients, read_record)
+from .identify import (calibration, clock_finding, consistency_warning, continuous_input, identify_input,
+                       identify_streamed, record_fit, record_input, run_problems, streamable, timed, truth_known,
+                       write_identification)
+from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, LOG_COLUMNS, OPTIONAL_COLUMNS, UNITS,
+                     FilterInput, chunk_to_frame, compensate_frame, full_coefficients, read_record)
 from ...records import CHUNK_ROWS, iter_table, record_writer
-from .report import report_from_results
 from .simulate import simulate_chunks
 from .study import CentrifugeMonteCarlo
 
-def _scheme(study: Study, args: argparse.Namespace):
+def scheme_option(study: Study, args: argparse.Namespace):
+    """The scheme ``--scheme`` names (a config scheme or a scheme file); InputError when absent."""
     if not args.scheme:
         raise InputError("--scheme", "required for rig centrifuge: a scheme name of the config or a scheme YAML file")
     return resolve_scheme(args.scheme, study.schemes)
@@ -46,7 +47,7 @@ def _scheme(study: Study, args: argparse.Namespace):
 
 def simulate_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal simulate``: one test record (docs/centrifuge-model.md §13)."""
-    scheme = _scheme(study, args)
+    scheme = scheme_option(study, args)
     check_writable(args.out, "--out")
     replicate = 0 if args.seed is None else int(args.seed)
     # replicate N of the Monte Carlo cell (this scheme, the config's sigma_a): a run of the study
@@ -98,18 +99,28 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     test record."""
     study = with_estimator(study, args.estimator)
     check_filter(study.filter)
-    scheme = _scheme(study, args)
+    scheme = scheme_option(study, args)
     check_writable(args.out, "--out", folder=True)
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
     chunk_rows = _chunk_rows(args)
 
     def read_chunks():
-        return iter_table(args.data, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS, chunk_rows=chunk_rows)
+        return iter_table(args.data, LOG_COLUMNS, OPTIONAL_COLUMNS, mapping=mapping, units=UNITS,
+                          chunk_rows=chunk_rows)
 
     # a record longer than one chunk is streamed (memory does not grow with it); a shorter one,
     # or an estimator that needs it whole, is read whole as before
     chunks = read_chunks() if chunk_rows and streamable(study.filter) else None
-    if chunks is not None and next(chunks, None) is not None and next(chunks, None) is not None:
+    segmentation = None
+    try:
+        streamed = chunks is not None and next(chunks, None) is not None and next(chunks, None) is not None
+        df = None if streamed else read_record(args.data, mapping)
+    except InputError as exc:  # no position column: a continuous log, read whole and cut into dwells
+        if not lacks_position(exc, mapping):
+            raise
+        streamed = False
+        df, segmentation = continuous_input(study, scheme, args.data, mapping)
+    if streamed:
         chunks.close()
         t0 = time.perf_counter()
         est, scan, fit = identify_streamed(study, scheme, read_chunks)
@@ -117,7 +128,6 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
         fin = FilterInput(scan.positions, scan.t, [], scan.cmd_deg)
         known = scan.truth
     else:
-        df = read_record(args.data, mapping)
         fin = record_input(study, scheme, df)
         est, seconds = timed(identify_input, study, scheme, fin)
         fit = None
@@ -129,9 +139,12 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     if fit is None:
         fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
     summary = write_identification(args.out, est, study, known and not args.no_truth, seconds,
-                                   samples_used=used, calibration=calibration(est, study, args.data), fit=fit)
+                                   samples_used=used, calibration=calibration(est, study, args.data), fit=fit,
+                                   segmentation=segmentation)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
+    if segmentation is not None:
+        msg += " (dwells found in the continuous log: dwells.png)"
     if "nees" in summary:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.3f} %, NEES {summary['nees']:.1f} (dof {summary['nees_dof']})")
@@ -142,69 +155,12 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     return fit_exit_status(fit, args.data, args.out)
 
 
-def observability_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal observability``: covariance-only analysis of a scheme."""
-    check_filter(study.filter)
-    scheme = _scheme(study, args)
-    check_writable(args.out, "--out", folder=True)
-    t0 = time.perf_counter()
-    res = write_observability(args.out, study, scheme, replicates=args.replicates, arw_deg_rth=args.arw,
-                              estimate_doo=True if args.doo else None, rate_deg_s=args.rate)
-    om = res["observability_matrix"]
-    msg = (f"platcal observability: scheme {scheme.name!r}: J = {res['J']:.2f} over {res['n_pairs']} pairs "
-           f"(ARW {res['settings']['arw_deg_rth']:g}), A = {res['criteria']['A']:.3g}, "
-           f"max rel sigma {res['criteria']['maxrel']:.3g} %, observability rank {om['rank']}/{om['n_cols']}")
-    if "monte_carlo" in res:
-        msg += f"; MC RMS rel err {res['monte_carlo']['rms_rel_err_pct_45']:.3f} % ({args.replicates} runs)"
-    print(msg + f" -> {args.out} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
-    return 0
-
-
-def design_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal design``: the genetic-algorithm scheme search."""
-    check_filter(study.filter)
-    if not str(args.out).endswith((".yaml", ".yml")):
-        raise InputError("--out", "must be a scheme file name ending in .yaml")
-    check_writable(args.out, "--out")
-    over = dict(criterion=args.criterion, positions=args.positions, population=args.population,
-                generations=args.generations, seed=args.seed, name=args.name)
-    if args.preset:
-        study, dcfg = preset(study, args.preset)
-        dcfg = design_config({**study.config, "design": dcfg}, **over)
-    else:
-        dcfg = design_config(study.config, **over)
-    log = (lambda m: print(m, file=sys.stderr)) if args.verbose else None
-    res = run_design(study, dcfg, log=log)
-    write_design(res, args.out)
-    print(f"platcal design: {res.scheme.name}: {dcfg['criterion']} = {res.value:.4g} "
-          f"(J {res.criteria['J']:.2f}, max rel sigma {res.criteria['maxrel']:.3g} %), "
-          f"{dcfg['population']} x {dcfg['generations']} generations, {res.position_runs} position runs, "
-          f"{res.seconds:.0f} s -> {args.out}", file=sys.stderr)
-    return 0
-
-
-def montecarlo_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal montecarlo``: one (scheme, sigma_a, estimator) cell of the sweep."""
-    check_filter(study.filter)
-    if args.noise is None:
-        raise InputError("--noise", "required for rig centrifuge: the accelerometer noise sigma_a, ug per sample")
-    check_writable(args.out, "--out", folder=True)
-    cell_job("centrifuge", study.config, args.scheme, args.noise, args.estimator, args.out, threads=args.threads,
-             case_file=args.scheme_file)
-    return 0
-
-
-def report_command(study: Study, args: argparse.Namespace) -> int:
-    """``platcal report``: rewrite ``report.md`` from a results folder's tables."""
-    out = report_from_results(study.config, args.results)
-    print(f"platcal report: -> {out}")
-    return 0
-
-
 def inspect_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
-    print(inspect_log(args.data, mapping, UNITS, LOG_COLUMNS, TRUTH_COLUMNS).text())
+    # a continuous log (no position column) is read too: identify finds its dwells
+    optional = tuple(c for c in LOG_COLUMNS + OPTIONAL_COLUMNS if c not in CONTINUOUS_COLUMNS)
+    print(inspect_log(args.data, mapping, UNITS, CONTINUOUS_COLUMNS, optional).text())
     return 0
 
 
@@ -212,13 +168,15 @@ def compensate_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
     errors taken out (docs/centrifuge-model.md §5: the specific force whose modelled outputs are
     the recorded ones), written atomically to ``--out`` in the record's columns and units. The
-    gyros are not in the record (they are seen through the platform's attitude), so only the
-    accelerometers are compensated."""
+    record has no gyro channel (the gyros are seen through the platform's attitude, §6): a log
+    that holds the gyro outputs ``wx, wy, wz`` (deg/h) gets them less the modelled drift (§4);
+    otherwise the output says the gyro terms were not applied."""
     coef = full_coefficients(read_calibration(args.calibration), "centrifuge")
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
-    optional = tuple(c for c in LOG_COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    optional = tuple(c for c in LOG_COLUMNS + OPTIONAL_COLUMNS if c not in COMPENSATE_COLUMNS)
     return compensate_log(args, "centrifuge", read_mapped("centrifuge", mapping, UNITS, COMPENSATE_COLUMNS, optional),
-                          lambda df: compensate_frame(df, coef), "accelerometers compensated")
+                          lambda df: compensate_frame(df, coef),
+                          lambda out: gyro_note(out.columns, GYRO_COLUMNS, "DF, DI, ... DOS"))
 
 
 VALUES_PER_SAMPLE = {"simulate": 24, "identify": 96}
@@ -227,23 +185,37 @@ benchmarks/size_estimate.py (the slope of peak RSS between a short and a long ru
 rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
+RECORD_COST = {"inspect": (0.5, 3e-8), "compensate": (0.5, 1.5e-7)}
+"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
+measured: inspect 2.8 B and 1.2e-8 s, compensate 3.1 B and 6.1e-8 s per byte."""
+SECONDS_PER_SAMPLE = {"simulate": 2e-5, "identify": 2e-5}
+"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 9.6e-6, identify 5.4e-6 s per sample;
+identify rounded up to simulate's as a Monte Carlo replicate does both."""
+
+
 def _dwell_field(study: Study, scheme) -> str:
     """The config key (or option) whose dwell sets a scheme's length, for a size message."""
     return f"schemes.{scheme.name}.dwell_s" if scheme.name in study.schemes else "--scheme (its dwell_s)"
 
 
-def _scheme_size(study: Study, scheme, command: str, replicates: float = 1) -> Size:
+def _scheme_size(study: Study, scheme, command: str, replicates: float = 1, runs: float | None = None) -> Size:
     return Size(_dwell_field(study, scheme), scheme.n_positions * samples_in(scheme.dwell_s, study.sample_s),
                 VALUES_PER_SAMPLE[command], replicates,
                 f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
-                f"{study.sample_s * 1000:g} ms")
+                f"{study.sample_s * 1000:g} ms", SECONDS_PER_SAMPLE[command], runs)
 
 
 def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
-    """The data each command's inputs imply (:mod:`platcal.sizes`): the scheme's samples (every
-    position) x :data:`VALUES_PER_SAMPLE` for simulate and identify (observability simulates its
-    replicates one batch at a time; a Monte Carlo cell simulates and identifies ``study.batch``
-    replicates at once), and the estimates of every replicate (replicates x 45)."""
+    """The work each command's inputs imply (:mod:`platcal.sizes`): the scheme's samples (every
+    position) x :data:`VALUES_PER_SAMPLE` and :data:`SECONDS_PER_SAMPLE` for simulate and identify
+    (observability simulates its replicates one batch at a time and identifies each; a Monte Carlo
+    cell simulates and identifies ``study.batch`` replicates at once, ``study.replicates`` in all),
+    the estimates of every replicate (replicates x 45); the design's candidates (population x
+    generations x positions x dwell, :func:`.study_commands.design_sizes`); inspect and compensate
+    the record file's bytes x
+    :data:`RECORD_COST`. report reads the study's own result tables: nothing to size."""
+    if command in RECORD_COST:
+        return [record_size(args.data, *RECORD_COST[command])]
     if command in ("simulate", "identify") and args.scheme:
         return [_scheme_size(study, resolve_scheme(args.scheme, study.schemes), command)]
     if command == "observability" and args.scheme:
@@ -251,20 +223,29 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
         out = [_scheme_size(study, scheme, "simulate")]
         if args.replicates:
             out += [Size("--replicates", args.replicates, len(load_catalogue().frame()), 1,
-                         "the Monte Carlo's estimation errors")]
+                         "the Monte Carlo's estimation errors"),
+                    replace(_scheme_size(study, scheme, "identify", 1, args.replicates), field="--replicates")]
         return out
     if command == "montecarlo":
         # the config as validated (the study section's cross-checks are the cell's, after --out's)
         st = study.config["study"]
         case = CentrifugeMonteCarlo().case(study.config, args.scheme, args.scheme_file)
-        return [_scheme_size(study, case, "identify", min(st["batch"], st["replicates"])),
-                Size("study.replicates", st["replicates"], len(load_catalogue().frame()), 1, "the cell's estimates")]
+        return [_scheme_size(study, case, "identify", min(st["batch"], st["replicates"]), 0),
+                Size("study.replicates", st["replicates"], len(load_catalogue().frame()), 1, "the cell's estimates"),
+                replace(_scheme_size(study, case, "identify", 1, st["replicates"]), field="study.replicates")]
+    if command == "design":   # the design search's module (pymoo) is imported only when it is chosen
+        return resolve(f"{_STUDY}:design_sizes")(study, args)
     return []
 
 
-COMMANDS = {"inspect": inspect_command, "simulate": simulate_command, "identify": identify_command, "observability": observability_command,
-            "design": design_command, "montecarlo": montecarlo_command, "report": report_command,
-            "compensate": compensate_command}
+_HERE, _STUDY = __name__, f"{__package__}.study_commands"
+COMMANDS = {"inspect": f"{_HERE}:inspect_command", "simulate": f"{_HERE}:simulate_command",
+            "identify": f"{_HERE}:identify_command", "observability": f"{_STUDY}:observability_command",
+            "design": f"{_STUDY}:design_command", "montecarlo": f"{_STUDY}:montecarlo_command",
+            "report": f"{_STUDY}:report_command", "compensate": f"{_HERE}:compensate_command"}
+"""Each sub-command by module path (:func:`platcal.rig.resolve`): the commands on a log live
+here, those of the study (observability, design, Monte Carlo cell, report: pymoo, matplotlib)
+in :mod:`.study_commands`, imported only when one of them is chosen."""
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
 CHUNK = option("--chunk-rows", type=whole(0), default=None,

@@ -648,11 +648,27 @@ def drive_passes(run_pass, x: np.ndarray, P: np.ndarray, z: list | None, t: list
                     mean_nis=nis / max(int(offs[-1]), 1), failed_updates=n_bad)
 
 
+@dataclass(frozen=True)
+class EstimatorInput:
+    """What every centrifuge estimator reads (the run contract of
+    :mod:`platcal.rigs.centrifuge.estimators`), for a batch of B runs of one scheme.
+
+    z : K arrays (B, M_k, 3), accelerometer outputs (g) at the instants ``t`` (None where no
+        measurement is read: a covariance-only run, a streamed record).
+    t : K arrays (M_k,), the instants in s since each position's start (increasing, >= 0).
+    cmd_deg : (B, K, 3) or (K, 3) commanded alpha, beta, gamma per position, deg.
+    centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters
+        (``Centrifuge.params()``; per position for multi-g-level schemes).
+    """
+
+    z: list | None
+    t: list
+    cmd_deg: np.ndarray
+    centrifuge_params: np.ndarray
+
+
 def run_ekf(
-    z: list[np.ndarray],
-    t: list[np.ndarray],
-    cmd_deg: np.ndarray,
-    centrifuge_params: np.ndarray,
+    data: EstimatorInput,
     settings: FilterSettings,
     *,
     linearise_about: np.ndarray | None = None,
@@ -666,11 +682,8 @@ def run_ekf(
 
     Parameters
     ----------
-    z : K arrays (B, M_k, 3), accelerometer outputs (g) at the filter instants.
-    t : K arrays (M_k,), those instants in s since each position's start (increasing).
-    cmd_deg : (B, K, 3) or (K, 3) commanded alpha, beta, gamma per position, deg.
-    centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters
-        (``Centrifuge.params()``; per position for multi-g-level schemes).
+    data : the record, commands and centrifuge parameters (:class:`EstimatorInput`; ``z`` at
+        the filter instants).
     settings : the filter settings.
     linearise_about : (B, 48) full coefficient vectors. If given, the run is covariance-only
         (docs/centrifuge-model.md §10): no measurement is used, the state follows the noise-free trajectory
@@ -700,6 +713,7 @@ def run_ekf(
     -------
     Estimate
     """
+    z, t, cmd_deg, centrifuge_params = data.z, data.t, data.cmd_deg, data.centrifuge_params
     K = len(t)
     cov_only = linearise_about is not None
     if z_source is not None and (cov_only or warmup_s is not None):
@@ -760,10 +774,7 @@ def run_ekf(
 
 
 def run_iekf(
-    z: list[np.ndarray],
-    t: list[np.ndarray],
-    cmd_deg: np.ndarray,
-    centrifuge_params: np.ndarray,
+    data: EstimatorInput,
     settings: FilterSettings,
     *,
     iterations: int = 2,
@@ -790,4 +801,4 @@ def run_iekf(
     if int(iterations) < 1:
         raise ValueError("iterations must be >= 1")
     ctl = iteration_control(settings.p0_sigma, int(iterations), tol, until_s, ratio)
-    return run_ekf(z, t, cmd_deg, centrifuge_params, settings, iterate=ctl, **stream)
+    return run_ekf(data, settings, iterate=ctl, **stream)

@@ -4,14 +4,15 @@
 Every kind provides one run function with the signature shared by the centrifuge's estimators
 (notes: the contract of issue 9)::
 
-    run(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, **options) -> Estimate
+    run(data: EstimatorInput, settings: FilterSettings, **options) -> Estimate
 
-``z`` K arrays (B, M_k, 3) g at the instants ``t`` (K arrays (M_k,), s since position k's start;
-the instants of :func:`platcal.rigs.centrifuge.ekf.filter_times`), ``cmd_deg`` (B, K, 3) or
-(K, 3), ``centrifuge_params`` (5,), (K, 5) or (B, K, 5); batched over B replicates, bit-identical
-whatever B and the thread count. ``options`` are the kind's keywords; each maps from a key of
-the config's ``filter:`` section (:attr:`EstimatorKind.config_keys`), so that a
-``study.estimators`` entry, which overrides ``filter:`` keys, can set them.
+``data`` (:class:`platcal.rigs.centrifuge.ekf.EstimatorInput`): the outputs ``z`` (g) at the
+instants ``t`` (s since each position's start; those of
+:func:`platcal.rigs.centrifuge.ekf.filter_times`), the commanded angles and the centrifuge
+parameters; batched over B replicates, bit-identical whatever B and the thread count.
+``options`` are the kind's keywords; each maps from a key of the config's ``filter:`` section
+(:attr:`EstimatorKind.config_keys`), so that a ``study.estimators`` entry, which overrides
+``filter:`` keys, can set them.
 
 Kinds
 -----
@@ -43,7 +44,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from ...errors import InputError
-from .ekf import Estimate, FilterSettings, run_ekf, run_iekf
+from .ekf import Estimate, EstimatorInput, FilterSettings, run_ekf, run_iekf
 from .ml import run_ml
 from .ukf import run_ukf
 
@@ -99,7 +100,7 @@ def options_from_filter(fcfg: dict) -> tuple:
     return tuple(out)
 
 
-def run_estimator(z, t, cmd_deg, centrifuge_params, settings: FilterSettings) -> Estimate:
+def run_estimator(data: EstimatorInput, settings: FilterSettings) -> Estimate:
     """Run the estimator ``settings.estimator`` with its ``settings.estimator_options``."""
     kind = check_kind(settings.estimator)
-    return kind.run(z, t, cmd_deg, centrifuge_params, settings, **dict(settings.estimator_options))
+    return kind.run(data, settings, **dict(settings.estimator_options))

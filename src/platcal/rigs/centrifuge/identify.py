@@ -8,21 +8,24 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
-from ...estimation.consistency import estimate_problems, nees
+from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
 from ...io import atomic_files, json_text
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files
+from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...plausibility import refuse_recognised, refuse_recognised_moments, timestamp_jitter
 from ...records import CHUNK_ROWS
+from ...rig import resolve
 from .catalogue import load_catalogue
 from .config import Study
-from .ekf import Estimate, FilterSettings, first_instant
+from .ekf import Estimate, EstimatorInput, FilterSettings, first_instant
 from .estimators import check_kind, run_estimator
-from .record import (FilterInput, check_commanded, check_every_position, check_position,
-                     check_position_numbers, check_record, filter_input, has_truth_columns,
-                     select_instants)
+from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
+                     check_every_position, check_position, check_position_numbers, check_record, continuous_record,
+                     filter_input, has_truth_columns, select_instants)
+from ...mapping import RecordMapping
+from ...records import read_table
 from ...errors import InputError
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
@@ -43,7 +46,8 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
     K = scheme.n_positions
     # the samples at the reset instant (t = 0) are not used unless filter.update_at_reset
     i0 = first_instant(fs.update_at_reset)
-    return run_estimator([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, scheme.angles_deg, params, fs)
+    return run_estimator(EstimatorInput([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, scheme.angles_deg,
+                                        params), fs)
 
 
 FIT_CHANNELS = ("Ax", "Ay", "Az")
@@ -113,11 +117,27 @@ def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
     return np.hypot(levels, 1.0)
 
 
+def continuous_input(study: Study, scheme: Scheme, path, mapping: RecordMapping | None) -> tuple[pd.DataFrame, tuple]:
+    """A continuous log (one clock, no ``position`` column; docs/centrifuge-model.md §13) read
+    whole and cut into the scheme's positions (:func:`.record.continuous_record`): the dwells
+    at the positions' specific-force levels (:func:`expected_g`), matched by the commanded angles
+    or, without them, by the mean outputs of the nominal instrument (every coefficient 0) over
+    each position. Returns the labelled record, which then takes every check of a labelled one,
+    and ``(t, |A|, dwells)`` for the figure."""
+    df = read_table(path, CONTINUOUS_COLUMNS, COMMANDED_COLUMNS + OPTIONAL_COLUMNS, what="a continuous centrifuge log",
+                    mapping=mapping, units=UNITS)
+    has_truth_columns(df.columns)
+    run = simulate(np.zeros_like(study.truth), scheme, study.centrifuge.scheme_params(scheme), study.noise, None,
+                   sample_s=study.sample_s)
+    return continuous_record(df, scheme, expected_g(study, scheme), run.A[0].mean(axis=1),
+                             turning=study.centrifuge.rate_deg_s != 0)
+
+
 def identify_input(study: Study, scheme: Scheme, fin: FilterInput) -> Estimate:
     """Run the study's estimator (``filter.estimator``) over the selected samples of a record (one
     run: a batch of one), keeping the innovations for the fit check (EKF, IEKF)."""
     params = study.centrifuge.scheme_params(scheme)[np.array(fin.positions) - 1]
-    return run_estimator(fin.z, fin.t, fin.cmd_deg, params, replace(study.filter, innovations=True))
+    return run_estimator(EstimatorInput(fin.z, fin.t, fin.cmd_deg, params), replace(study.filter, innovations=True))
 
 
 def nominal_output(study: Study, scheme: Scheme, fin: FilterInput) -> np.ndarray:
@@ -288,8 +308,8 @@ def identify_streamed(study: Study, scheme: Scheme, read_chunks) -> tuple[Estima
         state["sums"].add(rb[0, :, :3], rb[0, :, 3:], segment)
 
     kind = check_kind(settings.estimator)
-    est = kind.run(None, scan.t, scan.cmd_deg, params, settings, z_source=z_source, on_innovations=on_innovations,
-                   **dict(settings.estimator_options))
+    est = kind.run(EstimatorInput(None, scan.t, scan.cmd_deg, params), settings, z_source=z_source,
+                   on_innovations=on_innovations, **dict(settings.estimator_options))
     diagnosis = [text for _, text in gross_errors_moments(scan.moments, FIT_CHANNELS)]
     clock = clock_text(study, scheme, scan.jitter_s)
     if not diagnosis and clock is not None:
@@ -331,7 +351,7 @@ def consistency_warning(summary: dict) -> str | None:
     if summary.get("nees") is None:
         return None
     dof = int(summary["nees_dof"])
-    bound = float(chi2.ppf(NEES_LEVEL, dof))
+    bound = chi2_quantile(NEES_LEVEL, dof)
     if summary["nees"] <= bound:
         return None
     return (f"NEES {summary['nees']:.4g} for {dof} dof is above its {NEES_LEVEL:.1%} bound {bound:.4g}: the "
@@ -341,7 +361,8 @@ def consistency_warning(summary: dict) -> str | None:
 
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
                          seconds: float | None = None, samples_used: dict[int, int] | None = None,
-                         calibration: Calibration | None = None, fit: FitCheck | None = None) -> dict:
+                         calibration: Calibration | None = None, fit: FitCheck | None = None,
+                         segmentation: tuple | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
@@ -350,7 +371,9 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     last; it is strict JSON (``null`` for a number that is not finite). ``samples_used`` (position
     -> number of samples the filter used) goes into the summary as ``samples_used_per_position``;
     ``fit`` (:func:`record_fit`) as its ``fit`` block (``verdict: not available`` when None).
-    With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`).
+    With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`);
+    with ``segmentation`` (a continuous log's ``(t, |A|, dwells)``, :func:`continuous_input`) the
+    summary's ``dwells_found`` and ``dwells.png``, the log's ``|A|`` with the dwells shaded.
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
@@ -362,6 +385,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         summary["samples_used_per_position"] = {str(k): int(v) for k, v in samples_used.items()}
     if seconds is not None:
         summary["seconds"] = seconds
+    if segmentation is not None:
+        summary["dwells_found"] = dwells_found(segmentation[0], segmentation[2])
     summary["fit"] = fit.as_dict() if fit is not None else {
         "verdict": "not available", "reason": f"estimator {study.filter.estimator!r} keeps no innovations"}
     if truth is not None:
@@ -379,6 +404,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         tmp("table2.md").write_text(table2_markdown(df))
         if calibration is not None:
             write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state
+        if segmentation is not None:
+            resolve(DWELL_FIGURE)(*segmentation, tmp("dwells.png"), names=("|A|",), ylabel="specific force |A|, g")
         tmp("summary.json").write_text(json_text(summary))
     return summary
 

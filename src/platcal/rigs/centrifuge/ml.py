@@ -66,7 +66,7 @@ from .attitude import GYRO_COLS, MEAS_COLS, P_G, make_step_scratch, measure_jac_
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import N_FULL
 from .base import broadcast_params, specific_force_into
-from .ekf import Estimate, FilterSettings, run_ekf
+from .ekf import Estimate, EstimatorInput, FilterSettings, run_ekf
 
 STARTS = ("zero", "ekf")
 FINALS = ("converge", "one-step")
@@ -416,7 +416,7 @@ class _Problem:
         return theta
 
 
-def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_iter: int = 20,
+def solve_ml(data: EstimatorInput, settings: FilterSettings, *, max_iter: int = 20,
              tol: float = 1e-2, start="zero", damping: bool = False, coarse: int = 1,
              final: str = "converge") -> tuple[Estimate, MLInfo]:
     """:func:`run_ml` with the solver's diagnostics: ``(Estimate, MLInfo)``.
@@ -436,6 +436,7 @@ def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_
     if final not in FINALS:
         raise InputError("final", f"must be one of {', '.join(FINALS)}, not {final!r}")
     coarse = int(coarse)
+    z, t, cmd_deg, centrifuge_params = data.z, data.t, data.cmd_deg, data.centrifuge_params
     prob = _Problem(z, t, cmd_deg, centrifuge_params, settings)
     nc, B = prob.nc, prob.B
     ekf_s = 0.0
@@ -445,7 +446,7 @@ def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_
             raise ValueError(f"start must be (B, nc) = ({B}, {nc}), got {coef0.shape}")
     elif start == "ekf":
         t0 = time.perf_counter()
-        ekf = run_ekf(z, t, cmd_deg, centrifuge_params, replace(settings, passes=1, history_every_s=None))
+        ekf = run_ekf(data, replace(settings, passes=1, history_every_s=None))
         ekf_s = time.perf_counter() - t0
         coef0 = ekf.coef
     else:
@@ -495,18 +496,16 @@ def solve_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_
     return est, info
 
 
-def run_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_iter: int = 20,
+def run_ml(data: EstimatorInput, settings: FilterSettings, *, max_iter: int = 20,
            tol: float = 1e-2, start: str = "zero", damping: bool = False, coarse: int = 1,
            final: str = "converge") -> Estimate:
     """Batch MAP identification of a centrifuge record (module docstring), for a batch of B runs.
 
     Parameters
     ----------
-    z : K arrays (B, M_k, 3), accelerometer outputs (g) at the instants ``t``.
-    t : K arrays (M_k,), instants in s since each position's start (>= 0, increasing); the
-        attitude at 0 is the position's initial-angle parameter.
-    cmd_deg : (B, K, 3) or (K, 3) commanded angles per position, deg (the prior means).
-    centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters.
+    data : the record, commands and centrifuge parameters (:class:`~.ekf.EstimatorInput`); the
+        attitude at t = 0 is the position's initial-angle parameter, the commanded angles are
+        its prior means.
     settings : the filter settings (R from sigma_a_ug, Q from arw_deg_rth, the angle prior from
         sigma_set_arcsec, the coefficient prior from p0_sigma, estimate_doo); ``passes`` and
         ``history_every_s`` are not used.
@@ -530,7 +529,7 @@ def run_ml(z, t, cmd_deg, centrifuge_params, settings: FilterSettings, *, max_it
     -------
     Estimate (x: coefficients, then the last position's initial angles in rad).
     """
-    return solve_ml(z, t, cmd_deg, centrifuge_params, settings, max_iter=max_iter, tol=tol, start=start,
+    return solve_ml(data, settings, max_iter=max_iter, tol=tol, start=start,
                     damping=damping, coarse=coarse, final=final)[0]
 
 

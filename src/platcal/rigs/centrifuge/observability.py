@@ -53,7 +53,7 @@ from .attitude import make_rk4_scratch, make_work, measure_into, rk4_step_jac
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, N_FULL, N_IDENTIFIED, group_of, unit_of
 from .base import broadcast_params, specific_force_into
-from .ekf import FilterSettings, default_p0_sigma, filter_times, run_ekf
+from .ekf import EstimatorInput, FilterSettings, default_p0_sigma, filter_times, run_ekf
 from .identify import simulate_identify
 from ...scheme import whole_periods
 
@@ -120,7 +120,7 @@ def direct_covariance(setup: Setup, angles_deg: np.ndarray, g_levels=None) -> np
         gl = np.broadcast_to(np.asarray(g_levels, float), (B, K))
         params = np.stack([[setup.centrifuge.params(float(g)) for g in row] for row in gl])
     t = [setup.times] * K
-    est = run_ekf([np.zeros((B, 0, 3))] * K, t, ang, params, setup.filter,
+    est = run_ekf(EstimatorInput([np.zeros((B, 0, 3))] * K, t, ang, params), setup.filter,
                   linearise_about=np.tile(setup.truth, (B, 1)))
     nc = setup.n_coef
     return est.P[:, :nc, :nc]
@@ -143,7 +143,7 @@ def position_information(setup: Setup, angles_deg: np.ndarray, g_levels=None, ch
         b = min(P, a + chunk)
         params = (np.broadcast_to(setup.centrifuge.params(), (b - a, 1, 5)) if gl is None
                   else _params_for(setup, gl[a:b])[:, None, :])
-        est = run_ekf([np.zeros((b - a, 0, 3))], t, ang[a:b, None, :], params, setup.filter,
+        est = run_ekf(EstimatorInput([np.zeros((b - a, 0, 3))], t, ang[a:b, None, :], params), setup.filter,
                       linearise_about=np.tile(setup.truth, (b - a, 1)))
         Pn = est.P[:, :nc, :nc] / (p0[:, None] * p0[None, :])
         Pn = 0.5 * (Pn + np.swapaxes(Pn, 1, 2))

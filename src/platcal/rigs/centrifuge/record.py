@@ -17,15 +17,24 @@ import pandas as pd
 from ...errors import InputError
 from ...mapping import RecordMapping
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
-                        nearest_samples, read_table, write_record)  # noqa: F401 (write_record re-exported)
+                        nearest_samples, read_table, whole_group, write_record)  # noqa: F401 (write_record re-exported)
 from ...records import num as _num
 from ...logs.calibration import Calibration
+from ...logs.dwells import DwellRule, find_dwells, labelled_frame
 from ...model.frames import DEG
-from ...model.instruments import FULL_NAMES, INDEX, N_FULL, compensate_accelerometers
+from ...model.instruments import FULL_NAMES, INDEX, N_FULL, compensate_accelerometers, gyro_drifts
 from ...scheme import Scheme
 
+GYRO_COLUMNS = ("wx", "wy", "wz")
+"""The platform gyros' outputs, deg/h (the rate each measures about its input axis), optional in a
+log: identify does not read them (the model sees the gyros through the platform's attitude,
+docs/centrifuge-model.md §4, §6); compensate takes their modelled drift out when they are there."""
 UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": "deg", "gamma_cmd": "deg",
-         "Ax": "g", "Ay": "g", "Az": "g", "alpha": "deg", "beta": "deg", "gamma": "deg"}
+         "Ax": "g", "Ay": "g", "Az": "g", "alpha": "deg", "beta": "deg", "gamma": "deg",
+         "wx": "deg/h", "wy": "deg/h", "wz": "deg/h"}
+OPTIONAL_COLUMNS = TRUTH_COLUMNS + GYRO_COLUMNS
+"""Columns a log may hold besides :data:`platcal.records.LOG_COLUMNS`: the true angles
+(simulation) and the gyro outputs; each group all or none."""
 """The record's columns and their units (docs/centrifuge-model.md §13), for a config's ``record:`` mapping."""
 UNIT_FACTOR_G = 3.0
 """A record whose median specific-force magnitude is this many times larger or smaller than the
@@ -89,18 +98,14 @@ def read_record(path: str | os.PathLike, mapping: RecordMapping | None = None) -
     Raises InputError naming the column (and row) on missing or extra columns, non-numeric,
     NaN or infinite values.
     """
-    df = read_table(path, LOG_COLUMNS, TRUTH_COLUMNS, mapping=mapping, units=UNITS)
+    df = read_table(path, LOG_COLUMNS, OPTIONAL_COLUMNS, mapping=mapping, units=UNITS)
     has_truth_columns(df.columns)
     return df
 
 
 def has_truth_columns(columns) -> bool:
     """Whether a record's ``columns`` hold the true angles; refused when only some of the three do."""
-    present = [c for c in TRUTH_COLUMNS if c in columns]
-    if present and len(present) != 3:
-        raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in columns][0]}",
-                         "the true angles come as all three of alpha, beta, gamma or not at all")
-    return bool(present)
+    return whole_group(columns, TRUTH_COLUMNS, "the true angles")
 
 
 def check_position_numbers(pos: np.ndarray, scheme: Scheme) -> None:
@@ -269,6 +274,40 @@ def select_instants(k: int, t: np.ndarray, period_s: float, max_gap_s: float | N
     return keep, t
 
 
+COMMANDED_COLUMNS = ("alpha_cmd", "beta_cmd", "gamma_cmd")
+CONTINUOUS_COLUMNS = ("t", "Ax", "Ay", "Az")
+"""What a continuous log (one clock, no ``position`` column) must hold; the commanded angles
+(:data:`COMMANDED_COLUMNS`) and the true angles may come too, all three of each or none."""
+LEVEL_SHARE = 0.01
+"""A sample of a continuous log is at a dwell's level when its ``|A|`` is within this share of
+the specific force of one of the scheme's positions (``hypot(g_level, 1)`` g): the table at its
+rate. Within a dwell ``|A|`` holds to the Coriolis term and the instrument's errors as the force
+turns (a simulated 10 g test of Table 2's truth: within 3.5e-3 of it, 5e-4 g per 5 ms step); a
+table spun down for a slew gives 1 g."""
+
+
+def continuous_record(df: pd.DataFrame, scheme: Scheme, level_g: np.ndarray, mean_g: np.ndarray, turning: bool,
+                      rule: DwellRule = DwellRule()) -> tuple[pd.DataFrame, tuple]:
+    """A continuous centrifuge log (docs/centrifuge-model.md §13, "Continuous logs") as a
+    labelled record: the dwells found (:func:`platcal.logs.dwells.find_dwells`) among the
+    samples at one of the positions' specific-force levels ``level_g`` (K,) g (:data:`LEVEL_SHARE`),
+    cut where the commanded angles step, ``|A|`` steps (``turning``: the outputs turn with the
+    table, their magnitude holds; otherwise the outputs themselves) or the clock jumps; matched
+    to the scheme's positions by the commanded angles when the log has them, else by the mean
+    outputs against ``mean_g`` (K, 3) g, the nominal instrument's over each position. Each dwell's
+    clock counts from its first sample (the position's start). Returns the record and ``(t,
+    |A|, dwells)`` for the figure; InputError naming ``--data`` when the dwells do not match
+    the scheme."""
+    present = list(COMMANDED_COLUMNS) if whole_group(df.columns, COMMANDED_COLUMNS, "the commanded angles") else []
+    t = df["t"].to_numpy(float)
+    a = df[["Ax", "Ay", "Az"]].to_numpy(float)
+    size = np.linalg.norm(a, axis=1)
+    at_level = (np.abs(size[:, None] - level_g[None, :]) <= LEVEL_SHARE * level_g[None, :]).any(axis=1)
+    dwells = find_dwells(t, df[present].to_numpy(float), a, scheme.angles_deg, rule, at_level=at_level,
+                         level_g=size if turning else a, expected_g=mean_g)
+    return labelled_frame(df, dwells, scheme.angles_deg, scheme.name, COMMANDED_COLUMNS), (t, size, dwells)
+
+
 COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az")
 """The columns ``platcal compensate`` needs; the record's others pass through unchanged."""
 
@@ -290,7 +329,12 @@ def full_coefficients(cal: Calibration, rig: str) -> np.ndarray:
 def compensate_frame(df: pd.DataFrame, coef: np.ndarray) -> pd.DataFrame:
     """``df`` with ``Ax, Ay, Az`` (g) compensated with ``coef`` (48,): each sample replaced by
     the error-free output, the specific force in p whose modelled outputs are the recorded ones
-    (:func:`platcal.model.instruments.compensate_accelerometers`, docs/centrifuge-model.md §5)."""
+    (:func:`platcal.model.instruments.compensate_accelerometers`, docs/centrifuge-model.md §5);
+    and, when the log has the gyro outputs ``wx, wy, wz`` (deg/h, :data:`GYRO_COLUMNS`), those
+    less the modelled drift at that specific force (§4)."""
     out = df.copy()
-    out[["Ax", "Ay", "Az"]] = compensate_accelerometers(df[["Ax", "Ay", "Az"]].to_numpy(float), coef)
+    f = compensate_accelerometers(df[["Ax", "Ay", "Az"]].to_numpy(float), coef)
+    out[["Ax", "Ay", "Az"]] = f
+    if whole_group(df.columns, GYRO_COLUMNS, "the gyro outputs"):
+        out[list(GYRO_COLUMNS)] = df[list(GYRO_COLUMNS)].to_numpy(float) - gyro_drifts(coef, f)
     return out

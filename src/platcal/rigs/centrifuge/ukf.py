@@ -63,8 +63,8 @@ from .attitude import (GYRO_COLS, P_G, _shift, c_rp_sc, make_step_scratch, measu
                        rk4_scalar)
 from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
 from .base import specific_force_into
-from .ekf import (Estimate, FilterSettings, attitude_reset, drive_passes, filter_start, propagate_attitude,
-                  store_history)
+from .ekf import (Estimate, EstimatorInput, FilterSettings, attitude_reset, drive_passes, filter_start,
+                  propagate_attitude, store_history)
 
 SIGMA_POINT_MODES = ("nonlinear", "update", "all")
 
@@ -455,10 +455,7 @@ def check_options(n: int, sigma_points: str, alpha: float, beta: float, kappa: f
 
 
 def run_ukf(
-    z: list[np.ndarray],
-    t: list[np.ndarray],
-    cmd_deg: np.ndarray,
-    centrifuge_params: np.ndarray,
+    data: EstimatorInput,
     settings: FilterSettings,
     *,
     sigma_points: str = "update",
@@ -471,10 +468,8 @@ def run_ukf(
 
     Parameters
     ----------
-    z : K arrays (B, M_k, 3), accelerometer outputs (g) at the filter instants.
-    t : K arrays (M_k,), those instants in s since each position's start (increasing, >= 0).
-    cmd_deg : (B, K, 3) or (K, 3) commanded alpha, beta, gamma per position, deg.
-    centrifuge_params : (5,), (K, 5) or (B, K, 5) packed centrifuge parameters.
+    data : the record, commands and centrifuge parameters (:class:`~.ekf.EstimatorInput`; ``z``
+        at the filter instants).
     settings : the filter settings (those of the EKF; ``passes`` as there).
     sigma_points : ``"update"`` (default: 2n + 1 sigma points in the measurement update, the
         EKF's propagation), ``"all"`` (2n + 1 in the propagation too; the textbook reference) or
@@ -490,6 +485,7 @@ def run_ukf(
     Estimate (``failed_updates`` counts updates skipped because S or the sigma points' P block was
     not positive definite, and ``"all"`` propagations that fell back to the linear one for that reason).
     """
+    z, t, cmd_deg, centrifuge_params = data.z, data.t, data.cmd_deg, data.centrifuge_params
     K = len(t)
     B = z[0].shape[0]
     est_idx = settings.coef_index

@@ -16,7 +16,6 @@ import numpy as np
 import pandas as pd
 
 from ...rig import Rig
-from . import claims
 from .commands import OPTIONS, compensate, identify, inspect, simulate, sizes
 from .config import COEFFS, load_config
 from .montecarlo import LowprecMonteCarlo
@@ -32,5 +31,5 @@ RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
           spec="lowprec-centrifuge.md", load_config=load_config,
           commands={"inspect": inspect, "simulate": simulate, "identify": identify, "compensate": compensate},
-          catalogue=catalogue, extras={"claims": claims}, estimators=("proposed", "traditional"), options=OPTIONS,
+          catalogue=catalogue, extras={"claims": f"{__name__}.claims"}, estimators=("proposed", "traditional"), options=OPTIONS,
           montecarlo=LowprecMonteCarlo(), sizes=sizes)

@@ -24,7 +24,7 @@ from ...logs.calibration import calibration_of, calibration_values, read_calibra
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...sizes import Size, samples_in
+from ...sizes import Size, record_size, samples_in
 from .config import COEFFS, G0, Study
 from .montecarlo import SEED_KEY
 from .profile import run_duration
@@ -144,13 +144,15 @@ def inspect(study: Study, args) -> int:
 def compensate(study: Study, args) -> int:
     """``platcal compensate``: the log's velocities and positions with the errors the
     calibration's coefficients cause taken out (docs/lowprec-centrifuge.md §8), written
-    atomically to ``--out`` in the record's columns and units."""
+    atomically to ``--out`` in the record's columns and units. No gyro output is compensated: the
+    calibration holds accelerometer terms only and the record no gyro channel (the output says so)."""
     coeffs = calibration_values(read_calibration(args.calibration), COEFFS, "lowprec_centrifuge")
     mapping = RecordMapping.from_config(study.raw["record"], g=G0)
     read = lambda path: read_record(path, use_truth=False, rate_hz=study.rate_hz,  # noqa: E731
                                     max_gap_s=float(study.raw["record"]["max_gap_s"]), mapping=mapping)
     return compensate_log(args, "lowprec_centrifuge", read, lambda rec: compensated_frame(rec, coeffs, study.latitude_deg),
-                          "velocity and position compensated")
+                          "velocity and position compensated; no gyro output is compensated (the calibration holds "
+                          "the accelerometer terms kA, k2 only and the log no gyro channel)")
 
 
 def _segment_field(study: Study, seg: tuple) -> str:
@@ -163,22 +165,34 @@ def _segment_field(study: Study, seg: tuple) -> str:
     return "profile.jerk_g_s"
 
 
-VALUES_PER_SAMPLE = 64
+VALUES_PER_SAMPLE = 160
 """float64 values simulate holds per sample at its peak (resident memory), measured by
-benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 465 bytes for simulate),
-rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
+benchmarks/size_estimate.py (the slope of peak RSS between a 60 s and a 1500 s rest: 1146 bytes,
+where an earlier 60 s / 3000 s measurement gave 465), rounded up: the size check
+(:mod:`platcal.sizes`) multiplies the samples by these."""
+
+
+RECORD_COST = {"inspect": (0.5, 1.2e-8), "compensate": (0.5, 6e-8), "identify": (0.5, 3e-8)}
+"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
+measured: inspect 1.8 B and 5.6e-9 s, compensate 1.2 B and 3.0e-8 s, identify 1.5 B and 1.1e-8 s per
+byte."""
+SECONDS_PER_SAMPLE = {"simulate": 5e-5}
+"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 2.3e-5 s per sample."""
 
 
 def sizes(command: str, study: Study, args) -> list[Size]:
-    """The data a command's inputs imply (:mod:`platcal.sizes`): simulate holds the run's record
-    (its duration at ``profile.rate_hz``) x :data:`VALUES_PER_SAMPLE`. identify holds the record
-    it is given, whose size the file bounds, and is not estimated."""
+    """The work a command's inputs imply (:mod:`platcal.sizes`): simulate holds and runs the run's
+    record (its duration at ``profile.rate_hz``) x :data:`VALUES_PER_SAMPLE` and
+    :data:`SECONDS_PER_SAMPLE`; identify, inspect and compensate read the record they are given,
+    sized by its file's bytes x :data:`RECORD_COST`."""
+    if command in RECORD_COST:
+        return [record_size(args.data, *RECORD_COST[command])]
     if command != "simulate" or args.platform not in study.platforms or args.run not in study.run_names(args.platform):
         return []   # the command names a missing platform or run itself
     seconds, longest = run_duration(study, args.platform, args.run)
     return [Size(_segment_field(study, longest), samples_in(seconds, 1.0 / study.rate_hz),
-                 VALUES_PER_SAMPLE, 1,
-                 f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz")]
+                 VALUES_PER_SAMPLE, 1, f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz",
+                 SECONDS_PER_SAMPLE["simulate"])]
 
 
 OPTIONS = {

@@ -9,7 +9,6 @@ import pandas as pd
 
 from ...rig import Rig
 from .campaign import CAMPAIGN
-from . import claims
 from .commands import COMMANDS, OPTIONS, sizes
 from .config import load_config
 from .estimators import ESTIMATORS
@@ -27,6 +26,6 @@ def catalogue() -> pd.DataFrame:
 
 RIG = Rig(name="multiposition", title="1 g multi-position self-test, 27-state EKF with gimbal angle sensors",
           spec="multiposition-1g.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
-          estimators=tuple(ESTIMATORS), extras={"information": position_information, "claims": claims},
+          estimators=tuple(ESTIMATORS), extras={"information": position_information, "claims": f"{__name__}.claims"},
           montecarlo=MultipositionMonteCarlo(), options=OPTIONS, sizes=sizes,
           campaign=CAMPAIGN)

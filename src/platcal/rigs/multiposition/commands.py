@@ -1,4 +1,4 @@
-"""``platcal simulate | identify | observability`` for ``rig: multiposition``.
+"""``platcal simulate | identify | inspect | compensate`` for ``rig: multiposition`` (``observability``: :mod:`.study_commands`).
 
 ``platcal simulate --seed N`` writes replicate N (default 0) of the study's Monte Carlo cell of
 that scheme at the config's ``noise.sigma_a_ug``: the same ``SeedSequence(seed, spawn_key=
@@ -21,21 +21,20 @@ import pandas as pd
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...errors import InputError
-from ...rig import option
+from ...rig import option, resolve
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
-from ...logs.compensate import compensate_log, read_mapped
-from ...logs.dwells import dwell_figure
+from ...logs.compensate import compensate_log, gyro_note, read_mapped
+from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
-from ...sizes import Size, samples_in
+from ...sizes import Size, record_size, samples_in
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
-from .observability import evaluate
-from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, TRUTH_COLUMNS, UG, UNITS, compensate_frame,
-                     read_record, to_frame, write_record)
+from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
+                     compensate_frame, read_record, to_frame, write_record)
 
 
 
@@ -149,10 +148,7 @@ def cmd_identify(cfg, args) -> int:
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
     if rec.segmentation is not None:
-        t_log = rec.segmentation[0]
-        summary["dwells_found"] = [{"position": d.position, "t_start": float(t_log[d.start]),
-                                    "t_end": float(t_log[d.stop - 1]), "samples": d.stop - d.start}
-                                   for d in rec.segmentation[2]]
+        summary["dwells_found"] = dwells_found(rec.segmentation[0], rec.segmentation[2])
     fit = record_fit(cfg, scheme, rec, innovations)
     summary["fit"] = fit.as_dict()
     use_truth = rec.has_truth and not args.no_truth
@@ -171,7 +167,7 @@ def cmd_identify(cfg, args) -> int:
         df.to_csv(tmp("estimates.csv"), index=False)
         write_calibration_files(tmp, cal)
         if rec.segmentation is not None:
-            dwell_figure(*rec.segmentation, tmp("dwells.png"))
+            resolve(DWELL_FIGURE)(*rec.segmentation, tmp("dwells.png"))
         tmp("summary.json").write_text(json_text(summary))
     msg = (f"platcal identify: multiposition 27-state {choice.label}, {min(used.values())}-"
            f"{max(used.values())} samples per position, {seconds:.2f} s -> {out}")
@@ -182,45 +178,32 @@ def cmd_identify(cfg, args) -> int:
     return fit_exit_status(fit, args.data, out)
 
 
-def cmd_observability(cfg, args) -> int:
-    scheme = cfg.scheme(args.scheme)
-    check_writable(args.out, "--out", folder=True)
-    t0 = time.perf_counter()
-    res = evaluate(cfg, scheme)
-    res["seconds"] = time.perf_counter() - t0
-    out = Path(args.out)
-    with atomic_files(out) as tmp:
-        pd.DataFrame(res["coefficients"]).to_csv(tmp("coefficients.csv"), index=False)
-        tmp("observability.json").write_text(json_text(res))
-    v = res["verdict"]
-    print(f"platcal observability: multiposition scheme {scheme.name!r}: static rank {res['static_rank']}, "
-          f"exact Lie rank {res['exact_rank_nominal']}/{res['exact_rank_truth']} of {res['n_states']}, max "
-          f"sigma/|truth| {res['max_rel_sigma_pct']:.3g} % -> {v['decision'].upper()}: {'; '.join(v['reasons'])}"
-          f" -> {out} ({res['seconds']:.1f} s)", file=sys.stderr)
-    return 0
-
-
 def cmd_inspect(cfg, args) -> int:
     """``platcal inspect``: what ``--data`` holds, read through the config's ``record:`` mapping."""
     # a continuous log (no position column) is read too: identify finds its dwells
-    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in CONTINUOUS_COLUMNS)
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS + GYRO_COLUMNS if c not in CONTINUOUS_COLUMNS)
     summary = inspect_log(args.data, RecordMapping.from_config(cfg.raw["record"]), UNITS, CONTINUOUS_COLUMNS, optional)
     print(summary.text())
     return 0
 
 
 def cmd_compensate(cfg, args) -> int:
-    """``platcal compensate``: the log's accelerometer outputs with the calibration's modelled
-    errors taken out (docs/multiposition-1g.md §6), written atomically to ``--out``."""
+    """``platcal compensate``: the log's accelerometer outputs (and gyro outputs, when it has them)
+    with the calibration's modelled errors taken out (docs/multiposition-1g.md §5, §6), written
+    atomically to ``--out``; the output says when the log has no gyro outputs to compensate."""
     coef = calibration_values(read_calibration(args.calibration), coef_names(), "multiposition")
-    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS if c not in COMPENSATE_COLUMNS)
+    optional = tuple(c for c in COLUMNS + TRUTH_COLUMNS + GYRO_COLUMNS if c not in COMPENSATE_COLUMNS)
     read = read_mapped("multiposition", RecordMapping.from_config(cfg.raw["record"]), UNITS, COMPENSATE_COLUMNS,
                        optional)
     return compensate_log(args, "multiposition", read, lambda df: compensate_frame(df, coef),
-                          "accelerometers compensated")
+                          lambda out: gyro_note(out.columns, GYRO_COLUMNS, "DF, DI, ... DOS"))
 
 
-COMMANDS = {"inspect": cmd_inspect, "compensate": cmd_compensate, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+COMMANDS = {"inspect": f"{__name__}:cmd_inspect", "compensate": f"{__name__}:cmd_compensate",
+            "simulate": f"{__name__}:cmd_simulate", "identify": f"{__name__}:cmd_identify",
+            "observability": f"{__package__}.study_commands:cmd_observability"}
+"""Each sub-command by module path (:func:`platcal.rig.resolve`): ``observability`` (the exact
+Lie-derivative rank, sympy) in :mod:`.study_commands`, imported only when it is chosen."""
 
 VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
 """float64 values a command holds per sample at its peak (resident memory), measured by
@@ -228,16 +211,29 @@ benchmarks/size_estimate.py (the slope of peak RSS between a short and a long ru
 rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
+RECORD_COST = {"inspect": (0.5, 1e-8), "compensate": (0.5, 4e-7)}
+"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
+measured: inspect 2.2 B and 5.2e-9 s, compensate 2.8 B and 1.9e-7 s per byte."""
+SECONDS_PER_SAMPLE = {"simulate": 2.5e-5, "identify": 2e-5}
+"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 1.2e-5, identify 7.8e-6 s per sample."""
+
+
 def sizes(command: str, cfg, args) -> list[Size]:
-    """The data a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold the
-    scheme's samples (every position, at ``sampling.ts_ms``) x :data:`VALUES_PER_SAMPLE`."""
-    if command not in ("simulate", "identify"):
-        return []
+    """The work a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold and run
+    the scheme's samples (every position, at ``sampling.ts_ms``) x :data:`VALUES_PER_SAMPLE` and
+    :data:`SECONDS_PER_SAMPLE`; observability propagates a covariance over the same samples (or
+    fewer, at a coarser step) holding one matrix per position, so it is timed at identify's cost per
+    sample (an upper bound: the covariance step is a part of the filter's) and holds nothing per
+    sample; inspect and compensate the record file's bytes x :data:`RECORD_COST`."""
+    if command in RECORD_COST:
+        return [record_size(args.data, *RECORD_COST[command])]
     scheme = cfg.scheme(args.scheme)
+    kind = "simulate" if command == "simulate" else "identify"
     field = f"schemes.{scheme.name}.dwell_s" if scheme.name in cfg.raw["schemes"] else "--scheme (its dwell_s)"
-    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), VALUES_PER_SAMPLE[command], 1,
+    held = VALUES_PER_SAMPLE[kind] if command != "observability" else 0
+    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), held, 1,
                  f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
-                 f"{cfg.ts * 1000:g} ms")]
+                 f"{cfg.ts * 1000:g} ms", SECONDS_PER_SAMPLE[kind])]
 
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "

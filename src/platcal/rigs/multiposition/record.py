@@ -17,20 +17,24 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
-from ...logs.dwells import DwellRule, find_dwells
+from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_position
 from ...mapping import RecordMapping
 from ...model.frames import DEG
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
-                         read_table, write_record)  # write_record: re-exported for the rig's commands
+                         read_table, whole_group, write_record)  # write_record: re-exported for the rig's commands
 from ...scheme import Scheme
-from .model import measure
+from .model import drift, measure
 
 ANGLE_COLUMNS = ("alpha_m", "beta_m", "gamma_m")
+GYRO_COLUMNS = ("wx", "wy", "wz")
+"""The platform gyros' outputs, deg/h (the rate each measures about its input axis), optional in a
+log: identify does not read them (the gyros are seen through the gimbal angles, §6); compensate
+takes their modelled drift out when they are there (docs/multiposition-1g.md §5)."""
 COLUMNS = LOG_COLUMNS + ANGLE_COLUMNS
 UG = 1e-6
 UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": "deg", "gamma_cmd": "deg",
          "Ax": "g", "Ay": "g", "Az": "g", "alpha_m": "deg", "beta_m": "deg", "gamma_m": "deg",
-         "alpha": "deg", "beta": "deg", "gamma": "deg"}
+         "alpha": "deg", "beta": "deg", "gamma": "deg", "wx": "deg/h", "wy": "deg/h", "wz": "deg/h"}
 """The record's columns and their units (§12), for a config's ``record:`` mapping; g is standard
 gravity, 9.80665 m/s^2 (:data:`platcal.mapping.STANDARD_GRAVITY`)."""
 
@@ -105,17 +109,15 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     """
     segmentation = None
     try:
-        df = read_table(path, COLUMNS, TRUTH_COLUMNS, what="a multiposition record", mapping=mapping, units=UNITS)
+        df = read_table(path, COLUMNS, TRUTH_COLUMNS + GYRO_COLUMNS, what="a multiposition record", mapping=mapping,
+                        units=UNITS)
     except InputError as exc:  # no position column: a continuous log, cut into the scheme's dwells here
-        if scheme is None or exc.field not in ("--data column position", "record.columns.position"):
+        if scheme is None or not lacks_position(exc, mapping):
             raise
-        df, segmentation = labelled_frame(read_table(path, CONTINUOUS_COLUMNS, what="a continuous multiposition log",
-                                                     mapping=mapping, units=UNITS), scheme)
+        df, segmentation = continuous_record(read_table(path, CONTINUOUS_COLUMNS, GYRO_COLUMNS, mapping=mapping,
+                                                        what="a continuous multiposition log", units=UNITS), scheme)
     cols = list(df.columns)
-    present_truth = [c for c in TRUTH_COLUMNS if c in cols]
-    if present_truth and len(present_truth) != 3:
-        raise InputError(f"--data column {[c for c in TRUTH_COLUMNS if c not in cols][0]}",
-                         "the true angles come as all three of alpha, beta, gamma or not at all")
+    has_truth = whole_group(cols, TRUTH_COLUMNS, "the true angles")
     pos = df["position"].to_numpy()
     off = (pos != np.round(pos)) | (pos < 1)
     if scheme is not None:
@@ -166,7 +168,7 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     if scheme is None:
         dwell = max(float(t[-1]) for t in ts_used) or 1.0
         scheme = Scheme(name=f"record:{Path(path).name}", positions=tuple(map(tuple, cmd)), dwell_s=dwell)
-    return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=len(present_truth) == 3, positions=present,
+    return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=has_truth, positions=present,
                   segmentation=segmentation), scheme
 
 
@@ -174,29 +176,16 @@ CONTINUOUS_COLUMNS = ("t", "Ax", "Ay", "Az") + ANGLE_COLUMNS
 """A continuous log (no ``position`` and commanded angles): its dwells are found (:mod:`platcal.logs.dwells`)."""
 
 
-def labelled_frame(df: pd.DataFrame, scheme: Scheme, rule: DwellRule = DwellRule()) -> tuple[pd.DataFrame, tuple]:
+def continuous_record(df: pd.DataFrame, scheme: Scheme, rule: DwellRule = DwellRule()) -> tuple[pd.DataFrame, tuple]:
     """A continuous log as a record: its static dwells found and matched to ``scheme``'s
-    positions (:func:`platcal.logs.dwells.find_dwells`), each dwell's clock counted from its first
-    sample, the commanded angles filled in; slews are dropped. Returns the record and
-    ``(t, angles, dwells)`` for the figure. InputError when a position is found twice or not at all."""
+    positions by the angle sensors (:func:`platcal.logs.dwells.find_dwells`) and labelled
+    (:func:`platcal.logs.dwells.labelled_frame`: each dwell's clock counted from its first
+    sample, the commanded angles filled in, slews dropped). Returns the record and ``(t, angles,
+    dwells)`` for the figure. InputError when a position is found twice or not at all."""
     t = df["t"].to_numpy(float)
     ang = df[list(ANGLE_COLUMNS)].to_numpy(float)
     dwells = find_dwells(t, ang, df[["Ax", "Ay", "Az"]].to_numpy(float), scheme.angles_deg, rule)
-    found = [d.position for d in dwells]
-    for k in range(1, scheme.n_positions + 1):
-        if found.count(k) != 1:
-            raise InputError("--data", f"{found.count(k)} dwells of the log match position {k} of scheme "
-                             f"{scheme.name!r} (dwells found at positions {found}); a continuous log holds each "
-                             "position once")
-    parts = []
-    for d in dwells:
-        part = df.iloc[d.start:d.stop].copy()
-        part["t"] = t[d.start:d.stop] - t[d.start]
-        part.insert(0, "position", float(d.position))
-        for i, c in enumerate(("alpha_cmd", "beta_cmd", "gamma_cmd")):
-            part[c] = scheme.angles_deg[d.position - 1, i]
-        parts.append(part)
-    return pd.concat(parts, ignore_index=True), (t, ang, dwells)
+    return labelled_frame(df, dwells, scheme.angles_deg, scheme.name), (t, ang, dwells)
 
 
 COMPENSATE_COLUMNS = ("t", "Ax", "Ay", "Az") + ANGLE_COLUMNS
@@ -208,11 +197,15 @@ def compensate_frame(df: pd.DataFrame, coef: np.ndarray) -> pd.DataFrame:
     angles (``alpha_m, beta_m, gamma_m``, deg) with coefficients ``coef`` (24, state order of
     :func:`.model.coef_names`) is taken out, leaving the error-free output of each accelerometer
     (the specific force along its nominal input axis, g). The angle sensors' own noise enters
-    through the modelled misalignment terms only (second order)."""
+    through the modelled misalignment terms only (second order). When the log has the gyro
+    outputs ``wx, wy, wz`` (deg/h, :data:`GYRO_COLUMNS`) they come out less the modelled drift of
+    §5 at the measured angles."""
     ang = df[list(ANGLE_COLUMNS)].to_numpy(float) * DEG
     x_cal = np.r_[np.zeros(3), coef]
     x_free = np.zeros_like(x_cal)
     err = np.array([measure(a, x_cal)[0][:3] - measure(a, x_free)[0][:3] for a in ang])  # ug
     out = df.copy()
     out[["Ax", "Ay", "Az"]] = df[["Ax", "Ay", "Az"]].to_numpy(float) - err * UG
+    if whole_group(df.columns, GYRO_COLUMNS, "the gyro outputs"):
+        out[list(GYRO_COLUMNS)] = df[list(GYRO_COLUMNS)].to_numpy(float) - np.array([drift(x_cal, a) for a in ang])
     return out

@@ -17,7 +17,7 @@ from ...logs.compensate import compensate_log
 from ...logs.increments import increment_units
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...sizes import Size, samples_in
+from ...sizes import Size, record_size, samples_in
 from ...study.tables import write_table
 from .config import G, SledConfig
 from .identify import (calibration, compensated_track, estimates, identify, metrics, phi_from_calibration, record_fit,
@@ -100,7 +100,9 @@ def cmd_inspect(cfg: SledConfig, args) -> int:
 
 def cmd_compensate(cfg: SledConfig, args) -> int:
     """``platcal compensate``: the record's along-track X(t), V(t) navigated and compensated with
-    the calibration's attitude errors (docs/rocket-sled.md §7), written atomically to ``--out``."""
+    the calibration's attitude errors (docs/rocket-sled.md §7), written atomically to ``--out``.
+    The calibration holds no gyro terms (the run filter estimates attitude errors), so the log's
+    rates are navigated as recorded, and the output says so."""
     phi = phi_from_calibration(read_calibration(args.calibration))
 
     def apply(rec):
@@ -109,7 +111,8 @@ def cmd_compensate(cfg: SledConfig, args) -> int:
         return compensated_track(cfg, f[0], w[0], t, phi)
 
     return compensate_log(args, "sled", lambda path: read_record(path, cfg), apply,
-                          "along-track X(t), V(t) navigated and compensated")
+                          "along-track X(t), V(t) navigated and compensated; the calibration holds attitude errors, "
+                          "no gyro terms, so the log's rates wx, wy, wz are navigated as recorded")
 
 
 VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
@@ -118,10 +121,22 @@ benchmarks/size_estimate.py (the slope of peak RSS between a short and a long ru
 rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
 
 
+RECORD_COST = {"inspect": (0.5, 1e-8), "compensate": (0.5, 5e-8)}
+"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
+measured: inspect 2.1 B and 3.9e-9 s, compensate 1.7 B and 2.1e-8 s per byte."""
+SECONDS_PER_SAMPLE = {"simulate": 2.5e-5, "identify": 5e-6}
+"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 1.1e-5, identify 2.1e-6 s per sample."""
+
+
 def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
-    """The data a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold the
-    run's IMU samples (static before, the phases, the braking, static after, at ``imu.rate_hz``)
-    x :data:`VALUES_PER_SAMPLE`; the longest part names the field."""
+    """The work a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold and
+    run the run's IMU samples (static before, the phases, the braking, static after, at
+    ``imu.rate_hz``) x :data:`VALUES_PER_SAMPLE` and :data:`SECONDS_PER_SAMPLE`, the longest part
+    naming the field; inspect and compensate the record file's bytes x :data:`RECORD_COST`.
+    observability's rank table is one small matrix per phase (docs/rocket-sled.md §8), whatever
+    the durations: nothing to size."""
+    if command in RECORD_COST:
+        return [record_size(args.data, *RECORD_COST[command])]
     if command not in ("simulate", "identify"):
         return []
     v_end = sum(ph.accel_g * G * ph.duration_s for ph in cfg.phases)
@@ -130,7 +145,7 @@ def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
     parts.update({f"trajectory.phases[{i}].duration_s": ph.duration_s for i, ph in enumerate(cfg.phases)})
     seconds = sum(parts.values())
     return [Size(max(parts, key=parts.get), samples_in(seconds, cfg.dt), VALUES_PER_SAMPLE[command], 1,
-                 f"a run of {seconds:g} s at {cfg.rate_hz:g} Hz")]
+                 f"a run of {seconds:g} s at {cfg.rate_hz:g} Hz", SECONDS_PER_SAMPLE[command])]
 
 
 COMMANDS = {"compensate": cmd_compensate, "inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

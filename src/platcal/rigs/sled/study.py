@@ -271,6 +271,104 @@ def raw_sigma_x(raw: dict) -> float:
     return load_config(raw).alignment_arcsec[0]
 
 
+def _about_1cm(raw, m) -> str:
+    a = m[["y_after_a_max_run_cm", "z_after_a_max_run_cm"]].to_numpy()
+    return (
+        f"- **What \"about 1 cm\" means.** Before the constraint the navigation drifts "
+        f"{rms(m.yz_before_max_run_cm) / 100:.2f} m RMS (max {m.yz_before_max_run_cm.max() / 100:.2f} m) in Y/Z "
+        f"during the run and up to {m.yz_before_max_all_cm.max() / 100:.1f} m with the static period. The paper's "
+        f"\"Y and Z reduced to about 1 cm\" is metric A (navigation minus the filter's own position-error "
+        f"estimate): here {rms(a[:, 0]):.3f} cm RMS, {a.max():.3f} cm at worst, i.e. far below 1 cm. It only says "
+        "that the filter tracks its measurements, which any filter with small R does; it does not say "
+        "the attitude is right.")
+
+
+def _paper_tuning(raw, m) -> str:
+    return (f"- With the paper's literal tuning (R = 1e6 I) metric A is {rms(m.y_after_a_max_run_cm):.1f} cm "
+            f"RMS in Y (max {m.y_after_a_max_run_cm.max():.1f} cm): the same order as the paper's \"about "
+            "1 cm\" (the paper's units are unknown, [D4]).")
+
+
+def _paper7(raw, m) -> str:
+    return (
+        f"- **The paper's own set-up** (7 states, P0 = I, Q = 1e-9 I, R = 1e6 I, realtime): metric B Y "
+        f"{rms(m.y_after_b_max_run_cm):.2f} cm RMS ({m.y_after_b_max_run_cm.min():.2f}-"
+        f"{m.y_after_b_max_run_cm.max():.2f} cm over the seeds), the paper's \"about 1 cm\"; it costs the "
+        f"attitude, phi_y effective error {rms(m.phi_y_eff_err_arcsec):.1f} arcsec RMS "
+        f"({m.phi_y_eff_err_arcsec.abs().min():.1f}-{m.phi_y_eff_err_arcsec.abs().max():.1f}), and X: "
+        f"{rms(m.x_constrained_stop_cm):.0f} cm RMS at the stop ({m.x_constrained_stop_cm.min():.0f}-"
+        f"{m.x_constrained_stop_cm.max():.0f} cm) against {rms(m.x_naive_stop_cm):.0f} cm uncompensated.")
+
+
+def _six_states(raw, m6, m7) -> str:
+    return (
+        f"- **Where the 6-state choice costs accuracy.** Metric B (re-navigating with the final attitude "
+        f"estimate) exposes the dropped roll angle: Y {rms(m6.y_after_b_max_run_cm):.1f} cm RMS with 6 states "
+        f"against {rms(m7.y_after_b_max_run_cm):.2f} cm with 7 (max {m7.y_after_b_max_run_cm.max():.2f} cm); "
+        f"Z is {rms(m6.z_after_b_max_run_cm):.1f} / {rms(m7.z_after_b_max_run_cm):.1f} cm either way, limited "
+        "by the vertical accelerometer bias, which is not a state. The stacked whole-run observability "
+        "matrix of the 7-state model has full rank even with no Earth rate, because a_x changes between the "
+        "phases, so the paper's reason to drop phi_x is conservative for a boost/coast/brake profile. The "
+        f"X channel does not care: phi_x does not enter the X compensation (X at the end "
+        f"{rms(m6.x_constrained_end_cm):.0f} vs {rms(m7.x_constrained_end_cm):.0f} cm).")
+
+
+def _unmodelled_roll(raw, m6, m7) -> str:
+    t_s = float(m6.stop_time_s[0])
+    return (
+        f"- The 6-state metric B is the unmodelled roll alone: 0.5·g·phi_x·t_stop² with the drawn phi_x gives "
+        f"{rms(0.5 * 9.80665 * m6.phi0_x_arcsec * np.pi / 648000 * t_s ** 2 * 100):.1f} cm RMS for these seeds "
+        f"(their phi_x draws have RMS {rms(m6.phi0_x_arcsec):.1f} arcsec against sigma "
+        f"{raw_sigma_x(raw):g} arcsec); the spec's 50.9 cm corresponds to draws near sigma.")
+
+
+def _attitude(raw, m) -> str:
+    return (
+        f"- **Attitude.** phi_y / phi_z are estimated to {rms(m.phi_y_eff_err_arcsec):.2f} / "
+        f"{rms(m.phi_z_eff_err_arcsec):.2f} arcsec RMS of their *effective* values (filter 1 sigma "
+        f"{m.phi_y_sigma_arcsec.mean():.1f} arcsec) but only to {rms(m.phi_y_true_err_arcsec):.1f} / "
+        f"{rms(m.phi_z_true_err_arcsec):.1f} arcsec of the true angles: the 5 arcsec accelerometer misalignment "
+        "is inseparable from the attitude under the Y/Z constraint.")
+
+
+def _x_channel(raw, m, mp) -> str:
+    return (
+        f"- **X.** Naive navigation minus the instrument-only truth: {rms(m.x_naive_stop_cm):.1f} cm RMS at the "
+        f"stop, {rms(m.x_naive_end_cm):.0f} cm at the end. Constrained, realtime: "
+        f"{rms(m.x_constrained_stop_cm):.1f} / {rms(m.x_constrained_end_cm):.0f} cm; post: "
+        f"{rms(mp.x_constrained_stop_cm):.1f} / {rms(mp.x_constrained_end_cm):.0f} cm. Realtime loses at the "
+        "stop because the early part of the run is compensated with a not-yet-converged attitude.")
+
+
+def _misalign0(raw, m) -> str:
+    return (f"- With zero accelerometer misalignment (post) the constrained X error is "
+            f"{rms(m.x_constrained_stop_cm):.2f} cm RMS at the stop and {rms(m.x_constrained_end_cm):.0f} cm "
+            "at the end: the residual of the default case is the misalignment M_zx, which the constraint "
+            "cannot see.")
+
+
+def _stop_filter(raw, m) -> str:
+    return (f"- The stop filter's by-product g(phi_y_run - phi_y_stop) is {rms(m.nabla_x_hat_ug):.0f} ug "
+            f"RMS; against the static X accelerometer error it is off by {rms(m.nabla_x_err_ug):.0f} ug RMS "
+            "(it contains g·M_zx). It is reported, not used for X ([D6]).")
+
+
+READING = (
+    (("default",), _about_1cm),
+    (("paper_tuning",), _paper_tuning),
+    (("paper7",), _paper7),
+    (("default", "run7"), _six_states),
+    (("default", "run7"), _unmodelled_roll),
+    (("default",), _attitude),
+    (("default", "post"), _x_channel),
+    (("misalign0_post",), _misalign0),
+    (("default",), _stop_filter),
+)
+"""The report's reading, in order: the cases a sentence reads (each a frame of its replicates'
+metrics) and the function that writes it from ``(raw config, *frames)``; a sentence whose cases
+the study did not run is left out."""
+
+
 def report_md(mets, t1, chk, ranks, figs, raw, failed: dict[str, int] | None = None,
               claims: pd.DataFrame | None = None) -> str:
     """results/sled/report.md: the rig's claims ledger rows first (``claims``; none: no section),
@@ -292,77 +390,10 @@ def report_md(mets, t1, chk, ranks, figs, raw, failed: dict[str, int] | None = N
               f"![Y/Z before and after](figures/{figs['yz']})", "",
               f"![X error](figures/{figs['x']})", "", f"![attitude](figures/{figs['attitude']})", "",
               "## Reading", ""]
-    if g("default") is not None:
-        m = g("default")
-        a = m[["y_after_a_max_run_cm", "z_after_a_max_run_cm"]].to_numpy()
-        lines.append(
-            f"- **What \"about 1 cm\" means.** Before the constraint the navigation drifts "
-            f"{rms(m.yz_before_max_run_cm) / 100:.2f} m RMS (max {m.yz_before_max_run_cm.max() / 100:.2f} m) in Y/Z "
-            f"during the run and up to {m.yz_before_max_all_cm.max() / 100:.1f} m with the static period. The paper's "
-            f"\"Y and Z reduced to about 1 cm\" is metric A (navigation minus the filter's own position-error "
-            f"estimate): here {rms(a[:, 0]):.3f} cm RMS, {a.max():.3f} cm at worst, i.e. far below 1 cm. It only says "
-            "that the filter tracks its measurements, which any filter with small R does; it does not say "
-            "the attitude is right.")
-    if g("paper_tuning") is not None:
-        m = g("paper_tuning")
-        lines.append(f"- With the paper's literal tuning (R = 1e6 I) metric A is {rms(m.y_after_a_max_run_cm):.1f} cm "
-                     f"RMS in Y (max {m.y_after_a_max_run_cm.max():.1f} cm): the same order as the paper's \"about "
-                     "1 cm\" (the paper's units are unknown, [D4]).")
-    if g("paper7") is not None:
-        m = g("paper7")
-        lines.append(
-            f"- **The paper's own set-up** (7 states, P0 = I, Q = 1e-9 I, R = 1e6 I, realtime): metric B Y "
-            f"{rms(m.y_after_b_max_run_cm):.2f} cm RMS ({m.y_after_b_max_run_cm.min():.2f}-"
-            f"{m.y_after_b_max_run_cm.max():.2f} cm over the seeds), the paper's \"about 1 cm\"; it costs the "
-            f"attitude, phi_y effective error {rms(m.phi_y_eff_err_arcsec):.1f} arcsec RMS "
-            f"({m.phi_y_eff_err_arcsec.abs().min():.1f}-{m.phi_y_eff_err_arcsec.abs().max():.1f}), and X: "
-            f"{rms(m.x_constrained_stop_cm):.0f} cm RMS at the stop ({m.x_constrained_stop_cm.min():.0f}-"
-            f"{m.x_constrained_stop_cm.max():.0f} cm) against {rms(m.x_naive_stop_cm):.0f} cm uncompensated.")
-    if g("default") is not None and g("run7") is not None:
-        m6, m7 = g("default"), g("run7")
-        lines.append(
-            f"- **Where the 6-state choice costs accuracy.** Metric B (re-navigating with the final attitude "
-            f"estimate) exposes the dropped roll angle: Y {rms(m6.y_after_b_max_run_cm):.1f} cm RMS with 6 states "
-            f"against {rms(m7.y_after_b_max_run_cm):.2f} cm with 7 (max {m7.y_after_b_max_run_cm.max():.2f} cm); "
-            f"Z is {rms(m6.z_after_b_max_run_cm):.1f} / {rms(m7.z_after_b_max_run_cm):.1f} cm either way, limited "
-            "by the vertical accelerometer bias, which is not a state. The stacked whole-run observability "
-            "matrix of the 7-state model has full rank even with no Earth rate, because a_x changes between the "
-            "phases, so the paper's reason to drop phi_x is conservative for a boost/coast/brake profile. The "
-            f"X channel does not care: phi_x does not enter the X compensation (X at the end "
-            f"{rms(m6.x_constrained_end_cm):.0f} vs {rms(m7.x_constrained_end_cm):.0f} cm).")
-        t_s = float(m6.stop_time_s[0])
-        lines.append(
-            f"- The 6-state metric B is the unmodelled roll alone: 0.5·g·phi_x·t_stop² with the drawn phi_x gives "
-            f"{rms(0.5 * 9.80665 * m6.phi0_x_arcsec * np.pi / 648000 * t_s ** 2 * 100):.1f} cm RMS for these seeds "
-            f"(their phi_x draws have RMS {rms(m6.phi0_x_arcsec):.1f} arcsec against sigma "
-            f"{raw_sigma_x(raw):g} arcsec); the spec's 50.9 cm corresponds to draws near sigma.")
-    if g("default") is not None:
-        m = g("default")
-        lines.append(
-            f"- **Attitude.** phi_y / phi_z are estimated to {rms(m.phi_y_eff_err_arcsec):.2f} / "
-            f"{rms(m.phi_z_eff_err_arcsec):.2f} arcsec RMS of their *effective* values (filter 1 sigma "
-            f"{m.phi_y_sigma_arcsec.mean():.1f} arcsec) but only to {rms(m.phi_y_true_err_arcsec):.1f} / "
-            f"{rms(m.phi_z_true_err_arcsec):.1f} arcsec of the true angles: the 5 arcsec accelerometer misalignment "
-            "is inseparable from the attitude under the Y/Z constraint.")
-    if g("default") is not None and g("post") is not None:
-        m, mp = g("default"), g("post")
-        lines.append(
-            f"- **X.** Naive navigation minus the instrument-only truth: {rms(m.x_naive_stop_cm):.1f} cm RMS at the "
-            f"stop, {rms(m.x_naive_end_cm):.0f} cm at the end. Constrained, realtime: "
-            f"{rms(m.x_constrained_stop_cm):.1f} / {rms(m.x_constrained_end_cm):.0f} cm; post: "
-            f"{rms(mp.x_constrained_stop_cm):.1f} / {rms(mp.x_constrained_end_cm):.0f} cm. Realtime loses at the "
-            "stop because the early part of the run is compensated with a not-yet-converged attitude.")
-    if g("misalign0_post") is not None:
-        m = g("misalign0_post")
-        lines.append(f"- With zero accelerometer misalignment (post) the constrained X error is "
-                     f"{rms(m.x_constrained_stop_cm):.2f} cm RMS at the stop and {rms(m.x_constrained_end_cm):.0f} cm "
-                     "at the end: the residual of the default case is the misalignment M_zx, which the constraint "
-                     "cannot see.")
-    if g("default") is not None:
-        m = g("default")
-        lines.append(f"- The stop filter's by-product g(phi_y_run - phi_y_stop) is {rms(m.nabla_x_hat_ug):.0f} ug "
-                     f"RMS; against the static X accelerometer error it is off by {rms(m.nabla_x_err_ug):.0f} ug RMS "
-                     "(it contains g·M_zx). It is reported, not used for X ([D6]).")
+    for cases, sentence in READING:
+        frames = [g(c) for c in cases]
+        if all(f is not None for f in frames):
+            lines.append(sentence(raw, *frames))
     bad = chk[chk.holds != "yes"]
     lines += ["", "## The spec's reference numbers", "",
               f"{len(chk) - len(bad)} of {len(chk)} §11 checks hold (the ledger above judges the paper's claims)."

@@ -1,0 +1,78 @@
+"""What a command of one rig imports (issue 22 item 3: long logs in little memory): the commands
+on a log (simulate, identify, inspect, compensate) load neither the figures (matplotlib), the
+design search (pymoo), the exact rank test (sympy) nor scipy.stats; the study commands and the
+claims are named by module path and imported only when chosen. Each check runs in a fresh
+interpreter (this one has imported everything already)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from platcal.estimation.consistency import chi2_quantile, normal_quantile
+from platcal.rig import get_rig, resolve, rig_modules, rig_names
+
+RIGS = sorted(rig_names())
+HEAVY = ("matplotlib", "pymoo", "sympy", "scipy.stats", "platcal.study.campaign")
+"""(scipy.optimize is not here: the low-precision centrifuge's record needs scipy.interpolate, which loads it.)"""
+LOG_COMMANDS = ("simulate", "identify", "inspect", "compensate")
+
+PROBE = """
+import json, sys
+from platcal.cli import build_parser
+from platcal.rig import get_rig
+rig = get_rig(sys.argv[1])
+build_parser(rig)
+for name in sys.argv[2:]:
+    rig.command(name)
+print(json.dumps(sorted(m for m in {heavy} if m in sys.modules)))
+"""
+
+
+def loaded_after(rig: str, commands) -> list[str]:
+    """The heavy modules loaded by a fresh interpreter that parses the rig's command line and
+    resolves ``commands``."""
+    out = subprocess.run([sys.executable, "-c", PROBE.format(heavy=HEAVY), rig, *commands], check=True,
+                         capture_output=True, text=True)
+    return json.loads(out.stdout)
+
+
+@pytest.mark.parametrize("rig", RIGS)
+def test_a_command_on_a_log_loads_no_figure_design_or_stats_library(rig):
+    commands = [c for c in LOG_COMMANDS if c in get_rig(rig).commands]
+    assert "identify" in commands
+    assert loaded_after(rig, commands) == []
+
+
+def test_a_study_command_loads_its_own_libraries_when_chosen():
+    # the probe would see them: the centrifuge's report draws with matplotlib
+    assert "matplotlib" in loaded_after("centrifuge", ["report"])
+
+
+@pytest.mark.parametrize("rig", RIGS)
+def test_command_and_extra_paths_resolve_inside_the_rig(rig):
+    r = get_rig(rig)
+    own = rig_modules()[rig]
+    paths = [p for p in list(r.commands.values()) + list(r.extras.values()) if isinstance(p, str)]
+    for p in paths:
+        assert p.startswith(own + "."), p  # a rig names only its own modules (no rig imports another)
+    for name in r.commands:
+        assert callable(r.command(name))
+    assert r.extra("claims") is None or hasattr(r.extra("claims"), "MEASURES")
+    assert r.extra("no such capability", default="x") == "x"
+
+
+def test_resolve_names_a_module_or_its_attribute():
+    assert resolve("platcal.estimation.consistency:chi2_quantile") is chi2_quantile
+    assert resolve("platcal.estimation.consistency").normal_quantile is normal_quantile
+    assert resolve(len) is len
+
+
+def test_quantiles_are_scipy_stats_bit_for_bit():
+    qs = np.concatenate([np.linspace(1e-6, 1 - 1e-6, 401), [0.999, 0.975, 1 - 0.01 / 18]])
+    for dof in (1, 2, 3, 6, 24, 45, 48, 1000, 350_000):
+        assert [chi2_quantile(q, dof) for q in qs] == [float(stats.chi2.ppf(q, dof)) for q in qs]
+    assert [normal_quantile(q) for q in qs] == [float(stats.norm.ppf(q)) for q in qs]

@@ -10,7 +10,7 @@ from platcal.model.instruments import N_IDENTIFIED
 from platcal.parallel import threads
 from platcal.rigs.centrifuge.base import Centrifuge
 from platcal.rigs.centrifuge.catalogue import full_truth
-from platcal.rigs.centrifuge.ekf import FilterSettings, run_ekf, run_iekf
+from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, run_ekf, run_iekf
 from platcal.rigs.centrifuge.ekf_lanes import LANES, packed_index
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 from platcal.scheme import TABLE1_POSITIONS, check_scheme
@@ -52,12 +52,12 @@ def test_lanes_agree_with_reference_to_round_off(case, kind):
     s = FilterSettings(passes=2, history_every_s=0.5)
     ulp = replace(s, p0_sigma=np.nextafter(s.p0_sigma, np.inf))
     if kind == "ekf":
-        run = lambda st, **kw: run_ekf(z, t, scheme.angles_deg, params, st, **kw)  # noqa: E731
+        run = lambda st, **kw: run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), st, **kw)  # noqa: E731
     elif kind == "iekf":
-        run = lambda st, **kw: run_iekf(z, t, scheme.angles_deg, params, st, iterations=3, until_s=0.5, **kw)  # noqa: E731
+        run = lambda st, **kw: run_iekf(EstimatorInput(z, t, scheme.angles_deg, params), st, iterations=3, until_s=0.5, **kw)  # noqa: E731
     else:
         lin = np.repeat(full_truth()[None], B, axis=0)
-        run = lambda st, **kw: run_ekf([None] * len(t), t, scheme.angles_deg, params, st,  # noqa: E731
+        run = lambda st, **kw: run_ekf(EstimatorInput([None] * len(t), t, scheme.angles_deg, params), st,  # noqa: E731
                                        linearise_about=lin, **kw)
     ref = run(s, reference=True)
     new = run(s)
@@ -80,13 +80,13 @@ def test_lane_batch_and_threads_change_nothing(case):
     scheme, params, z, t = case
     s = FilterSettings(history_every_s=0.5, innovations=True)
     with threads(2):
-        full = run_ekf(z, t, scheme.angles_deg, params, s)
+        full = run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), s)
     with threads(1):
-        serial = run_ekf(z, t, scheme.angles_deg, params, s)
+        serial = run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), s)
         perm = np.roll(np.arange(B), 2)
-        permuted = run_ekf([zk[perm] for zk in z], t, scheme.angles_deg, params, s)
+        permuted = run_ekf(EstimatorInput([zk[perm] for zk in z], t, scheme.angles_deg, params), s)
         for b in (0, B - 1):
-            one = run_ekf([zk[b:b + 1] for zk in z], t, scheme.angles_deg, params, s)
+            one = run_ekf(EstimatorInput([zk[b:b + 1] for zk in z], t, scheme.angles_deg, params), s)
             for name in ("x", "P", "history_x", "history_sigma", "mean_nis", "innovations"):
                 assert np.array_equal(getattr(one, name)[0], getattr(full, name)[b], equal_nan=True), name
     for name in ("x", "P", "history_x", "mean_nis", "innovations"):

@@ -1,7 +1,7 @@
 """Issue 22 item 1: the centrifuge EKF's state-major kernel against the reference kernel, in one
 process, alternating (so that the shared machine's load falls on both alike).
 
-``run_ekf`` (lanes, the default) and ``run_ekf(..., reference=True)`` on the Table 1 case
+``run_ekf(..., lanes=True)`` and ``run_ekf`` (the default kernel, the reference) on the Table 1 case
 (:func:`bench_filter.table1_case`, 6 x 60 s), one numba thread, ``--rounds`` alternating rounds,
 best process CPU time per replicate of each at B = 1, 8, 64; the load average is printed.
 
@@ -33,11 +33,11 @@ def main(argv=None) -> None:
         zb = [zk[:B] for zk in z]
         best = {False: float("inf"), True: float("inf")}
         for ref in (False, True):  # compile / load
-            run_ekf(EstimatorInput([zk[:1] for zk in zb], t, scheme.angles_deg, params), settings, reference=ref)
+            run_ekf(EstimatorInput([zk[:1] for zk in zb], t, scheme.angles_deg, params), settings, lanes=not ref)
         for _ in range(args.rounds):
             for ref in (False, True):
                 c0 = time.process_time()
-                run_ekf(EstimatorInput(zb, t, scheme.angles_deg, params), settings, reference=ref)
+                run_ekf(EstimatorInput(zb, t, scheme.angles_deg, params), settings, lanes=not ref)
                 best[ref] = min(best[ref], (time.process_time() - c0) / B)
         print(f"| {B} | {best[False]:.4f} | {best[True]:.4f} | {best[False] / best[True]:.2f} |")
     print(f"load average at end: {os.getloadavg()[0]:.2f}")

@@ -1,5 +1,5 @@
 """The state-major EKF kernel (issue 22 item 1, :mod:`platcal.rigs.centrifuge.ekf_lanes`) against
-the reference kernel (``run_ekf(..., reference=True)``): the same filter to round-off, and a
+the default kernel (``run_ekf(...)``; the lanes are ``run_ekf(..., lanes=True)``): the same filter to round-off, and a
 replicate's numbers independent of its lane, the batch size and the thread count."""
 
 import numpy as np
@@ -59,9 +59,9 @@ def test_lanes_agree_with_reference_to_round_off(case, kind):
         lin = np.repeat(full_truth()[None], B, axis=0)
         run = lambda st, **kw: run_ekf(EstimatorInput([None] * len(t), t, scheme.angles_deg, params), st,  # noqa: E731
                                        linearise_about=lin, **kw)
-    ref = run(s, reference=True)
-    new = run(s)
-    floor_x, floor_p = _sigma_gap(run(ulp, reference=True), ref)
+    ref = run(s)
+    new = run(s, lanes=True)
+    floor_x, floor_p = _sigma_gap(run(ulp), ref)
     gap_x, gap_p = _sigma_gap(new, ref)
     assert gap_p <= 5 * max(floor_p, 1e-13) and gap_p < 1e-7
     assert gap_x <= 5 * max(floor_x, 1e-13) and gap_x < 1e-7
@@ -80,13 +80,13 @@ def test_lane_batch_and_threads_change_nothing(case):
     scheme, params, z, t = case
     s = FilterSettings(history_every_s=0.5, innovations=True)
     with threads(2):
-        full = run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), s)
+        full = run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), s, lanes=True)
     with threads(1):
-        serial = run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), s)
+        serial = run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), s, lanes=True)
         perm = np.roll(np.arange(B), 2)
-        permuted = run_ekf(EstimatorInput([zk[perm] for zk in z], t, scheme.angles_deg, params), s)
+        permuted = run_ekf(EstimatorInput([zk[perm] for zk in z], t, scheme.angles_deg, params), s, lanes=True)
         for b in (0, B - 1):
-            one = run_ekf(EstimatorInput([zk[b:b + 1] for zk in z], t, scheme.angles_deg, params), s)
+            one = run_ekf(EstimatorInput([zk[b:b + 1] for zk in z], t, scheme.angles_deg, params), s, lanes=True)
             for name in ("x", "P", "history_x", "history_sigma", "mean_nis", "innovations"):
                 assert np.array_equal(getattr(one, name)[0], getattr(full, name)[b], equal_nan=True), name
     for name in ("x", "P", "history_x", "mean_nis", "innovations"):

@@ -676,7 +676,7 @@ def run_ekf(
     warmup_s: float | None = None,
     z_source=None,
     on_innovations=None,
-    reference: bool = False,
+    lanes: bool = False,
 ) -> Estimate:
     """Run the EKF over every position of a scheme, for a batch of B runs.
 
@@ -704,10 +704,11 @@ def run_ekf(
     on_innovations : with ``z_source`` and ``settings.innovations``, called with ``(i0, i1,
         z_block, rec_block (1, i1 - i0, 6))`` after each block (every pass; the last pass's are
         the run's), instead of keeping them in ``Estimate.innovations``.
-    reference : run the reference kernel (:func:`_run_pass`: one replicate per thread, every
-        product and sum rounded on its own) instead of the state-major kernel
-        (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in SIMD lanes; the same filter,
-        x and P equal to round-off, issue 22); for tests and benchmarks.
+    lanes : run the state-major kernel (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in
+        SIMD lanes of 4; the same filter, x and P equal to round-off, about 25 % less CPU per
+        replicate at B >= 8, 2.2x more at B = 1; issue 22) instead of the default kernel
+        (:func:`_run_pass`: one replicate per thread). Opt-in: the default keeps the study's and
+        ``identify``'s numbers as they were and a lone record fast.
 
     Returns
     -------
@@ -733,10 +734,10 @@ def run_ekf(
     structure = _structure(est_idx)
     p0 = np.asarray(settings.p0_sigma, float)
     it_ctl = iteration_control(p0) if iterate is None or cov_only else np.ascontiguousarray(iterate, float)
-    if reference:
-        kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
-    else:
+    if lanes:
         kernel = run_pass_lanes
+    else:
+        kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
     keep = settings.innovations and not cov_only
     # every full pass overwrites it, so it ends holding the last pass's innovations
     rec = np.zeros((B, sum(len(tk) for tk in t) if keep and z_source is None else 0, 6))

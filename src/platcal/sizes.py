@@ -89,6 +89,24 @@ def file_bytes(path) -> float:
         return 0.0
 
 
+@dataclass(frozen=True)
+class Costs:
+    """A rig's costs, measured on the project's machine by ``benchmarks/size_estimate.py`` and
+    rounded up about 2x (``measured`` states the raw figures): per command, ``values`` (float64
+    values held per sample at the peak: the slope of peak RSS between a short and a long run) and
+    ``seconds`` (CPU s per sample); ``per_byte``: (values held, CPU s) per byte of the record file,
+    for the commands sized by the record they read whole (:func:`record_size`)."""
+
+    values: dict
+    seconds: dict
+    per_byte: dict
+    measured: str = ""
+
+    def record(self, command: str, path) -> list[Size]:
+        """The size of ``command`` reading the record file ``path`` whole (one of :attr:`per_byte`)."""
+        return [record_size(path, *self.per_byte[command])]
+
+
 def check_sizes(sizes: list[Size], limit_gb: float, limit_hours: float = DEFAULT_MAX_HOURS) -> None:
     """Refuse (InputError naming the driving field) the first size above ``limit_gb`` of memory or
     ``limit_hours`` of CPU time."""

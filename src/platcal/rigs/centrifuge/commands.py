@@ -24,7 +24,7 @@ from ...logs.dwells import lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
-from ...sizes import Size, record_size, samples_in
+from ...sizes import Costs, Size, samples_in
 from ...study.montecarlo import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
@@ -179,18 +179,12 @@ def compensate_command(study: Study, args: argparse.Namespace) -> int:
                           lambda out: gyro_note(out.columns, GYRO_COLUMNS, "DF, DI, ... DOS"))
 
 
-VALUES_PER_SAMPLE = {"simulate": 24, "identify": 96}
-"""float64 values a command holds per sample at its peak (resident memory), measured by
-benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 176 and 664 bytes),
-rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
-
-
-RECORD_COST = {"inspect": (0.5, 3e-8), "compensate": (0.5, 1.5e-7)}
-"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
-measured: inspect 2.8 B and 1.2e-8 s, compensate 3.1 B and 6.1e-8 s per byte."""
-SECONDS_PER_SAMPLE = {"simulate": 2e-5, "identify": 2e-5}
-"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 9.6e-6, identify 5.4e-6 s per sample;
-identify rounded up to simulate's as a Monte Carlo replicate does both."""
+COSTS = Costs(values={"simulate": 24, "identify": 96}, seconds={"simulate": 2e-5, "identify": 2e-5},
+              per_byte={"inspect": (0.5, 3e-8), "compensate": (0.5, 1.5e-7)},
+              measured="per sample 176 and 664 B, 9.6e-6 and 5.4e-6 CPU s (simulate, identify; identify rounded "
+                       "up to simulate's: a Monte Carlo replicate does both); per byte inspect 2.8 B and 1.2e-8 s, "
+                       "compensate 3.1 B and 6.1e-8 s")
+"""The centrifuge's costs (:class:`platcal.sizes.Costs`)."""
 
 
 def _dwell_field(study: Study, scheme) -> str:
@@ -200,22 +194,21 @@ def _dwell_field(study: Study, scheme) -> str:
 
 def _scheme_size(study: Study, scheme, command: str, replicates: float = 1, runs: float | None = None) -> Size:
     return Size(_dwell_field(study, scheme), scheme.n_positions * samples_in(scheme.dwell_s, study.sample_s),
-                VALUES_PER_SAMPLE[command], replicates,
+                COSTS.values[command], replicates,
                 f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
-                f"{study.sample_s * 1000:g} ms", SECONDS_PER_SAMPLE[command], runs)
+                f"{study.sample_s * 1000:g} ms", COSTS.seconds[command], runs)
 
 
 def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
     """The work each command's inputs imply (:mod:`platcal.sizes`): the scheme's samples (every
-    position) x :data:`VALUES_PER_SAMPLE` and :data:`SECONDS_PER_SAMPLE` for simulate and identify
-    (observability simulates its replicates one batch at a time and identifies each; a Monte Carlo
-    cell simulates and identifies ``study.batch`` replicates at once, ``study.replicates`` in all),
-    the estimates of every replicate (replicates x 45); the design's candidates (population x
-    generations x positions x dwell, :func:`.study_commands.design_sizes`); inspect and compensate
-    the record file's bytes x
-    :data:`RECORD_COST`. report reads the study's own result tables: nothing to size."""
-    if command in RECORD_COST:
-        return [record_size(args.data, *RECORD_COST[command])]
+    position) x :data:`COSTS` for simulate and identify (observability simulates its replicates one
+    batch at a time and identifies each; a Monte Carlo cell simulates and identifies
+    ``study.batch`` replicates at once, ``study.replicates`` in all), the estimates of every
+    replicate (replicates x 45); the design's candidates (population x generations x positions x
+    dwell, :func:`.study_commands.design_sizes`); inspect and compensate the record file's bytes x
+    :data:`COSTS`. report reads the study's own result tables: nothing to size."""
+    if command in COSTS.per_byte:
+        return COSTS.record(command, args.data)
     if command in ("simulate", "identify") and args.scheme:
         return [_scheme_size(study, resolve_scheme(args.scheme, study.schemes), command)]
     if command == "observability" and args.scheme:

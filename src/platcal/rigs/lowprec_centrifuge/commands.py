@@ -24,7 +24,7 @@ from ...logs.calibration import calibration_of, calibration_values, read_calibra
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...sizes import Size, record_size, samples_in
+from ...sizes import Costs, Size, samples_in
 from .config import COEFFS, G0, Study
 from .montecarlo import SEED_KEY
 from .profile import run_duration
@@ -165,34 +165,26 @@ def _segment_field(study: Study, seg: tuple) -> str:
     return "profile.jerk_g_s"
 
 
-VALUES_PER_SAMPLE = 160
-"""float64 values simulate holds per sample at its peak (resident memory), measured by
-benchmarks/size_estimate.py (the slope of peak RSS between a 60 s and a 1500 s rest: 1146 bytes,
-where an earlier 60 s / 3000 s measurement gave 465), rounded up: the size check
-(:mod:`platcal.sizes`) multiplies the samples by these."""
-
-
-RECORD_COST = {"inspect": (0.5, 1.2e-8), "compensate": (0.5, 6e-8), "identify": (0.5, 3e-8)}
-"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
-measured: inspect 1.8 B and 5.6e-9 s, compensate 1.2 B and 3.0e-8 s, identify 1.5 B and 1.1e-8 s per
-byte."""
-SECONDS_PER_SAMPLE = {"simulate": 5e-5}
-"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 2.3e-5 s per sample."""
+COSTS = Costs(values={"simulate": 160}, seconds={"simulate": 5e-5},
+              per_byte={"inspect": (0.5, 1.2e-8), "compensate": (0.5, 6e-8), "identify": (0.5, 3e-8)},
+              measured="simulate per sample 1146 B (a 60 s / 1500 s rest; an earlier 60 s / 3000 s gave 465) and "
+                       "2.3e-5 CPU s; per byte inspect 1.8 B and 5.6e-9 s, compensate 1.2 B and 3.0e-8 s, identify "
+                       "1.5 B and 1.1e-8 s")
+"""The low-precision centrifuge's costs (:class:`platcal.sizes.Costs`)."""
 
 
 def sizes(command: str, study: Study, args) -> list[Size]:
     """The work a command's inputs imply (:mod:`platcal.sizes`): simulate holds and runs the run's
-    record (its duration at ``profile.rate_hz``) x :data:`VALUES_PER_SAMPLE` and
-    :data:`SECONDS_PER_SAMPLE`; identify, inspect and compensate read the record they are given,
-    sized by its file's bytes x :data:`RECORD_COST`."""
-    if command in RECORD_COST:
-        return [record_size(args.data, *RECORD_COST[command])]
+    record (its duration at ``profile.rate_hz``) x :data:`COSTS`; identify, inspect and
+    compensate read the record they are given, sized by its file's bytes x :data:`COSTS`."""
+    if command in COSTS.per_byte:
+        return COSTS.record(command, args.data)
     if command != "simulate" or args.platform not in study.platforms or args.run not in study.run_names(args.platform):
         return []   # the command names a missing platform or run itself
     seconds, longest = run_duration(study, args.platform, args.run)
     return [Size(_segment_field(study, longest), samples_in(seconds, 1.0 / study.rate_hz),
-                 VALUES_PER_SAMPLE, 1, f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz",
-                 SECONDS_PER_SAMPLE["simulate"])]
+                 COSTS.values["simulate"], 1, f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz",
+                 COSTS.seconds["simulate"])]
 
 
 OPTIONS = {

@@ -29,7 +29,7 @@ from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
-from ...sizes import Size, record_size, samples_in
+from ...sizes import Costs, Size, samples_in
 from .estimators import estimate, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
@@ -205,35 +205,29 @@ COMMANDS = {"inspect": f"{__name__}:cmd_inspect", "compensate": f"{__name__}:cmd
 """Each sub-command by module path (:func:`platcal.rig.resolve`): ``observability`` (the exact
 Lie-derivative rank, sympy) in :mod:`.study_commands`, imported only when it is chosen."""
 
-VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
-"""float64 values a command holds per sample at its peak (resident memory), measured by
-benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 324 and 651 bytes),
-rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
-
-
-RECORD_COST = {"inspect": (0.5, 1e-8), "compensate": (0.5, 4e-7)}
-"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
-measured: inspect 2.2 B and 5.2e-9 s, compensate 2.8 B and 1.9e-7 s per byte."""
-SECONDS_PER_SAMPLE = {"simulate": 2.5e-5, "identify": 2e-5}
-"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 1.2e-5, identify 7.8e-6 s per sample."""
+COSTS = Costs(values={"simulate": 48, "identify": 96}, seconds={"simulate": 2.5e-5, "identify": 2e-5},
+              per_byte={"inspect": (0.5, 1e-8), "compensate": (0.5, 4e-7)},
+              measured="per sample 324 and 651 B, 1.2e-5 and 7.8e-6 CPU s (simulate, identify); per byte inspect "
+                       "2.2 B and 5.2e-9 s, compensate 2.8 B and 1.9e-7 s")
+"""The multi-position rig's costs (:class:`platcal.sizes.Costs`)."""
 
 
 def sizes(command: str, cfg, args) -> list[Size]:
     """The work a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold and run
-    the scheme's samples (every position, at ``sampling.ts_ms``) x :data:`VALUES_PER_SAMPLE` and
-    :data:`SECONDS_PER_SAMPLE`; observability propagates a covariance over the same samples (or
+    the scheme's samples (every position, at ``sampling.ts_ms``) x :data:`COSTS`; observability
+    propagates a covariance over the same samples (or
     fewer, at a coarser step) holding one matrix per position, so it is timed at identify's cost per
     sample (an upper bound: the covariance step is a part of the filter's) and holds nothing per
-    sample; inspect and compensate the record file's bytes x :data:`RECORD_COST`."""
-    if command in RECORD_COST:
-        return [record_size(args.data, *RECORD_COST[command])]
+    sample; inspect and compensate the record file's bytes x :data:`COSTS`."""
+    if command in COSTS.per_byte:
+        return COSTS.record(command, args.data)
     scheme = cfg.scheme(args.scheme)
     kind = "simulate" if command == "simulate" else "identify"
     field = f"schemes.{scheme.name}.dwell_s" if scheme.name in cfg.raw["schemes"] else "--scheme (its dwell_s)"
-    held = VALUES_PER_SAMPLE[kind] if command != "observability" else 0
+    held = COSTS.values[kind] if command != "observability" else 0
     return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), held, 1,
                  f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
-                 f"{cfg.ts * 1000:g} ms", SECONDS_PER_SAMPLE[kind])]
+                 f"{cfg.ts * 1000:g} ms", COSTS.seconds[kind])]
 
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "

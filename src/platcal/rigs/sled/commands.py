@@ -17,7 +17,7 @@ from ...logs.compensate import compensate_log
 from ...logs.increments import increment_units
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...sizes import Size, record_size, samples_in
+from ...sizes import Costs, Size, samples_in
 from ...study.tables import write_table
 from .config import G, SledConfig
 from .identify import (calibration, compensated_track, estimates, identify, metrics, phi_from_calibration, record_fit,
@@ -115,28 +115,22 @@ def cmd_compensate(cfg: SledConfig, args) -> int:
                           "no gyro terms, so the log's rates wx, wy, wz are navigated as recorded")
 
 
-VALUES_PER_SAMPLE = {"simulate": 48, "identify": 96}
-"""float64 values a command holds per sample at its peak (resident memory), measured by
-benchmarks/size_estimate.py (the slope of peak RSS between a short and a long run: 344 and 614 bytes),
-rounded up: the size check (:mod:`platcal.sizes`) multiplies the samples by these."""
-
-
-RECORD_COST = {"inspect": (0.5, 1e-8), "compensate": (0.5, 5e-8)}
-"""(float64 values held, CPU s) per byte of a record file read whole (:func:`platcal.sizes.record_size`);
-measured: inspect 2.1 B and 3.9e-9 s, compensate 1.7 B and 2.1e-8 s per byte."""
-SECONDS_PER_SAMPLE = {"simulate": 2.5e-5, "identify": 5e-6}
-"""CPU s per sample (:mod:`platcal.sizes`); measured: simulate 1.1e-5, identify 2.1e-6 s per sample."""
+COSTS = Costs(values={"simulate": 48, "identify": 96}, seconds={"simulate": 2.5e-5, "identify": 5e-6},
+              per_byte={"inspect": (0.5, 1e-8), "compensate": (0.5, 5e-8)},
+              measured="per sample 344 and 614 B, 1.1e-5 and 2.1e-6 CPU s (simulate, identify); per byte inspect "
+                       "2.1 B and 3.9e-9 s, compensate 1.7 B and 2.1e-8 s")
+"""The sled's costs (:class:`platcal.sizes.Costs`)."""
 
 
 def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
     """The work a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold and
     run the run's IMU samples (static before, the phases, the braking, static after, at
-    ``imu.rate_hz``) x :data:`VALUES_PER_SAMPLE` and :data:`SECONDS_PER_SAMPLE`, the longest part
-    naming the field; inspect and compensate the record file's bytes x :data:`RECORD_COST`.
+    ``imu.rate_hz``) x :data:`COSTS`, the longest part naming the field; inspect and compensate
+    the record file's bytes x :data:`COSTS`.
     observability's rank table is one small matrix per phase (docs/rocket-sled.md §8), whatever
     the durations: nothing to size."""
-    if command in RECORD_COST:
-        return [record_size(args.data, *RECORD_COST[command])]
+    if command in COSTS.per_byte:
+        return COSTS.record(command, args.data)
     if command not in ("simulate", "identify"):
         return []
     v_end = sum(ph.accel_g * G * ph.duration_s for ph in cfg.phases)
@@ -144,8 +138,8 @@ def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
              "trajectory.brake_g": max(v_end, 0.0) / (cfg.brake_g * G)}
     parts.update({f"trajectory.phases[{i}].duration_s": ph.duration_s for i, ph in enumerate(cfg.phases)})
     seconds = sum(parts.values())
-    return [Size(max(parts, key=parts.get), samples_in(seconds, cfg.dt), VALUES_PER_SAMPLE[command], 1,
-                 f"a run of {seconds:g} s at {cfg.rate_hz:g} Hz", SECONDS_PER_SAMPLE[command])]
+    return [Size(max(parts, key=parts.get), samples_in(seconds, cfg.dt), COSTS.values[command], 1,
+                 f"a run of {seconds:g} s at {cfg.rate_hz:g} Hz", COSTS.seconds[command])]
 
 
 COMMANDS = {"compensate": cmd_compensate, "inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

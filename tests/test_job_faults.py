@@ -64,3 +64,13 @@ def test_clean_job_still_writes(tmp_path):
     p, out, log, before = _job(tmp_path, "none")
     assert p.returncode == 0, p.stderr
     assert out.exists() and out.with_suffix(".md").exists()
+
+
+def test_the_exit_hook_is_a_workflow_jobs_only():
+    """Called outside a Snakemake job (a test, a notebook), the job logger leaves the interpreter's
+    exception hook alone: an InputError there must not end the process with os._exit."""
+    from platcal.log import job_logger
+
+    before = sys.excepthook
+    job_logger(None, "platcal.test")
+    assert sys.excepthook is before

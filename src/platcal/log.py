@@ -27,8 +27,16 @@ def job_logger(path: str | os.PathLike | None, name: str = "platcal.job") -> log
         fh = logging.FileHandler(path, mode="w")
         fh.setFormatter(fmt)
         lg.addHandler(fh)
-    sys.excepthook = _one_line_exit(lg)
+    if _workflow_job():
+        sys.excepthook = _one_line_exit(lg)
     return lg
+
+
+def _workflow_job() -> bool:
+    """Whether this process is a Snakemake ``script:`` job: its ``__main__`` holds the ``snakemake``
+    object Snakemake's preamble defines. Only there does the job's exit hook replace the
+    interpreter's (a test or a notebook calling a job function keeps its own)."""
+    return "snakemake" in getattr(sys.modules.get("__main__"), "__dict__", {})
 
 
 def _one_line_exit(lg: logging.Logger):

@@ -11,8 +11,9 @@ from platcal.study.tables import frame_html, write_table
 
 sm = snakemake  # noqa: F821
 rows = pd.concat([pd.read_csv(f) for f in sm.input], ignore_index=True)
+people, note = ledger_for_people(rows), ledger_note(rows)
 write_table(rows, Path(sm.output[0]).with_suffix(""), "The claims ledger: every paper claim, computed from this study",
-            ledger_note(rows), shown=ledger_for_people(rows))
-front = ledger_for_people(rows)[["rig", "claim", "verdict", "measured", "95 % interval", "paper"]]
-atomic_write_text(sm.output[3], frame_html(front, "The claims ledger", ledger_note(rows)))
-job_logger(sm.log[0]).info(ledger_note(rows))
+            note, shown=people)
+front = people[["rig", "claim", "verdict", "measured", "95 % interval", "paper"]]
+atomic_write_text(sm.output[3], frame_html(front, "The claims ledger", note))
+job_logger(sm.log[0]).info(note)

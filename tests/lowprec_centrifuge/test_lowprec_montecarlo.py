@@ -10,9 +10,10 @@ import yaml
 
 from platcal.cli import main
 from platcal.rig import get_rig
-from platcal.rigs.lowprec_centrifuge.config import load_config
-from platcal.rigs.lowprec_centrifuge.montecarlo import SEED_KEY, metric_column
-from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
+from platcal.rigs.lowprec_centrifuge.config import COEFFS, load_config
+from platcal.rigs.lowprec_centrifuge.metrics import ERRORS, compensate, effect
+from platcal.rigs.lowprec_centrifuge.montecarlo import SEED_KEY, metric_column, study_frames
+from platcal.rigs.lowprec_centrifuge.truth import coeff_vector, simulate_batch
 from platcal.study.montecarlo import replicate_seed, run_cell
 
 TINY = {"rig": "lowprec_centrifuge", "seed": 3,
@@ -37,18 +38,33 @@ def test_a_batch_equals_runs_of_one(hooks, estimator):
     pd.testing.assert_frame_equal(c3, c1, check_exact=True)
     pd.testing.assert_frame_equal(r3, r1, check_exact=True)
     assert len(r3) == 3 and not r3["failed"].any()
-    assert r3[metric_column("P1", "truth", "run1", "VE", "before")].nunique() == 3   # replicates differ
+    assert (c3.groupby("name")["estimate"].nunique() == 3).all()   # replicates differ
 
 
 def test_common_random_numbers_across_scenarios_and_methods(hooks):
+    """The traditional calibrations are evaluated on exactly the proposed cell's records: the same
+    numbers as simulating the proposed run again (same seeds, floor and sensitivities) and
+    compensating it with the traditional cell's estimates."""
     rig, h, cfg = hooks
     level = h.noise_levels(cfg)[0]
-    before = metric_column("P1", "truth", "run2", "pE", "before")
-    by_method = [run_cell(rig, cfg, h.case(cfg, "default"), level, e, replicates=2)[1][before].to_numpy()
-                 for e in h.estimators(cfg)]
-    assert np.array_equal(by_method[0], by_method[1])
+    cells = [run_cell(rig, cfg, h.case(cfg, "default"), level, e, replicates=2) for e in h.estimators(cfg)]
+    assert not any("|truth|" in c for c in cells[1][1].columns)     # the traditional cell simulates no proposed run
     st = load_config(cfg)
+    cross, _ = study_frames(st, ["default"], pd.concat([c[0] for c in cells]), pd.concat([c[1] for c in cells]))
     seeds = [replicate_seed(3, SEED_KEY, level, r) for r in range(2)]
+    rb = simulate_batch(st, "P1", "run2", seeds, floor=True)
+    trad = cells[1][0].set_index("name")["estimate"]
+    c_hat = np.stack([trad.loc[f"P1.traditional.{k}"].to_numpy() for k in COEFFS], axis=1)
+    truth = coeff_vector(st, "P1")
+    after = compensate(rb.final_floor, rb.sens_final, c_hat - truth)
+    rows = cross[(cross["method"] == "traditional") & (cross["eval_run"] == "run2")].sort_values(["seed", "error"])
+    for j, e in enumerate(ERRORS):
+        r = rows[rows["error"] == e]
+        assert np.array_equal(r["before"].to_numpy(), rb.final[:, j])
+        assert np.array_equal(r["after"].to_numpy(), after[:, j])
+        assert np.array_equal(r["effect_pct"].to_numpy(), effect(rb.final, after)[:, j])
+        t = cross[(cross["method"] == "truth") & (cross["eval_run"] == "run2") & (cross["error"] == e)]
+        assert np.array_equal(t.sort_values("seed")["before"].to_numpy(), rb.final[:, j])
     a = simulate_batch(st.with_centrifuge(h.case(cfg, "perfect").centrifuge), "P1", "run1", seeds)
     b = simulate_batch(st.with_centrifuge(h.case(cfg, "worst").centrifuge), "P1", "run1", seeds)
     assert np.array_equal(a.draws.k0_ug, b.draws.k0_ug) and np.array_equal(a.draws.phi0_rad, b.draws.phi0_rad)

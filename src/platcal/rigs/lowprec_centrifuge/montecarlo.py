@@ -10,17 +10,23 @@ collected into the tidy tables ``results/lowprec_centrifuge/montecarlo/``.
 - Noise axis: the accelerometer white noise ``residuals.accel_noise_ug_rthz`` (ug/rtHz), one
   level, the config's (the study sweeps the centrifuge, not the noise).
 - Estimators: ``proposed`` (the §7 filter on every proposed run) and ``traditional`` (eq. 2 on
-  the traditional run); both evaluate on the proposed runs, so a cell simulates every platform's
-  proposed runs, and the traditional cell the traditional run too.
+  the traditional run); both evaluate on the proposed runs. The proposed cell simulates them once
+  for both: it keeps each run's end-of-run errors, floor and sensitivities (``ReplicateBatch.extra``,
+  :func:`record_column`), and the traditional cell simulates the traditional run only; its
+  cross-validations on the proposed runs are computed from those records by
+  :func:`study_frames` (the same seeds, the same arithmetic, so the same numbers as simulating
+  the proposed runs again in the traditional cell, at about half the cost of the pair).
 - Seeds: replicate r is ``SeedSequence(seed, spawn_key=(stable_key("lowprec_centrifuge"),
   round(1000 noise), r))`` for every scenario (:data:`SEED_KEY`: common random numbers across
   the scenarios, §9) and estimator; each (platform, run) draws from its own children
   (:func:`.truth.run_streams`). ``platcal simulate --seed r`` writes replicate r.
 - Quantities: ``<platform>.<run>.<coefficient>`` (ug/g, ug/g^2), the platform's true
   coefficients as truth. Per run (``ReplicateBatch.extra``): the cross-validation metrics of §8,
-  ``<platform>|<calibration run>|<evaluated run>|<error>|<metric>`` for the estimator's
-  calibrations and the exact coefficients (``truth``), and ``<platform>|<run>|failed`` (a
-  non-finite estimate, a covariance not positive definite or a skipped update).
+  ``<platform>|<calibration run>|<evaluated run>|<error>|<metric>`` for the proposed
+  calibrations and the exact coefficients (``truth``; proposed cell), the proposed runs' records
+  ``<platform>|<run>|<final|floor|sens:<coefficient>>|<error>`` (proposed cell, m/s and m; a
+  sensitivity per 1 ug/g or ug/g^2), and ``<platform>|<run>|failed`` (a non-finite estimate, a
+  covariance not positive definite or a skipped update).
 """
 
 from __future__ import annotations
@@ -71,6 +77,40 @@ def failed_column(platform: str, run: str) -> str:
     return f"{platform}|{run}|failed"
 
 
+RECORDS = ("final", "floor") + tuple(f"sens:{c}" for c in COEFFS)
+"""What the proposed cell keeps of each proposed run for the other methods' cross-validations
+(§8): its end-of-run errors before compensation, the floor (coefficients removed) and the
+unit-coefficient responses S_k, each over the four errors."""
+
+
+def record_column(platform: str, run: str, record: str, error: str) -> str:
+    return f"{platform}|{run}|{record}|{error}"
+
+
+def record_columns(platform: str, run: str, final, floor, sens) -> dict:
+    """A proposed run's records as per-run columns (B,): ``final``, ``floor`` (B, 4) and ``sens``
+    (4 coefficients, 4 errors), the same for every seed, repeated per run."""
+    B = final.shape[0]
+    blocks = {"final": final, "floor": floor,
+              **{f"sens:{c}": np.broadcast_to(sens[k], (B, len(ERRORS))) for k, c in enumerate(COEFFS)}}
+    return {record_column(platform, run, rec, e): np.array(v[:, j]) for rec, v in blocks.items()
+            for j, e in enumerate(ERRORS)}
+
+
+def read_records(runs: pd.DataFrame, platform: str, run: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(final (S, 4), floor (S, 4), sens (4, 4)) of a proposed run from the proposed cell's rows
+    ``runs`` (:func:`record_columns`); an InputError names the missing column of tables written
+    before the records were kept (rerun the study's cells)."""
+    missing = [c for c in (record_column(platform, run, r, e) for r in RECORDS for e in ERRORS) if c not in runs]
+    if missing:
+        raise InputError(f"runs.{missing[0]}", "the proposed cell's records of this run are missing: rerun "
+                         "the study's Monte Carlo cells with this version of platcal")
+    block = {r: np.stack([runs[record_column(platform, run, r, e)].to_numpy(float) for e in ERRORS], axis=1)
+             for r in RECORDS}
+    sens = np.stack([block[f"sens:{c}"][0] for c in COEFFS]) if len(runs) else np.zeros((len(COEFFS), len(ERRORS)))
+    return block["final"], block["floor"], sens
+
+
 def calibration_runs(study, platform: str, estimator: str) -> list[str]:
     """The runs an estimator identifies on: the proposed runs, or the traditional run."""
     return list(study.runs[platform]) if estimator == "proposed" else ["traditional"]
@@ -93,6 +133,15 @@ def cross_metrics(platform: str, cal: str, ev: str, before, after, after_truth) 
     return cols
 
 
+def evaluate(platform: str, cal: str, ev: str, final, floor, sens, truth, c=None) -> dict:
+    """The §8 metrics of calibration ``c`` (B, 4; None: the exact coefficients ``truth`` (4,))
+    on the evaluated run's ``final`` errors, compensated about its exact ``floor`` with its
+    sensitivities ``sens`` (second order in c_hat - c), as :func:`cross_metrics` columns."""
+    tcoef = np.broadcast_to(truth, final.shape)
+    c = tcoef if c is None else c
+    return cross_metrics(platform, cal, ev, final, compensate(floor, sens, c - tcoef), floor)
+
+
 def block_nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
     """(B,) e^T P^-1 e of the coefficient errors (B, 4) with their covariance block (B, 4, 4); NaN
     where the block is singular or not finite (the run is flagged failed)."""
@@ -107,7 +156,10 @@ def block_nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
 
 def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
     """Simulate and identify one replicate per SeedSequence of ``seeds`` for every platform of
-    ``study`` (its centrifuge is the scenario's) with ``estimator`` (§6-§8)."""
+    ``study`` (its centrifuge is the scenario's) with ``estimator`` (§6-§8): ``proposed``
+    simulates and identifies every proposed run and keeps their cross-validations and records;
+    ``traditional`` simulates and identifies the traditional run only (its cross-validations on
+    the proposed runs are :func:`study_frames`'s, from the proposed cell's records)."""
     B = len(seeds)
     est, sig, nees_sum, nis, n_blocks, skipped = [], [], np.zeros(B), np.zeros(B), 0, np.zeros(B, np.int64)
     extra = {}
@@ -116,7 +168,7 @@ def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
         truth = coeff_vector(study, p)
         finals, floors, sens, coef = {}, {}, {}, {}
         for r in study.run_names(p):
-            if r == "traditional" and estimator != "traditional":
+            if (r == "traditional") != (estimator == "traditional"):
                 continue
             rb = simulate_batch(study, p, r, seeds, replicates, floor=r != "traditional")
             if r == "traditional":
@@ -127,23 +179,21 @@ def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
                 coef[r] = c
                 continue
             finals[r], floors[r], sens[r] = rb.final.copy(), rb.final_floor, rb.sens_final.copy()
-            if estimator == "proposed":
-                fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, rb.prof.schedule, arm,
-                                       study.latitude_deg)
-                est.append(fr.coeffs)
-                sig.append(fr.sigmas)
-                nees_sum += block_nees(fr.coeffs - truth, fr.P[:, K_SLICE, K_SLICE])
-                nis += fr.mean_nis
-                n_blocks += 1
-                skipped += fr.failed_updates
-                extra[failed_column(p, r)] = failed_fits(fr.x, fr.P) | (fr.failed_updates > 0)
-                coef[r] = fr.coeffs
+            fr = identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, rb.prof.schedule, arm,
+                                   study.latitude_deg)
+            est.append(fr.coeffs)
+            sig.append(fr.sigmas)
+            nees_sum += block_nees(fr.coeffs - truth, fr.P[:, K_SLICE, K_SLICE])
+            nis += fr.mean_nis
+            n_blocks += 1
+            skipped += fr.failed_updates
+            extra[failed_column(p, r)] = failed_fits(fr.x, fr.P) | (fr.failed_updates > 0)
+            coef[r] = fr.coeffs
+            extra.update(record_columns(p, r, finals[r], floors[r], sens[r]))
             del rb
-        tcoef = np.broadcast_to(truth, (B, 4))
-        for j in finals:   # evaluated run: compensated about the exact floor (second order in c_hat - c)
-            after_truth = floors[j]
-            for i, c in list(coef.items()) + [("truth", tcoef)]:
-                extra.update(cross_metrics(p, i, j, finals[j], compensate(floors[j], sens[j], c - tcoef), after_truth))
+        for j in finals:
+            for i, c in list(coef.items()) + [("truth", None)]:
+                extra.update(evaluate(p, i, j, finals[j], floors[j], sens[j], truth, c))
     q = quantities(study, estimator)
     proposed = estimator == "proposed"
     return ReplicateBatch(
@@ -221,6 +271,24 @@ def _cell_runs(runs: pd.DataFrame, scenario: str, estimator: str) -> pd.DataFram
     return runs[(runs["scheme"] == scenario) & (runs["estimator"] == estimator)].sort_values("replicate")
 
 
+def traditional_metrics(study, scenario: str, platform: str, ev: str, coef: pd.DataFrame,
+                        runs: pd.DataFrame) -> dict:
+    """The §8 metrics of the traditional calibrations of ``scenario`` on the proposed run ``ev``
+    (:func:`cross_metrics` columns, seeds in replicate order): the traditional cell's estimates
+    (``coef``) applied to the proposed cell's records of that run (``runs``, :func:`read_records`)."""
+    prop = _cell_runs(runs, scenario, "proposed")
+    trad = _cell_runs(runs, scenario, "traditional")
+    seeds = trad["replicate"].to_numpy(np.int64)
+    if not np.array_equal(prop["replicate"].to_numpy(np.int64), seeds):
+        raise InputError("runs.replicate", f"scenario {scenario!r}: the proposed and traditional cells ran "
+                         "different replicates; rerun both cells with the same study.seeds")
+    final, floor, sens = read_records(prop, platform, ev)
+    c = coef[(coef["scheme"] == scenario) & (coef["estimator"] == "traditional")]
+    c = c.set_index(["name", "replicate"])["estimate"]
+    est = np.stack([c.loc[f"{platform}.traditional.{k}"].reindex(seeds).to_numpy(float) for k in COEFFS], axis=1)
+    return evaluate(platform, "traditional", ev, final, floor, sens, coeff_vector(study, platform), est)
+
+
 def study_frames(study, names, coef: pd.DataFrame, runs: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The cross-validation and coefficient tables (:data:`CROSS_COLUMNS`, :data:`COEFF_COLUMNS`)
     of the scenarios ``names`` from the study's tidy tables ``coef`` and ``runs`` (§8). Rows:
@@ -234,8 +302,9 @@ def study_frames(study, names, coef: pd.DataFrame, runs: pd.DataFrame) -> tuple[
                 for cal, est in cals:
                     r = _cell_runs(runs, sc, est)
                     S = len(r)
-                    vals = {m: np.stack([r[metric_column(p, cal, j, e, m)].to_numpy(float) for e in ERRORS], axis=1)
-                            for m in METRICS}
+                    cols = r if cal != "traditional" else traditional_metrics(study, sc, p, j, coef, runs)
+                    vals = {m: np.stack([np.asarray(cols[metric_column(p, cal, j, e, m)], float) for e in ERRORS],
+                                        axis=1) for m in METRICS}
                     failed = (r[failed_column(p, cal)].to_numpy(bool) if cal != "truth" else np.zeros(S, bool))
                     cross.append(pd.DataFrame({
                         "scenario": sc, "seed": np.repeat(r["replicate"].to_numpy(np.int64), len(ERRORS)),

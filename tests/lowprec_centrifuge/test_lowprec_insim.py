@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from platcal.rigs.lowprec_centrifuge.config import G0, OMEGA_IE, R_EARTH, load_config
+from platcal.rigs.lowprec_centrifuge.insim import W
 from platcal.rigs.lowprec_centrifuge.errormodel import integrate_error_model
 from platcal.rigs.lowprec_centrifuge.profile import build_profile, kinematics
 from platcal.rigs.lowprec_centrifuge.truth import (DEG_H, coeff_vector, draw_params, fine_truth, gyro_vector,
@@ -130,3 +131,28 @@ def test_g_sensitive_drift_acts(study):
     a = ft.navigate(prof.t.size, coef, gyro_vector(gg), eps * DEG_H, phi0)[0][-1]
     b = ft.navigate(prof.t.size, coef, np.zeros(48), eps * DEG_H, phi0)[0][-1]
     assert np.all(np.abs(a - b) > 1e-4 * np.abs(b))
+
+
+def test_lanes_give_each_ins_the_numbers_of_navigating_it_alone(study):
+    """The kernel navigates many INSs side by side (vectorised over lanes, in blocks of W): each
+    lane's errors, attitude and measured force equal, bit for bit, those of that INS navigated
+    alone, across a block boundary, with shared and absent noises."""
+    prof, _, ft = fine_truth(study, "P1", "run1")
+    n = 600                                    # the first 6 s: the rest and the spin-up's start
+    K = W + 3
+    rng = np.random.default_rng(5)
+    coef = rng.normal(0.0, 30e-6, (K, 8))
+    gcoef = np.stack([gyro_vector(rng.normal(0.0, 0.01, 18)) for _ in range(K)])
+    eps = rng.normal(0.0, 0.01, (K, 3)) * DEG_H
+    phi0 = rng.normal(0.0, 1e-4, (K, 3))
+    acc_w = rng.standard_normal((2, n, 2)) * 1e-4
+    gyro_w = rng.standard_normal((2, n, 3)) * 1e-7
+    noise_of = np.array([k % 3 - 1 for k in range(K)])    # none, stream 0, stream 1, ...
+    err, phi, fm = ft.navigate_lanes(n, coef, gcoef, eps, phi0, acc_w, gyro_w, noise_of, keep_phi=True)
+    for k in range(K):
+        w = noise_of[k]
+        alone = ft.navigate(n, coef[k], gcoef[k], eps[k], phi0[k], acc_w[w] if w >= 0 else None,
+                            gyro_w[w] if w >= 0 else None, keep_phi=True)
+        assert np.array_equal(alone[0], err[k]) and np.array_equal(alone[1], phi[k])
+        assert np.array_equal(alone[2], fm[k])
+    assert not np.array_equal(err[1], err[4])       # the lanes differ

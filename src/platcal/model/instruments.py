@@ -92,13 +92,21 @@ def gyro_axis_components(j, f0, f1, f2):
 
 
 @njit(cache=True)
+def gyro_drift_terms(D, DI, DO, DS, DII, DSS, DIO, DIS, DOS, DOO, aI, aO, aS):
+    """Drift of one gyro (deg/h), eqs. 11-12 (docs/centrifuge-model.md §4), from its coefficients
+    (deg/h, deg/h/g, deg/h/g^2) and axis components (g): :func:`gyro_drift_scalar` with the
+    coefficients as scalars (a caller looping over many gyros' coefficients is vectorised)."""
+    e = DOO * (aO * aO)
+    e += (D + DI * aI + DO * aO + DS * aS + DII * (aI * aI) + DSS * (aS * aS) + DIO * (aI * aO)
+          + DIS * (aI * aS) + DOS * (aO * aS))
+    return e
+
+
+@njit(cache=True)
 def gyro_drift_scalar(coef, j, aI, aO, aS):
     """Drift of gyro j (deg/h), eqs. 11-12 (docs/centrifuge-model.md §4), from its axis components (g)."""
-    e = coef[I_DOO + j] * (aO * aO)
-    e += (coef[j] + coef[3 + j] * aI + coef[6 + j] * aO + coef[9 + j] * aS
-          + coef[12 + j] * (aI * aI) + coef[15 + j] * (aS * aS) + coef[18 + j] * (aI * aO)
-          + coef[21 + j] * (aI * aS) + coef[24 + j] * (aO * aS))
-    return e
+    return gyro_drift_terms(coef[j], coef[3 + j], coef[6 + j], coef[9 + j], coef[12 + j], coef[15 + j],
+                            coef[18 + j], coef[21 + j], coef[24 + j], coef[I_DOO + j], aI, aO, aS)
 
 
 @njit(cache=True)

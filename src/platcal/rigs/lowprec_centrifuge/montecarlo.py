@@ -170,7 +170,8 @@ def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
         for r in study.run_names(p):
             if (r == "traditional") != (estimator == "traditional"):
                 continue
-            rb = simulate_batch(study, p, r, seeds, replicates, floor=r != "traditional")
+            # the traditional run needs no floor and no unit-coefficient responses (not evaluated on)
+            rb = simulate_batch(study, p, r, seeds, replicates, floor=r != "traditional", sens=r != "traditional")
             if r == "traditional":
                 c = identify_traditional(rb.prof.t, rb.v_ind, rb.psi, rb.prof.schedule, rb.prof.levels, arm)
                 est.append(c)

@@ -32,7 +32,7 @@ import numpy as np
 
 from ...model.instruments import INDEX, N_FULL
 from .config import G0, Study
-from .insim import FineTruth
+from .insim import W, FineTruth
 from .profile import Kinematics, Profile, build_profile, kinematics
 
 ARCSEC = np.pi / 180 / 3600
@@ -77,7 +77,7 @@ class RunBatch:
     draws: Draws
     err: np.ndarray           # (S, N, 4) true dVE, dVN, dpE, dpN
     phi: np.ndarray | None    # (S, N, 3) true attitude errors (when asked for)
-    sens: np.ndarray          # (4, N, 4) unit-coefficient responses (v1..v4)
+    sens: np.ndarray | None   # (4, N, 4) unit-coefficient responses (v1..v4); None: not asked for
     v_ind: np.ndarray         # (S, N, 2) INS velocity output, m/s
     f_meas: np.ndarray        # (S, N, 2) measured horizontal specific force (accelerometer outputs), m/s^2
     p_ind: np.ndarray         # (S, N, 2) INS position output relative to the start, m
@@ -144,13 +144,20 @@ def fine_truth(study: Study, platform: str, run: str) -> tuple[Profile, Kinemati
 
 
 def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None, keep_phi: bool = False,
-                   noise_free: bool = False, floor: bool = False) -> RunBatch:
+                   noise_free: bool = False, floor: bool = False, sens: bool = True) -> RunBatch:
     """Simulate ``run`` of ``platform`` for every replicate SeedSequence of ``seeds`` (§2-§5, §8, §9);
     ``replicates``: their numbers (``RunBatch.seeds``; 0, 1, ... by default).
 
     ``noise_free``: no drawn residual and no noise (truth coefficients only). ``floor``: also the
     end-of-run errors of the same INS (draws, noise) with its coefficients removed
-    (``RunBatch.final_floor``, the exact-coefficient compensation of §8).
+    (``RunBatch.final_floor``, the exact-coefficient compensation of §8). ``sens``: the four
+    unit-coefficient responses (``RunBatch.sens``; None without).
+
+    Every INS of the run (each replicate, its floor, the variants) is navigated as a lane of one
+    kernel call per block of :data:`.insim.W` lanes (:meth:`.insim.FineTruth.navigate_lanes`),
+    a replicate and its floor in the same block; each lane's numbers are those of navigating it
+    alone, and a replicate's noise stream is drawn in the same order (accelerometer, gyro, then
+    the outputs' noises), so nothing depends on the batch.
     """
     streams = [run_streams(s, study.platform_index(platform), study.run_index(platform, run)) for s in seeds]
     seeds = np.arange(len(streams)) if replicates is None else np.asarray(replicates, dtype=np.int64)
@@ -170,25 +177,46 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
     final_floor = np.empty((nseed, 4)) if floor else None
     psi = np.empty((nseed, n))
     dr = {k: np.zeros((nseed, m)) for k, m in (("k0", 2), ("sk", 2), ("eps", 3), ("phi0", 3), ("gg", 18))}
-    for i, (param_seed, noise_seed) in enumerate(streams):
+    rngs = [None if noise_free else np.random.default_rng(noise_seed) for _, noise_seed in streams]
+    # the lanes: (replicate or -1, what: "ins" | "floor" | variant j, coef, gcoef, eps rad/s, phi0 rad)
+    lanes = []
+    for i, (param_seed, _) in enumerate(streams):
         if noise_free:
             k0, sk, eps, phi0, gg = np.zeros(2), np.zeros(2), np.zeros(3), np.zeros(3), np.zeros(18)
         else:
             k0, sk, eps, phi0, gg = draw_params(study, np.random.default_rng(param_seed))
         for key, val in (("k0", k0), ("sk", sk), ("eps", eps), ("phi0", phi0), ("gg", gg)):
             dr[key][i] = val
-        coef = np.concatenate([k0, sk, coeffs]) * 1e-6
-        acc_w = gyro_w = None
-        if not noise_free:
-            rng = np.random.default_rng(noise_seed)
-            acc_w = rng.standard_normal((n, 2)) * s_acc
-            gyro_w = rng.standard_normal((n, 3)) * s_gyro
-        err[i], ph, f_meas[i] = ft.navigate(n, coef, gyro_vector(gg), eps * DEG_H, phi0, acc_w, gyro_w, keep_phi)
-        if keep_phi:
-            phi[i] = ph
+        lanes.append((i, "ins", np.concatenate([k0, sk, coeffs]) * 1e-6, gyro_vector(gg), eps * DEG_H, phi0))
         if floor:
-            final_floor[i] = ft.navigate(n, np.concatenate([k0, sk, np.zeros(4)]) * 1e-6, gyro_vector(gg), eps * DEG_H,
-                                         phi0, acc_w, gyro_w)[0][-1]
+            lanes.append((i, "floor", np.concatenate([k0, sk, np.zeros(4)]) * 1e-6, gyro_vector(gg), eps * DEG_H,
+                          phi0))
+    for j in range(VARIANTS if sens else 0):
+        coef = np.zeros(8)
+        coef[4 + j] = 1e-6
+        lanes.append((-1, j, coef, np.zeros(N_FULL), np.zeros(3), np.zeros(3)))
+    sens_out = np.empty((VARIANTS, n, 4)) if sens else None
+    for a in range(0, len(lanes), W):
+        block = lanes[a:a + W]
+        reps = sorted({ln[0] for ln in block if ln[0] >= 0 and not noise_free})
+        local = {i: k for k, i in enumerate(reps)}
+        # each replicate's white noises, drawn from its stream in the scalar order (accelerometer, gyro)
+        acc_w = np.stack([rngs[i].standard_normal((n, 2)) * s_acc for i in reps]) if reps else None
+        gyro_w = np.stack([rngs[i].standard_normal((n, 3)) * s_gyro for i in reps]) if reps else None
+        e, ph, fm = ft.navigate_lanes(n, np.array([ln[2] for ln in block]), np.array([ln[3] for ln in block]),
+                                      np.array([ln[4] for ln in block]), np.array([ln[5] for ln in block]),
+                                      acc_w, gyro_w, np.array([local.get(ln[0], -1) for ln in block]), keep_phi)
+        for k, (i, what, *_) in enumerate(block):
+            if what == "ins":
+                err[i], f_meas[i] = e[k], fm[k]
+                if keep_phi:
+                    phi[i] = ph[k]
+            elif what == "floor":
+                final_floor[i] = e[k, -1]
+            else:
+                sens_out[what] = e[k]
+        del e, ph, fm, acc_w, gyro_w
+    for i, rng in enumerate(rngs):
         v_ind[i] = kin.v + err[i, :, :2]
         p_ind[i] = kin.p - kin.p[0] + err[i, :, 2:]
         psi[i] = kin.theta
@@ -196,12 +224,7 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
             v_ind[i] += rng.standard_normal((n, 2)) * res["velocity_noise_m_s"]
             p_ind[i] += rng.standard_normal((n, 2)) * res["position_noise_m"]
             psi[i] += rng.standard_normal(n) * res["heading_noise_arcsec"] * ARCSEC
-    sens = np.empty((VARIANTS, n, 4))
-    for j in range(VARIANTS):
-        coef = np.zeros(8)
-        coef[4 + j] = 1e-6
-        sens[j] = ft.navigate(n, coef, np.zeros(N_FULL), np.zeros(3), np.zeros(3))[0]
     draws = Draws(k0_ug=dr["k0"], scale_ppm=dr["sk"], drift_deg_h=dr["eps"], phi0_rad=dr["phi0"], gyro_g=dr["gg"])
     return RunBatch(platform=platform, run=run, seeds=seeds, coeffs=coeffs, prof=prof, kin=kin, draws=draws,
-                    err=err, phi=phi, sens=sens, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi,
+                    err=err, phi=phi, sens=sens_out, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi,
                     final_floor=final_floor)

@@ -1,9 +1,11 @@
 """Speed of the low-precision centrifuge rig (docs/lowprec-centrifuge.md §11 item 7).
 
 One scenario = its two cells on the generic Monte Carlo runner (proposed, traditional), 2
-platforms x 20 seeds: every truth simulation (with the 4 lock-step variants; the traditional cell
-simulates the proposed runs too, to evaluate on them), every proposed filter pass and every
-traditional solve, plus the cross-validation metrics. Target: under 30 s on 2 cores.
+platforms x 20 seeds: every truth simulation (with the 4 lock-step variants; the proposed cell
+simulates the proposed runs once for both methods, the traditional cell the traditional run),
+every proposed filter pass and every traditional solve, plus the cross-validation metrics
+(:func:`~platcal.rigs.lowprec_centrifuge.montecarlo.study_frames`, where the traditional
+calibrations are evaluated on the proposed cell's records). Target: under 30 s on 2 cores.
 
     python benchmarks/bench_lowprec_centrifuge.py [--seeds 20]
 """
@@ -15,9 +17,11 @@ import os
 import time
 
 import numpy as np
+import pandas as pd
 
 from platcal.rig import get_rig
 from platcal.rigs.lowprec_centrifuge.config import load_config
+from platcal.rigs.lowprec_centrifuge.montecarlo import study_frames
 from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
 from platcal.study.montecarlo import run_cell
 
@@ -36,10 +40,12 @@ def main() -> None:
     warm = time.perf_counter() - t0
     load0 = os.getloadavg()[0]
     t0, c0 = time.perf_counter(), time.process_time()
-    runs = [run_cell(rig, cfg, h.case(cfg, "default"), h.noise_levels(cfg)[0], e, replicates=a.seeds)[1]
-            for e in h.estimators(cfg)]
+    cells = [run_cell(rig, cfg, h.case(cfg, "default"), h.noise_levels(cfg)[0], e, replicates=a.seeds)
+             for e in h.estimators(cfg)]
+    cross, _ = study_frames(load_config(cfg), ["default"], pd.concat([c[0] for c in cells]),
+                            pd.concat([c[1] for c in cells]))
     dt, cpu = time.perf_counter() - t0, time.process_time() - c0
-    n = len({c.rsplit("|", 2)[0] for r in runs for c in r.columns if c.count("|") == 4})
+    n = len(cross.groupby(["platform", "cal_run", "eval_run"]))
     print(f"numba load/compile warm-up: {warm:.1f} s")
     # CPU seconds and the load beside the wall time: on a shared machine the wall time alone says little
     print(f"one scenario (2 platforms x 3 runs x {a.seeds} seeds, {n} cross-validation cells): {dt:.1f} s wall "

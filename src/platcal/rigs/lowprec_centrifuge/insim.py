@@ -90,23 +90,28 @@ def _stage(L, nb, tr, dy, fm):
             ay = (fn + dn) / G0
             az = fp2 / G0
             # accelerometer output minus the true f^n (§4 error model on the platform's axes)
-            ee = de + G0 * (L[ln + W * C0] + L[ln + W * (C0 + 2)] * ax + L[ln + W * (C0 + 4)] * abs(ax) + L[ln + W * (C0 + 5)] * ax * ax) + L[ln + W * AW0]
-            en = dn + G0 * (L[ln + W * (C0 + 1)] + L[ln + W * (C0 + 3)] * ay + L[ln + W * (C0 + 6)] * abs(ay) + L[ln + W * (C0 + 7)] * ay * ay) + L[ln + W * (AW0 + 1)]
+            ee = de + G0 * (L[ln + W * C0] + L[ln + W * (C0 + 2)] * ax + L[ln + W * (C0 + 4)] * abs(ax)
+                            + L[ln + W * (C0 + 5)] * ax * ax) + L[ln + W * AW0]
+            en = dn + G0 * (L[ln + W * (C0 + 1)] + L[ln + W * (C0 + 3)] * ay + L[ln + W * (C0 + 6)] * abs(ay)
+                            + L[ln + W * (C0 + 7)] * ay * ay) + L[ln + W * (AW0 + 1)]
             e0 = L[ln + W * E0] + L[ln + W * GW0]
             e1 = L[ln + W * (E0 + 1)] + L[ln + W * (GW0 + 1)]
             e2 = L[ln + W * (E0 + 2)] + L[ln + W * (GW0 + 2)]
             aI, aO, aS = gyro_axis_components(0, ax, ay, az)
-            gi = G0W
-            e0 += gyro_drift_terms(L[ln + W * gi], L[ln + W * (gi + 3)], L[ln + W * (gi + 6)], L[ln + W * (gi + 9)], L[ln + W * (gi + 12)], L[ln + W * (gi + 15)],
-                                   L[ln + W * (gi + 18)], L[ln + W * (gi + 21)], L[ln + W * (gi + 24)], L[ln + W * (G0W + I_DOO)], aI, aO, aS) * DEG_PER_HOUR
+            g = ln + W * (G0W)    # gyro 0's coefficients: rows G0W + 0 + 3 m (m = 0..8), then DOO
+            e0 += gyro_drift_terms(L[g], L[g + W * 3], L[g + W * 6], L[g + W * 9], L[g + W * 12], L[g + W * 15],
+                                   L[g + W * 18], L[g + W * 21], L[g + W * 24], L[ln + W * (G0W + I_DOO)],
+                                   aI, aO, aS) * DEG_PER_HOUR
             aI, aO, aS = gyro_axis_components(1, ax, ay, az)
-            gi = G0W + 1
-            e1 += gyro_drift_terms(L[ln + W * gi], L[ln + W * (gi + 3)], L[ln + W * (gi + 6)], L[ln + W * (gi + 9)], L[ln + W * (gi + 12)], L[ln + W * (gi + 15)],
-                                   L[ln + W * (gi + 18)], L[ln + W * (gi + 21)], L[ln + W * (gi + 24)], L[ln + W * (G0W + I_DOO + 1)], aI, aO, aS) * DEG_PER_HOUR
+            g = ln + W * (G0W + 1)    # gyro 1's coefficients: rows G0W + 1 + 3 m (m = 0..8), then DOO
+            e1 += gyro_drift_terms(L[g], L[g + W * 3], L[g + W * 6], L[g + W * 9], L[g + W * 12], L[g + W * 15],
+                                   L[g + W * 18], L[g + W * 21], L[g + W * 24], L[ln + W * (G0W + I_DOO + 1)],
+                                   aI, aO, aS) * DEG_PER_HOUR
             aI, aO, aS = gyro_axis_components(2, ax, ay, az)
-            gi = G0W + 2
-            e2 += gyro_drift_terms(L[ln + W * gi], L[ln + W * (gi + 3)], L[ln + W * (gi + 6)], L[ln + W * (gi + 9)], L[ln + W * (gi + 12)], L[ln + W * (gi + 15)],
-                                   L[ln + W * (gi + 18)], L[ln + W * (gi + 21)], L[ln + W * (gi + 24)], L[ln + W * (G0W + I_DOO + 2)], aI, aO, aS) * DEG_PER_HOUR
+            g = ln + W * (G0W + 2)    # gyro 2's coefficients: rows G0W + 2 + 3 m (m = 0..8), then DOO
+            e2 += gyro_drift_terms(L[g], L[g + W * 3], L[g + W * 6], L[g + W * 9], L[g + W * 12], L[g + W * 15],
+                                   L[g + W * 18], L[g + W * 21], L[g + W * 24], L[ln + W * (G0W + I_DOO + 2)],
+                                   aI, aO, aS) * DEG_PER_HOUR
             # the INS's latitude L_c = L + dL: sin/cos by Taylor in dL (|dL| < 1e-2 rad: error below 1e-12)
             dl2 = dl * dl
             cd = 1.0 - dl2 / 2.0 + dl2 * dl2 / 24.0

@@ -26,6 +26,7 @@ import pyarrow.parquet as pq
 from .errors import InputError
 from .io import atomic_files
 from .mapping import RecordMapping
+from .rig import option, whole
 
 PARQUET_MAGIC = b"PAR1"
 """The first (and last) four bytes of every Parquet file."""
@@ -42,6 +43,29 @@ CHUNK_ROWS = 100_000
 centrifuge's 11 columns, so reading, checking and filtering hold a few chunks at most."""
 TRUTH_COLUMNS = ("alpha", "beta", "gamma")
 """The true gimbal angles (deg) of a simulated positioned-platform log."""
+
+
+CHUNK_OPTION = option("--chunk-rows", type=whole(0), default=None,
+                      help=f"rows of the record held at a time (default {CHUNK_ROWS}; 0: the whole record at once)")
+"""``--chunk-rows`` of every rig's ``simulate`` and ``identify`` that stream a record (:func:`chunk_rows_of`)."""
+
+
+def chunk_rows_of(args) -> int:
+    """``--chunk-rows`` of a command's ``args`` (default :data:`CHUNK_ROWS`; 0: the whole record at
+    once); InputError when negative."""
+    n = CHUNK_ROWS if getattr(args, "chunk_rows", None) is None else int(args.chunk_rows)
+    if n < 0:
+        raise InputError("--chunk-rows", f"must be a whole number >= 0 (0: the whole record at once), got {n}")
+    return n
+
+
+def chunks_beyond_one(chunks) -> bool:
+    """Whether the tables ``chunks`` (an :func:`iter_table` of a record) are more than one: the
+    record is then streamed; the generator is closed (the caller reads the record afresh)."""
+    try:
+        return next(chunks, None) is not None and next(chunks, None) is not None
+    finally:
+        chunks.close()
 
 
 def whole_group(columns, group: tuple[str, ...], what: str) -> bool:

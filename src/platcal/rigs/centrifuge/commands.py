@@ -34,7 +34,7 @@ from .identify import (calibration, clock_finding, consistency_warning, continuo
                        write_identification)
 from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, LOG_COLUMNS, OPTIONAL_COLUMNS, UNITS,
                      FilterInput, chunk_to_frame, compensate_frame, full_coefficients, read_record)
-from ...records import CHUNK_ROWS, iter_table, record_writer
+from ...records import CHUNK_OPTION, chunk_rows_of, iter_table, record_writer
 from .simulate import simulate_chunks
 from .study import CentrifugeMonteCarlo
 
@@ -54,7 +54,7 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
     # can be written out and identified on its own
     seeds = None if args.noise_free else [replicate_seed(study.seed, scheme.name, study.noise.sigma_a_ug, replicate)]
     t0 = time.perf_counter()
-    chunk_rows = _chunk_rows(args)
+    chunk_rows = chunk_rows_of(args)
     # written chunk by chunk (same numbers, same CSV text as the whole record), so a long test
     # does not need its record in memory
     with record_writer(args.out) as write:
@@ -65,14 +65,6 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
           f"{'noise-free' if seeds is None else f'replicate {replicate} of the cell (seed {study.seed})'}"
           f" -> {args.out} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
     return 0
-
-
-def _chunk_rows(args: argparse.Namespace) -> int:
-    """``--chunk-rows`` (0: the whole record at once); InputError when negative."""
-    n = CHUNK_ROWS if args.chunk_rows is None else int(args.chunk_rows)
-    if n < 0:
-        raise InputError("--chunk-rows", f"must be a whole number >= 0 (0: the whole record at once), got {n}")
-    return n
 
 
 def with_estimator(study: Study, name: str | None) -> Study:
@@ -102,7 +94,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     scheme = scheme_option(study, args)
     check_writable(args.out, "--out", folder=True)
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
-    chunk_rows = _chunk_rows(args)
+    chunk_rows = chunk_rows_of(args)
 
     def read_chunks():
         return iter_table(args.data, LOG_COLUMNS, OPTIONAL_COLUMNS, mapping=mapping, units=UNITS,
@@ -241,8 +233,7 @@ here, those of the study (observability, design, Monte Carlo cell, report: pymoo
 in :mod:`.study_commands`, imported only when one of them is chosen."""
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
-CHUNK = option("--chunk-rows", type=whole(0), default=None,
-               help=f"rows of the record held at a time (default {CHUNK_ROWS}; 0: the whole record at once)")
+CHUNK = CHUNK_OPTION
 OPTIONS = {
     "simulate": (SCHEME, CHUNK),
     "identify": (SCHEME, CHUNK, option("--estimator", default=None,

@@ -19,22 +19,24 @@ import numpy as np
 import pandas as pd
 
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
-from ...estimation.fit import FitCheck, fit_check, fit_exit_status
+from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, fit_exit_status, gross_errors_moments
 from ...errors import InputError
 from ...rig import option, resolve
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log, gyro_note, read_mapped
-from ...logs.dwells import DWELL_FIGURE, dwells_found
+from ...logs.dwells import DWELL_FIGURE, dwells_found, lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...plausibility import refuse_recognised
+from ...plausibility import refuse_recognised, refuse_recognised_moments
+from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one
+from ...scheme import Scheme
 from ...sizes import Costs, Size, samples_in
-from .estimators import estimate, variant_choice
+from .estimators import estimate, estimate_positions, variant_choice
 from .filter import nees, replicate_seeds, simulate
 from .model import coef_names, group_of, unit_of
 from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
-                     compensate_frame, read_record, to_frame, write_record)
+                     compensate_frame, outputs, read_chunks, read_record, scan_record, to_frame, write_record)
 
 
 
@@ -79,6 +81,16 @@ def nominal_output(cfg, scheme, rec) -> np.ndarray:
                            for k, tk in enumerate(rec.t)])
 
 
+def nominal_position(cfg, cmd_deg: np.ndarray, dwell_s: float, tk: np.ndarray) -> np.ndarray:
+    """(m, 6) ug, arcsec: :func:`nominal_output` of one position (commanded angles ``cmd_deg`` (3,)
+    deg, the scheme's dwell ``dwell_s`` s) at its instants ``tk`` (s), from a simulation of that
+    position alone: the simulator restarts each position, so these are the same numbers while
+    only one position's samples are held (a streamed record)."""
+    one = Scheme(name="nominal", positions=(tuple(cmd_deg),), dwell_s=dwell_s)
+    tn, _, zn = simulate(cfg, one, [0], noise_free=True, truth=np.zeros_like(cfg.truth()))
+    return zn[0, 0, np.clip(np.rint(tk / cfg.ts).astype(int), 0, tn.size - 1)]
+
+
 def check_plausible(cfg, scheme, rec) -> None:
     """Refuse (InputError naming the column) a record whose accelerometers are a unit, sign or
     swap of what the nominal instrument reads at the commanded angles (a static platform reads
@@ -108,6 +120,63 @@ def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
     return fit_check(innov, rows[:, 6:], FIT_CHANNELS, predicted=z - innov, nominal=nominal, t=t, segment=segment)
 
 
+def identify_streamed(cfg, choice, path, scheme, mapping, max_gap_s: float, rows_at_once: int):
+    """Identify a record read in chunks of ``rows_at_once`` rows (docs/multiposition-1g.md §9, §16):
+    a first read checks it and selects its filter instants (:func:`.record.scan_record`) and sums
+    its accelerometers against the nominal output (the plausibility check, as
+    :func:`check_plausible`); each filter pass reads it again and filters it one position at a
+    time (:func:`.estimators.estimate_positions`), the last pass's innovations going into the fit
+    check's running sums (:class:`~platcal.estimation.fit.FitSums`) and the diagnosis's sums
+    (:class:`~platcal.estimation.fit.Moments`). Memory holds one position, not the record.
+    Estimate and covariance are bit-identical to the whole read's, the mean NIS and the fit's
+    figures equal to rounding; the streamed diagnosis names units, signs and swaps, not a clock
+    (which the whole read finds in the innovations' time derivative). Returns ``(estimate,
+    covariance, mean NIS, skipped updates, scan, fit)``."""
+    plaus = Moments.zero(3)
+
+    def dwell(tk):  # the scheme's, else the position's own (the same nominal numbers: see nominal_position)
+        return scheme.dwell_s if scheme is not None else float(tk[-1])
+
+    def each(k, cmd, tk, a):
+        plaus.add(a, nominal_position(cfg, cmd, dwell(tk), tk)[:, :3] * UG)
+
+    scan = scan_record(read_chunks(path, mapping, rows_at_once), path, scheme, cfg.ts, max_gap_s, each=each)
+    refuse_recognised_moments(plaus, FIT_CHANNELS[:3], "g",
+                              "Ax, Ay, Az must be the x, y, z accelerometers in g (a static platform reads |f| = 1 g)")
+    held: dict = {}
+
+    def source():
+        """Each position's (t, z), read afresh in chunks; the last pass keeps its z for the fit."""
+        k, parts, r0 = 0, [], 0
+        for df in read_chunks(path, mapping, rows_at_once):
+            r1 = r0 + len(df)
+            while k < len(scan.positions):
+                rk = scan.rows[k]
+                i0, i1 = np.searchsorted(rk, r0), np.searchsorted(rk, r1)
+                if i1 > i0:
+                    parts.append(outputs(df, rk[i0:i1] - r0))
+                if i1 < rk.size:  # the position goes on in the next chunk
+                    break
+                held["z"] = np.concatenate(parts)
+                yield scan.t[k], held["z"]
+                k, parts = k + 1, []
+            r0 = r1
+
+    sums, diag = FitSums(6), Moments.zero(6)
+
+    def on_innovations(k, rec):
+        innov, z, tk = rec[:, :6], held["z"], scan.t[k]
+        ok = sums.add(innov, rec[:, 6:], np.full(tk.size, k))
+        nominal = nominal_position(cfg, scan.cmd_deg[k], dwell(tk), tk)
+        # the angle sensors against the filter's own (wrapped) prediction, as record_fit does
+        nominal[:, 3:] = z[:, 3:] - innov[:, 3:]
+        diag.add(z[ok], nominal[ok])
+
+    r = estimate_positions(cfg, choice, scan.cmd_deg, source, on_innovations)
+    fit = sums.check(FIT_CHANNELS, diagnosis=tuple(text for _, text in gross_errors_moments(diag, FIT_CHANNELS)))
+    return r.coef[0], r.cov[0], float(r.mean_nis[0]), int(r.failed_updates[0]), scan, fit
+
+
 def run_problems(est: np.ndarray, P: np.ndarray, nis: float, failed_updates: int = 0) -> list[str]:
     """Why an EKF run cannot be trusted (empty if it can): updates skipped because S was not
     positive definite, non-finite estimates, a covariance that is not finite or not positive
@@ -126,13 +195,30 @@ def cmd_identify(cfg, args) -> int:
     choice = cfg.filter_choice() if args.estimator is None else variant_choice(cfg, args.estimator)
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
-    rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]),
-                              mapping=RecordMapping.from_config(cfg.raw["record"]))
-    check_plausible(cfg, scheme, rec)
-    t0 = time.perf_counter()
-    innovations = innovation_buffer(rec)
-    est, P, nis, failed = identify(cfg, rec, choice, innovations)
-    seconds = time.perf_counter() - t0
+    mapping = RecordMapping.from_config(cfg.raw["record"])
+    max_gap_s = float(cfg.raw["record"]["max_gap_s"])
+    rows_at_once = chunk_rows_of(args)
+    # a record longer than one chunk is streamed (memory does not grow with it); a shorter one, or
+    # a continuous log (no position column: its dwells are found in the whole log), is read whole
+    try:
+        streamed = bool(rows_at_once) and chunks_beyond_one(read_chunks(args.data, mapping, rows_at_once))
+    except InputError as exc:
+        if scheme is None or not lacks_position(exc, mapping):
+            raise
+        streamed = False
+    if streamed:
+        t0 = time.perf_counter()
+        est, P, nis, failed, rec, fit = identify_streamed(cfg, choice, args.data, scheme, mapping, max_gap_s,
+                                                          rows_at_once)
+        scheme = rec.scheme
+        seconds = time.perf_counter() - t0
+    else:
+        rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=max_gap_s, mapping=mapping)
+        check_plausible(cfg, scheme, rec)
+        t0 = time.perf_counter()
+        innovations = innovation_buffer(rec)
+        est, P, nis, failed = identify(cfg, rec, choice, innovations)
+        seconds = time.perf_counter() - t0
     if failed_run_status(run_problems(est, P, nis, failed), "the multiposition EKF run", args.data, args.out,
                          "the record's units (Ax, Ay, Az in g, angles in deg) and the config's noise and filter "
                          "settings"):
@@ -147,9 +233,11 @@ def cmd_identify(cfg, args) -> int:
                "positions": int(len(rec.t)), "samples": int(sum(used.values())),
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds}
-    if rec.segmentation is not None:
-        summary["dwells_found"] = dwells_found(rec.segmentation[0], rec.segmentation[2])
-    fit = record_fit(cfg, scheme, rec, innovations)
+    segmentation = None if streamed else rec.segmentation
+    if segmentation is not None:
+        summary["dwells_found"] = dwells_found(segmentation[0], segmentation[2])
+    if not streamed:
+        fit = record_fit(cfg, scheme, rec, innovations)
     summary["fit"] = fit.as_dict()
     use_truth = rec.has_truth and not args.no_truth
     if use_truth:
@@ -166,8 +254,8 @@ def cmd_identify(cfg, args) -> int:
     with atomic_files(out) as tmp:  # the files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
         write_calibration_files(tmp, cal)
-        if rec.segmentation is not None:
-            resolve(DWELL_FIGURE)(*rec.segmentation, tmp("dwells.png"))
+        if segmentation is not None:
+            resolve(DWELL_FIGURE)(*segmentation, tmp("dwells.png"))
         tmp("summary.json").write_text(json_text(summary))
     msg = (f"platcal identify: multiposition 27-state {choice.label}, {min(used.values())}-"
            f"{max(used.values())} samples per position, {seconds:.2f} s -> {out}")
@@ -233,6 +321,6 @@ def sizes(command: str, cfg, args) -> list[Size]:
 SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "
                                               "default: the config's default_scheme")
 OPTIONS = {"simulate": (SCHEME,), "observability": (SCHEME,),
-           "identify": (SCHEME, option("--estimator", default=None,
+           "identify": (SCHEME, CHUNK_OPTION, option("--estimator", default=None,
                                        help="ekf or iekf, or a study.estimators name (ekf1, ekf2, iekf)"))}
 """The rig's own options (``--seed`` of simulate: replicate N of the study's Monte Carlo cell)."""

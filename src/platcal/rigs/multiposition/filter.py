@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
@@ -344,23 +345,8 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     R, K, ns, _ = Z.shape
     tk = np.broadcast_to(np.asarray(t, float), (K, ns)).copy()
     nk = np.full(K, ns, dtype=np.int64) if nk is None else np.asarray(nk, dtype=np.int64)
-    p0 = cfg.p0(ext)
-    nc = p0.size
-    n = nc + 3
-    sa = cfg.sigma_a_ug if sigma_a_ug is None else sigma_a_ug
-    r_var = np.array([sa**2] * 3 + [cfg.sigma_an_arcsec**2] * 3)
-    if sa <= 0:
-        r_var[:3] = 1e-6  # a noise-free record still needs R > 0: 0.001 ug, far below any signal
-    X = np.zeros((R, n))
-    Ps = np.zeros((R, n, n))
-    Ps[:, 3:, 3:] = np.diag(p0**2)
-    if prior_x is not None:
-        X[:, 3:] = prior_x
-    if prior_P is not None:
-        Ps[:, 3:, 3:] = prior_P
-    lay = layout_index(ext)
-    wn, wu = cfg.site.params()
-    cols = dynamic_cols(ext)
+    st = FilterStart.of(cfg, R, ext, sigma_a_ug, prior_x, prior_P)
+    X, Ps = st.X, st.Ps
     phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
     nis = np.empty(R)
     nlin = np.zeros(R)
@@ -370,12 +356,93 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     rec = np.zeros((1, 0, 0, 12)) if innovations is None else innovations
     for p in range(npass):
         if p > 0:
-            C = Ps[:, 3:, 3:].copy()
-            Ps[:] = 0.0
-            Ps[:, 3:, 3:] = 100.0 * C
-        _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, cfg.arw_rad**2,
-                  cfg.sigma_set_rad**2, cols, True, int(iterations), float(tolerance), nis, nlin, nbad, rec)
+            st.next_pass()
+        _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2,
+                  cfg.sigma_set_rad**2, st.cols, True, int(iterations), float(tolerance), nis, nlin, nbad, rec)
     return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis, nlin / (npass * int(nk.sum())), nbad
+
+
+@dataclass
+class FilterStart:
+    """The EKF's start (docs/multiposition-1g.md §9) for R replicates: state X (R, n), covariance
+    Ps (R, n, n) (coefficients at ``prior_x``/``prior_P`` or 0 and diag(P0^2)), the measurement
+    variances ``r_var`` (6,) ug^2 and arcsec^2 and the model's layout, site rates and dynamic
+    columns; shared by :func:`run_filter` (all positions at once) and :func:`run_filter_positions`
+    (a streamed record, one position at a time)."""
+
+    X: np.ndarray
+    Ps: np.ndarray
+    r_var: np.ndarray
+    lay: np.ndarray
+    wn: object
+    wu: object
+    cols: np.ndarray
+
+    @classmethod
+    def of(cls, cfg, R: int, ext: int = 0, sigma_a_ug: float | None = None, prior_x=None,
+           prior_P=None) -> "FilterStart":
+        p0 = cfg.p0(ext)
+        n = p0.size + 3
+        sa = cfg.sigma_a_ug if sigma_a_ug is None else sigma_a_ug
+        r_var = np.array([sa**2] * 3 + [cfg.sigma_an_arcsec**2] * 3)
+        if sa <= 0:
+            r_var[:3] = 1e-6  # a noise-free record still needs R > 0: 0.001 ug, far below any signal
+        X = np.zeros((R, n))
+        Ps = np.zeros((R, n, n))
+        Ps[:, 3:, 3:] = np.diag(p0**2)
+        if prior_x is not None:
+            X[:, 3:] = prior_x
+        if prior_P is not None:
+            Ps[:, 3:, 3:] = prior_P
+        wn, wu = cfg.site.params()
+        return cls(X, Ps, r_var, layout_index(ext), wn, wu, dynamic_cols(ext))
+
+    def next_pass(self) -> None:
+        """A later pass (§9): from the previous estimate with P0 = 100 x its coefficient covariance."""
+        C = self.Ps[:, 3:, 3:].copy()
+        self.Ps[:] = 0.0
+        self.Ps[:, 3:, 3:] = 100.0 * C
+
+
+def run_filter_positions(cfg, positions_deg, source, passes: int | None = None, iterations: int = 0,
+                         tolerance: float = 0.0, on_innovations=None):
+    """:func:`run_filter` of one record (R = 1) fed one position at a time, so only one position's
+    samples are held: ``source()`` is called once per pass and yields, per position in the order of
+    ``positions_deg`` (K, 3) deg, its filter instants ``t`` (m,) s and outputs ``z`` (m, 6) ug,
+    arcsec; ``on_innovations(k, rec)`` (last pass only) receives position k's innovations and S
+    diagonals (m, 12) (:func:`_ekf_one`). x and P carry from position to position exactly as in
+    the whole record's kernel call (the same kernel, the same operations), so the estimate and
+    covariance are bit-identical; the mean NIS is summed per position (equal to rounding).
+    Returns run_filter's tuple for R = 1."""
+    st = FilterStart.of(cfg, 1)
+    phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
+    npass = int(passes or cfg.passes)
+    nlin = nbad = 0
+    count = 0
+    for p in range(npass):
+        if p > 0:
+            st.next_pass()
+        nis = nup = 0.0
+        last = p == npass - 1 and on_innovations is not None
+        k = -1
+        for k, (t, z) in enumerate(source()):
+            m = t.size
+            rec = np.zeros((1, m, 12)) if last else np.zeros((0, 0, 12))
+            s, u, nl, nb = _ekf_one(st.X[0], st.Ps[0], phi0s[k:k + 1], np.ascontiguousarray(t, float)[None],
+                                    np.ascontiguousarray(z, float)[None], np.array([m], dtype=np.int64), st.lay,
+                                    st.wn, st.wu, st.r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, st.cols, True,
+                                    int(iterations), float(tolerance), rec)
+            nis += s
+            nup += u
+            nlin += nl
+            nbad += nb
+            count += m
+            if last:
+                on_innovations(k, rec[0])
+        if k + 1 != phi0s.shape[0]:
+            raise ValueError(f"the record's source gave {k + 1} positions, not {phi0s.shape[0]}")
+    return (st.X[:, 3:].copy(), st.Ps[:, 3:, 3:].copy(), np.array([nis / max(nup, 1) / 6.0]),
+            np.array([nlin / max(count, 1)]), np.array([nbad], dtype=np.int64))
 
 
 def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,

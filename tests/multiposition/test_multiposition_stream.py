@@ -14,6 +14,10 @@ import pandas as pd
 import pytest
 
 from platcal.cli import main
+from platcal.io import read_yaml
+from platcal.rigs.multiposition.config import load_config
+from platcal.rigs.multiposition.filter import simulate
+from platcal.rigs.multiposition.record import to_frame
 
 CONFIG = """rig: multiposition
 filter: {passes: PASSES}
@@ -73,3 +77,17 @@ def test_streamed_record_out_of_order_and_bad_units_refused(tmp_path, capsys):
     assert main(args + ["--data", str(tmp_path / "mg.csv"), "--out", str(tmp_path / "o3")]) == 2
     err = capsys.readouterr().err
     assert "--data column Ax" in err and not (tmp_path / "o3").exists()
+
+
+@pytest.mark.parametrize("noise_free", [False, True])
+def test_simulate_position_by_position_writes_the_whole_record(tmp_path, noise_free):
+    """``platcal simulate`` draws and writes one position at a time: the CSV text of the batch
+    simulator's whole replicate (its draws in §14's order from one stream)."""
+    cfg = _config(tmp_path, 1)
+    out = tmp_path / "rec.csv"
+    assert main(["simulate", "--config", cfg, "--scheme", "odd", "--seed", "5", "--out", str(out)]
+                + (["--noise-free"] if noise_free else [])) == 0
+    c = load_config(read_yaml(CONFIG.replace("PASSES", "1")))
+    scheme = c.scheme("odd")
+    t, phi, z = simulate(c, scheme, [5], noise_free=noise_free)
+    assert out.read_text() == to_frame(scheme, t, phi[0], z[0]).to_csv(index=False)

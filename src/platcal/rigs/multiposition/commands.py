@@ -29,14 +29,14 @@ from ...logs.dwells import DWELL_FIGURE, dwells_found, lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised, refuse_recognised_moments
-from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one
+from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one, record_writer
 from ...scheme import Scheme
 from ...sizes import Costs, Size, samples_in
 from .estimators import estimate, estimate_positions, variant_choice
-from .filter import nees, replicate_seeds, simulate
+from .filter import nees, replicate_seeds, simulate, simulate_positions
 from .model import coef_names, group_of, unit_of
 from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
-                     compensate_frame, outputs, read_chunks, read_record, scan_record, to_frame, write_record)
+                     compensate_frame, outputs, position_frame, read_chunks, read_record, scan_record)
 
 
 
@@ -46,8 +46,12 @@ def cmd_simulate(cfg, args) -> int:
     check_writable(args.out, "--out")
     t0 = time.perf_counter()
     # --seed N is replicate N of the study's cell (this scheme, noise.sigma_a_ug): the same SeedSequence
-    t, phi, z = simulate(cfg, scheme, replicate_seeds(cfg, scheme.name, [replicate]), noise_free=bool(args.noise_free))
-    write_record(to_frame(scheme, t, phi[0], z[0]), args.out)
+    # position by position (the numbers and CSV text of the whole record), so a long test does not
+    # need its record in memory
+    with record_writer(args.out) as write:
+        for k, t, phi, z in simulate_positions(cfg, scheme, replicate_seeds(cfg, scheme.name, [replicate])[0],
+                                               noise_free=bool(args.noise_free)):
+            write(position_frame(scheme, k, t, phi, z))
     what = "noise-free" if args.noise_free else (f"replicate {replicate} of the Monte Carlo cell {scheme.name}, "
                                                  f"sigma_a {cfg.sigma_a_ug:g} ug (root seed {cfg.seed})")
     print(f"platcal simulate: multiposition scheme {scheme.name!r}, {scheme.n_positions} positions x "

@@ -128,33 +128,86 @@ def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=N
     Returns ``(t (n,), phi (R, K, n, 3) rad, z (R, K, n, 6) ug / arcsec)``; z includes noise.
     Raises InputError if beta leaves the gimbal range (+ margin) during a dwell (§3).
     """
-    ts = cfg.ts
-    ns = int(round(scheme.dwell_s / ts)) + 1
-    t = np.arange(ns) * ts
-    phi0s = scheme.angles_deg * DEG
-    K = phi0s.shape[0]
-    coef = cfg.truth(ext) if truth is None else np.asarray(truth, float)
-    lay = layout_index(ext)
-    wn, wu = cfg.site.params()
+    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, scheme, ext, truth)
+    ns, K = t.size, phi0s.shape[0]
     R = len(seeds)
     phi = np.empty((R, K, ns, 3))
     z = np.empty((R, K, ns, 6))
     if noise_free:
         init, w, v = np.zeros((R, K, 3)), np.zeros((R, K, ns - 1, 3)), np.zeros((R, K, ns, 6))
     else:
-        if any(not isinstance(s, np.random.SeedSequence) for s in seeds):
-            seeds = [s if isinstance(s, np.random.SeedSequence) else replicate_seeds(cfg, scheme.name, [s])[0]
-                     for s in seeds]
-        init, w, v = draw_noise(cfg, seeds, K, ns)
-    _threaded(_simulate_range, R, threads, phi0s, coef, lay, wn, wu, ts, cfg.n_sub, init, w, phi, z)
+        init, w, v = draw_noise(cfg, _seed_sequences(cfg, scheme, seeds), K, ns)
+    _threaded(_simulate_range, R, threads, phi0s, coef, lay, wn, wu, cfg.ts, cfg.n_sub, init, w, phi, z)
     z += v
+    _check_gimbal(cfg, scheme, phi0s, phi)
+    return t, phi, z
+
+
+def _sim_setup(cfg, scheme, ext: int, truth):
+    """``(t (n,) s, commanded angles (K, 3) rad, coefficients, layout, site rates)`` of a simulation (§12)."""
+    t = np.arange(int(round(scheme.dwell_s / cfg.ts)) + 1) * cfg.ts
+    coef = cfg.truth(ext) if truth is None else np.asarray(truth, float)
+    wn, wu = cfg.site.params()
+    return t, scheme.angles_deg * DEG, coef, layout_index(ext), wn, wu
+
+
+def _seed_sequences(cfg, scheme, seeds) -> list:
+    """``seeds`` as SeedSequences (a replicate number r: replicate r of the study's cell, :func:`replicate_seeds`)."""
+    return [s if isinstance(s, np.random.SeedSequence) else replicate_seeds(cfg, scheme.name, [s])[0] for s in seeds]
+
+
+def _check_gimbal(cfg, scheme, phi0s, phi, first: int = 0) -> None:
+    """InputError naming the scheme's position when beta (commanded ``phi0s`` (K, 3) rad plus the
+    simulated ``phi`` (R, K, n, 3) rad) leaves the gimbal range during a dwell (§3); ``first``:
+    the 0-based scheme position of ``phi0s[0]``."""
     beta = np.abs(phi0s[None, :, None, 1] + phi[..., 1]) / DEG
     lim = cfg.beta_max_deg + cfg.beta_margin_deg
     if np.any(beta > lim):
-        k = int(np.argwhere(beta > lim)[0][1]) + 1
+        k = first + int(np.argwhere(beta > lim)[0][1]) + 1
         raise InputError(f"schemes.{scheme.name}.positions[{k}]",
                          f"beta leaves the gimbal range {lim:g} deg during the dwell (§3)")
-    return t, phi, z
+
+
+NORMAL_BLOCK = 1 << 20
+"""Normal draws skipped at a time when :func:`simulate_positions` moves a stream past the draws of
+the other positions (8 MB)."""
+
+
+def simulate_positions(cfg, scheme, seed, noise_free: bool = False):
+    """:func:`simulate` of one replicate (``seed``: a SeedSequence or replicate number), position by
+    position: yields ``(k, t (n,) s, phi (n, 3) rad, z (n, 6) ug / arcsec)`` for k = 0 .. K-1 with
+    the numbers :func:`simulate` gives, holding one position's samples. The draws are §14's order
+    of use (:func:`draw_noise`: setting errors, then every position's ARW, then every position's
+    sensor noise, from one stream): the sensor noise comes from a copy of the stream moved past
+    all the ARW draws (drawn in blocks and dropped), so each position's ARW and noise are the
+    slices of the whole draw."""
+    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, scheme, 0, None)
+    ns, K = t.size, phi0s.shape[0]
+    sig = np.array([cfg.sigma_a_ug] * 3 + [cfg.sigma_an_arcsec] * 3)
+    if noise_free:
+        init = np.zeros((K, 3))
+    else:
+        rng_w = np.random.default_rng(_seed_sequences(cfg, scheme, [seed])[0])
+        init = rng_w.standard_normal((K, 3)) * cfg.sigma_set_rad
+        rng_v = np.random.Generator(type(rng_w.bit_generator)())
+        rng_v.bit_generator.state = rng_w.bit_generator.state
+        skip = K * (ns - 1) * 3
+        while skip > 0:  # draws of a Generator in blocks are the draws of one call
+            rng_v.standard_normal(min(skip, NORMAL_BLOCK))
+            skip -= NORMAL_BLOCK
+    for k in range(K):
+        if noise_free:
+            w, v = np.zeros((ns - 1, 3)), 0.0
+        else:
+            w = rng_w.standard_normal((ns - 1, 3)) * (cfg.arw_rad / math.sqrt(cfg.ts))
+            v = rng_v.standard_normal((ns, 6)) * sig
+        phi = np.empty((1, 1, ns, 3))
+        z = np.empty((1, 1, ns, 6))
+        _simulate_range(0, 1, phi0s[k:k + 1], coef, lay, wn, wu, cfg.ts, cfg.n_sub, init[None, k:k + 1], w[None, None],
+                        phi, z)
+        z += v
+        _check_gimbal(cfg, scheme, phi0s[k:k + 1], phi, k)
+        yield k, t, phi[0, 0], z[0, 0]
 
 
 # ------------------------------------------------------------------ EKF kernel

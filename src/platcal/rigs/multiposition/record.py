@@ -21,7 +21,7 @@ from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_positio
 from ...mapping import RecordMapping
 from ...model.frames import DEG
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
-                         iter_table, read_table, whole_group, write_record)  # write_record: re-exported for the rig's commands
+                         iter_table, read_table, whole_group)
 from ...scheme import Scheme
 from .model import drift, measure
 
@@ -71,22 +71,29 @@ class Record:
         return tk, Z, nk
 
 
-def to_frame(scheme: Scheme, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> pd.DataFrame:
-    """One replicate (phi (K, n, 3) rad, z (K, n, 6) ug / arcsec) as a record table."""
-    K, n = phi.shape[:2]
-    cmd = scheme.angles_deg
-    true = cmd[:, None, :] + phi / DEG
-    meas = z[..., 3:] / 3600.0
-    df = {"position": np.repeat(np.arange(1, K + 1), n), "t": np.tile(t, K)}
+def position_frame(scheme: Scheme, k: int, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> pd.DataFrame:
+    """Position ``k`` (0-based) of one replicate (``t`` (n,) s, phi (n, 3) rad, z (n, 6) ug / arcsec)
+    as the rows of a record table (§12)."""
+    n = t.size
+    cmd = scheme.angles_deg[k]
+    true = cmd[None, :] + phi / DEG
+    meas = z[:, 3:] / 3600.0
+    df = {"position": np.full(n, k + 1), "t": t}
     for i, c in enumerate(("alpha_cmd", "beta_cmd", "gamma_cmd")):
-        df[c] = np.repeat(cmd[:, i], n)
+        df[c] = np.full(n, cmd[i])
     for i, c in enumerate(("Ax", "Ay", "Az")):
-        df[c] = z[..., i].ravel() * UG
+        df[c] = z[:, i] * UG
     for i, c in enumerate(ANGLE_COLUMNS):
-        df[c] = meas[..., i].ravel()
+        df[c] = meas[:, i]
     for i, c in enumerate(TRUTH_COLUMNS):
-        df[c] = true[..., i].ravel()
+        df[c] = true[:, i]
     return pd.DataFrame(df)
+
+
+def to_frame(scheme: Scheme, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> pd.DataFrame:
+    """One replicate (phi (K, n, 3) rad, z (K, n, 6) ug / arcsec) as a record table: every
+    position's :func:`position_frame`."""
+    return pd.concat([position_frame(scheme, k, t, phi[k], z[k]) for k in range(phi.shape[0])], ignore_index=True)
 
 
 def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float = 0.02,

@@ -217,6 +217,32 @@ def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     yield pending
 
 
+def position_blocks(chunks, check: Callable[[pd.DataFrame], None] | None = None) -> Iterator[tuple]:
+    """The blocks of rows of one position in a positioned-platform log read in ``chunks`` (tables
+    in file order, :func:`iter_table`): ``(df, row0, i0, i1, k, starts)`` for rows ``i0:i1`` of
+    the chunk ``df`` (whose first row is the file's data row ``row0``, 0-based), all at position
+    ``k``; ``starts`` at a position's first block. ``check(df)`` runs on each chunk before its
+    blocks (the rig's checks of a chunk). A streamed log holds each position as one block of rows,
+    positions in increasing order (a logger's order): InputError naming ``--data column
+    position`` and ``--chunk-rows 0`` (read whole, any order) otherwise."""
+    last, row = None, 0
+    for df in chunks:
+        if check is not None:
+            check(df)
+        pos = df["position"].to_numpy(float)
+        cuts = np.r_[0, np.flatnonzero(np.diff(pos)) + 1, pos.size]
+        for i0, i1 in zip(cuts[:-1], cuts[1:]):
+            k = int(pos[i0])
+            starts = k != last
+            if starts and last is not None and k <= last:
+                raise InputError("--data column position", f"position {k} follows position {last} at "
+                                 f"row {row + i0 + 2}: a record read in chunks holds each position as one block, "
+                                 "in increasing order; sort it so, or read it whole with --chunk-rows 0")
+            last = k
+            yield df, row, int(i0), int(i1), k, starts
+        row += len(df)
+
+
 def _checked(df: pd.DataFrame, required: tuple[str, ...], optional: tuple[str, ...], text: tuple[str, ...],
              field: str, what: str, row0: int) -> pd.DataFrame:
     """One chunk's columns and values checked (see :func:`read_table`); ``row0``: the file's

@@ -25,7 +25,7 @@ from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UN
                      check_every_position, check_position, check_position_numbers, check_record, continuous_record,
                      filter_input, has_truth_columns, select_instants)
 from ...mapping import RecordMapping
-from ...records import read_table
+from ...records import position_blocks, read_table
 from ...errors import InputError
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
@@ -231,28 +231,20 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         rows.append(held["row0"] + keep)
         held.update(k=None, t=[], a=[])
 
-    row = 0
-    for df in chunks:
+    def check(df) -> None:
+        nonlocal truth
         if truth is None:
             truth = has_truth_columns(df.columns)
         pos = df["position"].to_numpy(float)
         check_position_numbers(pos, scheme)
         check_commanded(pos, df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float), scheme)
-        t = df["t"].to_numpy(float)
-        a = df[["Ax", "Ay", "Az"]].to_numpy(float)
-        cuts = np.r_[0, np.flatnonzero(np.diff(pos)) + 1, pos.size]
-        for i0, i1 in zip(cuts[:-1], cuts[1:]):
-            k = int(pos[i0])
-            if k != held["k"]:
-                finish()
-                if positions and k <= positions[-1]:
-                    raise InputError("--data column position", f"position {k} follows position {positions[-1]} at "
-                                     f"row {row + i0 + 2}: a record read in chunks holds each position as one block, "
-                                     "in increasing order; sort it so, or read it whole with --chunk-rows 0")
-                held.update(k=k, row0=row + i0)
-            held["t"].append(t[i0:i1])
-            held["a"].append(a[i0:i1])
-        row += len(df)
+
+    for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
+        if starts:
+            finish()
+            held.update(k=k, row0=row0 + i0)
+        held["t"].append(df["t"].to_numpy(float)[i0:i1])
+        held["a"].append(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
     finish()
     check_every_position(positions, scheme)
     return StreamScan(positions, ts, np.concatenate(rows), bool(truth), jit, moments, cmd[np.array(positions) - 1])

@@ -21,7 +21,7 @@ from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_positio
 from ...mapping import RecordMapping
 from ...model.frames import DEG
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
-                         iter_table, read_table, whole_group)
+                         iter_table, position_blocks, read_table, whole_group)
 from ...scheme import Scheme
 from .model import drift, measure
 
@@ -212,30 +212,21 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
         rows.append(held["row0"] + keep)
         held.update(k=None, t=[], a=[], cmd=None)
 
-    row = 0
-    for df in chunks:
+    def check(df) -> None:
+        nonlocal has_truth
         if has_truth is None:
             has_truth = whole_group(list(df.columns), TRUTH_COLUMNS, "the true angles")
-        pos = df["position"].to_numpy()
-        check_position_numbers(pos, scheme)
-        cmd = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
-        t = df["t"].to_numpy(float)
-        a = df[["Ax", "Ay", "Az"]].to_numpy(float)
-        cuts = np.r_[0, np.flatnonzero(np.diff(pos)) + 1, pos.size]
-        for i0, i1 in zip(cuts[:-1], cuts[1:]):
-            k = int(pos[i0])
-            if k != held["k"]:
-                finish()
-                if positions and k <= positions[-1]:
-                    raise InputError("--data column position", f"position {k} follows position {positions[-1]} at "
-                                     f"row {row + i0 + 2}: a record read in chunks holds each position as one block, "
-                                     "in increasing order; sort it so, or read it whole with --chunk-rows 0")
-                held.update(k=k, row0=row + i0, cmd=check_commanded(k, cmd[i0:i1], scheme))
-            elif np.ptp(np.vstack([held["cmd"][None], cmd[i0:i1]]), axis=0).max() > 1e-9:
-                raise InputError(f"--data position {k}", "commanded angles change within the position")
-            held["t"].append(t[i0:i1])
-            held["a"].append(a[i0:i1])
-        row += len(df)
+        check_position_numbers(df["position"].to_numpy(), scheme)
+
+    for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
+        cmd = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)[i0:i1]
+        if starts:
+            finish()
+            held.update(k=k, row0=row0 + i0, cmd=check_commanded(k, cmd, scheme))
+        elif np.ptp(np.vstack([held["cmd"][None], cmd]), axis=0).max() > 1e-9:
+            raise InputError(f"--data position {k}", "commanded angles change within the position")
+        held["t"].append(df["t"].to_numpy(float)[i0:i1])
+        held["a"].append(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
     finish()
     if scheme is not None:
         check_every_position(positions, scheme)

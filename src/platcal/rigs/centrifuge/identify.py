@@ -26,7 +26,6 @@ from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UN
                      filter_input, has_truth_columns, select_instants)
 from ...mapping import RecordMapping
 from ...records import position_blocks, read_table
-from ...errors import InputError
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
 from .tables import covariance_frame, estimates_frame, table2_markdown

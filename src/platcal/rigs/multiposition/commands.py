@@ -29,11 +29,10 @@ from ...logs.dwells import DWELL_FIGURE, dwells_found, lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised, refuse_recognised_moments
-from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one, record_writer
-from ...scheme import Scheme
+from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, chunks_beyond_one, record_writer
 from ...sizes import Costs, Size, samples_in
 from .estimators import estimate, estimate_positions, variant_choice
-from .filter import nees, replicate_seeds, simulate, simulate_positions
+from .filter import nees, replicate_seeds, simulate_blocks, simulate_positions
 from .model import coef_names, group_of, unit_of
 from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
                      compensate_frame, outputs, position_frame, read_chunks, read_record, scan_record)
@@ -80,19 +79,22 @@ def innovation_buffer(rec) -> np.ndarray:
 def nominal_output(cfg, scheme, rec) -> np.ndarray:
     """(M, 6) ug, arcsec: the noise-free output of the nominal instrument (every coefficient 0)
     at the commanded angles and the record's filter instants (docs/multiposition-1g.md §7)."""
-    tn, _, zn = simulate(cfg, scheme, [0], noise_free=True, truth=np.zeros_like(cfg.truth()))
-    return np.concatenate([zn[0, k, np.clip(np.rint(tk / cfg.ts).astype(int), 0, tn.size - 1)]
+    return np.concatenate([nominal_position(cfg, scheme.angles_deg[k], scheme.dwell_s, tk)
                            for k, tk in enumerate(rec.t)])
 
 
 def nominal_position(cfg, cmd_deg: np.ndarray, dwell_s: float, tk: np.ndarray) -> np.ndarray:
     """(m, 6) ug, arcsec: :func:`nominal_output` of one position (commanded angles ``cmd_deg`` (3,)
     deg, the scheme's dwell ``dwell_s`` s) at its instants ``tk`` (s), from a simulation of that
-    position alone: the simulator restarts each position, so these are the same numbers while
-    only one position's samples are held (a streamed record)."""
-    one = Scheme(name="nominal", positions=(tuple(cmd_deg),), dwell_s=dwell_s)
-    tn, _, zn = simulate(cfg, one, [0], noise_free=True, truth=np.zeros_like(cfg.truth()))
-    return zn[0, 0, np.clip(np.rint(tk / cfg.ts).astype(int), 0, tn.size - 1)]
+    position alone in blocks (:func:`.filter.simulate_blocks`: the simulator restarts each
+    position, so these are the same numbers while one block of samples is held)."""
+    n = int(round(dwell_s / cfg.ts)) + 1
+    idx = np.clip(np.rint(tk / cfg.ts).astype(int), 0, n - 1)
+    out = np.empty((tk.size, 6))
+    for j0, z in simulate_blocks(cfg, cmd_deg, dwell_s, truth=np.zeros_like(cfg.truth()), block=CHUNK_ROWS):
+        sel = (idx >= j0) & (idx < j0 + len(z))
+        out[sel] = z[idx[sel] - j0]
+    return out
 
 
 def check_plausible(cfg, scheme, rec) -> None:

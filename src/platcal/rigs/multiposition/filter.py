@@ -128,7 +128,7 @@ def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=N
     Returns ``(t (n,), phi (R, K, n, 3) rad, z (R, K, n, 6) ug / arcsec)``; z includes noise.
     Raises InputError if beta leaves the gimbal range (+ margin) during a dwell (§3).
     """
-    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, scheme, ext, truth)
+    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, scheme.dwell_s, scheme.angles_deg, ext, truth)
     ns, K = t.size, phi0s.shape[0]
     R = len(seeds)
     phi = np.empty((R, K, ns, 3))
@@ -143,12 +143,13 @@ def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=N
     return t, phi, z
 
 
-def _sim_setup(cfg, scheme, ext: int, truth):
-    """``(t (n,) s, commanded angles (K, 3) rad, coefficients, layout, site rates)`` of a simulation (§12)."""
-    t = np.arange(int(round(scheme.dwell_s / cfg.ts)) + 1) * cfg.ts
+def _sim_setup(cfg, dwell_s: float, angles_deg: np.ndarray, ext: int, truth):
+    """``(t (n,) s, commanded angles (K, 3) rad, coefficients, layout, site rates)`` of a simulation
+    (§12) of positions ``angles_deg`` (K, 3) deg dwelling ``dwell_s`` s each."""
+    t = np.arange(int(round(dwell_s / cfg.ts)) + 1) * cfg.ts
     coef = cfg.truth(ext) if truth is None else np.asarray(truth, float)
     wn, wu = cfg.site.params()
-    return t, scheme.angles_deg * DEG, coef, layout_index(ext), wn, wu
+    return t, angles_deg * DEG, coef, layout_index(ext), wn, wu
 
 
 def _seed_sequences(cfg, scheme, seeds) -> list:
@@ -181,7 +182,7 @@ def simulate_positions(cfg, scheme, seed, noise_free: bool = False):
     sensor noise, from one stream): the sensor noise comes from a copy of the stream moved past
     all the ARW draws (drawn in blocks and dropped), so each position's ARW and noise are the
     slices of the whole draw."""
-    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, scheme, 0, None)
+    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, scheme.dwell_s, scheme.angles_deg, 0, None)
     ns, K = t.size, phi0s.shape[0]
     sig = np.array([cfg.sigma_a_ug] * 3 + [cfg.sigma_an_arcsec] * 3)
     if noise_free:
@@ -208,6 +209,27 @@ def simulate_positions(cfg, scheme, seed, noise_free: bool = False):
         z += v
         _check_gimbal(cfg, scheme, phi0s[k:k + 1], phi, k)
         yield k, t, phi[0, 0], z[0, 0]
+
+
+def simulate_blocks(cfg, cmd_deg, dwell_s: float, truth=None, block: int = 100_000):
+    """The noise-free simulation (§12) of one position (commanded angles ``cmd_deg`` (3,) deg,
+    dwell ``dwell_s`` s, coefficients ``truth`` (default the config's)) in blocks of at most
+    ``block`` samples: yields ``(j0, z (m, 6) ug / arcsec)``, samples j0 .. j0 + m - 1. Each block
+    starts from the attitude the previous one ended at (the state is phi and the constant
+    coefficients, so the numbers are :func:`simulate`'s) and only one block is held."""
+    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, dwell_s, np.asarray(cmd_deg, float).reshape(1, 3), 0, truth)
+    ns = t.size
+    phi_start = np.zeros((1, 1, 3))
+    j0 = 0
+    while j0 < ns:
+        m = min(block, ns - j0) + (1 if j0 else 0)  # a later block repeats the sample it starts from
+        phi = np.empty((1, 1, m, 3))
+        z = np.empty((1, 1, m, 6))
+        _simulate_range(0, 1, phi0s, coef, lay, wn, wu, cfg.ts, cfg.n_sub, phi_start, np.zeros((1, 1, m - 1, 3)), phi, z)
+        phi_start = phi[:, :, -1].copy()
+        skip = 1 if j0 else 0
+        yield j0, z[0, 0, skip:]
+        j0 += m - skip
 
 
 # ------------------------------------------------------------------ EKF kernel

@@ -24,7 +24,7 @@ from ...errors import InputError
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
 from ... import records
-from ...records import CHUNK_ROWS, check_times, read_table
+from ...records import CHUNK_ROWS, check_times, iter_table
 from .config import COEFFS, G0
 from .profile import HOLD, SCHEDULE_NAMES, SPINNING, STATIC
 from .proposed import cumtrap
@@ -104,7 +104,7 @@ def write_record(df: pd.DataFrame, meta: dict, path) -> None:
 
 def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s: float = 0.05,
                 mapping: RecordMapping | None = None, window: int = CHUNK_ROWS) -> Record:
-    """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.read_table`);
+    """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.iter_table`);
     InputError naming the column (and row) of the first problem.
 
     Times as recorded (docs/lowprec-centrifuge.md §12, "Recorded times"): ``t`` must increase,
@@ -112,36 +112,55 @@ def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s:
     and no gap exceed ``max_gap_s`` (``record.max_gap_s``); jitter and a constant offset are kept
     (the windows, their integrals and the plateau spans all use the record's own times). A log in
     other columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
-    ``window``: samples of the velocity's spline evaluated at a time (:func:`velocity_derivative`;
-    0: all at once, ``--chunk-rows``).
+    ``window`` (``--chunk-rows``): rows read at a time, and samples of the velocity's spline
+    evaluated at a time (:func:`velocity_derivative`); 0: all at once.
     """
-    df = read_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
-                    text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping, units=UNITS,
-                    positions=POSITIONS)
-    p = Path(path)
-    t = df["t"].to_numpy(float)
+    # read in chunks of ``window`` rows, each kept as the arrays the identification uses (65 bytes
+    # a sample: the table's other columns, the truth's and the schedule's text, are not held)
+    cols = {c: [] for c in ("t", "VE", "VN", "pE", "pN", "heading_deg", "fE", "fN")}
+    codes, bad, has_f, row = [], None, None, 0
+    for df in iter_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
+                         text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping,
+                         units=UNITS, positions=POSITIONS, chunk_rows=window or None):
+        if has_f is None:
+            has_f = ("fE" in df.columns, "fN" in df.columns)
+        for c, parts in cols.items():
+            if c in df.columns:
+                parts.append(df[c].to_numpy(float))
+        sched_s = df["schedule"].astype(str)
+        code = sched_s.map(SCHEDULE_CODES)
+        if bad is None and code.isna().any():  # the first unknown schedule, refused after the time checks
+            i = int(np.flatnonzero(code.isna().to_numpy())[0])
+            bad = (row + i, sched_s.iloc[i])
+        codes.append(code.fillna(-1).to_numpy(np.int8))
+        row += len(df)
+    t = np.concatenate(cols["t"])
     check_times(t, 1.0 / rate_hz, max_gap_s, "--data column t", f"profile.rate_hz = {rate_hz:g} Hz, a step of "
                 f"{1.0 / rate_hz:g} s")
-    sched_s = df["schedule"].astype(str)
-    bad = ~sched_s.isin(SCHEDULE_NAMES)
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise InputError(f"--data column schedule, row {i + 2}",
-                         f"{sched_s.iloc[i]!r} is not one of {list(SCHEDULE_NAMES)}")
-    schedule = np.array([SCHEDULE_NAMES.index(s) for s in sched_s], dtype=np.int8)
-    v = df[["VE", "VN"]].to_numpy()
-    if "fE" in df.columns and "fN" in df.columns:
-        f = df[["fE", "fN"]].to_numpy()
-    elif "fE" in df.columns or "fN" in df.columns:
-        raise InputError(f"--data column {'fN' if 'fE' in df.columns else 'fE'}",
+    if bad is not None:
+        raise InputError(f"--data column schedule, row {bad[0] + 2}", f"{bad[1]!r} is not one of {list(SCHEDULE_NAMES)}")
+    schedule = np.concatenate(codes)
+
+    def pair(a: str, b: str) -> np.ndarray:
+        return np.column_stack([np.concatenate(cols.pop(a)), np.concatenate(cols.pop(b))])
+
+    v = pair("VE", "VN")
+    if all(has_f):
+        f = pair("fE", "fN")
+    elif any(has_f):
+        raise InputError(f"--data column {'fN' if has_f[0] else 'fE'}",
                          "the specific force comes as both fE and fN or not at all")
     else:  # [D] no specific-force columns: differentiate the INS velocity (nav frame, Coriolis neglected)
         f = velocity_derivative(t, v, window or t.size)
     truth = None
     if use_truth:
-        truth = records.read_truth(p)
-    return Record(t=t, v=v, p=df[["pE", "pN"]].to_numpy(), psi=np.radians(df["heading_deg"].to_numpy()), f=f,
-                  schedule=schedule, truth=truth, f_recorded="fE" in df.columns, window=window or t.size)
+        truth = records.read_truth(Path(path))
+    return Record(t=t, v=v, p=pair("pE", "pN"), psi=np.radians(np.concatenate(cols.pop("heading_deg"))), f=f,
+                  schedule=schedule, truth=truth, f_recorded=all(has_f), window=window or t.size)
+
+
+SCHEDULE_CODES = {name: i for i, name in enumerate(SCHEDULE_NAMES)}
+"""A schedule's text -> its code (:data:`.profile.SCHEDULE_NAMES`)."""
 
 
 SPLINE_OVERLAP = 64

@@ -10,8 +10,8 @@ low-precision centrifuge with its rests between spin-ups (``profile.rest_between
 has two), each from its natural length up (a sled record lasts 86 s, its stop at 26 s; a
 low-precision run 17 min). The centrifuge and the multi-position rig are measured streamed
 (``--chunk-rows``, default) and, up to 1 h, read whole (``--chunk-rows 0``) for comparison (the
-multi-position rig's simulate writes the record whole in both); the sled and the low-precision
-centrifuge read their records whole. The ``import`` rows
+multi-position rig's simulate has no ``--chunk-rows``: it writes one position at a time in both
+rows); the sled and the low-precision centrifuge read their records whole. The ``import`` rows
 are ``platcal identify --config <rig> --help``: the command's imports and nothing else, the floor
 under every other row.
 

@@ -218,7 +218,8 @@ def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
 
 
 def position_blocks(chunks, check: Callable[[pd.DataFrame], None] | None = None) -> Iterator[tuple]:
-    """The blocks of rows of one position in a positioned-platform log read in ``chunks`` (tables
+    """The blocks of rows of one position in a positioned-platform log (docs/centrifuge-model.md §13,
+    docs/multiposition-1g.md §12) read in ``chunks`` (tables
     in file order, :func:`iter_table`): ``(df, row0, i0, i1, k, starts)`` for rows ``i0:i1`` of
     the chunk ``df`` (whose first row is the file's data row ``row0``, 0-based), all at position
     ``k``; ``starts`` at a position's first block. ``check(df)`` runs on each chunk before its

@@ -138,7 +138,8 @@ def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s:
     check_times(t, 1.0 / rate_hz, max_gap_s, "--data column t", f"profile.rate_hz = {rate_hz:g} Hz, a step of "
                 f"{1.0 / rate_hz:g} s")
     if bad is not None:
-        raise InputError(f"--data column schedule, row {bad[0] + 2}", f"{bad[1]!r} is not one of {list(SCHEDULE_NAMES)}")
+        raise InputError(f"--data column schedule, row {bad[0] + 2}",
+                         f"{bad[1]!r} is not one of {list(SCHEDULE_NAMES)}")
     schedule = np.concatenate(codes)
 
     def pair(a: str, b: str) -> np.ndarray:

@@ -85,7 +85,8 @@ def nominal_output(cfg, scheme, rec) -> np.ndarray:
 
 def nominal_position(cfg, cmd_deg: np.ndarray, dwell_s: float, tk: np.ndarray) -> np.ndarray:
     """(m, 6) ug, arcsec: :func:`nominal_output` of one position (commanded angles ``cmd_deg`` (3,)
-    deg, the scheme's dwell ``dwell_s`` s) at its instants ``tk`` (s), from a simulation of that
+    deg, the scheme's dwell ``dwell_s`` s) at its instants ``tk`` (s) (docs/multiposition-1g.md §7,
+    §12), from a simulation of that
     position alone in blocks (:func:`.filter.simulate_blocks`: the simulator restarts each
     position, so these are the same numbers while one block of samples is held)."""
     n = int(round(dwell_s / cfg.ts)) + 1

@@ -125,16 +125,19 @@ def estimate(cfg, choice: FilterChoice, positions_deg, t, Z, nk=None, threads=No
 
 
 def linearisations(choice: FilterChoice) -> tuple[int, float]:
-    """``(iterations, tolerance)`` of :func:`.filter.run_filter` for ``choice``: 0 for the EKF, the
-    ``filter.iekf`` options (defaults :data:`ESTIMATOR_DEFAULTS`) for the iterated EKF."""
+    """``(iterations, tolerance)`` of :func:`.filter.run_filter` for ``choice`` (docs/multiposition-1g.md
+    §9): 0 for the EKF, the ``filter.iekf`` options (defaults :data:`ESTIMATOR_DEFAULTS`) for the
+    iterated EKF; ValueError for an estimator that is neither (it has its own runner)."""
     if choice.estimator == "ekf":
         return 0, 0.0
+    if choice.estimator != "iekf":
+        raise ValueError(f"estimator {choice.estimator!r} is not run by run_filter's linearisations")
     o = {**ESTIMATOR_DEFAULTS["iekf"], **(choice.options or {})}
     return int(o["iterations"]), float(o["tolerance"])
 
 
 def estimate_positions(cfg, choice: FilterChoice, positions_deg, source, on_innovations=None) -> Estimate:
-    """:func:`estimate` of one record fed one position at a time (a streamed record,
+    """:func:`estimate` (docs/multiposition-1g.md §9) of one record fed one position at a time (a streamed record,
     :func:`.filter.run_filter_positions`: ``source()`` yields each position's ``(t, z)`` per pass);
     the estimators of :data:`ESTIMATORS` are all sequential, so every one streams."""
     iterations, tolerance = linearisations(choice)

@@ -159,7 +159,8 @@ def _seed_sequences(cfg, scheme, seeds) -> list:
 
 def _check_gimbal(cfg, scheme, phi0s, phi, first: int = 0) -> None:
     """InputError naming the scheme's position when beta (commanded ``phi0s`` (K, 3) rad plus the
-    simulated ``phi`` (R, K, n, 3) rad) leaves the gimbal range during a dwell (§3); ``first``:
+    simulated ``phi`` (R, K, n, 3) rad) leaves the gimbal range during a dwell (docs/multiposition-1g.md
+    §3); ``first``:
     the 0-based scheme position of ``phi0s[0]``."""
     beta = np.abs(phi0s[None, :, None, 1] + phi[..., 1]) / DEG
     lim = cfg.beta_max_deg + cfg.beta_margin_deg
@@ -177,7 +178,8 @@ the other positions (8 MB)."""
 def simulate_positions(cfg, scheme, seed, noise_free: bool = False):
     """:func:`simulate` of one replicate (``seed``: a SeedSequence or replicate number), position by
     position: yields ``(k, t (n,) s, phi (n, 3) rad, z (n, 6) ug / arcsec)`` for k = 0 .. K-1 with
-    the numbers :func:`simulate` gives, holding one position's samples. The draws are §14's order
+    the numbers :func:`simulate` gives, holding one position's samples (docs/multiposition-1g.md
+    §12). The draws are §14's order
     of use (:func:`draw_noise`: setting errors, then every position's ARW, then every position's
     sensor noise, from one stream): the sensor noise comes from a copy of the stream moved past
     all the ARW draws (drawn in blocks and dropped), so each position's ARW and noise are the
@@ -212,7 +214,7 @@ def simulate_positions(cfg, scheme, seed, noise_free: bool = False):
 
 
 def simulate_blocks(cfg, cmd_deg, dwell_s: float, truth=None, block: int = 100_000):
-    """The noise-free simulation (§12) of one position (commanded angles ``cmd_deg`` (3,) deg,
+    """The noise-free simulation (docs/multiposition-1g.md §12) of one position (commanded angles ``cmd_deg`` (3,) deg,
     dwell ``dwell_s`` s, coefficients ``truth`` (default the config's)) in blocks of at most
     ``block`` samples: yields ``(j0, z (m, 6) ug / arcsec)``, samples j0 .. j0 + m - 1. Each block
     starts from the attitude the previous one ended at (the state is phi and the constant
@@ -225,7 +227,8 @@ def simulate_blocks(cfg, cmd_deg, dwell_s: float, truth=None, block: int = 100_0
         m = min(block, ns - j0) + (1 if j0 else 0)  # a later block repeats the sample it starts from
         phi = np.empty((1, 1, m, 3))
         z = np.empty((1, 1, m, 6))
-        _simulate_range(0, 1, phi0s, coef, lay, wn, wu, cfg.ts, cfg.n_sub, phi_start, np.zeros((1, 1, m - 1, 3)), phi, z)
+        _simulate_range(0, 1, phi0s, coef, lay, wn, wu, cfg.ts, cfg.n_sub, phi_start, np.zeros((1, 1, m - 1, 3)),
+                        phi, z)
         phi_start = phi[:, :, -1].copy()
         skip = 1 if j0 else 0
         yield j0, z[0, 0, skip:]
@@ -481,7 +484,8 @@ class FilterStart:
 
 def run_filter_positions(cfg, positions_deg, source, passes: int | None = None, iterations: int = 0,
                          tolerance: float = 0.0, on_innovations=None):
-    """:func:`run_filter` of one record (R = 1) fed one position at a time, so only one position's
+    """:func:`run_filter` (docs/multiposition-1g.md §9) of one record (R = 1) fed one position at a
+    time, so only one position's
     samples are held: ``source()`` is called once per pass and yields, per position in the order of
     ``positions_deg`` (K, 3) deg, its filter instants ``t`` (m,) s and outputs ``z`` (m, 6) ug,
     arcsec; ``on_innovations(k, rec)`` (last pass only) receives position k's innovations and S

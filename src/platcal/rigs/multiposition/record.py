@@ -268,7 +268,8 @@ def check_every_position(present: list[int], scheme: Scheme) -> None:
                          "--scheme or record every position")
 
 
-def instants(k: int, t: np.ndarray, scheme: Scheme | None, ts: float, max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
+def instants(k: int, t: np.ndarray, scheme: Scheme | None, ts: float,
+             max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
     """``(keep, t from the position's start)``: position ``k``'s time checks (increasing, seconds,
     no gap above ``max_gap_s``, spanning the scheme's dwell) and the indices of its samples nearest
     the filter instants (see :func:`read_record`)."""

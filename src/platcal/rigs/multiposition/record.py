@@ -20,6 +20,7 @@ from ...errors import InputError
 from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_position
 from ...mapping import RecordMapping
 from ...model.frames import DEG
+from ...plausibility import ClockRate, segment_rate
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
                          read_table, whole_group, write_record)  # write_record: re-exported for the rig's commands
 from ...scheme import Scheme
@@ -52,6 +53,9 @@ class Record:
     """Position numbers (1-based) of ``t`` and ``z``; None: 1..K."""
     segmentation: tuple | None = None
     """For a continuous log cut here: ``(t (N,) s, angle sensors (N, 3) deg, dwells)``."""
+    clock: ClockRate = ClockRate.none()
+    """Every sample's stamps against ``sampling.ts_ms`` (or a whole divisor of it): the clock-rate
+    error the identification checks (:func:`platcal.plausibility.clock_rate`)."""
 
     def samples_used(self) -> dict[int, int]:
         """Samples the EKF uses, per position number."""
@@ -143,13 +147,14 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
             raise InputError("--data column position", f"the record has positions {present} but scheme "
                              f"{scheme.name!r} has {scheme.n_positions}: missing {missing}; pick the right "
                              "--scheme or record every position")
-    ts_used, zs = [], []
+    ts_used, zs, rates = [], [], []
     for k in present:
         rows = df[pos == k]
         field = f"--data column t, position {k}"
         t = rows["t"].to_numpy(float)
         med = check_times(t, ts, max_gap_s, field, f"sampling.ts_ms = {ts * 1e3:g} ms", where=" of the position")
         t = t - (0.0 if abs(t[0]) <= max_gap_s else grid_origin(t, med))
+        rates.append(segment_rate(t, ts, divisor=True))
         if scheme is not None:
             span = float(t[-1])
             if abs(span - scheme.dwell_s) > max_gap_s:
@@ -169,7 +174,7 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
         dwell = max(float(t[-1]) for t in ts_used) or 1.0
         scheme = Scheme(name=f"record:{Path(path).name}", positions=tuple(map(tuple, cmd)), dwell_s=dwell)
     return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=has_truth, positions=present,
-                  segmentation=segmentation), scheme
+                  segmentation=segmentation, clock=ClockRate.combine(rates)), scheme
 
 
 CONTINUOUS_COLUMNS = ("t", "Ax", "Ay", "Az") + ANGLE_COLUMNS

@@ -22,6 +22,8 @@ import math
 import os
 from dataclasses import dataclass
 
+import pyarrow.parquet as pq
+
 from .errors import InputError
 from .rig import option, real
 
@@ -45,6 +47,12 @@ MAX_HOURS = option(MAX_HOURS_OPTION, type=real(above=0, unit="h"), default=DEFAU
 """The time-limit option, common to every command of every rig (:mod:`platcal.cli`)."""
 BYTES_PER_VALUE = 8
 """float64."""
+CSV_BYTES_PER_VALUE = 14.5
+"""Bytes a value takes in a CSV record written by :func:`platcal.records.write_record` (full
+precision, the commas and line ends): 12.7 (centrifuge, 72000 rows x 11 columns) and 14.4
+(multiposition, 24008 x 14), measured on seed 0 of each default test; the larger, rounded up. The
+per-byte costs were measured on such CSV files, so a Parquet record is sized by the CSV it would be
+(:func:`record_bytes`): its own file is about 2.2x smaller (5.7 and 6.4 bytes a value, compressed)."""
 
 
 @dataclass(frozen=True)
@@ -130,11 +138,27 @@ def check_sizes(sizes: list[Size], limit_gb: float, limit_hours: float = DEFAULT
                              f"or raise {MAX_HOURS_OPTION}")
 
 
+def record_bytes(path) -> tuple[float, str]:
+    """The bytes of ``path`` as the CSV record the per-byte costs were measured on, and how they
+    were found: a Parquet file (named ``.parquet`` and with a readable footer) from its footer
+    alone, rows x columns x :data:`CSV_BYTES_PER_VALUE` (no data page is read: a compressed file
+    is not underestimated by its compression ratio); any other file by its size."""
+    n = file_bytes(path)
+    if str(path).lower().endswith(".parquet") and n > 0:
+        try:
+            meta = pq.ParquetFile(path).metadata
+        except (OSError, ValueError, TypeError):  # not a Parquet file: the reader names it itself
+            return n, f"{n:.3g} bytes"
+        values = float(meta.num_rows) * float(meta.num_columns)
+        return values * CSV_BYTES_PER_VALUE, (f"{meta.num_rows:.3g} rows x {meta.num_columns} columns (its Parquet "
+                                              f"footer) x {CSV_BYTES_PER_VALUE:g} bytes a value in CSV")
+    return n, f"{n:.3g} bytes"
+
+
 def record_size(path, values_per_byte: float, seconds_per_byte: float, field: str = "--data") -> Size:
     """The work of a command that reads a whole record file (inspect, compensate, an identification
-    sized by its record): the file's bytes x the values held and CPU seconds per byte (measured by
-    ``benchmarks/size_estimate.py`` on a CSV record; a Parquet file is smaller per sample, so it is
-    underestimated by its compression ratio, about 2 here)."""
-    n = file_bytes(path)
-    return Size(field, n, values_per_byte, 1, f"the record {path}, {n:.3g} bytes", seconds_per_byte,
-                unit="bytes of the record")
+    sized by its record): the record's bytes as CSV (:func:`record_bytes`) x the values held and
+    CPU seconds per byte (measured by ``benchmarks/size_estimate.py`` on a CSV record)."""
+    n, how = record_bytes(path)
+    return Size(field, n, values_per_byte, 1, f"the record {path}, {how}", seconds_per_byte,
+                unit="bytes of the record as CSV")

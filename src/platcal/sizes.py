@@ -133,7 +133,7 @@ def check_sizes(sizes: list[Size], limit_gb: float, limit_hours: float = DEFAULT
             runs = s.replicates if s.runs is None else s.runs
             reps = f" x {runs:.3g} runs" if runs != 1 else ""
             raise InputError(s.field, f"{what}{s.samples:.3g} {s.unit}{reps} x {s.seconds_per_sample:.3g} CPU s per "
-                             f"{unit} (measured on the project's 2-core machine by benchmarks/size_estimate.py) = "
+                             f"{unit} (measured on the project's 2-core machine; platcal.sizes says where) = "
                              f"{hours:.3g} h, more than {MAX_HOURS_OPTION} {limit_hours:g}; make {s.field} smaller "
                              f"or raise {MAX_HOURS_OPTION}")
 
@@ -162,3 +162,37 @@ def record_size(path, values_per_byte: float, seconds_per_byte: float, field: st
     n, how = record_bytes(path)
     return Size(field, n, values_per_byte, 1, f"the record {path}, {how}", seconds_per_byte,
                 unit="bytes of the record as CSV")
+
+
+REPORT_PER_BYTE = (0.5, 3e-8)
+"""(float64 values held, CPU s) per byte of the result tables a ``report`` reads: the largest of
+the rigs' ``inspect`` costs (a table read whole, the centrifuge's: 2.8 B and 1.2e-8 s a byte
+measured, rounded up), not measured on a report itself (the default study's results are not
+kept in the repository); the figures' fixed cost is not counted."""
+RESULT_TABLES = (".csv", ".parquet", ".json")
+"""The files of a results folder a report reads (its tables and summaries)."""
+
+
+def results_size(folder, field: str = "--results") -> Size:
+    """The work of a ``report`` of ``folder`` (every rig's: it reads the study's result tables
+    whole): the bytes of its tables (:data:`RESULT_TABLES`, every subfolder; a Parquet table as
+    the CSV it would be, :func:`record_bytes`) x :data:`REPORT_PER_BYTE`. A folder that does not
+    exist counts 0 (the report names it itself)."""
+    root = os.fspath(folder)
+    n, files = 0.0, 0
+    for base, _, names in os.walk(root):
+        for name in names:
+            if name.lower().endswith(RESULT_TABLES):
+                n += record_bytes(os.path.join(base, name))[0]
+                files += 1
+    return Size(field, n, REPORT_PER_BYTE[0], 1, f"{files} result table(s) under {root}, {n:.3g} bytes as CSV",
+                REPORT_PER_BYTE[1], unit="bytes of result tables")
+
+
+def command_sizes(rig, command: str, cfg, args) -> list[Size]:
+    """Every size of a rig's command: the rig's own (``Rig.sizes``) and those of the commands
+    every rig shares (``report``: :func:`results_size` of ``--results``)."""
+    sizes = list(rig.sizes(command, cfg, args)) if rig.sizes is not None else []
+    if command == "report":
+        sizes.append(results_size(args.results))
+    return sizes

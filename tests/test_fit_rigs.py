@@ -160,3 +160,50 @@ def test_lowprec_misfit_exits_3_with_outputs(tmp_path, clean, capsys):
     assert "zVN" in err.split("worst channels:")[1]
     assert fit_block(out, "lowprec_centrifuge")["verdict"] == "failed"
     assert (out / "estimates.csv").exists()
+
+
+# ---------------------------------------------------------------- the clock rate (the former blind zones)
+
+def _rate(e):
+    def f(df):
+        df["t"] = df["t"] * (1.0 + e)
+        return df
+    return f
+
+
+@pytest.mark.parametrize("rig, e, chunk", [
+    ("centrifuge", 1e-7, []),                          # in the former zone (4.6e-8 .. 1e-6: DIS_z up to 17 sigma)
+    ("centrifuge", 1e-7, ["--chunk-rows", "500"]),     # the same, streamed: the scan measures the rate
+    ("centrifuge", -1e-6, []),
+    ("multiposition", 1e-3, []),                        # in the former zone (4.6e-4 .. 2.2e-3: DF_x up to 3 sigma)
+])
+def test_clock_rate_error_refused_naming_t_and_the_tolerance(tmp_path, rig, e, chunk, clean, capsys):
+    cfg, df = clean[rig]
+    data = tmp_path / "rec.csv"
+    _rate(e)(df.copy()).to_csv(data, index=False)
+    out = tmp_path / "id"
+    code = main(["identify", "--config", str(cfg), *IDENTIFY[rig], "--data", str(data), "--out", str(out), *chunk])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "Traceback" not in err and "error: --data column t:" in err, err
+    assert f"{e:+.3g}" in err                          # the measured rate error
+    assert "a clock-rate error above" in err and "of its sigma" in err
+    assert ("sampling.sample_ms" if rig == "centrifuge" else "sampling.ts_ms") in err   # the fix
+    assert not out.exists()                             # nothing written
+
+
+@pytest.mark.parametrize("rig", ["centrifuge", "multiposition"])
+def test_clock_rate_far_below_the_tolerance_passes_with_the_same_numbers(tmp_path, rig, clean, capsys):
+    """A rate error a thousand times below what moves a coefficient by 0.3 sigma is not refused:
+    the check measures, it does not flag every stamp that is not on the exact grid."""
+    code, err, out = identify(tmp_path, rig, clean, _rate(1e-12)(clean[rig][1].copy()), capsys)
+    assert code == 0, err
+
+
+def test_jittered_stamps_are_not_a_rate_error(tmp_path, clean, capsys):
+    """Stamps jittered +-1 us about the exact grid (a rate error of 0): the rate's standard error
+    grows with the jitter, so the rate check does not refuse them (the jitter is the fit's)."""
+    df = clean["multiposition"][1].copy()
+    df["t"] += np.random.default_rng(2).uniform(-1e-6, 1e-6, len(df))
+    code, err, out = identify(tmp_path, "multiposition", clean, df, capsys)
+    assert code == 0, err

@@ -119,9 +119,10 @@ def test_unit_sign_swap_refused_before_the_filter(tmp_path, rig, spoil, column, 
     assert not out.exists()
 
 
-def test_centrifuge_timestamp_jitter_does_not_fit_and_names_the_clock(tmp_path, clean, capsys):
+@pytest.mark.parametrize("amplitude_s", [1e-5, 5e-4])  # +-10 us, and the issue's row: +-0.5 ms
+def test_centrifuge_timestamp_jitter_does_not_fit_and_names_the_clock(tmp_path, clean, capsys, amplitude_s):
     df = clean["centrifuge"][1].copy()
-    df["t"] += np.random.default_rng(0).uniform(-1e-5, 1e-5, len(df))  # +-10 us on the stamps only
+    df["t"] += np.random.default_rng(0).uniform(-amplitude_s, amplitude_s, len(df))  # on the stamps only
     code, err, out = identify(tmp_path, "centrifuge", clean, df, capsys)
     assert code == 3, err
     assert "column t jitters" in err and "worst channels" in err
@@ -207,3 +208,24 @@ def test_jittered_stamps_are_not_a_rate_error(tmp_path, clean, capsys):
     df["t"] += np.random.default_rng(2).uniform(-1e-6, 1e-6, len(df))
     code, err, out = identify(tmp_path, "multiposition", clean, df, capsys)
     assert code == 0, err
+
+
+def test_clock_rate_measurement_is_unbiased_with_an_honest_error():
+    """platcal.plausibility.segment_rate on stamps 5 ms apart, 1e-4 fast: exact stamps give the
+    rate to rounding; jittered ones (+-0.5 ms, a tenth of the step) within 3 standard errors on
+    at least 98 % of draws; a gap keeps the samples' slots; stamps scattered by more than a
+    tenth of a step give no rate (their index may slip)."""
+    from platcal.plausibility import ClockRate, segment_rate
+
+    t = np.arange(600) * 0.005 * (1 + 1e-4)
+    exact = segment_rate(t, 0.005)
+    assert abs(exact.error - 1e-4) < 1e-12 and exact.samples == 600
+    assert abs(segment_rate(np.delete(t, [100, 101, 300]), 0.005).error - 1e-4) < 1e-12
+    rng = np.random.default_rng(7)
+    z = [(r.error - 1e-4) / r.se for r in (segment_rate(t + rng.uniform(-5e-4, 5e-4, t.size), 0.005)
+                                          for _ in range(200))]
+    assert np.mean(np.abs(z) < 3) >= 0.98 and abs(np.mean(z)) < 0.3
+    assert segment_rate(t + rng.uniform(-1.5e-3, 1.5e-3, t.size), 0.005) == ClockRate.none()
+    # two positions on one clock: the better-measured one weighs more, the samples add
+    both = ClockRate.combine([segment_rate(t, 0.005), segment_rate(t + rng.uniform(-1e-5, 1e-5, t.size), 0.005)])
+    assert abs(both.error - 1e-4) < 1e-12 and both.samples == 1200

@@ -61,6 +61,12 @@ record whose stamps jitter is not refused for its jitter (0.13 % one-sided for a
 tolerance's edge)."""
 
 
+INDEX_JITTER = 0.1
+"""The largest RMS scatter of the stamps about their line, in steps, for which a clock rate is
+measured: beyond it (uniform jitter over more than +-0.17 step) a stamp may fall in its
+neighbour's slot and bias the slope, so none is reported (the fit check sees such jitter)."""
+
+
 @dataclass(frozen=True)
 class ClockRate:
     """The relative rate error of a record's clock against the declared sample period, measured
@@ -99,9 +105,9 @@ def clock_rate(segments, step_s: float, divisor: bool = False) -> ClockRate:
 
 def segment_rate(t, step_s: float, divisor: bool = False) -> ClockRate:
     """:class:`ClockRate` of one stretch of stamps ``t`` (s) on one clock: the least-squares
-    slope of t on the sample index (the index from the stretch's own median step, so a missing
-    sample keeps its slot and a rate error of any size is measured, not absorbed by
-    re-indexing) against ``step_s``, and its standard error ``r / sqrt(sum (k - kbar)^2)`` from
+    slope of t on the sample index (the index from the stretch's own step, its median refined by
+    the line fitted to a head of the stamps doubled until it is the whole: a missing sample keeps
+    its slot and a rate error of any size is measured, not absorbed by re-indexing) against ``step_s``, and its standard error ``r / sqrt(sum (k - kbar)^2)`` from
     the RMS residual ``r`` (the jitter; floored at the float rounding of the largest stamp, so a
     record on an exact grid has a finite one). ``divisor``: the record may be sampled faster than
     ``step_s`` by a whole factor (the step compared is ``step_s / round(step_s / median step)``)."""
@@ -112,12 +118,23 @@ def segment_rate(t, step_s: float, divisor: bool = False) -> ClockRate:
     if not med > 0:
         return ClockRate.none()
     step = float(step_s) / max(1.0, round(float(step_s) / med)) if divisor else float(step_s)
-    k = np.rint((t - t[0]) / med)
-    kc = k - k.mean()
-    sxx = float(kc @ kc)
-    b = float(kc @ (t - t.mean())) / sxx
+    # the index from a line fitted to a doubling head of the stamps: the median step of jittered
+    # stamps errs by ~1e-3, which would slip the index by one within a thousand samples and bias
+    # the slope; the fitted line's error shrinks faster than the head grows
+    a, b, m = float(t[0]), med, 16
+    while True:
+        m = min(2 * m, t.size)
+        k = np.rint((t[:m] - a) / b)
+        kc = k - k.mean()
+        sxx = float(kc @ kc)
+        b = float(kc @ (t[:m] - t[:m].mean())) / sxx
+        a = float(t[:m].mean() - b * k.mean())
+        if m == t.size:
+            break
     r = t - t.mean() - b * kc
     rms = max(float(np.sqrt(np.mean(r * r))), np.finfo(float).eps * float(np.max(np.abs(t))))
+    if rms > INDEX_JITTER * b:  # stamps this scattered may slip the index: no rate is measured
+        return ClockRate.none()
     return ClockRate(b / step - 1.0, rms / step / np.sqrt(sxx), step, int(t.size))
 
 

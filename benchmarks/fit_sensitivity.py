@@ -390,12 +390,13 @@ def main() -> None:
             f"{args.seeds} seeds; shift: max |estimate - clean| / clean sigma > 1 (or refused) on as many; "
             "most_shifted: the estimate that moved most there ('-': every seed refused, so the shift itself "
             "was not measured); dangerous zone: from the smallest shift to the smallest caught size; "
-            "passed_shift_max: the largest shift of a seed that exited 0 at any size evaluated. "
-            "Command: python benchmarks/fit_sensitivity.py " + " ".join(sys.argv[1:]) + ". " + "; ".join(notes) + ".")
+            "passed_shift_max: the largest shift of a seed that exited 0 at any size evaluated. ")
+    run = "Command: python benchmarks/fit_sensitivity.py " + " ".join(sys.argv[1:]) + ". " + "; ".join(notes) + "."
+    note += run
     table, every = pd.DataFrame(rows), pd.DataFrame(points)
     if args.only:  # some rows re-measured: the others (and the note of their run) are kept
         stem = Path(args.out)
-        note = f"{old_note(stem)} Re-measured rows ({', '.join(args.only)}; {', '.join(args.rig or cases)}): {note}"
+        note = f"{old_note(stem)} Re-measured rows ({', '.join(args.only)}; {', '.join(args.rig or cases)}): {run}"
         table = merged(stem.with_suffix(".csv"), table, ["rig", "corruption", "column"])
         every = merged(Path(f"{args.out}_points.csv"), every, ["rig", "corruption", "column"])
     write_table(table, args.out, "What the fit check catches (issue 25)", note, FORMATS)

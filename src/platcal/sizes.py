@@ -50,7 +50,8 @@ BYTES_PER_VALUE = 8
 CSV_BYTES_PER_VALUE = 14.5
 """Bytes a value takes in a CSV record written by :func:`platcal.records.write_record` (full
 precision, the commas and line ends): 12.7 (centrifuge, 72000 rows x 11 columns) and 14.4
-(multiposition, 24008 x 14), measured on seed 0 of each default test; the larger, rounded up. The
+(multiposition, 24008 x 14), measured on seed 0 of each default test
+(benchmarks/size_estimate_more.py); the larger, rounded up. The
 per-byte costs were measured on such CSV files, so a Parquet record is sized by the CSV it would be
 (:func:`record_bytes`): its own file is about 2.2x smaller (5.7 and 6.4 bytes a value, compressed)."""
 

@@ -734,22 +734,24 @@ def write_plan(plan: Plan, out_dir, checks: dict[str, Check] | None = None) -> p
 
 # ------------------------------------------------------------------ sizes (issue 25 item 3)
 
-INFORMATION_SECONDS_PER_TEST_SECOND = 1e-2
-"""CPU s the rigs' information hooks take per candidate test-second (positions x dwell_s): 44.6 s
-for the default campaign's 12 candidates, 9240 test-seconds, 4.8e-3 (load 8 on 2 cores),
-rounded up 2x. Their memory is not counted (each hook runs one test at a time)."""
+# Measured by benchmarks/size_estimate_more.py on the default campaign (load 7-8 on 2 cores),
+# each rounded up about 2x for the load's noise; numba's first compile (about 45 s of the rigs'
+# information hooks on a cold cache) is a fixed cost, not counted, as platcal.sizes says.
+INFORMATION_SECONDS_PER_TEST_SECOND = 2e-4
+"""CPU s the rigs' information hooks take per candidate test-second (positions x dwell_s): 0.7 s
+for the default campaign's 12 candidates, 9240 test-seconds, 7.6e-5. Their memory is not counted
+(each hook runs one test at a time)."""
 SEARCH_SECONDS_PER_PLAN = 1e-3
-"""CPU s per plan the search evaluates (pymoo and :func:`planned_sigma`): 5.4e-4 (population 20
-x 5 generations of the default campaign), 2.3e-4 .. 3.1e-4 for :func:`planned_sigma` alone on
-500 and 4000 plans; rounded up 2x."""
+"""CPU s per plan the search evaluates (pymoo and :func:`planned_sigma`): 5.4e-4 and 6.4e-4
+(population 20 x 5 generations), 1.1e-4 .. 3.3e-4 for :func:`planned_sigma` alone on 500 and
+4000 plans."""
 SEARCH_VALUES_PER_PLAN = 18000
 """float64 values held per archived plan when a search's archive is judged at once
-(:func:`planned_sigma`: the (n, n) information and the rigs' blocks): 291 MB more peak memory for
-4000 plans of the default campaign (45 coefficients), 9100 a plan, rounded up 2x."""
+(:func:`planned_sigma`: the (n, n) information and the rigs' blocks): the peak grows by 9100 and
+9700 values a plan between 500 and 4000 plans (45 coefficients)."""
 CHECK_SECONDS_PER_TEST_SECOND = 6e-4
 """CPU s the Monte Carlo check takes per replicate test-second (replicates x positions x dwell_s
-of the plan's tests): 3.1e-4 and 2.3e-4 on 10 and 30 replicates of a 2-test plan of the default
-campaign (1680 test-seconds; load 8 on 2 cores), rounded up 2x."""
+of the plan's tests): 2.3e-4 .. 3.1e-4 on 10 and 30 replicates of a 2-test plan (1680 test-seconds)."""
 
 
 def search_sizes(campaign: Campaign) -> list[Size]:

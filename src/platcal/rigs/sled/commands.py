@@ -117,8 +117,9 @@ def cmd_compensate(cfg: SledConfig, args) -> int:
 
 OBSERVABILITY_PER_PHASE = (1000, 2.5e-3)
 """(float64 values held, CPU s) per phase of the observability rank table (static, each phase,
-braking: 2 models x 4 rates, an SVD each and of the stack): 5.2 kB peak memory (670 values) and
-1.1e-3 CPU s a phase measured on 1000 phases (load 6 on 2 cores), rounded up."""
+braking: 2 models x 4 rates, an SVD each and of the stack): 250-670 values and 1.1e-3 CPU s a
+phase measured (benchmarks/size_estimate_more.py, 200 and 2000 phases, load 6-8 on 2 cores),
+rounded up."""
 COSTS = Costs(values={"simulate": 48, "identify": 96}, seconds={"simulate": 2.5e-5, "identify": 5e-6},
               per_byte={"inspect": (0.5, 1e-8), "compensate": (0.5, 5e-8)},
               measured="per sample 344 and 614 B, 1.1e-5 and 2.1e-6 CPU s (simulate, identify); per byte inspect "

@@ -37,7 +37,8 @@ def refusal(check, *args) -> str | None:
 
 def centrifuge_fits(config: str, seeds: range):
     """The fit check of each seed's record of the default scheme (table1)."""
-    from platcal.rigs.centrifuge.identify import check_clock_rate, identify_input, record_clock, record_fit, record_input
+    from platcal.rigs.centrifuge.identify import (check_clock_rate, identify_input, record_clock, record_fit,
+                                                  record_input)
     from platcal.rigs.centrifuge.record import sim_to_frame
     from platcal.rigs.centrifuge.simulate import simulate
     from platcal.study.montecarlo import replicate_seed

@@ -61,7 +61,8 @@ def plan_costs(path: str) -> None:
         counts = rng.integers(0, 4, (plans, len(cands.tests)))
         _, cpu, grew = timed(C.planned_sigma, camp, cands, counts)
         pts.append((plans, cpu, grew))
-        print(f"plan: planned_sigma of {plans} plans {cpu:.3g} CPU s ({cpu / plans:.3g} a plan), peak +{grew / 1e6:.0f} MB")
+        print(f"plan: planned_sigma of {plans} plans {cpu:.3g} CPU s ({cpu / plans:.3g} a plan), "
+              f"peak +{grew / 1e6:.0f} MB")
     (n0, _, g0), (n1, _, g1) = pts
     print(f"plan: {(g1 - g0) / (n1 - n0) / 8:.0f} float64 values held a plan (slope of the peak), "
           f"{cands.n_coef} coefficients")

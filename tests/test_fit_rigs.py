@@ -229,3 +229,13 @@ def test_clock_rate_measurement_is_unbiased_with_an_honest_error():
     # two positions on one clock: the better-measured one weighs more, the samples add
     both = ClockRate.combine([segment_rate(t, 0.005), segment_rate(t + rng.uniform(-1e-5, 1e-5, t.size), 0.005)])
     assert abs(both.error - 1e-4) < 1e-12 and both.samples == 1200
+
+
+@pytest.mark.parametrize("rig", ["centrifuge", "multiposition"])
+def test_summary_states_the_clock_rate_and_its_tolerance(tmp_path, rig, clean, capsys):
+    code, err, out = identify(tmp_path, rig, clean, _rate(1e-12)(clean[rig][1].copy()), capsys)
+    assert code == 0, err
+    clock = json.loads((out / "summary.json").read_text())["clock"]
+    assert abs(clock["rate_error"] - 1e-12) < 1e-13 and clock["rate_error_se"] < 1e-13
+    assert 0 < clock["tolerance"] < 1e-3 and clock["most_sensitive"] and clock["share_of_sigma"] == 0.3
+    assert clock["samples"] == len(clean[rig][1])

@@ -125,7 +125,8 @@ def test_default_study_far_below_the_limits(rig_name):
 # ---------------------------------------------------------------- the commands sized last (plan, report,
 # the sled's observability) and a Parquet record sized from its footer
 
-CAMPAIGN = ("targets: {gyro: 1, accel: 1000, theta: 100}\nrigs: {multiposition: {config: {}, schemes: [S8], dwell_s: [60], max_repeats: 1}}\n"
+CAMPAIGN = ("targets: {gyro: 1, accel: 1000, theta: 100}\n"
+            "rigs: {multiposition: {config: {}, schemes: [S8], dwell_s: [60], max_repeats: 1}}\n"
             "optimiser: {population: 4, generations: %s}\nmontecarlo: {replicates: 2}\n")
 
 

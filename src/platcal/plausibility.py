@@ -107,8 +107,8 @@ def segment_rate(t, step_s: float, divisor: bool = False) -> ClockRate:
     """:class:`ClockRate` of one stretch of stamps ``t`` (s) on one clock: the least-squares
     slope of t on the sample index (the index from the stretch's own step, its median refined by
     the line fitted to a head of the stamps doubled until it is the whole: a missing sample keeps
-    its slot and a rate error of any size is measured, not absorbed by re-indexing) against ``step_s``, and its standard error ``r / sqrt(sum (k - kbar)^2)`` from
-    the RMS residual ``r`` (the jitter; floored at the float rounding of the largest stamp, so a
+    its slot and a rate error of any size is measured, not absorbed by re-indexing) against
+    ``step_s``, and its standard error ``r / sqrt(sum (k - kbar)^2)`` from the RMS residual ``r`` (the jitter; floored at the float rounding of the largest stamp, so a
     record on an exact grid has a finite one). ``divisor``: the record may be sampled faster than
     ``step_s`` by a whole factor (the step compared is ``step_s / round(step_s / median step)``)."""
     t = np.asarray(t, float)
@@ -164,14 +164,25 @@ def clock_rate_tolerance(names, estimate, sigma, per_hour, phase_rate: float = 0
     return CLOCK_RATE_SHARE / float(ratio[i]), str(names[i])
 
 
+def clock_block(rate: ClockRate, tolerance: float, coefficient: str) -> dict:
+    """The clock-rate check's figures for a run's summary (``clock`` block): the measured relative
+    rate error and its standard error (None when the stamps gave none), the samples, the
+    tolerance and the coefficient it protects (None when nothing moves)."""
+    measured = rate.samples > 0 and np.isfinite(rate.se)
+    return {"rate_error": float(rate.error) if measured else None,
+            "rate_error_se": float(rate.se) if measured else None,
+            "samples": int(rate.samples), "tolerance": float(tolerance) if np.isfinite(tolerance) else None,
+            "most_sensitive": coefficient or None, "share_of_sigma": CLOCK_RATE_SHARE}
+
+
 def refuse_clock_rate(rate: ClockRate, tolerance: float, coefficient: str, fix: str, spec: str,
-                      field: str = "--data column t") -> None:
+                      field: str = "--data column t") -> dict:
     """InputError naming column t when the record's clock runs off the declared sample period by
     more than ``tolerance`` (relative) beyond :data:`CLOCK_RATE_Z` standard errors: the measured
     rate error, its standard error, the tolerance, the coefficient it protects, the ``spec``
-    section giving the tolerance's formula and ``fix``."""
+    section giving the tolerance's formula and ``fix``; else the summary's :func:`clock_block`."""
     if not np.isfinite(rate.error) or abs(rate.error) - CLOCK_RATE_Z * rate.se <= tolerance:
-        return
+        return clock_block(rate, tolerance, coefficient)
     raise InputError(field, f"the stamps run {rate.error:+.3g} (relative, +-{rate.se:.2g}) off the declared "
                      f"{rate.step_s * 1e3:g} ms sample period over {rate.samples} samples; a clock-rate error "
                      f"above {tolerance:.2g} moves {coefficient} by more than {CLOCK_RATE_SHARE:g} of its sigma "

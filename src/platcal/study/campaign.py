@@ -810,8 +810,8 @@ def run_campaign(source, out_dir, replicates: int | None = None, max_memory_gb: 
     names = list(plan.options) if camp.montecarlo["alternatives"] else ["plan"]
     sequences = {name: plan_sequence(camp, plan.cands, plan.options[name]) for name in (names if n > 0 else [])}
     sequences = {name: seq for name, seq in sequences.items() if seq}
-    check_sizes([check_size(plan.cands, sequences, n, "montecarlo.replicates" if replicates is None else "--replicates")],
-                max_memory_gb, max_hours)
+    field = "montecarlo.replicates" if replicates is None else "--replicates"
+    check_sizes([check_size(plan.cands, sequences, n, field)], max_memory_gb, max_hours)
     for name, seq in sequences.items():
         checks[name] = check_plan(camp, plan.cands, seq, n, label="plan" if name == "plan" else name)
     write_plan(plan, out_dir, checks)

@@ -129,14 +129,14 @@ def drift_gain(name: str, force_g: float) -> float:
     return force_g ** len(axes) * (0.5 if len(set(axes)) == 2 else 1.0)
 
 
-def check_clock_rate(study: Study, scheme: Scheme, est: Estimate, rate: ClockRate) -> None:
+def check_clock_rate(study: Study, scheme: Scheme, est: Estimate, rate: ClockRate) -> dict:
     """Refuse (exit 2, column t) a record whose clock runs off ``sampling.sample_ms`` by more than
     the rate error that moves the most sensitive coefficient by 0.3 of its sigma
     (docs/centrifuge-model.md §13, :func:`platcal.plausibility.clock_rate_tolerance`): a clock
     1 + e fast turns the model's table e x rate off the real one, an azimuth drift that any drift
     coefficient c reads as e x rate / gain_c (:func:`drift_gain` at the scheme's largest |f|), and
     stretches every drift's time by 1 + e. Needs the run's sigmas, so it follows the filter (the
-    outputs are not written)."""
+    outputs are not written). Returns the summary's ``clock`` block when it passes."""
     nc = est.n_coef
     names = est.names[:nc]
     force = float(np.max(expected_g(study, scheme)))
@@ -144,11 +144,11 @@ def check_clock_rate(study: Study, scheme: Scheme, est: Estimate, rate: ClockRat
     gain = [drift_gain(n, force) for n in names]
     omega_deg_h = abs(study.centrifuge.rate_deg_s) * 3600.0
     tol, most = clock_rate_tolerance(names, est.coef[0], est.coef_sigma[0], per_hour, omega_deg_h, gain)
-    refuse_clock_rate(rate, tol, most,
-                      f"the record cannot tell a wrong stamp clock from a logger sampling off its declared rate: "
-                      f"stamp with the recorder's sample clock (or the table's encoder angle), or, if the stamps are "
-                      f"the true sample times, declare the logger's period sampling.sample_ms = "
-                      f"{study.sample_s * 1e3 * (1 + rate.error):.9g}", "docs/centrifuge-model.md §13")
+    return refuse_clock_rate(rate, tol, most,
+                             "the record cannot tell a wrong stamp clock from a logger sampling off its "
+                             "declared rate: stamp with the recorder's sample clock (or the table's encoder "
+                             "angle), or, if the stamps are the true sample times, declare the logger's period "
+                             f"sampling.sample_ms = {study.sample_s * 1e3 * (1 + rate.error):.9g}", "docs/centrifuge-model.md §13")
 
 
 def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
@@ -410,7 +410,7 @@ def consistency_warning(summary: dict) -> str | None:
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
                          seconds: float | None = None, samples_used: dict[int, int] | None = None,
                          calibration: Calibration | None = None, fit: FitCheck | None = None,
-                         segmentation: tuple | None = None) -> dict:
+                         segmentation: tuple | None = None, clock: dict | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
@@ -421,7 +421,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     ``fit`` (:func:`record_fit`) as its ``fit`` block (``verdict: not available`` when None).
     With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`);
     with ``segmentation`` (a continuous log's ``(t, |A|, dwells)``, :func:`continuous_input`) the
-    summary's ``dwells_found`` and ``dwells.png``, the log's ``|A|`` with the dwells shaded.
+    summary's ``dwells_found`` and ``dwells.png``, the log's ``|A|`` with the dwells shaded; with
+    ``clock`` (:func:`check_clock_rate`) the summary's ``clock`` block.
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
@@ -435,6 +436,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         summary["seconds"] = seconds
     if segmentation is not None:
         summary["dwells_found"] = dwells_found(segmentation[0], segmentation[2])
+    if clock is not None:
+        summary["clock"] = clock
     summary["fit"] = fit.as_dict() if fit is not None else {
         "verdict": "not available", "reason": f"estimator {study.filter.estimator!r} keeps no innovations"}
     if truth is not None:

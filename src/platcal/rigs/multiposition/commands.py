@@ -90,23 +90,24 @@ def check_plausible(cfg, scheme, rec) -> None:
                       "Ax, Ay, Az must be the x, y, z accelerometers in g (a static platform reads |f| = 1 g)")
 
 
-def check_clock_rate(cfg, rec, est: np.ndarray, sigma: np.ndarray) -> None:
+def check_clock_rate(cfg, rec, est: np.ndarray, sigma: np.ndarray) -> dict:
     """Refuse (exit 2, column t) a record whose clock runs off ``sampling.ts_ms`` by more than the
     rate error that moves the most sensitive coefficient by 0.3 of its sigma
     (docs/multiposition-1g.md §16, :func:`platcal.plausibility.clock_rate_tolerance`): a clock
     1 + e fast stretches the time every drift (deg/h) is read over, moving it by e |D|, and the
     Earth's turn the model integrates over it, an extra drift of up to e x Earth rate on any drift
     coefficient (the platform is static at 1 g: one unit of a drift coefficient makes at most one
-    deg/h). Needs the run's sigmas, so it follows the filter (the outputs are not written)."""
+    deg/h). Needs the run's sigmas, so it follows the filter (the outputs are not written).
+    Returns the summary's ``clock`` block when it passes."""
     names = coef_names()
     per_hour = [unit_of(n).startswith("deg/h") for n in names]
     earth_deg_h = np.degrees(cfg.site.earth_rate) * 3600.0
     tol, most = clock_rate_tolerance(names, est, sigma, per_hour, earth_deg_h, np.asarray(per_hour, float))
-    refuse_clock_rate(rec.clock, tol, most,
-                      "the record cannot tell a wrong stamp clock from a logger sampling off its declared rate: stamp "
-                      "with the recorder's sample clock, or, if the stamps are the true sample times, declare the "
-                      f"logger's period sampling.ts_ms = {rec.clock.step_s * 1e3 * (1 + rec.clock.error):.9g} "
-                      "(a record sampled at the filter's period)", "docs/multiposition-1g.md §16")
+    return refuse_clock_rate(rec.clock, tol, most,
+                             "the record cannot tell a wrong stamp clock from a logger sampling off its "
+                             "declared rate: stamp with the recorder's sample clock, or, if the stamps are the "
+                             f"true sample times, declare the logger's period sampling.ts_ms = {rec.clock.step_s * 1e3 * (1 + rec.clock.error):.9g} "
+                             "(a record sampled at the filter's period)", "docs/multiposition-1g.md §16")
 
 
 def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
@@ -156,7 +157,7 @@ def cmd_identify(cfg, args) -> int:
                          "the record's units (Ax, Ay, Az in g, angles in deg) and the config's noise and filter "
                          "settings"):
         return EXIT_RUN_FAILED
-    check_clock_rate(cfg, rec, est, np.sqrt(np.diag(P)))
+    clock = check_clock_rate(cfg, rec, est, np.sqrt(np.diag(P)))
     used = rec.samples_used()
     names = coef_names()
     sig = np.sqrt(np.diag(P))
@@ -166,7 +167,7 @@ def cmd_identify(cfg, args) -> int:
                "estimator": choice.estimator, "passes": choice.passes, "estimator_options": choice.options,
                "positions": int(len(rec.t)), "samples": int(sum(used.values())),
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
-               "seconds": seconds}
+               "seconds": seconds, "clock": clock}
     if rec.segmentation is not None:
         summary["dwells_found"] = dwells_found(rec.segmentation[0], rec.segmentation[2])
     fit = record_fit(cfg, scheme, rec, innovations)

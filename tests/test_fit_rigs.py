@@ -239,3 +239,14 @@ def test_summary_states_the_clock_rate_and_its_tolerance(tmp_path, rig, clean, c
     assert abs(clock["rate_error"] - 1e-12) < 1e-13 and clock["rate_error_se"] < 1e-13
     assert 0 < clock["tolerance"] < 1e-3 and clock["most_sensitive"] and clock["share_of_sigma"] == 0.3
     assert clock["samples"] == len(clean[rig][1])
+
+
+def test_clock_rate_against_a_whole_divisor_or_none():
+    """The multiposition rig declares only its filter's period: a log sampled 2x faster is
+    measured against half of it; one at a rate of its own (15.625 ms for 20 ms) is not measured."""
+    from platcal.plausibility import ClockRate, segment_rate
+
+    t = np.arange(3000) * 0.010 * (1 + 3e-4)
+    r = segment_rate(t, 0.020, divisor=True)
+    assert abs(r.error - 3e-4) < 1e-12 and r.step_s == 0.010
+    assert segment_rate(np.arange(3000) * 0.015625, 0.020, divisor=True) == ClockRate.none()

@@ -61,6 +61,11 @@ record whose stamps jitter is not refused for its jitter (0.13 % one-sided for a
 tolerance's edge)."""
 
 
+DIVISOR_SLACK = 0.01
+"""With ``divisor``, a record whose median step is more than this (relative) off every whole
+divisor of the declared period is sampled at a rate of its own, which nothing declares: no rate
+error is measured (a clock 1 % off is refused by the dwell's span when a scheme is named; without
+one it passes, and the summary's clock block says no rate was measured)."""
 INDEX_JITTER = 0.1
 """The largest RMS scatter of the stamps about their line, in steps, for which a clock rate is
 measured: beyond it (uniform jitter over more than +-0.17 step) a stamp may fall in its
@@ -110,14 +115,20 @@ def segment_rate(t, step_s: float, divisor: bool = False) -> ClockRate:
     its slot and a rate error of any size is measured, not absorbed by re-indexing) against
     ``step_s``, and its standard error ``r / sqrt(sum (k - kbar)^2)`` from the RMS residual ``r`` (the jitter; floored at the float rounding of the largest stamp, so a
     record on an exact grid has a finite one). ``divisor``: the record may be sampled faster than
-    ``step_s`` by a whole factor (the step compared is ``step_s / round(step_s / median step)``)."""
+    ``step_s`` by a whole factor (the step compared is ``step_s / round(step_s / median step)``;
+    none within :data:`DIVISOR_SLACK`: no rate measured)."""
     t = np.asarray(t, float)
     if t.size < 3:
         return ClockRate.none()
     med = float(np.median(np.diff(t)))
     if not med > 0:
         return ClockRate.none()
-    step = float(step_s) / max(1.0, round(float(step_s) / med)) if divisor else float(step_s)
+    step = float(step_s)
+    if divisor:
+        n = max(1.0, round(step / med))
+        if abs(step / (n * med) - 1.0) > DIVISOR_SLACK:  # sampled at a rate of its own: none declared
+            return ClockRate.none()
+        step /= n
     # the index from a line fitted to a doubling head of the stamps: the median step of jittered
     # stamps errs by ~1e-3, which would slip the index by one within a thousand samples and bias
     # the slope; the fitted line's error shrinks faster than the head grows

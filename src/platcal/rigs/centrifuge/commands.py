@@ -29,9 +29,9 @@ from ...study.montecarlo import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
-from .identify import (calibration, clock_finding, consistency_warning, continuous_input, identify_input,
-                       identify_streamed, record_fit, record_input, run_problems, streamable, timed, truth_known,
-                       write_identification)
+from .identify import (calibration, check_clock_rate, clock_finding, consistency_warning, continuous_input,
+                       identify_input, identify_streamed, record_clock, record_fit, record_input, run_problems,
+                       streamable, timed, truth_known, write_identification)
 from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, LOG_COLUMNS, OPTIONAL_COLUMNS, UNITS,
                      FilterInput, chunk_to_frame, compensate_frame, full_coefficients, read_record)
 from ...records import CHUNK_OPTION, chunk_rows_of, iter_table, record_writer
@@ -127,12 +127,13 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     if failed_run_status(run_problems(est), "the filter run", args.data, args.out,
                          "the record's units (Ax, Ay, Az in g) and the config's noise and filter settings"):
         return EXIT_RUN_FAILED
+    clock = check_clock_rate(study, scheme, est, scan.clock if streamed else record_clock(study, df))
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
     if fit is None:
         fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
     summary = write_identification(args.out, est, study, known and not args.no_truth, seconds,
                                    samples_used=used, calibration=calibration(est, study, args.data), fit=fit,
-                                   segmentation=segmentation)
+                                   segmentation=segmentation, clock=clock)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if segmentation is not None:

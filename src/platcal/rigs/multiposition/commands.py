@@ -28,7 +28,7 @@ from ...logs.compensate import compensate_log, gyro_note, read_mapped
 from ...logs.dwells import DWELL_FIGURE, dwells_found, lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...plausibility import refuse_recognised, refuse_recognised_moments
+from ...plausibility import clock_rate_tolerance, refuse_clock_rate, refuse_recognised, refuse_recognised_moments
 from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, chunks_beyond_one, record_writer
 from ...sizes import Costs, Size, samples_in
 from .estimators import estimate, estimate_positions, variant_choice
@@ -107,6 +107,26 @@ def check_plausible(cfg, scheme, rec) -> None:
     nominal = nominal_output(cfg, scheme, rec)
     refuse_recognised(z[:, :3] * UG, nominal[:, :3] * UG, FIT_CHANNELS[:3], "g",
                       "Ax, Ay, Az must be the x, y, z accelerometers in g (a static platform reads |f| = 1 g)")
+
+
+def check_clock_rate(cfg, rec, est: np.ndarray, sigma: np.ndarray) -> dict:
+    """Refuse (exit 2, column t) a record whose clock runs off ``sampling.ts_ms`` by more than the
+    rate error that moves the most sensitive coefficient by 0.3 of its sigma
+    (docs/multiposition-1g.md §16, :func:`platcal.plausibility.clock_rate_tolerance`): a clock
+    1 + e fast stretches the time every drift (deg/h) is read over, moving it by e |D|, and the
+    Earth's turn the model integrates over it, an extra drift of up to e x Earth rate on any drift
+    coefficient (the platform is static at 1 g: one unit of a drift coefficient makes at most one
+    deg/h). Needs the run's sigmas, so it follows the filter (the outputs are not written).
+    Returns the summary's ``clock`` block when it passes."""
+    names = coef_names()
+    per_hour = [unit_of(n).startswith("deg/h") for n in names]
+    earth_deg_h = np.degrees(cfg.site.earth_rate) * 3600.0
+    tol, most = clock_rate_tolerance(names, est, sigma, per_hour, earth_deg_h, np.asarray(per_hour, float))
+    return refuse_clock_rate(rec.clock, tol, most,
+                             "the record cannot tell a wrong stamp clock from a logger sampling off its "
+                             "declared rate: stamp with the recorder's sample clock, or, if the stamps are the "
+                             f"true sample times, declare the logger's period sampling.ts_ms = {rec.clock.step_s * 1e3 * (1 + rec.clock.error):.9g} "
+                             "(a record sampled at the filter's period)", "docs/multiposition-1g.md §16")
 
 
 def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
@@ -230,6 +250,7 @@ def cmd_identify(cfg, args) -> int:
                          "the record's units (Ax, Ay, Az in g, angles in deg) and the config's noise and filter "
                          "settings"):
         return EXIT_RUN_FAILED
+    clock = check_clock_rate(cfg, rec, est, np.sqrt(np.diag(P)))
     used = rec.samples_used()
     names = coef_names()
     sig = np.sqrt(np.diag(P))
@@ -239,7 +260,7 @@ def cmd_identify(cfg, args) -> int:
                "estimator": choice.estimator, "passes": choice.passes, "estimator_options": choice.options,
                "positions": int(len(rec.t)), "samples": int(sum(used.values())),
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
-               "seconds": seconds}
+               "seconds": seconds, "clock": clock}
     segmentation = None if streamed else rec.segmentation
     if segmentation is not None:
         summary["dwells_found"] = dwells_found(segmentation[0], segmentation[2])

@@ -20,6 +20,7 @@ from ...errors import InputError
 from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_position
 from ...mapping import RecordMapping
 from ...model.frames import DEG
+from ...plausibility import ClockRate, segment_rate
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
                          iter_table, position_blocks, read_table, whole_group)
 from ...scheme import Scheme
@@ -52,6 +53,9 @@ class Record:
     """Position numbers (1-based) of ``t`` and ``z``; None: 1..K."""
     segmentation: tuple | None = None
     """For a continuous log cut here: ``(t (N,) s, angle sensors (N, 3) deg, dwells)``."""
+    clock: ClockRate = ClockRate.none()
+    """Every sample's stamps against ``sampling.ts_ms`` (or a whole divisor of it): the clock-rate
+    error the identification checks (:func:`platcal.plausibility.clock_rate`)."""
 
     def samples_used(self) -> dict[int, int]:
         """Samples the EKF uses, per position number."""
@@ -132,17 +136,18 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
             for k in present]
     if scheme is not None:
         check_every_position(present, scheme)
-    ts_used, zs = [], []
+    ts_used, zs, rates = [], [], []
     for k in present:
         rows = df[pos == k]
-        keep, t = instants(k, rows["t"].to_numpy(float), scheme, ts, max_gap_s)
+        keep, t, rate = instants(k, rows["t"].to_numpy(float), scheme, ts, max_gap_s)
+        rates.append(rate)
         ts_used.append(t[keep])
         zs.append(outputs(rows, keep))
     cmd = np.array(cmds)
     if scheme is None:
         scheme = record_scheme(path, cmd, ts_used)
     return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=has_truth, positions=present,
-                  segmentation=segmentation), scheme
+                  segmentation=segmentation, clock=ClockRate.combine(rates)), scheme
 
 
 def outputs(rows: pd.DataFrame, keep: np.ndarray) -> np.ndarray:
@@ -174,6 +179,8 @@ class StreamScan:
     rows: list[np.ndarray]
     has_truth: bool
     scheme: Scheme
+    clock: ClockRate
+    """Every sample's stamps against ``sampling.ts_ms``, as :attr:`Record.clock`."""
 
     def samples_used(self) -> dict[int, int]:
         """Samples the EKF uses, per position number."""
@@ -193,7 +200,7 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
     so its ``t`` and ``Ax, Ay, Az`` are held until it ends (32 bytes per sample of the longest
     position). ``each(k, cmd, t, a)``, when given, receives each position's number, commanded
     angles (3,) deg, instants (s) and its ``Ax, Ay, Az`` there (g) as it ends (the plausibility sums)."""
-    positions, cmds, ts_used, rows = [], [], [], []
+    positions, cmds, ts_used, rows, rates = [], [], [], [], []
     has_truth = None
     held: dict = {"k": None, "t": [], "a": [], "row0": 0, "cmd": None}
 
@@ -203,7 +210,8 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
             return
         t = np.concatenate(held["t"])
         a = np.concatenate(held["a"])
-        keep, t = instants(k, t, scheme, ts, max_gap_s)
+        keep, t, rate = instants(k, t, scheme, ts, max_gap_s)
+        rates.append(rate)
         if each is not None:
             each(k, held["cmd"], t[keep], a[keep])
         positions.append(k)
@@ -233,7 +241,7 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
     cmd = np.array(cmds)
     if scheme is None:
         scheme = record_scheme(path, cmd, ts_used)
-    return StreamScan(positions, cmd, ts_used, rows, bool(has_truth), scheme)
+    return StreamScan(positions, cmd, ts_used, rows, bool(has_truth), scheme, ClockRate.combine(rates))
 
 
 def check_position_numbers(pos: np.ndarray, scheme: Scheme | None) -> None:
@@ -269,10 +277,11 @@ def check_every_position(present: list[int], scheme: Scheme) -> None:
 
 
 def instants(k: int, t: np.ndarray, scheme: Scheme | None, ts: float,
-             max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(keep, t from the position's start)``: position ``k``'s time checks (increasing, seconds,
-    no gap above ``max_gap_s``, spanning the scheme's dwell) and the indices of its samples nearest
-    the filter instants (see :func:`read_record`)."""
+             max_gap_s: float) -> tuple[np.ndarray, np.ndarray, ClockRate]:
+    """``(keep, t from the position's start, clock rate)``: position ``k``'s time checks
+    (increasing, seconds, no gap above ``max_gap_s``, spanning the scheme's dwell), the indices of
+    its samples nearest the filter instants (see :func:`read_record`) and its stamps' rate error
+    against ``ts`` or a whole divisor of it (:func:`platcal.plausibility.segment_rate`)."""
     field = f"--data column t, position {k}"
     med = check_times(t, ts, max_gap_s, field, f"sampling.ts_ms = {ts * 1e3:g} ms", where=" of the position")
     t = t - (0.0 if abs(t[0]) <= max_gap_s else grid_origin(t, med))
@@ -285,7 +294,7 @@ def instants(k: int, t: np.ndarray, scheme: Scheme | None, ts: float,
     keep = nearest_samples(t, ts, 0.5 * med)
     if keep.size < 2:
         raise InputError(field, f"only {keep.size} sample(s) fall on the {ts * 1e3:g} ms filter instants")
-    return keep, t
+    return keep, t, segment_rate(t, ts, divisor=True)
 
 
 def record_scheme(path: str | os.PathLike, cmd: np.ndarray, ts_used: list[np.ndarray]) -> Scheme:

@@ -177,6 +177,7 @@ def _rate(e):
     ("centrifuge", 1e-7, ["--chunk-rows", "500"]),     # the same, streamed: the scan measures the rate
     ("centrifuge", -1e-6, []),
     ("multiposition", 1e-3, []),                        # in the former zone (4.6e-4 .. 2.2e-3: DF_x up to 3 sigma)
+    ("multiposition", 1e-3, ["--chunk-rows", "2000"]),  # the same, streamed: the scan measures the rate
 ])
 def test_clock_rate_error_refused_naming_t_and_the_tolerance(tmp_path, rig, e, chunk, clean, capsys):
     cfg, df = clean[rig]

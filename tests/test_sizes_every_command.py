@@ -223,3 +223,23 @@ def test_default_campaign_far_below_the_limits():
     sizes = search_sizes(load_campaign("config/campaign.yaml"))
     check_sizes(sizes, DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
     assert all(s.hours < DEFAULT_MAX_HOURS / 10 and s.gigabytes < DEFAULT_MAX_MEMORY_GB / 2 for s in sizes), sizes
+
+
+@pytest.mark.parametrize("rig_name", ["centrifuge", "multiposition"])
+def test_a_streamed_identify_is_sized_by_one_position(rig_name):
+    """identify past ``--chunk-rows`` holds one position at a time (issue 22 item 3): hours at each
+    of six positions (3 h at the centrifuge's 5 ms, 10 h at the multi-position rig's 20 ms: 8-10 GB
+    read whole) pass the default memory limit streamed and are refused read whole
+    (``--chunk-rows 0``), naming the dwell."""
+    dwell = {"centrifuge": 10800, "multiposition": 36000}[rig_name]
+    raw = {"rig": rig_name, "schemes": {"s": {"dwell_s": dwell, "positions": [list(map(float, p)) for p in
+                                                                               eval(SIX)]}}}
+    rig = rig_of(raw)
+    cfg = rig.load_config(raw)
+    base = ["identify", "--config", "c.yaml", "--scheme", "s", "--data", "r.csv", "--out", "o"]
+    streamed = build_parser(rig).parse_args(base)
+    check_sizes(rig.sizes("identify", cfg, streamed), DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
+    whole = build_parser(rig).parse_args(base + ["--chunk-rows", "0"])
+    with pytest.raises(InputError) as e:
+        check_sizes(rig.sizes("identify", cfg, whole), DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
+    assert e.value.field == "schemes.s.dwell_s"

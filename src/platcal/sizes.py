@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import pyarrow.parquet as pq
 
@@ -82,6 +82,13 @@ class Size:
     def hours(self) -> float:
         runs = self.replicates if self.runs is None else self.runs
         return float(self.samples) * float(runs) * self.seconds_per_sample / 3600.0
+
+
+def one_at_a_time(size: Size, parts: int) -> Size:
+    """``size`` of a record streamed one of its ``parts`` (positions) at a time: the memory of one
+    part (``size.samples / parts``) held, the time of all of them (``parts`` runs of one)."""
+    return replace(size, samples=size.samples / parts, replicates=1, runs=parts,
+                   what=f"{size.what}, streamed: one of {parts} positions held at a time")
 
 
 def samples_in(seconds: float, period_s: float) -> float:

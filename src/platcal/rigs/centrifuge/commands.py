@@ -24,7 +24,7 @@ from ...logs.dwells import lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
-from ...sizes import Costs, Size, samples_in
+from ...sizes import Costs, Size, one_at_a_time, samples_in
 from ...study.montecarlo import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
@@ -203,7 +203,11 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
     if command in COSTS.per_byte:
         return COSTS.record(command, args.data)
     if command in ("simulate", "identify") and args.scheme:
-        return [_scheme_size(study, resolve_scheme(args.scheme, study.schemes), command)]
+        scheme = resolve_scheme(args.scheme, study.schemes)
+        size = _scheme_size(study, scheme, command)
+        # an identify past --chunk-rows streams the record one position at a time (identify_command)
+        streams = command == "identify" and chunk_rows_of(args) and streamable(study.filter)
+        return [one_at_a_time(size, scheme.n_positions) if streams else size]
     if command == "observability" and args.scheme:
         scheme = resolve_scheme(args.scheme, study.schemes)
         out = [_scheme_size(study, scheme, "simulate")]

@@ -30,7 +30,7 @@ from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import clock_rate_tolerance, refuse_clock_rate, refuse_recognised, refuse_recognised_moments
 from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, chunks_beyond_one, record_writer
-from ...sizes import Costs, Size, samples_in
+from ...sizes import Costs, Size, one_at_a_time, samples_in
 from .estimators import estimate, estimate_positions, variant_choice
 from .filter import nees, replicate_seeds, simulate_blocks, simulate_positions
 from .model import coef_names, group_of, unit_of
@@ -341,9 +341,12 @@ def sizes(command: str, cfg, args) -> list[Size]:
     kind = "simulate" if command == "simulate" else "identify"
     field = f"schemes.{scheme.name}.dwell_s" if scheme.name in cfg.raw["schemes"] else "--scheme (its dwell_s)"
     held = COSTS.values[kind] if command != "observability" else 0
-    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), held, 1,
-                 f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
-                 f"{cfg.ts * 1000:g} ms", COSTS.seconds[kind])]
+    size = Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), held, 1,
+                f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
+                f"{cfg.ts * 1000:g} ms", COSTS.seconds[kind])
+    # simulate writes, and identify streams past --chunk-rows, one position at a time
+    streams = command == "simulate" or (command == "identify" and chunk_rows_of(args))
+    return [one_at_a_time(size, scheme.n_positions) if streams else size]
 
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "

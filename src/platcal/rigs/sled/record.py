@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.stats import norm
 
 from ...errors import InputError
 from ...logs.increments import increment_units, rates_from_increments
@@ -23,7 +24,7 @@ from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
 from ... import records
 from ...records import check_times, grid_origin, num, read_table
-from .config import G, SledConfig
+from .config import ARCSEC, DEG_H, G, OMEGA_E, SledConfig
 from .sensors import ErrorParams
 from .simulate import SimBatch, Truth
 from .trajectory import Trajectory, build_trajectory, true_imu
@@ -152,6 +153,75 @@ def check_plausible(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndar
     f_nom, w_nom = nominal_imu(cfg, traj, t)
     refuse_recognised(f, f_nom, ("fx", "fy", "fz"), "m/s^2", NOMINAL_FIX["f"])
     refuse_recognised(w, w_nom, ("wx", "wy", "wz"), "rad/s", NOMINAL_FIX["w"])
+    check_static_rates(cfg, traj, w, t)
+
+
+STATIC_RATE_LEVEL = 1e-3
+"""False-alarm probability of :func:`check_static_rates` for a clean record (split over the three
+gyros, two-sided): 1e-3 keeps it a tenth of the fit check's 1 % level, so the two together stay
+within issue 25's 1 % of clean records flagged."""
+
+
+def static_rate_sigma(cfg: SledConfig, seconds: float) -> np.ndarray:
+    """(3,) rad/s: the standard deviation of a clean record's mean gyro output over ``seconds`` of
+    rest about the earth rate's body components (docs/rocket-sled.md §1, §3, §12 "Record axes"),
+    from the config: the bias ``imu.gyro.bias_deg_h``, the g-sensitivity at 1 g
+    (``g_sens_deg_h_g``; at rest f = [0, 0, g] so one term per axis), the angle random walk
+    ``arw_deg_rth`` averaged over ``seconds``, and the record's axes turned by the initial
+    attitude error (``alignment.sigma_arcsec``: the record holds R w, R = exp(-[phi0 x]), so
+    component i moves by (phi0 x omega_ie)_i)."""
+    gy = cfg.gyro
+    om = cfg.omega_ie
+    sa = np.asarray(cfg.alignment_arcsec, float) * ARCSEC
+    # (phi x om)_i = sum_jk eps_ijk phi_j om_k, independent phi_j
+    turn = np.array([(sa[1] * om[2]) ** 2 + (sa[2] * om[1]) ** 2, (sa[2] * om[0]) ** 2 + (sa[0] * om[2]) ** 2,
+                     (sa[0] * om[1]) ** 2 + (sa[1] * om[0]) ** 2])
+    arw = gy["arw_deg_rth"] * np.pi / 180 / 60 / np.sqrt(max(seconds, cfg.dt))   # rad/s over the mean
+    var = (gy["bias_deg_h"] * DEG_H) ** 2 + (gy["g_sens_deg_h_g"] * DEG_H) ** 2 + arw ** 2 + turn
+    # a floor far below any gyro's resolution: a config of perfect gyros still compares with a tolerance
+    return np.sqrt(var + (1e-9 * OMEGA_E) ** 2)
+
+
+def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.ndarray) -> None:
+    """Refuse (InputError naming the gyro column, exit 2, before the filters) a record whose mean
+    rate at rest differs from the earth rate's body component (docs/rocket-sled.md §1: the sled
+    is level, track frame = body frame, so a gyro at rest reads omega_ie^l; issue 25 item 2) by
+    more than the config's gyro errors allow (:func:`static_rate_sigma`, two-sided at
+    :data:`STATIC_RATE_LEVEL` over the three gyros). The rest is the static periods before
+    launch and after the stop, two samples in from each end. Because the true rate is the earth
+    rate throughout the test, a gyro scale error 1 + e is, in every sample, a bias of
+    e x omega_i: this catches it once e omega_i passes the tolerance (about 0.2 deg/h with the
+    default config); below, the record cannot tell it from the gyro's own bias. ``w`` (N,3)
+    rad/s, ``t`` (N,) s from the record's start."""
+    med = float(np.median(np.diff(t))) if t.size > 1 else cfg.dt
+    rest = np.zeros(t.size, bool)
+    for p in (0, len(traj.phase_names) - 1):
+        rows = np.flatnonzero(traj.phase == p)
+        if rows.size == 0:
+            continue
+        a, b = rows[0] * cfg.dt, (rows[-1] + 1) * cfg.dt
+        rest |= (t >= a + 2 * med) & (t < b - 2 * med)
+    if rest.sum() < 2:
+        return
+    seconds = float(rest.sum()) * med
+    mean = w[rest].mean(axis=0)
+    expected = cfg.omega_ie
+    sigma = static_rate_sigma(cfg, seconds)
+    k = float(norm.isf(STATIC_RATE_LEVEL / 6))   # two-sided over three gyros
+    z = (mean - expected) / sigma
+    worst = int(np.argmax(np.abs(z)))
+    if abs(z[worst]) <= k:
+        return
+    col = ("wx", "wy", "wz")[worst]
+    ratio = mean[worst] / expected[worst] if expected[worst] else np.nan
+    raise InputError(f"--data column {col}",
+                     f"mean {mean[worst] / DEG_H:.4g} deg/h over {seconds:g} s at rest, expected the earth rate's "
+                     f"component {expected[worst] / DEG_H:.4g} deg/h +- {k * sigma[worst] / DEG_H:.2g} "
+                     f"(site.latitude_deg = {cfg.latitude_deg:g}, site.track_azimuth_deg = "
+                     f"{cfg.track_azimuth_deg:g}; {k:.2f} sigma of imu.gyro bias, g-sensitivity and ARW and "
+                     f"the alignment error; docs/rocket-sled.md §1, §3); it reads {ratio:.4g} x the earth rate "
+                     f"there, {z[worst]:+.1f} sigma off: a scale error of {col} (fix the gyro's scale factor), a "
+                     "bias beyond imu.gyro.bias_deg_h (declare the gyro's bias), or another site")
 
 
 def samples_per_phase(traj: Trajectory, t: np.ndarray, dt: float) -> dict[str, int]:

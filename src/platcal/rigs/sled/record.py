@@ -19,7 +19,7 @@ import pandas as pd
 from scipy.stats import norm
 
 from ...errors import InputError
-from ...logs.increments import increment_units, rates_from_increments
+from ...logs.increments import increment_units, rates_from_increments, sample_intervals
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
 from ... import records
@@ -154,6 +154,7 @@ def check_plausible(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndar
     refuse_recognised(f, f_nom, ("fx", "fy", "fz"), "m/s^2", NOMINAL_FIX["f"])
     refuse_recognised(w, w_nom, ("wx", "wy", "wz"), "rad/s", NOMINAL_FIX["w"])
     check_static_rates(cfg, traj, w, t)
+    check_lateral_force(cfg, traj, f, t)
 
 
 STATIC_RATE_LEVEL = 1e-3
@@ -182,6 +183,20 @@ def static_rate_sigma(cfg: SledConfig, seconds: float) -> np.ndarray:
     return np.sqrt(var + (1e-9 * OMEGA_E) ** 2)
 
 
+def rest_samples(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> np.ndarray:
+    """(N,) bool: the record's samples at rest, the static periods before launch and after the
+    stop (docs/rocket-sled.md §2) by time ``t`` (s from the record's start), two median steps in
+    from each end (a jittered stamp near a phase change is not taken for rest)."""
+    med = float(np.median(np.diff(t))) if t.size > 1 else cfg.dt
+    rest = np.zeros(t.size, bool)
+    for p in (0, len(traj.phase_names) - 1):
+        rows = np.flatnonzero(traj.phase == p)
+        if rows.size:
+            a, b = rows[0] * cfg.dt, (rows[-1] + 1) * cfg.dt
+            rest |= (t >= a + 2 * med) & (t < b - 2 * med)
+    return rest
+
+
 def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.ndarray) -> None:
     """Refuse (InputError naming the gyro column, exit 2, before the filters) a record whose mean
     rate at rest differs from the earth rate's body component (docs/rocket-sled.md §1: the sled
@@ -193,17 +208,10 @@ def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.n
     e x omega_i: this catches it once e omega_i passes the tolerance (about 0.2 deg/h with the
     default config); below, the record cannot tell it from the gyro's own bias. ``w`` (N,3)
     rad/s, ``t`` (N,) s from the record's start."""
-    med = float(np.median(np.diff(t))) if t.size > 1 else cfg.dt
-    rest = np.zeros(t.size, bool)
-    for p in (0, len(traj.phase_names) - 1):
-        rows = np.flatnonzero(traj.phase == p)
-        if rows.size == 0:
-            continue
-        a, b = rows[0] * cfg.dt, (rows[-1] + 1) * cfg.dt
-        rest |= (t >= a + 2 * med) & (t < b - 2 * med)
+    rest = rest_samples(cfg, traj, t)
     if rest.sum() < 2:
         return
-    seconds = float(rest.sum()) * med
+    seconds = float(rest.sum()) * float(np.median(np.diff(t)))
     mean = w[rest].mean(axis=0)
     expected = cfg.omega_ie
     sigma = static_rate_sigma(cfg, seconds)
@@ -252,3 +260,55 @@ def record_truth(path: str | Path, df: pd.DataFrame) -> Truth | None:
         raise InputError(str(records.truth_path(path)), f"not a sled truth file ({exc.__class__.__name__}: {exc})") from None
     return Truth(params=p, x_true=df["x_true"].to_numpy(float)[None], vx_true=df["vx_true"].to_numpy(float)[None],
                  x_inst=df["x_inst"].to_numpy(float)[None], nabla_static=nab)
+
+
+LATERAL_LEVEL = 1e-3
+"""False-alarm probability of :func:`check_lateral_force` for a clean record (two-sided), a
+tenth of the fit check's 1 % as :data:`STATIC_RATE_LEVEL`."""
+
+
+def lateral_coriolis_gain(cfg: SledConfig, traj: Trajectory, f: np.ndarray, t: np.ndarray) -> tuple[float, float]:
+    """The gain of the record's lateral force ``fy`` on the Coriolis force ``2 omega_z v`` and its
+    standard error (docs/rocket-sled.md §2: the true specific force is ``[a_x, 2 omega_z v,
+    g - 2 omega_y v]``, so an error-free ``fy`` in m/s^2 has gain 1; a ``fy`` scaled by 1 + e has
+    1 + e). ``v`` (m/s) is the record's own along-track velocity, ``fx`` integrated over each
+    sample's interval after its mean at rest (the accelerometer's bias and the tilt's g) is
+    taken off. Least squares of ``fy`` on [1, fx, 2 omega_z v]: the constant takes the lateral
+    bias and the roll's g (phi_x, M_yz), the ``fx`` term the azimuth error and the misalignment
+    M_yx (phi_z f_x), which are unknown; the Coriolis term is not, up to the y scale factor
+    (``imu.accel.scale_ppm``). The standard error is the least-squares one from the residuals'
+    scatter (the accelerometer's white noise). ``f`` (N,3) m/s^2, ``t`` (N,) s."""
+    rest = rest_samples(cfg, traj, t)
+    fx = f[:, 0] - (float(f[rest, 0].mean()) if rest.any() else 0.0)
+    v = np.cumsum(fx * sample_intervals(t)) - 0.5 * fx * sample_intervals(t)   # mid-interval, as the Coriolis mean
+    cor = 2.0 * cfg.omega_ie[2] * v
+    A = np.column_stack([np.ones_like(v), f[:, 0], cor])
+    coef, *_ = np.linalg.lstsq(A, f[:, 1], rcond=None)
+    r = f[:, 1] - A @ coef
+    dof = max(t.size - A.shape[1], 1)
+    cov = np.linalg.pinv(A.T @ A) * float(r @ r) / dof
+    return float(coef[2]), float(np.sqrt(cov[2, 2]))
+
+
+def check_lateral_force(cfg: SledConfig, traj: Trajectory, f: np.ndarray, t: np.ndarray) -> None:
+    """Refuse (InputError naming column ``fy``, exit 2, before the filters) a record whose lateral
+    force does not carry the Coriolis force of its own along-track velocity at gain 1
+    (:func:`lateral_coriolis_gain`): beyond :data:`LATERAL_LEVEL` two-sided of its standard error
+    plus the y scale factor's 4 sigma (``imu.accel.scale_ppm``, a model tolerance). The run
+    filter reads the azimuth error from ``fy`` (phi_z f_x), so a ``fy`` scaled by 1 + e gives
+    phi_z (1 + e); this is the one term of ``fy`` the record fixes. Skipped (nothing to compare)
+    when the run has no speed."""
+    gain, se = lateral_coriolis_gain(cfg, traj, f, t)
+    if not (np.isfinite(gain) and np.isfinite(se) and se > 0):
+        return
+    k = float(norm.isf(LATERAL_LEVEL / 2))
+    tol = k * se + 4 * cfg.accel["scale_ppm"] * 1e-6
+    if abs(gain - 1.0) <= tol:
+        return
+    raise InputError("--data column fy",
+                     f"carries {gain:.4g} x the Coriolis force 2 omega_z v of the record's along-track velocity "
+                     f"(+- {se:.2g}), expected 1 +- {tol:.2g} (docs/rocket-sled.md §2: fy = 2 omega_z v on the "
+                     f"rail, omega_z = {cfg.omega_ie[2]:.4g} rad/s at site.latitude_deg = {cfg.latitude_deg:g}; "
+                     f"{k:.2f} standard errors and 4 sigma of imu.accel.scale_ppm); fy is scaled by about "
+                     f"{gain:.4g}: fix its scale factor (fy must be the lateral specific force in m/s^2), "
+                     "or the site's latitude")

@@ -197,6 +197,23 @@ def rest_samples(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> np.ndarray
     return rest
 
 
+STATIC_RATE_K = float(norm.isf(STATIC_RATE_LEVEL / 6))
+"""Sigmas of :func:`static_rate_sigma` beyond which a gyro's mean at rest is refused: two-sided
+at :data:`STATIC_RATE_LEVEL` over the three gyros (3.59)."""
+
+
+def rest_seconds(rest: np.ndarray, t: np.ndarray) -> float:
+    """Seconds at rest: the samples of ``rest`` x the record's median step."""
+    return float(rest.sum()) * float(np.median(np.diff(t))) if t.size > 1 else 0.0
+
+
+def static_rate_tolerance(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> np.ndarray:
+    """(3,) rad/s: the largest constant rate error of each gyro :func:`check_static_rates` lets
+    pass on a record with stamps ``t`` (inf when it has no rest)."""
+    seconds = rest_seconds(rest_samples(cfg, traj, t), t)
+    return STATIC_RATE_K * static_rate_sigma(cfg, seconds) if seconds > 0 else np.full(3, np.inf)
+
+
 def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.ndarray) -> None:
     """Refuse (InputError naming the gyro column, exit 2, before the filters) a record whose mean
     rate at rest differs from the earth rate's body component (docs/rocket-sled.md §1: the sled
@@ -211,11 +228,11 @@ def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.n
     rest = rest_samples(cfg, traj, t)
     if rest.sum() < 2:
         return
-    seconds = float(rest.sum()) * float(np.median(np.diff(t)))
+    seconds = rest_seconds(rest, t)
     mean = w[rest].mean(axis=0)
     expected = cfg.omega_ie
     sigma = static_rate_sigma(cfg, seconds)
-    k = float(norm.isf(STATIC_RATE_LEVEL / 6))   # two-sided over three gyros
+    k = STATIC_RATE_K
     z = (mean - expected) / sigma
     worst = int(np.argmax(np.abs(z)))
     if abs(z[worst]) <= k:

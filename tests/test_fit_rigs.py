@@ -183,6 +183,7 @@ def test_sled_reports_what_the_gyros_errors_do_to_the_sigmas(tmp_path, clean, ca
     assert "gyro_rate_error" in err
     df = clean["sled"][1].copy()
     df["wx"] *= 1 + 0.5 * g["scale_tolerance"][0]  # half the largest scale the check at rest passes
+    (tmp_path / "half").mkdir()
     code, err, out = identify(tmp_path / "half", "sled", clean, df, capsys)
     assert code == 0, err
 

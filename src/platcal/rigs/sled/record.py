@@ -148,8 +148,10 @@ def check_plausible(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndar
     """Refuse (InputError naming the column, exit 2, before the filters) a record whose specific
     force or rates are a unit, sign or swap of the trajectory's error-free output (docs/rocket-sled.md
     §10): the along-track force and the 1 g at rest for ``fx, fz``, the earth rate for the gyros
-    (:func:`platcal.plausibility.refuse_recognised`). ``f``, ``w`` (N,3) as :func:`record_arrays`
-    gives them for one record."""
+    (:func:`platcal.plausibility.refuse_recognised`); then from the rig's physics, each gyro's
+    mean at rest against the earth rate (:func:`check_static_rates`) and ``fy`` against the
+    Coriolis force of the record's own velocity (:func:`check_lateral_force`). ``f`` (N,3)
+    m/s^2, ``w`` (N,3) rad/s as :func:`record_arrays` gives them for one record, ``t`` (N,) s."""
     f_nom, w_nom = nominal_imu(cfg, traj, t)
     refuse_recognised(f, f_nom, ("fx", "fy", "fz"), "m/s^2", NOMINAL_FIX["f"])
     refuse_recognised(w, w_nom, ("wx", "wy", "wz"), "rad/s", NOMINAL_FIX["w"])

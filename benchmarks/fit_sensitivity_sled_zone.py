@@ -19,9 +19,9 @@ import numpy as np
 from platcal.rigs.sled.config import DEG_H, load_config
 from platcal.rigs.sled.identify import estimates, identify, record_fit
 from platcal.rigs.sled.montecarlo import replicate_seeds
+from platcal.rigs.sled.record import rest_samples, static_rate_sigma
 from platcal.rigs.sled.simulate import simulate
 from platcal.rigs.sled.trajectory import build_trajectory
-from platcal.rigs.sled.record import static_rate_sigma
 
 COLS = {"fx": ("f", 0), "fy": ("f", 1), "fz": ("f", 2), "wx": ("w", 0), "wy": ("w", 1), "wz": ("w", 2)}
 
@@ -29,7 +29,7 @@ COLS = {"fx": ("f", 0), "fy": ("f", 1), "fz": ("f", 2), "wx": ("w", 0), "wy": ("
 def stats(cfg, traj, f, w):
     """Static gyro z-scores, fit figures, stop NIS and the estimates of one record."""
     t = np.arange(f.shape[0]) * cfg.dt
-    rest = np.isin(traj.phase, [0, len(traj.phase_names) - 1])
+    rest = rest_samples(cfg, traj, t)   # the check's own rest samples
     sig = static_rate_sigma(cfg, rest.sum() * cfg.dt)
     arw = cfg.gyro["arw_deg_rth"] * np.pi / 180 / 60 / np.sqrt(rest.sum() * cfg.dt)
     mean = w[rest].mean(axis=0)
@@ -55,7 +55,7 @@ def main() -> None:
     traj = build_trajectory(cfg)
     cols = a.column or ["wx", "wy", "wz", "fy"]
     print(f"omega_ie (deg/h) = {np.round(cfg.omega_ie / DEG_H, 3)}, static sigma (deg/h) = "
-          f"{np.round(static_rate_sigma(cfg, 65 - 0.0) / DEG_H, 4)}")
+          f"{np.round(static_rate_sigma(cfg, cfg.static_before_s + cfg.static_after_s) / DEG_H, 4)}")
     print("column e seed | static z (gyro x,y,z: vs config sigma) | z vs ARW only | run NIS/dof max, |mean| max, "
           "passed | stop NIS/dof | largest shift (sigma) estimate")
     for seed in range(a.seeds):

@@ -83,9 +83,11 @@ def cmd_identify(cfg: SledConfig, args) -> int:
                 key=lambda kv: max(kv[1]["shift_at_tolerance_sigmas"]))
     if worst is not None:
         st = summary["gyro_rate_error"]["scale_tolerance"]
+        name, w_est = worst
         msg += (f"; gyro rate errors (or scale errors up to {min(st):.2g}-{max(st):.2g}) too small to see at "
-                f"rest move {worst[0]} by up to {max(worst[1]['shift_at_tolerance_sigmas']):.1f} sigma: its sigma with the "
-                f"gyros' own errors is {worst[1]['sigma_with_gyro_arcsec']:.3g} arcsec (metrics.json gyro_rate_error)")
+                f"rest move {name} by up to {max(w_est['shift_at_tolerance_sigmas']):.1f} sigma: its sigma with "
+                f"the gyros' own errors is {w_est['sigma_with_gyro_arcsec']:.3g} arcsec (metrics.json "
+                "gyro_rate_error)")
     print(msg, file=sys.stderr)
     return fit_exit_status(fit, args.data, out, "metrics.json")
 

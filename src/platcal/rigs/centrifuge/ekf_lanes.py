@@ -41,9 +41,7 @@ from numba import njit, prange
 from numba.core import config as numba_config
 from numba.core.compiler import CompilerBase, DefaultPassBuilder
 
-from ...model.frames import DEG_PER_HOUR
-from .attitude import (MEAS_COLS, N_GYRO, P_G, P_OMEGA_N, P_OMEGA_U, V_A, V_DU, V_JA, V_RATE, V_T, _shift,
-                       measure_jac_sc, rate_jac_sc)
+from .attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from .base import specific_force_into
 from ...estimation.kalman import cholesky_inverse
 
@@ -124,8 +122,8 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                   update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl,
                   rec, seg_k, seg_t0, seg_last, seg_nis,
                   pidx, xl, Pl, W, U, K, D, phi, hval, innov, S, Sinv, nu, ok, acc, nis, bad,
-                  coef_l, ang_l, fr_now, fr_mid, fr3, pb_l, sc, v_l, k_l, out, hm, ha,
-                  ka_l, kg_l, rk_v, S1, F1, nu1, in1, U1, w1, xi, xnew, coef_i):
+                  coef_l, ang_l, fr_now, fr_mid, fr3, pb_l, ang_new, pa, pgyro, out, hm, ha,
+                  rk_k, rk_ka, rk_kg, rk_v, S1, F1, nu1, in1, U1, w1, xi, xnew, coef_i):
     """Block ``blk`` (replicates ``blk * L .. blk * L + L - 1``) through every segment of one pass:
     :func:`platcal.rigs.centrifuge.ekf._filter_replicate` and ``_filter_one`` with the lanes
     innermost. Arguments up to ``seg_nis`` are those of the reference kernel (batch layout,
@@ -198,7 +196,20 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                     for r in range(3):
                         fr3[l, 1, r] = fr_mid[l, r]
                         fr3[l, 2, r] = fr_now[l, r]
-                _rk4_jac_lanes(nact, ang_l, coef_l, fr3, h, pb_l, xl, phi, pg, sc, rk_v, v_l, k_l, ka_l, kg_l)
+                    rk4_jac_sc(ang_l[l], coef_l[l], fr3[l], h, pb_l[l], ang_new[l], pa[l], pgyro[l],
+                               (rk_k, rk_ka, rk_kg, rk_v))
+                    for r in range(3):
+                        for kk in range(npc - 3):
+                            phi[r, kk, l] = pgyro[l, r, pg[kk]]
+                        for i in range(3):
+                            phi[r, npc - 3 + i, l] = pa[l, r, i]
+                        ang_l[l, r] = ang_new[l, r]
+                        xl[nc + r, l] = ang_new[l, r]
+                for l in range(nact, L):  # the filler lanes repeat lane 0
+                    for r in range(3):
+                        for kk in range(npc):
+                            phi[r, kk, l] = phi[r, kk, 0]
+                        xl[nc + r, l] = xl[nc + r, 0]
                 # P <- Phi P Phi^T + Q on the 3 attitude rows: W = Phi[dyn] P (rows through
                 # the packed index), the 3 x 3 block, then the rows (= the columns) written
                 qd = q_rate * h
@@ -362,96 +373,6 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
 
 
 @njit(cache=True, fastmath=FASTMATH, inline="always")
-def _rk4_jac_lanes(nact, ang_l, coef_l, fr3, h, pb_l, xl, phi, pg, sc, v, v_l, k_l, ka_l, kg_l):
-    """:func:`platcal.rigs.centrifuge.attitude.rk4_jac_sc` for the lanes of a block
-    (docs/centrifuge-model.md §6, eq. 18; the filter's propagation, §9): the attitude rate and
-    its Jacobians (:func:`rate_jac_sc`, 42 values) per live lane, then the RK4 stages' Jacobian
-    recursion, 3 x (3 + 30) per stage, and Phi with the lanes innermost (vector instructions;
-    the same operations in the same order as the scalar kernel, so the same numbers).
-
-    In: ``ang_l`` (L, 3) rad, ``coef_l`` (L, 48), ``fr3`` (L, 3, 3) m/s^2 at the step's start,
-    middle and end, ``h`` s, ``pb_l`` (L, n_params). Out: the new angles in ``xl[nc:, :]`` and
-    ``ang_l`` (live lanes), ``phi`` (3, npc, L): the gyro columns ``pg`` then the 3 angle
-    columns. Filler lanes (``l >= nact``) compute lane 0's numbers (dropped later).
-    """
-    L = LANES
-    nc = xl.shape[0] - 3
-    npc = phi.shape[1]
-    for l in range(nact):
-        for r in range(3):
-            sc[2 * r, l] = np.sin(ang_l[l, r])
-            sc[2 * r + 1, l] = np.cos(ang_l[l, r])
-    for s in range(4):
-        fs = 0 if s == 0 else (1 if s < 3 else 2)
-        step = 0.0 if s == 0 else (0.5 * h if s < 3 else h)
-        # the rate and its Jacobians, lane by lane (sin, cos and a branch per lane)
-        for l in range(nact):
-            sa, ca, sb, cb, sg, cg = sc[0, l], sc[1, l], sc[2, l], sc[3, l], sc[4, l], sc[5, l]
-            if s > 0:
-                sa, ca = _shift(sa, ca, step * k_l[s - 1, 0, l])
-                sb, cb = _shift(sb, cb, step * k_l[s - 1, 1, l])
-                sg, cg = _shift(sg, cg, step * k_l[s - 1, 2, l])
-            rate_jac_sc(sa, ca, sb, cb, sg, cg, coef_l[l], fr3[l, fs, 0], fr3[l, fs, 1], fr3[l, fs, 2],
-                        pb_l[l, P_G], pb_l[l, P_OMEGA_N], pb_l[l, P_OMEGA_U], v)
-            for i in range(V_A + 9):
-                v_l[i, l] = v[i]
-        for l in range(nact, L):
-            for i in range(V_A + 9):
-                v_l[i, l] = v_l[i, 0]
-        # the stage's Jacobian recursion, lanes innermost
-        for r in range(3):
-            for l in range(L):
-                k_l[s, r, l] = v_l[V_RATE + r, l]
-        for r in range(3):
-            for i in range(3):
-                for l in range(L):
-                    d = v_l[V_JA + 3 * r + i, l]
-                    if s > 0:
-                        d += step * (v_l[V_JA + 3 * r, l] * ka_l[s - 1, 0, i, l]
-                                     + v_l[V_JA + 3 * r + 1, l] * ka_l[s - 1, 1, i, l]
-                                     + v_l[V_JA + 3 * r + 2, l] * ka_l[s - 1, 2, i, l])
-                    ka_l[s, r, i, l] = d
-            for j in range(3):
-                for l in range(L):
-                    tj = -v_l[V_T + 3 * r + j, l] * DEG_PER_HOUR
-                    aI, aO, aS = v_l[V_A + 3 * j, l], v_l[V_A + 3 * j + 1, l], v_l[V_A + 3 * j + 2, l]
-                    kg_l[s, r, j, l] = tj
-                    kg_l[s, r, 3 + j, l] = tj * aI
-                    kg_l[s, r, 6 + j, l] = tj * aO
-                    kg_l[s, r, 9 + j, l] = tj * aS
-                    kg_l[s, r, 12 + j, l] = tj * (aI * aI)
-                    kg_l[s, r, 15 + j, l] = tj * (aS * aS)
-                    kg_l[s, r, 18 + j, l] = tj * (aI * aO)
-                    kg_l[s, r, 21 + j, l] = tj * (aI * aS)
-                    kg_l[s, r, 24 + j, l] = tj * (aO * aS)
-                    kg_l[s, r, 27 + j, l] = tj * (aO * aO)
-            if s > 0:
-                for i in range(N_GYRO):
-                    for l in range(L):
-                        kg_l[s, r, i, l] += step * (v_l[V_JA + 3 * r, l] * kg_l[s - 1, 0, i, l]
-                                                    + v_l[V_JA + 3 * r + 1, l] * kg_l[s - 1, 1, i, l]
-                                                    + v_l[V_JA + 3 * r + 2, l] * kg_l[s - 1, 2, i, l])
-    h6 = h / 6.0
-    for r in range(3):
-        for l in range(L):
-            a = ang_l[l, r] if l < nact else ang_l[0, r]
-            xl[nc + r, l] = a + h6 * (k_l[0, r, l] + 2.0 * k_l[1, r, l] + 2.0 * k_l[2, r, l] + k_l[3, r, l])
-        for i in range(3):
-            one = 1.0 if r == i else 0.0
-            for l in range(L):
-                phi[r, npc - 3 + i, l] = one + h6 * (ka_l[0, r, i, l] + 2.0 * ka_l[1, r, i, l]
-                                                     + 2.0 * ka_l[2, r, i, l] + ka_l[3, r, i, l])
-        for kk in range(npc - 3):
-            i = pg[kk]
-            for l in range(L):
-                phi[r, kk, l] = h6 * (kg_l[0, r, i, l] + 2.0 * kg_l[1, r, i, l] + 2.0 * kg_l[2, r, i, l]
-                                      + kg_l[3, r, i, l])
-    for l in range(nact):
-        for r in range(3):
-            ang_l[l, r] = xl[nc + r, l]
-
-
-@njit(cache=True, fastmath=FASTMATH, inline="always")
 def _cholesky_inverse_lanes(S, Sinv, innov, nu, ok):
     """Per lane, :func:`platcal.estimation.kalman.cholesky_inverse` of the 3 x 3 ``S`` (3, 3, L):
     ``Sinv`` = S^-1 and ``nu`` = L^-1 innov (the standardised innovation), written out so that
@@ -595,9 +516,9 @@ def _run_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, param
                   f3((3, n, L)), f3((3, npc, L)), np.zeros((3, mh, L)), np.zeros((3, L)), f3((3, 3, L)),
                   f3((3, 3, L)), f3((3, L)), f3(L), f3((6, L)), f3(L), f3(L),
                   f3((L, nco)), f3((L, 3)), f3((L, 3)), f3((L, 3)), f3((L, 3, 3)), f3((L, params.shape[2])),
-                  f3((6, L)), f3((V_A + 9, L)), f3((4, 3, L)), f3((L, 3)), np.zeros((L, 3, MEAS_COLS.shape[1])),
+                  f3((L, 3)), f3((L, 3, 3)), f3((L, 3, N_GYRO)), f3((L, 3)), np.zeros((L, 3, MEAS_COLS.shape[1])),
                   f3((L, 3, 3)),
-                  f3((4, 3, 3, L)), f3((4, 3, N_GYRO, L)), f3(V_DU + 9), f3((3, 3)), f3((3, 3)), f3(3), f3(3),
+                  f3((4, 3)), f3((4, 3, 3)), f3((4, 3, N_GYRO)), f3(42), f3((3, 3)), f3((3, 3)), f3(3), f3(3),
                   f3((3, n)), f3(3), f3(n), f3(n), f3(nco))
 
 

@@ -170,9 +170,10 @@ def test_simulate_fault_keeps_the_earlier_pair(tmp_path, capsys, monkeypatch):
     assert snapshot(tmp_path) == before
 
 
-@pytest.mark.parametrize("rig", ["sled", "lowprec_centrifuge"])
+@pytest.mark.parametrize("rig", sorted(TINY))
 def test_identify_fault_writes_nothing(rig, tmp_path, capsys, monkeypatch):
     text, opts = TINY[rig]
+    scheme = opts if opts[:1] == ["--scheme"] else []  # identify takes the scheme, not the platform and run
     cfg = tmp_path / "c.yaml"
     cfg.write_text(text)
     rec = tmp_path / "rec.csv"
@@ -180,7 +181,7 @@ def test_identify_fault_writes_nothing(rig, tmp_path, capsys, monkeypatch):
     capsys.readouterr()
     _fail_with(monkeypatch, errno.ENOSPC)
     out = tmp_path / "id"
-    code = main(["identify", "--config", str(cfg), "--data", str(rec), "--out", str(out)])
+    code = main(["identify", "--config", str(cfg), *scheme, "--data", str(rec), "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2 and "No space left on device" in err and "Traceback" not in err, err
     assert str(out) in err

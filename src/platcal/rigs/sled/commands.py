@@ -115,6 +115,11 @@ def cmd_compensate(cfg: SledConfig, args) -> int:
                           "no gyro terms, so the log's rates wx, wy, wz are navigated as recorded")
 
 
+OBSERVABILITY_PER_PHASE = (1000, 2.5e-3)
+"""(float64 values held, CPU s) per phase of the observability rank table (static, each phase,
+braking: 2 models x 4 rates, an SVD each and of the stack): 250-670 values and 1.1e-3 CPU s a
+phase measured (benchmarks/size_estimate_more.py, 200 and 2000 phases, load 6-8 on 2 cores),
+rounded up."""
 COSTS = Costs(values={"simulate": 48, "identify": 96}, seconds={"simulate": 2.5e-5, "identify": 5e-6},
               per_byte={"inspect": (0.5, 1e-8), "compensate": (0.5, 5e-8)},
               measured="per sample 344 and 614 B, 1.1e-5 and 2.1e-6 CPU s (simulate, identify); per byte inspect "
@@ -127,10 +132,14 @@ def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
     run the run's IMU samples (static before, the phases, the braking, static after, at
     ``imu.rate_hz``) x :data:`COSTS`, the longest part naming the field; inspect and compensate
     the record file's bytes x :data:`COSTS`.
-    observability's rank table is one small matrix per phase (docs/rocket-sled.md §8), whatever
-    the durations: nothing to size."""
+    observability's rank table holds and decomposes small matrices per phase (docs/rocket-sled.md
+    §8), whatever the durations: the phases x :data:`OBSERVABILITY_PER_PHASE`."""
     if command in COSTS.per_byte:
         return COSTS.record(command, args.data)
+    if command == "observability":
+        n = len(cfg.phases) + 2.0   # the static period and the braking too
+        return [Size("trajectory.phases", n, OBSERVABILITY_PER_PHASE[0], 1, f"{n:g} phases (static, the config's, "
+                     "braking), 2 models x 4 rates", OBSERVABILITY_PER_PHASE[1], unit="phases")]
     if command not in ("simulate", "identify"):
         return []
     v_end = sum(ph.accel_g * G * ph.duration_s for ph in cfg.phases)

@@ -24,7 +24,8 @@ whole identification; the filter calls are also timed alone on both sides (``fil
 columns: platcal's filter against FilterPy's on the same inputs). On every rig the model itself
 (RK4 map and Jacobians, measurement, mechanisation, window means) is platcal's compiled code on
 both sides: FilterPy drives the filter step by step in Python (predict, update, its matrix
-algebra in numpy), as ``bench_filter`` does for the centrifuge. The table (Markdown and CSV) is written to ``benchmarks/bench_all.md`` and
+algebra in numpy), as ``bench_filter`` does for the centrifuge. The table (Markdown and CSV) is
+written to ``benchmarks/bench_all.md`` and
 ``benchmarks/bench_all.csv`` with the machine's matrix-multiply peak and the load average.
 
     python benchmarks/bench_all.py [--batch 20] [--repeat 2] [--threads 2]
@@ -342,7 +343,8 @@ def main(argv=None) -> None:
     peak = max(peak, bench_filter.matmul_peak())
     load1 = os.getloadavg()[0]
     df = pd.DataFrame(rows)[["rig", "test", "platcal_s", "filterpy_s", "ratio", "platcal_cpu_s", "filterpy_cpu_s",
-                             "ratio_cpu", "filter_platcal_s", "filter_filterpy_s", "filter_ratio", "max_diff_sigma", "note"]]
+                             "ratio_cpu", "filter_platcal_s", "filter_filterpy_s", "filter_ratio", "max_diff_sigma",
+                             "note"]]
     df["normalised"] = df["platcal_s"] * peak
     df["matmul_peak_gflops"] = peak
     df["load_start"], df["load_end"] = load0, load1

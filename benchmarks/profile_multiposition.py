@@ -24,8 +24,9 @@ from numba import njit
 from platcal.estimation.kalman import joseph_update_sparse, propagate_sparse, update_scratch
 from platcal.model.frames import ARCSEC, DEG
 from platcal.rigs.multiposition.config import load_config
-from platcal.rigs.multiposition.filter import dynamic_cols, run_filter, simulate
-from platcal.rigs.multiposition.model import layout_index, make_scratch, meas_k, rate_k, rk4_k
+from platcal.rigs.multiposition.filter import _ekf_range, dynamic_cols, run_filter, simulate
+from platcal.rigs.multiposition.model import (layout_index, make_scratch, meas_k, rate, rate_k, rk4_k,
+                                              rot_t_into)
 
 
 @njit(cache=True)
@@ -36,7 +37,10 @@ def _loop_rate_jac(steps, phi0, x, lay, wn, wu):
     nxt = np.empty(3)
     zero3 = np.zeros(3)
     acc = 0.0
-    for _ in range(steps):
+    x0 = x[:3].copy()
+    for s in range(steps):
+        for i in range(3):  # new angles each call: the compiler cannot hoist the sines
+            x[i] = x0[i] + 1e-12 * (s % 7)
         rate_k(phi0, x, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
         acc += nxt[0] + F[0, 0]
     return acc
@@ -70,7 +74,10 @@ def _loop_rk4(steps, phi0, x, lay, wn, wu, dt):
     nxt = np.empty(3)
     zero3 = np.zeros(3)
     acc = 0.0
-    for _ in range(steps):
+    x0 = x[:3].copy()
+    for s in range(steps):
+        for i in range(3):
+            x[i] = x0[i] + 1e-12 * (s % 7)
         k4[0, 0] = 1e-6
         k4[0, 1] = 2e-6
         k4[0, 2] = 3e-6
@@ -87,7 +94,10 @@ def _loop_meas(steps, phi0, x, lay):
     nn = np.empty(3, dtype=np.int64)
     C, dC = np.empty((3, 3)), np.empty((3, 3, 3))
     acc = 0.0
-    for _ in range(steps):
+    x0 = x[:3].copy()
+    for s in range(steps):
+        for i in range(3):
+            x[i] = x0[i] + 1e-12 * (s % 7)
         meas_k(phi0, x, lay, zp, Hs, hc, nn, C, dC)
         acc += zp[0] + Hs[0, 0]
     return acc
@@ -162,7 +172,6 @@ def main(argv=None) -> None:
     # a realistic point: the coefficients and covariance at the end of a short run, phi and its
     # covariance as after the last position's dwell
     tc, Zc = t[:500], Z[:, :, :500]
-    from platcal.rigs.multiposition import filter as mpf
     nc = cfg.p0(0).size
     n = nc + 3
     X = np.zeros((1, n))
@@ -175,15 +184,14 @@ def main(argv=None) -> None:
     r_var = np.array([cfg.sigma_a_ug**2] * 3 + [cfg.sigma_an_arcsec**2] * 3)
     tk = np.broadcast_to(tc, (phi0s.shape[0], tc.size)).copy()
     nk = np.full(phi0s.shape[0], tc.size, dtype=np.int64)
-    mpf._ekf_range(0, 1, X, Ps, phi0s, tk, np.ascontiguousarray(Zc), nk, lay, wn, wu, r_var, cfg.arw_rad**2,
-                   cfg.sigma_set_rad**2, cols, True, 0, 0.0, np.empty(1), np.zeros(1), np.zeros(1, dtype=np.int64),
-                   np.zeros((1, 0, 0, 12)))
+    _ekf_range(0, 1, X, Ps, phi0s, tk, np.ascontiguousarray(Zc), nk, lay, wn, wu, r_var, cfg.arw_rad**2,
+               cfg.sigma_set_rad**2, cols, True, 0, 0.0, np.empty(1), np.zeros(1), np.zeros(1, dtype=np.int64),
+               np.zeros((1, 0, 0, 12)))
     x, P = X[0].copy(), np.ascontiguousarray(Ps[0])
     phi0 = phi0s[-1].copy()
     dt = float(t[1] - t[0])
-    _, F = rate_k_py(phi0, x, lay, wn, wu)
+    _, F = rate(phi0, x, cfg.site)
     C, dC, T, dT, *_ = make_scratch(n)
-    from platcal.rigs.multiposition.model import rot_t_into
     rot_t_into(phi0[0] + x[0], phi0[1] + x[1], phi0[2] + x[2], C, dC, T, dT, False)
     m = cols.size
     phi = np.empty((3, m))
@@ -204,13 +212,15 @@ def main(argv=None) -> None:
     s = args.steps
     copy = per_call(lambda k: _loop_copy(k, P.copy()), s)
     parts = {
-        "rate of §4 + analytic Jacobian F (1 rate, 6 sin/cos)": (per_call(
-            lambda k: _loop_rate_jac(k, phi0, x, lay, wn, wu), s), False),
+        "rate of §4 + analytic Jacobian F (3 sin/cos pairs)": (per_call(
+            lambda k: _loop_rate_jac(k, phi0, x.copy(), lay, wn, wu), s), False),
         "Phi's 3 rows and Q": (per_call(lambda k: _loop_phi_q(k, F, T, cols, dt, cfg.arw_rad**2), s), False),
         "propagate_sparse (3 rows x 15 columns)": (per_call(lambda k: _loop_propagate(k, P.copy(), cols, phi, q), s),
                                                    True),
-        "RK4's 3 further rates (no Jacobian)": (per_call(lambda k: _loop_rk4(k, phi0, x, lay, wn, wu, dt), s), False),
-        "measurement of §7 + Jacobian": (per_call(lambda k: _loop_meas(k, phi0, x, lay), s), False),
+        "RK4's 3 further rates (no Jacobian; 9 sin/cos pairs)": (per_call(
+            lambda k: _loop_rk4(k, phi0, x.copy(), lay, wn, wu, dt), s), False),
+        "measurement of §7 + Jacobian (3 sin/cos pairs)": (per_call(
+            lambda k: _loop_meas(k, phi0, x.copy(), lay), s), False),
         "accelerometer update (Joseph, 3 rows)": (per_call(lambda k: _loop_update(
             k, x.copy(), P.copy(), hc, nn, Hs, innov_a, r_var[:3]), s), True),
         "angle update (Joseph, 3 rows)": (per_call(lambda k: _loop_update(
@@ -226,15 +236,6 @@ def main(argv=None) -> None:
         print(f"| {name} | {ns:.0f}" + (f" (net {net:.0f})" if restores else "") + f" | {100 * net / whole:.0f} |")
     print(f"| sum of the parts | {total:.0f} | {100 * total / whole:.0f} |")
     print(f"| whole step (run_filter, B = 1, one thread) | {whole:.0f} | 100 |")
-
-
-def rate_k_py(phi0, x, lay, wn, wu):
-    n = x.size
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
-    F = np.zeros((3, n))
-    out = np.empty(3)
-    rate_k(phi0, x, lay, wn, wu, np.zeros(3), out, F, True, C, dC, T, dT, f, eps, deps, greg)
-    return out, F
 
 
 if __name__ == "__main__":

@@ -193,7 +193,8 @@ def multiposition(B: int, repeat: int) -> dict:
                 platcal_s=tp[0] / B, filterpy_s=tf[0], platcal_cpu_s=tp[1] / B, filterpy_cpu_s=tf[1],
                 max_diff_sigma=d, note="a step is flop-bound covariance algebra (two 3-row Joseph updates on the "
                                        "lower triangle, no fused multiply-adds: the numbers stay bit-identical) and "
-                                       "4 rate evaluations with 12 sin/cos; benchmarks/profile_multiposition.py")
+                                       "a scalar model chain (4 rates and the measurement, 15 sin/cos pairs); "
+                                       "benchmarks/profile_multiposition.py")
 
 
 def sled(B: int, repeat: int) -> dict:
@@ -247,9 +248,10 @@ def sled(B: int, repeat: int) -> dict:
     return dict(rig="sled", test=f"85.9 s at 200 Hz, run + stop filters ({J} epochs), mechanisation, compensation",
                 platcal_s=tp[0] / B, filterpy_s=tf[0], platcal_cpu_s=tp[1] / B, filterpy_cpu_s=tf[1],
                 filter_platcal_s=timed_pc.wall / B, filter_filterpy_s=timed_fp.wall,
-                max_diff_sigma=d, note="small linear filters (7 and 6 states): numpy's Phi = I + FT + (FT)^2/2 per "
-                                        "epoch, the 200 Hz mechanisation and the compensation, shared by both sides, "
-                                        "are much of platcal's time")
+                max_diff_sigma=d, note="the run and stop filters (7 and 6 states) are numpy loops over the epochs "
+                                        "batched over replicates (Phi = I + FT + (FT)^2/2 per epoch): filter_ratio; "
+                                        "the 200 Hz mechanisation and the compensation, shared by both sides, add "
+                                        "to platcal's time")
 
 
 def lowprec_centrifuge(B: int, repeat: int) -> dict:
@@ -305,8 +307,8 @@ def lowprec_centrifuge(B: int, repeat: int) -> dict:
     return dict(rig="lowprec_centrifuge", test=f"platform {p} run {r}: {int(fr.n_windows[0])} windows, 14 states",
                 platcal_s=tp[0] / B, filterpy_s=tf[0], platcal_cpu_s=tp[1] / B, filterpy_cpu_s=tf[1],
                 filter_platcal_s=timed_pc.wall / B, filter_filterpy_s=timed_fp.wall, max_diff_sigma=d,
-                note="numpy filter batched over seeds, few windows: the window means at the data rate, "
-                     "shared by both sides, dominate")
+                note="the 14-state window filter is numpy batched over seeds (filter_ratio); the window "
+                     "means at the data rate, shared by both sides, are about half of platcal's time")
 
 
 RIGS = {"centrifuge": centrifuge, "multiposition": multiposition, "sled": sled,

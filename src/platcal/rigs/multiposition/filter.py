@@ -178,7 +178,7 @@ def resid6_k(ctx, x, z, res, hval, hcols, hnnz):
         hnnz[3 + j] = 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # numpy errors: no raise paths, see model.py's kernels
 def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, rec):
     """One pass over K positions for one replicate; x (n,), P (n, n) updated in place.
 
@@ -305,7 +305,7 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     return nis, nup, nlin, nbad
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol,
                nis, nlin, nbad, rec):
     for b in range(lo, hi):

@@ -16,17 +16,22 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-from platcal.estimation.kalman import joseph_update_sparse, propagate_sparse, update_scratch
 from platcal.model.frames import ARCSEC, DEG
 from platcal.rigs.multiposition.config import load_config
-from platcal.rigs.multiposition.filter import _ekf_range, dynamic_cols, run_filter, simulate
+from platcal.rigs.multiposition.filter import _ekf_range, dynamic_cols, run_filter, simulate, transition_rows
 from platcal.rigs.multiposition.model import (layout_index, make_scratch, meas_k, rate, rate_k, rk4_k,
                                               rot_t_into)
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from profile_ekf import _loop_copy, _loop_propagate, _loop_update, per_call  # noqa: E402  (the centrifuge's loops)
 
 
 @njit(cache=True)
@@ -48,21 +53,11 @@ def _loop_rate_jac(steps, phi0, x, lay, wn, wu):
 
 @njit(cache=True)
 def _loop_phi_q(steps, F, T, cols, dt, arw2):
-    m = cols.shape[0]
-    phi = np.empty((3, m))
+    phi = np.empty((3, cols.shape[0]))
     q = np.empty((3, 3))
     acc = 0.0
     for _ in range(steps):
-        for r in range(3):
-            for c in range(m):
-                v = F[r, cols[c]] * dt
-                v += 0.5 * dt * dt * (F[r, 0] * F[0, cols[c]] + F[r, 1] * F[1, cols[c]] + F[r, 2] * F[2, cols[c]])
-                if cols[c] == r:
-                    v += 1.0
-                phi[r, c] = v
-        for r in range(3):
-            for c in range(3):
-                q[r, c] = arw2 * dt * (T[r, 0] * T[c, 0] + T[r, 1] * T[c, 1] + T[r, 2] * T[c, 2])
+        transition_rows(F, T, cols, dt, arw2, phi, q)
         acc += phi[0, 0] + q[0, 0]
     return acc
 
@@ -101,52 +96,6 @@ def _loop_meas(steps, phi0, x, lay):
         meas_k(phi0, x, lay, zp, Hs, hc, nn, C, dC)
         acc += zp[0] + Hs[0, 0]
     return acc
-
-
-@njit(cache=True)
-def _loop_copy(steps, P):
-    Q = P.copy()
-    for _ in range(steps):
-        P[:, :] = Q
-    return P[0, 0]
-
-
-@njit(cache=True)
-def _loop_propagate(steps, P, cols, phi, q):
-    n = P.shape[0]
-    W = np.empty((3, n))
-    blk = np.empty((3, 3))
-    dyn = np.arange(3)
-    Q = P.copy()
-    for _ in range(steps):
-        P[:, :] = Q  # the same numbers every time: no drift, no denormals
-        propagate_sparse(P, dyn, cols, phi, q, W, blk)
-    return P[0, 0]
-
-
-@njit(cache=True)
-def _loop_update(steps, x, P, hcols, hnnz, hval, innov, r_var):
-    n = P.shape[0]
-    U, K, D, S, Sinv, nu = update_scratch(3, n)
-    Q = P.copy()
-    x0 = x.copy()
-    for _ in range(steps):
-        P[:, :] = Q
-        x[:] = x0
-        joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu, True)
-    return P[0, 0]
-
-
-def per_call(fn, steps: int, repeat: int = 5) -> float:
-    """Smallest CPU time of this thread per call over ``repeat`` runs of ``steps`` calls, ns
-    (CPU time, not wall: on a shared machine other processes' share of the core does not count)."""
-    fn(10)
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.thread_time()
-        fn(steps)
-        best = min(best, time.thread_time() - t0)
-    return best / steps * 1e9
 
 
 def whole_step(cfg, s8, t, Z, repeat: int = 5) -> float:
@@ -193,12 +142,8 @@ def main(argv=None) -> None:
     _, F = rate(phi0, x, cfg.site)
     C, dC, T, dT, *_ = make_scratch(n)
     rot_t_into(phi0[0] + x[0], phi0[1] + x[1], phi0[2] + x[2], C, dC, T, dT, False)
-    m = cols.size
-    phi = np.empty((3, m))
-    for r in range(3):
-        for c in range(m):
-            phi[r, c] = F[r, cols[c]] * dt + 0.5 * dt * dt * (F[r, :3] @ F[:3, cols[c]]) + (cols[c] == r)
-    q = cfg.arw_rad**2 * dt * (T @ T.T)
+    phi, q = np.empty((3, cols.size)), np.empty((3, 3))
+    transition_rows(F, T, cols, dt, cfg.arw_rad**2, phi, q)
     zp = np.empty(6)
     Hs = np.empty((3, 10))
     hc = np.empty((3, 10), dtype=np.int64)
@@ -215,8 +160,8 @@ def main(argv=None) -> None:
         "rate of §4 + analytic Jacobian F (3 sin/cos pairs)": (per_call(
             lambda k: _loop_rate_jac(k, phi0, x.copy(), lay, wn, wu), s), False),
         "Phi's 3 rows and Q": (per_call(lambda k: _loop_phi_q(k, F, T, cols, dt, cfg.arw_rad**2), s), False),
-        "propagate_sparse (3 rows x 15 columns)": (per_call(lambda k: _loop_propagate(k, P.copy(), cols, phi, q), s),
-                                                   True),
+        "propagate_sparse (3 rows x 15 columns)": (per_call(
+            lambda k: _loop_propagate(k, P.copy(), np.arange(3), cols, phi, q), s), True),
         "RK4's 3 further rates (no Jacobian; 9 sin/cos pairs)": (per_call(
             lambda k: _loop_rk4(k, phi0, x.copy(), lay, wn, wu, dt), s), False),
         "measurement of §7 + Jacobian (3 sin/cos pairs)": (per_call(

@@ -98,18 +98,6 @@ def _loop_meas(steps, phi0, x, lay):
     return acc
 
 
-def whole_step(cfg, s8, t, Z, repeat: int = 5) -> float:
-    """CPU ns per filter step of ``run_filter`` on one replicate, one thread (best of ``repeat``)."""
-    steps = s8.n_positions * t.size
-    run_filter(cfg, s8.angles_deg, t, Z, passes=1, threads=1)
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.thread_time()
-        run_filter(cfg, s8.angles_deg, t, Z, passes=1, threads=1)
-        best = min(best, time.thread_time() - t0)
-    return best / steps * 1e9
-
-
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=20000)
@@ -117,7 +105,11 @@ def main(argv=None) -> None:
     cfg = load_config({"rig": "multiposition"})
     s8 = cfg.scheme("S8")
     t, _, Z = simulate(cfg, s8, [0])
-    whole = whole_step(cfg, s8, t, Z)
+    # the whole step: run_filter on one replicate, one thread, per filter step (per_call's best
+    # of 5 CPU times of one call, divided by the steps)
+    steps = s8.n_positions * t.size
+    whole = per_call(lambda k: run_filter(cfg, s8.angles_deg, t[:k], Z[:, :, :k], passes=1, threads=1),
+                     t.size) * t.size / steps
     # a realistic point: the coefficients and covariance at the end of a short run, phi and its
     # covariance as after the last position's dwell
     tc, Zc = t[:500], Z[:, :, :500]

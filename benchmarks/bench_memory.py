@@ -8,13 +8,16 @@ the centrifuge (Table 1's 6 positions) and the multi-position rig (S8's 8 positi
 dwell scaled; the sled with its rest after the run (``trajectory.static_after_s``) lengthened, the
 low-precision centrifuge with its rests between spin-ups (``profile.rest_between_s``; run1 of P1
 has two), each from its natural length up (a sled record lasts 86 s, its stop at 26 s; a
-low-precision run 17 min). The centrifuge is measured streamed (``--chunk-rows``, default) and, up to 1 h, read whole
-(``--chunk-rows 0``) for comparison; the other rigs read their records whole. The ``import`` rows
+low-precision run 17 min). The centrifuge and the multi-position rig are measured streamed
+(``--chunk-rows``, default) and, up to 1 h, read whole (``--chunk-rows 0``) for comparison (the
+multi-position rig's simulate has no ``--chunk-rows``: it writes one position at a time in both
+rows); the sled and the low-precision centrifuge read their records whole. The ``import`` rows
 are ``platcal identify --config <rig> --help``: the command's imports and nothing else, the floor
 under every other row.
 
     python benchmarks/bench_memory.py                    # every case, 6 h included (minutes)
     python benchmarks/bench_memory.py --max-minutes 60   # skip the 6-hour cases
+    python benchmarks/bench_memory.py --rigs multiposition --out /tmp/mp   # some rigs only
     python benchmarks/bench_memory.py --imports-only --src /path/to/other/tree/src --out /tmp/imports
                                                          # the floor of another tree (default out:
                                                          # benchmarks/bench_memory_imports)
@@ -81,9 +84,20 @@ LOWPREC_NATURAL_S, LOWPREC_REST_S = 1044.0, 300.0
 spin-ups (``profile.rest_between_s``), s."""
 
 
-def cases(max_minutes: float, folder: Path):
-    """(rig, minutes or None for the natural length, mode, config, simulate options, identify options)."""
-    for rig in ("centrifuge", "multiposition", "sled", "lowprec_centrifuge"):
+RIGS = ("centrifuge", "multiposition", "sled", "lowprec_centrifuge")
+
+
+def cases(max_minutes: float, folder: Path, rigs: tuple[str, ...] = RIGS):
+    """(rig, minutes or None for the natural length, mode, config, simulate options, identify options)
+    of the rigs ``rigs``."""
+    for case in all_cases(max_minutes, folder):
+        if case[0] in rigs:
+            yield case
+
+
+def all_cases(max_minutes: float, folder: Path):
+    """:func:`cases` of every rig."""
+    for rig in RIGS:
         cfg = ROOT / "config" / f"{rig}.yaml"
         yield rig, None, "import", cfg, None, ["--help"]
     yield "sled", None, "whole", ROOT / "config" / "sled.yaml", [], []
@@ -98,7 +112,9 @@ def cases(max_minutes: float, folder: Path):
             yield ("centrifuge", minutes, "whole", cfg, ["--scheme", "table1", "--chunk-rows", "0"],
                    ["--scheme", "table1", "--chunk-rows", "0"])
         cfg = scaled_config("multiposition.yaml", ("schemes", "S8", "dwell_s"), minutes * 60 / 8, folder)
-        yield "multiposition", minutes, "whole", cfg, ["--scheme", "S8"], ["--scheme", "S8"]
+        yield "multiposition", minutes, "streamed", cfg, ["--scheme", "S8"], ["--scheme", "S8"]
+        if minutes <= 60:
+            yield "multiposition", minutes, "whole", cfg, ["--scheme", "S8"], ["--scheme", "S8", "--chunk-rows", "0"]
         if minutes * 60 > SLED_RUN_S + 60:
             cfg = scaled_config("sled.yaml", ("trajectory", "static_after_s"), minutes * 60 - SLED_RUN_S, folder)
             yield "sled", minutes, "whole", cfg, [], []
@@ -165,6 +181,7 @@ def main(argv=None) -> int:
     ap.add_argument("--format", default="csv", choices=("csv", "parquet"), help="record file format")
     ap.add_argument("--out", default=None, help="output stem (default benchmarks/bench_memory, "
                                                 "benchmarks/bench_memory_imports with --imports-only)")
+    ap.add_argument("--rigs", nargs="+", default=list(RIGS), choices=RIGS, help="the rigs to measure (default all)")
     ap.add_argument("--imports-only", action="store_true", help="only the import rows (seconds)")
     ap.add_argument("--from-csv", default=None, help="rewrite the tables from this earlier output's .csv "
                                                      "(no run; the note is kept from its .md)")
@@ -187,8 +204,8 @@ def main(argv=None) -> int:
         folder = Path(tmp)
         base = [sys.executable, "-m", "platcal.cli"]
         if not a.imports_only:
-            warm_up(base, cases(a.max_minutes, folder), folder, env)
-        for rig, minutes, mode, cfg, sim_opts, id_opts in cases(a.max_minutes, folder):
+            warm_up(base, cases(a.max_minutes, folder, tuple(a.rigs)), folder, env)
+        for rig, minutes, mode, cfg, sim_opts, id_opts in cases(a.max_minutes, folder, tuple(a.rigs)):
             if mode == "import":
                 res = run(base + ["identify", "--config", str(cfg), *id_opts], env)
                 rows.append({"rig": rig, "record_min": float("nan"), "mode": mode, "command": "identify --help",

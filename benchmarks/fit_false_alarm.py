@@ -2,7 +2,8 @@
 identified as ``platcal identify`` does; the share whose fit check fails.
 
 Each seed is the record ``platcal simulate --seed N`` writes (the Monte Carlo cell's replicate N)
-kept in memory instead of a file. Prints one line per flagged seed, the largest channel score
+kept in memory instead of a file; the centrifuge's and multiposition rig's clock-rate check
+(after the filter, exit 2 in ``platcal identify``) counts as a flag too. Prints one line per flagged seed, the largest channel score
 (1 = the limit) over the seeds and the rate with its 95 % upper confidence bound.
 
     python benchmarks/fit_false_alarm.py --rig centrifuge|multiposition|sled|lowprec_centrifuge [--seeds 100]
@@ -19,13 +20,25 @@ import time
 import numpy as np
 from scipy import stats as sps
 
+from platcal.errors import InputError
 from platcal.io import read_config
 from platcal.rig import get_rig
 
 
+def refusal(check, *args) -> str | None:
+    """The message of a check run after the filter (the clock-rate check: an InputError, exit 2),
+    None when it passes: a clean record it refuses is a false alarm as well."""
+    try:
+        check(*args)
+    except InputError as exc:
+        return f"refused: {exc}"
+    return None
+
+
 def centrifuge_fits(config: str, seeds: range):
     """The fit check of each seed's record of the default scheme (table1)."""
-    from platcal.rigs.centrifuge.identify import identify_input, record_fit, record_input
+    from platcal.rigs.centrifuge.identify import (check_clock_rate, identify_input, record_clock, record_fit,
+                                                  record_input)
     from platcal.rigs.centrifuge.record import sim_to_frame
     from platcal.rigs.centrifuge.simulate import simulate
     from platcal.study.montecarlo import replicate_seed
@@ -36,13 +49,16 @@ def centrifuge_fits(config: str, seeds: range):
     for n in seeds:
         sim = simulate(study.truth, scheme, params, study.noise,
                        [replicate_seed(study.seed, scheme.name, study.noise.sigma_a_ug, n)], sample_s=study.sample_s)
-        fin = record_input(study, scheme, sim_to_frame(sim, scheme))
-        yield n, record_fit(identify_input(study, scheme, fin), fin, study, scheme)
+        df = sim_to_frame(sim, scheme)
+        fin = record_input(study, scheme, df)
+        est = identify_input(study, scheme, fin)
+        yield n, record_fit(est, fin, study, scheme), refusal(check_clock_rate, study, scheme, est,
+                                                              record_clock(study, df))
 
 
 def multiposition_fits(config: str, seeds: range):
     """The fit check of each seed's record of the study's first scheme (``platcal simulate``'s default)."""
-    from platcal.rigs.multiposition.commands import identify, innovation_buffer, record_fit
+    from platcal.rigs.multiposition.commands import check_clock_rate, identify, innovation_buffer, record_fit
     from platcal.rigs.multiposition.filter import replicate_seeds, simulate
     from platcal.rigs.multiposition.record import read_record, to_frame
 
@@ -54,14 +70,15 @@ def multiposition_fits(config: str, seeds: range):
         to_frame(scheme, t, phi[0], z[0]).to_parquet(path)
         rec, sch = read_record(path, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]))
         buf = innovation_buffer(rec)
-        identify(cfg, rec, None, buf)
-        yield n, record_fit(cfg, sch, rec, buf)
+        est, P, _, _ = identify(cfg, rec, None, buf)
+        yield n, record_fit(cfg, sch, rec, buf), refusal(check_clock_rate, cfg, rec, est, np.sqrt(np.diag(P)))
 
 
 def sled_fits(config: str, seeds: range, batch: int = 10):
     """The fit check of each seed's record of the default case (``platcal simulate --seed N``)."""
     from platcal.rigs.sled.identify import identify, record_fit
     from platcal.rigs.sled.montecarlo import replicate_seeds
+    from platcal.rigs.sled.record import check_plausible
     from platcal.rigs.sled.simulate import simulate
 
     cfg = get_rig("sled").load_config(read_config(config))
@@ -69,8 +86,10 @@ def sled_fits(config: str, seeds: range, batch: int = 10):
         ns = list(range(a, min(a + batch, seeds.stop)))
         sb = simulate(cfg, replicate_seeds(cfg.raw, "default", ns))
         idn = identify(cfg, sb.traj, sb.f, sb.w)
+        t = np.arange(sb.traj.n) * cfg.dt
         for s, n in enumerate(ns):
-            yield n, record_fit(idn, s)
+            # the checks before the filters (exit 2 in platcal identify) count as flags too
+            yield n, record_fit(idn, s), refusal(check_plausible, cfg, sb.traj, sb.f[s], sb.w[s], t)
 
 
 def lowprec_fits(config: str, seeds: range, batch: int = 5):
@@ -94,7 +113,7 @@ def lowprec_fits(config: str, seeds: range, batch: int = 5):
         for s, n in enumerate(ns):
             yield n, record_fit(FilterResult(x=fr.x[s:s + 1], P=fr.P[s:s + 1], n_windows=fr.n_windows[s:s + 1],
                                              mean_nis=fr.mean_nis[s:s + 1], failed_updates=fr.failed_updates[s:s + 1],
-                                             innovations=fr.innovations[s:s + 1]))
+                                             innovations=fr.innovations[s:s + 1])), None
 
 
 RIGS = {"centrifuge": (centrifuge_fits, "config/centrifuge.yaml"),
@@ -112,12 +131,12 @@ def main() -> None:
     fits, default = RIGS[args.rig]
     t0 = time.perf_counter()
     flagged, scores, nis = [], [], []
-    for n, fc in fits(args.config or default, range(args.seeds)):
+    for n, fc, refused in fits(args.config or default, range(args.seeds)):
         scores.append(max(c.score for c in fc.channels))
         nis.append(fc.nis_per_dof)
-        if not fc.passed:
+        if not fc.passed or refused:
             flagged.append(n)
-            print(f"seed {n}: flagged: {fc.message()}", flush=True)
+            print(f"seed {n}: flagged: {refused or fc.message()}", flush=True)
     k, N = len(flagged), args.seeds
     upper = float(sps.beta.ppf(0.95, k + 1, N - k))  # one-sided 95 % Clopper-Pearson
     print(f"{args.rig}: {k} of {N} clean records flagged ({100 * k / N:.1f} %, 95 % upper bound {100 * upper:.1f} %); "

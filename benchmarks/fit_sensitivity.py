@@ -24,10 +24,12 @@ zone* runs from the smallest shifting size to the smallest caught one: the ident
 passes (exit 0) and is wrong by more than 1 sigma. ``passed_shift_max`` is the largest shift,
 in clean sigmas, of any seed that passed at any size evaluated.
 
-    python benchmarks/fit_sensitivity.py [--rig R ...] [--seeds 5] [--out benchmarks/fit_sensitivity]
+    python benchmarks/fit_sensitivity.py [--rig R ...] [--only FAMILY ...] [--seeds 5] [--out benchmarks/fit_sensitivity]
 
 writes ``<out>.csv``/``.md``/``.html`` (one row per rig, corruption and column) and
-``<out>_points.csv``/... (one row per size evaluated) through ``platcal.study.tables``.
+``<out>_points.csv``/... (one row per size evaluated) through ``platcal.study.tables``; with
+``--only`` (scale, unit, sign, jitter, rate) the rows of those families replace theirs in the
+tables already there.
 """
 
 from __future__ import annotations
@@ -303,25 +305,58 @@ def scaled(column: str, factor: float):
     return corrupt
 
 
-def rig_rows(r: Runner, need: int, points: list) -> list[dict]:
-    """Every corruption of one rig (the module docstring's families)."""
+FAMILIES = ("scale", "unit", "sign", "jitter", "rate")
+"""The corruption families (the module docstring's), for ``--only``."""
+
+
+def rig_rows(r: Runner, need: int, points: list, families=FAMILIES) -> list[dict]:
+    """The corruptions of one rig of ``families`` (the module docstring's; default all)."""
     rows = []
     case = r.case
-    for c in case.columns:
+    for c in case.columns if "scale" in families else ():
         rows.append(sweep(r, "scale x(1+e)", c, SCALE_GRID,
                           lambda df, n, e, c=c: df.__setitem__(c, df[c] * (1.0 + e)), need, points))
-    for c in case.columns + ("t",):
+    for c in case.columns + ("t",) if "unit" in families else ():
         for wrong in WRONG_UNITS.get(case.units[c], ()):
             # a value v in the rig's unit reads v / conversion_factor(wrong -> rig's unit) in the wrong one
             factor = 1.0 / conversion_factor(wrong, case.units[c], STANDARD_GRAVITY, c)
             rows.append(fixed(r, f"unit: {wrong} for {case.units[c]}", c, scaled(c, factor), factor, points))
-    for c in case.columns:
+    for c in case.columns if "sign" in families else ():
         rows.append(fixed(r, "sign", c, scaled(c, -1.0), None, points))
-    rows.append(sweep(r, "clock jitter +-a (s)", "t", JITTER_GRID,
-                      lambda df, n, a: df.__setitem__("t", df["t"] + a * r.jitter_draw(n)), need, points))
-    rows.append(sweep(r, "clock rate x(1+e)", "t", RATE_GRID,
-                      lambda df, n, e: df.__setitem__("t", df["t"] * (1.0 + e)), need, points))
+    if "jitter" in families:
+        rows.append(sweep(r, "clock jitter +-a (s)", "t", JITTER_GRID,
+                          lambda df, n, a: df.__setitem__("t", df["t"] + a * r.jitter_draw(n)), need, points))
+    if "rate" in families:
+        rows.append(sweep(r, "clock rate x(1+e)", "t", RATE_GRID,
+                          lambda df, n, e: df.__setitem__("t", df["t"] * (1.0 + e)), need, points))
     return rows
+
+
+def merged(old_csv: Path, new: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    """The table of ``old_csv`` with its rows of each key (``keys``' values) in ``new`` replaced by
+    ``new``'s, where they stood (new keys appended): a re-run of some families updates the full table."""
+    if not old_csv.exists():
+        return new
+    old = pd.read_csv(old_csv)
+    new_keys = [tuple(k) for k in new[keys].to_numpy()]
+    out, placed = [], set()
+    for _, row in old.iterrows():
+        key = tuple(row[keys])
+        if key in new_keys:
+            if key not in placed:
+                out.append(new[[k == key for k in new_keys]])
+                placed.add(key)
+            continue
+        out.append(row.to_frame().T)
+    out += [new[[k == key for k in new_keys]] for key in dict.fromkeys(new_keys) if key not in placed]
+    return pd.concat(out, ignore_index=True)[old.columns.union(new.columns, sort=False)].infer_objects()
+
+
+def old_note(stem: Path) -> str:
+    """The note of an earlier full run (the .md's third line), kept when some rows are re-run."""
+    md = stem.with_suffix(".md")
+    lines = md.read_text().splitlines() if md.exists() else []
+    return lines[2] if len(lines) > 2 else ""
 
 
 FORMATS = {"smallest_caught": ".2g", "smallest_shift_1sigma": ".2g", "passed_shift_max": ".3g", "size": ".4g"}
@@ -334,6 +369,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 of each rig's default test")
     ap.add_argument("--need", type=int, default=None, help="seeds that must exit non-zero (default: ceil(0.8 N))")
     ap.add_argument("--out", default=str(HERE / "fit_sensitivity"), help="table stem (.csv, .md, .html)")
+    ap.add_argument("--only", choices=FAMILIES, action="append",
+                    help="a corruption family (repeat; default: all): its rows replace those of the tables at --out, "
+                         "the rest are kept")
     args = ap.parse_args()
     if args.seeds < 1:
         ap.error("--seeds: must be >= 1")
@@ -343,7 +381,7 @@ def main() -> None:
         t0, c0 = time.perf_counter(), time.process_time()
         with tempfile.TemporaryDirectory(prefix=f"fit_sensitivity_{rig}_") as work:
             r = Runner(rig, cases[rig], args.seeds, Path(work))
-            rows += rig_rows(r, need, points)
+            rows += rig_rows(r, need, points, tuple(args.only or FAMILIES))
         note = (f"{rig}: {r.calls} identifications, {r.cpu:.0f} s CPU in identify, {time.process_time() - c0:.0f} s "
                 f"CPU and {time.perf_counter() - t0:.0f} s wall in all")
         notes.append(note)
@@ -352,11 +390,17 @@ def main() -> None:
             f"{args.seeds} seeds; shift: max |estimate - clean| / clean sigma > 1 (or refused) on as many; "
             "most_shifted: the estimate that moved most there ('-': every seed refused, so the shift itself "
             "was not measured); dangerous zone: from the smallest shift to the smallest caught size; "
-            "passed_shift_max: the largest shift of a seed that exited 0 at any size evaluated. "
-            "Command: python benchmarks/fit_sensitivity.py " + " ".join(sys.argv[1:]) + ". " + "; ".join(notes) + ".")
-    write_table(pd.DataFrame(rows), args.out, "What the fit check catches (issue 25)", note, FORMATS)
-    write_table(pd.DataFrame(points), f"{args.out}_points", "What the fit check catches: every size evaluated",
-                note, FORMATS)
+            "passed_shift_max: the largest shift of a seed that exited 0 at any size evaluated. ")
+    run = "Command: python benchmarks/fit_sensitivity.py " + " ".join(sys.argv[1:]) + ". " + "; ".join(notes) + "."
+    note += run
+    table, every = pd.DataFrame(rows), pd.DataFrame(points)
+    if args.only:  # some rows re-measured: the others (and the note of their run) are kept
+        stem = Path(args.out)
+        note = f"{old_note(stem)} Re-measured rows ({', '.join(args.only)}; {', '.join(args.rig or cases)}): {run}"
+        table = merged(stem.with_suffix(".csv"), table, ["rig", "corruption", "column"])
+        every = merged(Path(f"{args.out}_points.csv"), every, ["rig", "corruption", "column"])
+    write_table(table, args.out, "What the fit check catches (issue 25)", note, FORMATS)
+    write_table(every, f"{args.out}_points", "What the fit check catches: every size evaluated", note, FORMATS)
     print(pd.DataFrame(rows).drop(columns=["message_names"]).to_string(index=False))
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from platcal.cli import build_parser, main
 from platcal.io import read_config
-from platcal.rig import rig_of
+from platcal.rig import get_rig, rig_names, rig_of
 from platcal.sizes import DEFAULT_MAX_HOURS, DEFAULT_MAX_MEMORY_GB, check_sizes
 from platcal.errors import InputError
 from file_snapshot import snapshot
@@ -100,6 +100,7 @@ def _default_commands(rig_name: str, raw: dict):
     if rig_name == "sled":
         yield ["simulate", "--out", "r.csv"]
         yield ["identify", "--data", "r.csv", "--out", "o"]
+        yield ["observability", "--out", "o"]
     if rig_name == "lowprec_centrifuge":
         for p, runs in raw["runs"].items():
             for r in runs:
@@ -119,3 +120,126 @@ def test_default_study_far_below_the_limits(rig_name):
         assert all(s.hours < DEFAULT_MAX_HOURS / 10 for s in sizes), (argv, [s.hours for s in sizes])
         n += 1
     assert n > 0
+
+
+# ---------------------------------------------------------------- the commands sized last (plan, report,
+# the sled's observability) and a Parquet record sized from its footer
+
+CAMPAIGN = ("targets: {gyro: 1, accel: 1000, theta: 100}\n"
+            "rigs: {multiposition: {config: {}, schemes: [S8], dwell_s: [60], max_repeats: 1}}\n"
+            "optimiser: {population: 4, generations: %s}\nmontecarlo: {replicates: 2}\n")
+
+
+def _refused_fast(argv, field, limit, tmp_path, capsys, monkeypatch, files=None, cpu_limit=2.0):
+    """``platcal argv`` in an empty folder (``files``: name -> text written first) exits 2 naming
+    ``field`` and the option ``limit`` to raise, in one line, within ``cpu_limit`` CPU s, writing nothing."""
+    run = tmp_path / "run"
+    run.mkdir()
+    monkeypatch.chdir(run)
+    for name, text in (files or {}).items():
+        (run / name).write_text(text)
+    before = snapshot(run)
+    t0 = time.process_time()
+    code = main(argv)
+    cpu = time.process_time() - t0
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert f"error: {field}" in err and f"raise {limit}" in err, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert cpu < cpu_limit, f"{cpu:.2f} CPU s: the check did work before refusing"
+    assert snapshot(run) == before
+    return err
+
+
+def test_plan_of_a_billion_generations_is_refused_before_the_search(tmp_path, capsys, monkeypatch):
+    # campaign.py (pymoo, matplotlib) imported first: the CPU measured is the command's, not the import's
+    import platcal.study.campaign  # noqa: F401
+    err = _refused_fast(["plan", "--campaign", "camp.yaml", "--out", "out"], "optimiser.generations", "--max-",
+                        tmp_path, capsys, monkeypatch, {"camp.yaml": CAMPAIGN % "1000000000"})
+    assert "population 4 x 1000000000 generations" in err
+
+
+def test_plan_check_past_the_limit_is_refused_before_the_monte_carlo(tmp_path, capsys, monkeypatch):
+    """The check's size is known once the plans are: refused after the (small) search, before the
+    Monte Carlo, nothing written; the field is the option that set the replicates."""
+    import platcal.study.campaign  # noqa: F401
+    _refused_fast(["plan", "--campaign", "camp.yaml", "--out", "out", "--replicates", "100000", "--max-hours", "1"],
+                  "--replicates", "--max-hours", tmp_path, capsys, monkeypatch, {"camp.yaml": CAMPAIGN % "1"},
+                  cpu_limit=30.0)
+
+
+def test_plan_options_are_the_common_limits():
+    args = build_parser().parse_args(["plan", "--campaign", "c.yaml", "--out", "o"])
+    assert args.max_memory_gb == DEFAULT_MAX_MEMORY_GB and args.max_hours == DEFAULT_MAX_HOURS
+
+
+def test_sled_observability_is_sized_by_its_phases(tmp_path, capsys, monkeypatch):
+    phases = ", ".join("{accel_g: 1, duration_s: 1}" for _ in range(50))
+    _refused_fast(["observability", "--config", "c.yaml", "--out", "out", "--max-memory-gb", "1e-4"],
+                  "trajectory.phases", "--max-memory-gb", tmp_path, capsys, monkeypatch,
+                  {"c.yaml": f"rig: sled\ntrajectory: {{phases: [{phases}]}}\n"})
+
+
+@pytest.mark.parametrize("rig_name", [r for r in rig_names() if "report" in get_rig(r).commands])
+def test_report_of_huge_result_tables_is_refused(rig_name, tmp_path, capsys, monkeypatch):
+    """Every rig's report (the centrifuge's today) reads its results folder's tables whole: sized by their bytes."""
+    res = tmp_path / "res"
+    res.mkdir()
+    with open(res / "coef.csv", "wb") as f:
+        f.truncate(10**12)
+    _refused_fast(["report", "--config", "c.yaml", "--results", str(res)], "--results", "--max-", tmp_path, capsys,
+                  monkeypatch, {"c.yaml": f"rig: {rig_name}\n" + (HOUR if rig_name == "centrifuge" else "")})
+
+
+def test_a_parquet_record_is_sized_by_its_footer_not_its_compressed_bytes(tmp_path):
+    """A Parquet file compresses (here a constant record, to almost nothing): its size is rows x
+    columns x the CSV bytes of a value, from the footer alone."""
+    import numpy as np
+    import pandas as pd
+    from platcal.sizes import CSV_BYTES_PER_VALUE, record_bytes, record_size
+
+    rows, cols = 200_000, 11
+    path = tmp_path / "rec.parquet"
+    pd.DataFrame(np.zeros((rows, cols)), columns=[f"c{i}" for i in range(cols)]).to_parquet(path)
+    n, how = record_bytes(path)
+    assert n == rows * cols * CSV_BYTES_PER_VALUE
+    assert n > 100 * path.stat().st_size           # the file's own bytes would underestimate it
+    assert "footer" in how
+    size = record_size(path, 0.5, 1e-8)
+    assert size.samples == n and "bytes of the record as CSV" in size.unit
+    with pytest.raises(InputError) as e:          # the same record past a small limit, named
+        check_sizes([size], limit_gb=size.gigabytes / 2)
+    assert e.value.field == "--data"
+    # a CSV is its own bytes; a file named .parquet that is not one is sized by its bytes (the reader names it)
+    bad = tmp_path / "bad.parquet"
+    bad.write_text("not parquet")
+    assert record_bytes(bad)[0] == bad.stat().st_size
+
+
+def test_default_campaign_far_below_the_limits():
+    """The default campaign's planning (config/campaign.yaml) is sized far below both limits."""
+    from platcal.study.campaign import load_campaign, search_sizes
+
+    sizes = search_sizes(load_campaign("config/campaign.yaml"))
+    check_sizes(sizes, DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
+    assert all(s.hours < DEFAULT_MAX_HOURS / 10 and s.gigabytes < DEFAULT_MAX_MEMORY_GB / 2 for s in sizes), sizes
+
+
+@pytest.mark.parametrize("rig_name", ["centrifuge", "multiposition"])
+def test_a_streamed_identify_is_sized_by_one_position(rig_name):
+    """identify past ``--chunk-rows`` holds one position at a time (issue 22 item 3): hours at each
+    of six positions (3 h at the centrifuge's 5 ms, 10 h at the multi-position rig's 20 ms: 8-10 GB
+    read whole) pass the default memory limit streamed and are refused read whole
+    (``--chunk-rows 0``), naming the dwell."""
+    dwell = {"centrifuge": 10800, "multiposition": 36000}[rig_name]
+    raw = {"rig": rig_name, "schemes": {"s": {"dwell_s": dwell, "positions": [list(map(float, p)) for p in
+                                                                               eval(SIX)]}}}
+    rig = rig_of(raw)
+    cfg = rig.load_config(raw)
+    base = ["identify", "--config", "c.yaml", "--scheme", "s", "--data", "r.csv", "--out", "o"]
+    streamed = build_parser(rig).parse_args(base)
+    check_sizes(rig.sizes("identify", cfg, streamed), DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
+    whole = build_parser(rig).parse_args(base + ["--chunk-rows", "0"])
+    with pytest.raises(InputError) as e:
+        check_sizes(rig.sizes("identify", cfg, whole), DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
+    assert e.value.field == "schemes.s.dwell_s"

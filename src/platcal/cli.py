@@ -22,7 +22,7 @@ from .errors import EXIT_REFUSED, InputError, error_line
 from .io import read_config
 from .logs.calibration import read_calibration
 from .rig import COUNT, SEED, option, resolve, rig_of, whole
-from .sizes import MAX_HOURS, MAX_MEMORY, check_sizes
+from .sizes import MAX_HOURS, MAX_MEMORY, check_sizes, command_sizes
 
 CONFIG_HELP = "study configuration (YAML); its 'rig:' selects the rig"
 COMMANDS = {
@@ -109,7 +109,7 @@ def build_parser(rig=None) -> argparse.ArgumentParser:
             c.add_argument(*opt.flags, **opt.kwargs)
     for command, (help_, options) in GENERIC.items():
         c = sub.add_parser(command, help=help_, description=help_)
-        for opt in options:
+        for opt in options + (MAX_MEMORY, MAX_HOURS):
             c.add_argument(*opt.flags, **opt.kwargs)
     return p
 
@@ -140,8 +140,8 @@ def run(args: argparse.Namespace, raw: dict, rig) -> int:
     if getattr(args, "results", "") is None:
         args.results = f"results/{rig.name}"
     cfg = rig.load_config(raw)
-    if rig.sizes is not None:  # the memory and time the inputs imply, refused before any allocation
-        check_sizes(rig.sizes(args.command, cfg, args), args.max_memory_gb, args.max_hours)
+    # the memory and time the inputs imply, refused before any allocation
+    check_sizes(command_sizes(rig, args.command, cfg, args), args.max_memory_gb, args.max_hours)
     return rig.command(args.command)(cfg, args)
 
 

@@ -26,6 +26,7 @@ import pyarrow.parquet as pq
 from .errors import InputError
 from .io import atomic_files
 from .mapping import RecordMapping
+from .rig import option, whole
 
 PARQUET_MAGIC = b"PAR1"
 """The first (and last) four bytes of every Parquet file."""
@@ -42,6 +43,29 @@ CHUNK_ROWS = 100_000
 centrifuge's 11 columns, so reading, checking and filtering hold a few chunks at most."""
 TRUTH_COLUMNS = ("alpha", "beta", "gamma")
 """The true gimbal angles (deg) of a simulated positioned-platform log."""
+
+
+CHUNK_OPTION = option("--chunk-rows", type=whole(0), default=None,
+                      help=f"rows of the record held at a time (default {CHUNK_ROWS}; 0: the whole record at once)")
+"""``--chunk-rows`` of every rig's ``simulate`` and ``identify`` that stream a record (:func:`chunk_rows_of`)."""
+
+
+def chunk_rows_of(args) -> int:
+    """``--chunk-rows`` of a command's ``args`` (default :data:`CHUNK_ROWS`; 0: the whole record at
+    once); InputError when negative."""
+    n = CHUNK_ROWS if getattr(args, "chunk_rows", None) is None else int(args.chunk_rows)
+    if n < 0:
+        raise InputError("--chunk-rows", f"must be a whole number >= 0 (0: the whole record at once), got {n}")
+    return n
+
+
+def chunks_beyond_one(chunks) -> bool:
+    """Whether the tables ``chunks`` (an :func:`iter_table` of a record) are more than one: the
+    record is then streamed; the generator is closed (the caller reads the record afresh)."""
+    try:
+        return next(chunks, None) is not None and next(chunks, None) is not None
+    finally:
+        chunks.close()
 
 
 def whole_group(columns, group: tuple[str, ...], what: str) -> bool:
@@ -191,6 +215,33 @@ def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     if rows < min_rows:
         raise InputError(field, f"the record has {rows or 'no'} rows; {what} needs at least {min_rows}")
     yield pending
+
+
+def position_blocks(chunks, check: Callable[[pd.DataFrame], None] | None = None) -> Iterator[tuple]:
+    """The blocks of rows of one position in a positioned-platform log (docs/centrifuge-model.md §13,
+    docs/multiposition-1g.md §12) read in ``chunks`` (tables
+    in file order, :func:`iter_table`): ``(df, row0, i0, i1, k, starts)`` for rows ``i0:i1`` of
+    the chunk ``df`` (whose first row is the file's data row ``row0``, 0-based), all at position
+    ``k``; ``starts`` at a position's first block. ``check(df)`` runs on each chunk before its
+    blocks (the rig's checks of a chunk). A streamed log holds each position as one block of rows,
+    positions in increasing order (a logger's order): InputError naming ``--data column
+    position`` and ``--chunk-rows 0`` (read whole, any order) otherwise."""
+    last, row = None, 0
+    for df in chunks:
+        if check is not None:
+            check(df)
+        pos = df["position"].to_numpy(float)
+        cuts = np.r_[0, np.flatnonzero(np.diff(pos)) + 1, pos.size]
+        for i0, i1 in zip(cuts[:-1], cuts[1:]):
+            k = int(pos[i0])
+            starts = k != last
+            if starts and last is not None and k <= last:
+                raise InputError("--data column position", f"position {k} follows position {last} at "
+                                 f"row {row + i0 + 2}: a record read in chunks holds each position as one block, "
+                                 "in increasing order; sort it so, or read it whole with --chunk-rows 0")
+            last = k
+            yield df, row, int(i0), int(i1), k, starts
+        row += len(df)
 
 
 def _checked(df: pd.DataFrame, required: tuple[str, ...], optional: tuple[str, ...], text: tuple[str, ...],

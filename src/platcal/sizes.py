@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+
+import pyarrow.parquet as pq
 
 from .errors import InputError
 from .rig import option, real
@@ -45,6 +47,13 @@ MAX_HOURS = option(MAX_HOURS_OPTION, type=real(above=0, unit="h"), default=DEFAU
 """The time-limit option, common to every command of every rig (:mod:`platcal.cli`)."""
 BYTES_PER_VALUE = 8
 """float64."""
+CSV_BYTES_PER_VALUE = 14.5
+"""Bytes a value takes in a CSV record written by :func:`platcal.records.write_record` (full
+precision, the commas and line ends): 12.7 (centrifuge, 72000 rows x 11 columns) and 14.4
+(multiposition, 24008 x 14), measured on seed 0 of each default test
+(benchmarks/size_estimate_more.py); the larger, rounded up. The
+per-byte costs were measured on such CSV files, so a Parquet record is sized by the CSV it would be
+(:func:`record_bytes`): its own file is about 2.2x smaller (5.7 and 6.4 bytes a value, compressed)."""
 
 
 @dataclass(frozen=True)
@@ -73,6 +82,13 @@ class Size:
     def hours(self) -> float:
         runs = self.replicates if self.runs is None else self.runs
         return float(self.samples) * float(runs) * self.seconds_per_sample / 3600.0
+
+
+def one_at_a_time(size: Size, parts: int) -> Size:
+    """``size`` of a record streamed one of its ``parts`` (positions) at a time: the memory of one
+    part (``size.samples / parts``) held, the time of all of them (``parts`` runs of one)."""
+    return replace(size, samples=size.samples / parts, replicates=1, runs=parts,
+                   what=f"{size.what}, streamed: one of {parts} positions held at a time")
 
 
 def samples_in(seconds: float, period_s: float) -> float:
@@ -125,16 +141,66 @@ def check_sizes(sizes: list[Size], limit_gb: float, limit_hours: float = DEFAULT
             runs = s.replicates if s.runs is None else s.runs
             reps = f" x {runs:.3g} runs" if runs != 1 else ""
             raise InputError(s.field, f"{what}{s.samples:.3g} {s.unit}{reps} x {s.seconds_per_sample:.3g} CPU s per "
-                             f"{unit} (measured on the project's 2-core machine by benchmarks/size_estimate.py) = "
+                             f"{unit} (measured on the project's 2-core machine; platcal.sizes says where) = "
                              f"{hours:.3g} h, more than {MAX_HOURS_OPTION} {limit_hours:g}; make {s.field} smaller "
                              f"or raise {MAX_HOURS_OPTION}")
 
 
+def record_bytes(path) -> tuple[float, str]:
+    """The bytes of ``path`` as the CSV record the per-byte costs were measured on, and how they
+    were found: a Parquet file (named ``.parquet`` and with a readable footer) from its footer
+    alone, rows x columns x :data:`CSV_BYTES_PER_VALUE` (no data page is read: a compressed file
+    is not underestimated by its compression ratio); any other file by its size."""
+    n = file_bytes(path)
+    if str(path).lower().endswith(".parquet") and n > 0:
+        try:
+            meta = pq.ParquetFile(path).metadata
+        except (OSError, ValueError, TypeError):  # not a Parquet file: the reader names it itself
+            return n, f"{n:.3g} bytes"
+        values = float(meta.num_rows) * float(meta.num_columns)
+        return values * CSV_BYTES_PER_VALUE, (f"{meta.num_rows:.3g} rows x {meta.num_columns} columns (its Parquet "
+                                              f"footer) x {CSV_BYTES_PER_VALUE:g} bytes a value in CSV")
+    return n, f"{n:.3g} bytes"
+
+
 def record_size(path, values_per_byte: float, seconds_per_byte: float, field: str = "--data") -> Size:
     """The work of a command that reads a whole record file (inspect, compensate, an identification
-    sized by its record): the file's bytes x the values held and CPU seconds per byte (measured by
-    ``benchmarks/size_estimate.py`` on a CSV record; a Parquet file is smaller per sample, so it is
-    underestimated by its compression ratio, about 2 here)."""
-    n = file_bytes(path)
-    return Size(field, n, values_per_byte, 1, f"the record {path}, {n:.3g} bytes", seconds_per_byte,
-                unit="bytes of the record")
+    sized by its record): the record's bytes as CSV (:func:`record_bytes`) x the values held and
+    CPU seconds per byte (measured by ``benchmarks/size_estimate.py`` on a CSV record)."""
+    n, how = record_bytes(path)
+    return Size(field, n, values_per_byte, 1, f"the record {path}, {how}", seconds_per_byte,
+                unit="bytes of the record as CSV")
+
+
+REPORT_PER_BYTE = (0.5, 3e-8)
+"""(float64 values held, CPU s) per byte of the result tables a ``report`` reads: the largest of
+the rigs' ``inspect`` costs (a table read whole, the centrifuge's: 2.8 B and 1.2e-8 s a byte
+measured, rounded up), not measured on a report itself (the default study's results are not
+kept in the repository); the figures' fixed cost is not counted."""
+RESULT_TABLES = (".csv", ".parquet", ".json")
+"""The files of a results folder a report reads (its tables and summaries)."""
+
+
+def results_size(folder, field: str = "--results") -> Size:
+    """The work of a ``report`` of ``folder`` (every rig's: it reads the study's result tables
+    whole): the bytes of its tables (:data:`RESULT_TABLES`, every subfolder; a Parquet table as
+    the CSV it would be, :func:`record_bytes`) x :data:`REPORT_PER_BYTE`. A folder that does not
+    exist counts 0 (the report names it itself)."""
+    root = os.fspath(folder)
+    n, files = 0.0, 0
+    for base, _, names in os.walk(root):
+        for name in names:
+            if name.lower().endswith(RESULT_TABLES):
+                n += record_bytes(os.path.join(base, name))[0]
+                files += 1
+    return Size(field, n, REPORT_PER_BYTE[0], 1, f"{files} result table(s) under {root}, {n:.3g} bytes as CSV",
+                REPORT_PER_BYTE[1], unit="bytes of result tables")
+
+
+def command_sizes(rig, command: str, cfg, args) -> list[Size]:
+    """Every size of a rig's command: the rig's own (``Rig.sizes``) and those of the commands
+    every rig shares (``report``: :func:`results_size` of ``--results``)."""
+    sizes = list(rig.sizes(command, cfg, args)) if rig.sizes is not None else []
+    if command == "report":
+        sizes.append(results_size(args.results))
+    return sizes

@@ -50,6 +50,7 @@ from ..io import atomic_to_csv, atomic_write_text, check_writable, read_config
 from ..model.platform import PlatformModel, default_platform
 from ..rig import Rig, get_rig, rig_config
 from ..schema import load_schema, validate
+from ..sizes import DEFAULT_MAX_HOURS, DEFAULT_MAX_MEMORY_GB, Size, check_sizes
 from .montecarlo import chunks, replicate_seed
 from .plots import save, styled
 from .tables import frame_markdown, write_table
@@ -731,6 +732,55 @@ def write_plan(plan: Plan, out_dir, checks: dict[str, Check] | None = None) -> p
     return coefs
 
 
+# ------------------------------------------------------------------ sizes (issue 25 item 3)
+
+# Measured by benchmarks/size_estimate_more.py on the default campaign (load 7-8 on 2 cores),
+# each rounded up about 2x for the load's noise; numba's first compile (about 45 s of the rigs'
+# information hooks on a cold cache) is a fixed cost, not counted, as platcal.sizes says.
+INFORMATION_SECONDS_PER_TEST_SECOND = 2e-4
+"""CPU s the rigs' information hooks take per candidate test-second (positions x dwell_s): 0.7 s
+for the default campaign's 12 candidates, 9240 test-seconds, 7.6e-5. Their memory is not counted
+(each hook runs one test at a time)."""
+SEARCH_SECONDS_PER_PLAN = 1e-3
+"""CPU s per plan the search evaluates (pymoo and :func:`planned_sigma`): 5.4e-4 and 6.4e-4
+(population 20 x 5 generations), 1.1e-4 .. 3.3e-4 for :func:`planned_sigma` alone on 500 and
+4000 plans."""
+SEARCH_VALUES_PER_PLAN = 18000
+"""float64 values held per archived plan when a search's archive is judged at once
+(:func:`planned_sigma`: the (n, n) information and the rigs' blocks): the peak grows by 9100 and
+9700 values a plan between 500 and 4000 plans (45 coefficients)."""
+CHECK_SECONDS_PER_TEST_SECOND = 6e-4
+"""CPU s the Monte Carlo check takes per replicate test-second (replicates x positions x dwell_s
+of the plan's tests): 2.3e-4 .. 3.1e-4 on 10 and 30 replicates of a 2-test plan (1680 test-seconds)."""
+
+
+def search_sizes(campaign: Campaign) -> list[Size]:
+    """The work of planning ``campaign`` before its Monte Carlo check (:mod:`platcal.sizes`): the
+    candidates' information (every rig's schemes x dwells, positions x dwell_s test-seconds, the
+    rig with the most named) and the searches (the plan's and one per rig: population x
+    generations plans each, one search's archive held at once)."""
+    per_rig = {o.name: sum(o.rig.campaign.positions(o.cfg, s) * d for s in o.schemes for d in o.dwells)
+               for o in campaign.rigs}
+    most = max(per_rig, key=per_rig.get)
+    opt = campaign.optimiser
+    plans = float(opt["population"]) * float(opt["generations"])
+    searches = 1 + len(campaign.rigs)
+    return [Size(f"rigs.{most}.dwell_s", sum(per_rig.values()), 0, 1,
+                 f"the candidate tests' information, {len(per_rig)} rig(s)' schemes x dwells",
+                 INFORMATION_SECONDS_PER_TEST_SECOND, unit="candidate test-seconds"),
+            Size("optimiser.generations", plans, SEARCH_VALUES_PER_PLAN, 1,
+                 f"population {opt['population']} x {opt['generations']} generations, {searches} searches",
+                 SEARCH_SECONDS_PER_PLAN, runs=searches, unit="plans")]
+
+
+def check_size(cands: Candidates, sequences: dict[str, list[int]], replicates: int, field: str) -> Size:
+    """The Monte Carlo check's work (:mod:`platcal.sizes`): ``replicates`` x the test-seconds
+    (positions x dwell_s) of every plan checked (``sequences``, name -> tests in order)."""
+    test_s = sum(cands.tests[j].positions * cands.tests[j].dwell_s for seq in sequences.values() for j in seq)
+    return Size(field, test_s, 0, 1, f"{len(sequences)} plan(s) of {test_s:g} test-seconds",
+                CHECK_SECONDS_PER_TEST_SECOND, runs=replicates, unit="test-seconds")
+
+
 def campaign_content(source) -> dict:
     """The campaign (a file path or a mapping) with each rig's config read in (a path becomes
     the mapping): everything its numbers depend on, as a workflow rule's param."""
@@ -741,30 +791,37 @@ def campaign_content(source) -> dict:
     return raw
 
 
-def run_campaign(source, out_dir, replicates: int | None = None) -> tuple[Plan, dict[str, Check]]:
+def run_campaign(source, out_dir, replicates: int | None = None, max_memory_gb: float = DEFAULT_MAX_MEMORY_GB,
+                 max_hours: float = DEFAULT_MAX_HOURS) -> tuple[Plan, dict[str, Check]]:
     """Validate the campaign (InputError naming the field, before any work), plan it, check the
     plan by Monte Carlo (``replicates``; None: the campaign's, 0: none), and its alternatives too
-    with ``montecarlo.alternatives``, and write the outputs."""
+    with ``montecarlo.alternatives``, and write the outputs. The planning's memory and time
+    (:func:`search_sizes`) are checked against ``max_memory_gb`` and ``max_hours`` before it
+    starts, the Monte Carlo check's (:func:`check_size`) once the plans are known, before it
+    runs; nothing is written when either is refused."""
     check_writable(out_dir, "--out", folder=True)
     if replicates is not None and replicates < 0:
         raise InputError("--replicates", "must be >= 0 (0: no Monte Carlo check)")
     camp = load_campaign(source)
     n = int(camp.montecarlo["replicates"] if replicates is None else replicates)
+    check_sizes(search_sizes(camp), max_memory_gb, max_hours)
     plan = make_plan(camp)
     checks = {}
     names = list(plan.options) if camp.montecarlo["alternatives"] else ["plan"]
-    for name in names if n > 0 else []:
-        seq = plan_sequence(camp, plan.cands, plan.options[name])
-        if seq:
-            checks[name] = check_plan(camp, plan.cands, seq, n, label="plan" if name == "plan" else name)
+    sequences = {name: plan_sequence(camp, plan.cands, plan.options[name]) for name in (names if n > 0 else [])}
+    sequences = {name: seq for name, seq in sequences.items() if seq}
+    field = "montecarlo.replicates" if replicates is None else "--replicates"
+    check_sizes([check_size(plan.cands, sequences, n, field)], max_memory_gb, max_hours)
+    for name, seq in sequences.items():
+        checks[name] = check_plan(camp, plan.cands, seq, n, label="plan" if name == "plan" else name)
     write_plan(plan, out_dir, checks)
     return plan, checks
 
 
 def plan_command(args) -> int:
-    """``platcal plan --campaign FILE --out DIR [--replicates N]``: validate (exit 2 naming the
-    field, before any work), plan, write the outputs."""
-    plan, checks = run_campaign(args.campaign, args.out, args.replicates)
+    """``platcal plan --campaign FILE --out DIR [--replicates N] [--max-memory-gb G] [--max-hours H]``:
+    validate and size (exit 2 naming the field, before any work), plan, write the outputs."""
+    plan, checks = run_campaign(args.campaign, args.out, args.replicates, args.max_memory_gb, args.max_hours)
     for name, check in checks.items():
         print(f"Monte Carlo of {name} ({check.replicates} replicates): mean NEES {check.nees.mean():.4g} (dof "
               f"{plan.cands.n_coef}); coefficients meeting their target "

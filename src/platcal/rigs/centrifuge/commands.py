@@ -24,17 +24,17 @@ from ...logs.dwells import lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
-from ...sizes import Costs, Size, samples_in
+from ...sizes import Costs, Size, one_at_a_time, samples_in
 from ...study.montecarlo import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS
-from .identify import (calibration, clock_finding, consistency_warning, continuous_input, identify_input,
-                       identify_streamed, record_fit, record_input, run_problems, streamable, timed, truth_known,
-                       write_identification)
+from .identify import (calibration, check_clock_rate, clock_finding, consistency_warning, continuous_input,
+                       identify_input, identify_streamed, record_clock, record_fit, record_input, run_problems,
+                       streamable, timed, truth_known, write_identification)
 from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, LOG_COLUMNS, OPTIONAL_COLUMNS, UNITS,
                      FilterInput, chunk_to_frame, compensate_frame, full_coefficients, read_record)
-from ...records import CHUNK_ROWS, iter_table, record_writer
+from ...records import CHUNK_OPTION, chunk_rows_of, iter_table, record_writer
 from .simulate import simulate_chunks
 from .study import CentrifugeMonteCarlo
 
@@ -54,7 +54,7 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
     # can be written out and identified on its own
     seeds = None if args.noise_free else [replicate_seed(study.seed, scheme.name, study.noise.sigma_a_ug, replicate)]
     t0 = time.perf_counter()
-    chunk_rows = _chunk_rows(args)
+    chunk_rows = chunk_rows_of(args)
     # written chunk by chunk (same numbers, same CSV text as the whole record), so a long test
     # does not need its record in memory
     with record_writer(args.out) as write:
@@ -65,14 +65,6 @@ def simulate_command(study: Study, args: argparse.Namespace) -> int:
           f"{'noise-free' if seeds is None else f'replicate {replicate} of the cell (seed {study.seed})'}"
           f" -> {args.out} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
     return 0
-
-
-def _chunk_rows(args: argparse.Namespace) -> int:
-    """``--chunk-rows`` (0: the whole record at once); InputError when negative."""
-    n = CHUNK_ROWS if args.chunk_rows is None else int(args.chunk_rows)
-    if n < 0:
-        raise InputError("--chunk-rows", f"must be a whole number >= 0 (0: the whole record at once), got {n}")
-    return n
 
 
 def with_estimator(study: Study, name: str | None) -> Study:
@@ -102,7 +94,7 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     scheme = scheme_option(study, args)
     check_writable(args.out, "--out", folder=True)
     mapping = RecordMapping.from_config(study.config["record"], g=study.centrifuge.g)
-    chunk_rows = _chunk_rows(args)
+    chunk_rows = chunk_rows_of(args)
 
     def read_chunks():
         return iter_table(args.data, LOG_COLUMNS, OPTIONAL_COLUMNS, mapping=mapping, units=UNITS,
@@ -135,12 +127,13 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
     if failed_run_status(run_problems(est), "the filter run", args.data, args.out,
                          "the record's units (Ax, Ay, Az in g) and the config's noise and filter settings"):
         return EXIT_RUN_FAILED
+    clock = check_clock_rate(study, scheme, est, scan.clock if streamed else record_clock(study, df))
     used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
     if fit is None:
         fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
     summary = write_identification(args.out, est, study, known and not args.no_truth, seconds,
                                    samples_used=used, calibration=calibration(est, study, args.data), fit=fit,
-                                   segmentation=segmentation)
+                                   segmentation=segmentation, clock=clock)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if segmentation is not None:
@@ -210,7 +203,11 @@ def sizes(command: str, study: Study, args: argparse.Namespace) -> list[Size]:
     if command in COSTS.per_byte:
         return COSTS.record(command, args.data)
     if command in ("simulate", "identify") and args.scheme:
-        return [_scheme_size(study, resolve_scheme(args.scheme, study.schemes), command)]
+        scheme = resolve_scheme(args.scheme, study.schemes)
+        size = _scheme_size(study, scheme, command)
+        # an identify past --chunk-rows streams the record one position at a time (identify_command)
+        streams = command == "identify" and chunk_rows_of(args) and streamable(study.filter)
+        return [one_at_a_time(size, scheme.n_positions) if streams else size]
     if command == "observability" and args.scheme:
         scheme = resolve_scheme(args.scheme, study.schemes)
         out = [_scheme_size(study, scheme, "simulate")]
@@ -241,8 +238,7 @@ here, those of the study (observability, design, Monte Carlo cell, report: pymoo
 in :mod:`.study_commands`, imported only when one of them is chosen."""
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config (e.g. table1, classical) or a scheme YAML file")
-CHUNK = option("--chunk-rows", type=whole(0), default=None,
-               help=f"rows of the record held at a time (default {CHUNK_ROWS}; 0: the whole record at once)")
+CHUNK = CHUNK_OPTION
 OPTIONS = {
     "simulate": (SCHEME, CHUNK),
     "identify": (SCHEME, CHUNK, option("--estimator", default=None,

@@ -14,7 +14,9 @@ from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_error
 from ...io import atomic_files, json_text
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files
 from ...logs.dwells import DWELL_FIGURE, dwells_found
-from ...plausibility import refuse_recognised, refuse_recognised_moments, timestamp_jitter
+from ...model.instruments import unit_of
+from ...plausibility import (ClockRate, clock_rate, clock_rate_tolerance, refuse_clock_rate, refuse_recognised,
+                             refuse_recognised_moments, segment_rate, timestamp_jitter)
 from ...records import CHUNK_ROWS
 from ...rig import resolve
 from .catalogue import load_catalogue
@@ -25,8 +27,7 @@ from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UN
                      check_every_position, check_position, check_position_numbers, check_record, continuous_record,
                      filter_input, has_truth_columns, select_instants)
 from ...mapping import RecordMapping
-from ...records import read_table
-from ...errors import InputError
+from ...records import position_blocks, read_table
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
 from .tables import covariance_frame, estimates_frame, table2_markdown
@@ -105,6 +106,48 @@ def clock_text(study: Study, scheme: Scheme, jit: float) -> str | None:
             f"the force by rate x jitter x g-level, so stamps that are not the true sample times must err by less than "
             f"{tol * 1e6:.3g} us ({JITTER_SHARE:g} sigma_a, docs/centrifuge-model.md §13): use the recorder's sample "
             "clock (or the table's encoder angle), not the host's")
+
+
+def record_clock(study: Study, df: pd.DataFrame) -> ClockRate:
+    """The record's clock-rate error against ``sampling.sample_ms`` (:func:`platcal.plausibility.clock_rate`),
+    from every sample's stamp, position by position (each position's clock may restart)."""
+    pos = df["position"].to_numpy(float)
+    t = df["t"].to_numpy(float)
+    return clock_rate([t[pos == k] for k in sorted({int(p) for p in pos})], study.sample_s)
+
+
+def drift_gain(name: str, force_g: float) -> float:
+    """The largest drift, deg/h, one unit of gyro coefficient ``name`` makes at a specific force of
+    ``force_g`` g (docs/centrifuge-model.md §4): DF 1, DI, DO, DS |f|, DII, DOO, DSS |f|^2, a cross
+    term DIO, DIS, DOS |f|^2 / 2 (the product of two components of |f| at most); 0 for a
+    coefficient that is not a drift."""
+    term = name.rsplit("_", 1)[0]
+    if not unit_of(name).startswith("deg/h"):
+        return 0.0
+    axes = term[1:] if term != "DF" else ""
+    return force_g ** len(axes) * (0.5 if len(set(axes)) == 2 else 1.0)
+
+
+def check_clock_rate(study: Study, scheme: Scheme, est: Estimate, rate: ClockRate) -> dict:
+    """Refuse (exit 2, column t) a record whose clock runs off ``sampling.sample_ms`` by more than
+    the rate error that moves the most sensitive coefficient by 0.3 of its sigma
+    (docs/centrifuge-model.md §13, :func:`platcal.plausibility.clock_rate_tolerance`): a clock
+    1 + e fast turns the model's table e x rate off the real one, an azimuth drift that any drift
+    coefficient c reads as e x rate / gain_c (:func:`drift_gain` at the scheme's largest |f|), and
+    stretches every drift's time by 1 + e. Needs the run's sigmas, so it follows the filter (the
+    outputs are not written). Returns the summary's ``clock`` block when it passes."""
+    nc = est.n_coef
+    names = est.names[:nc]
+    force = float(np.max(expected_g(study, scheme)))
+    per_hour = [unit_of(n).startswith("deg/h") for n in names]
+    gain = [drift_gain(n, force) for n in names]
+    omega_deg_h = abs(study.centrifuge.rate_deg_s) * 3600.0
+    tol, most = clock_rate_tolerance(names, est.coef[0], est.coef_sigma[0], per_hour, omega_deg_h, gain)
+    return refuse_clock_rate(rate, tol, most,
+                             "the record cannot tell a wrong stamp clock from a logger sampling off its "
+                             "declared rate: stamp with the recorder's sample clock (or the table's encoder "
+                             "angle), or, if the stamps are the true sample times, declare the logger's period "
+                             f"sampling.sample_ms = {study.sample_s * 1e3 * (1 + rate.error):.9g}", "docs/centrifuge-model.md §13")
 
 
 def expected_g(study: Study, scheme: Scheme) -> np.ndarray:
@@ -191,6 +234,8 @@ class StreamScan:
     jitter_s: float
     moments: Moments
     cmd_deg: np.ndarray
+    clock: ClockRate
+    """The clock-rate error of every sample's stamp against ``sampling.sample_ms`` (:func:`record_clock`)."""
 
 
 def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
@@ -209,7 +254,7 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     max_gap = float(study.config["record"]["max_gap_s"])
     want = expected_g(study, scheme)
     params = study.centrifuge.scheme_params(scheme)
-    positions, ts, rows, jit = [], [], [], 0.0
+    positions, ts, rows, jit, rates = [], [], [], 0.0, []
     moments = Moments.zero(3)
     truth = None
     held: dict = {"k": None, "t": [], "a": [], "row0": 0}
@@ -223,6 +268,7 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         a = np.concatenate(held["a"])
         check_position(k, t, a, scheme, study.sample_s, max_gap, float(want[k - 1]))
         jit = max(jit, timestamp_jitter(t, study.sample_s))
+        rates.append(segment_rate(t, study.sample_s))
         keep, tk = select_instants(k, t, study.filter.period_s, max_gap, study.filter.update_at_reset)
         tk = tk[keep]
         moments.add(a[keep], nominal_at(study, scheme, params, k, tk))
@@ -231,31 +277,24 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         rows.append(held["row0"] + keep)
         held.update(k=None, t=[], a=[])
 
-    row = 0
-    for df in chunks:
+    def check(df) -> None:
+        nonlocal truth
         if truth is None:
             truth = has_truth_columns(df.columns)
         pos = df["position"].to_numpy(float)
         check_position_numbers(pos, scheme)
         check_commanded(pos, df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float), scheme)
-        t = df["t"].to_numpy(float)
-        a = df[["Ax", "Ay", "Az"]].to_numpy(float)
-        cuts = np.r_[0, np.flatnonzero(np.diff(pos)) + 1, pos.size]
-        for i0, i1 in zip(cuts[:-1], cuts[1:]):
-            k = int(pos[i0])
-            if k != held["k"]:
-                finish()
-                if positions and k <= positions[-1]:
-                    raise InputError("--data column position", f"position {k} follows position {positions[-1]} at "
-                                     f"row {row + i0 + 2}: a record read in chunks holds each position as one block, "
-                                     "in increasing order; sort it so, or read it whole with --chunk-rows 0")
-                held.update(k=k, row0=row + i0)
-            held["t"].append(t[i0:i1])
-            held["a"].append(a[i0:i1])
-        row += len(df)
+
+    for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
+        if starts:
+            finish()
+            held.update(k=k, row0=row0 + i0)
+        held["t"].append(df["t"].to_numpy(float)[i0:i1])
+        held["a"].append(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
     finish()
     check_every_position(positions, scheme)
-    return StreamScan(positions, ts, np.concatenate(rows), bool(truth), jit, moments, cmd[np.array(positions) - 1])
+    return StreamScan(positions, ts, np.concatenate(rows), bool(truth), jit, moments, cmd[np.array(positions) - 1],
+                      ClockRate.combine(rates))
 
 
 def nominal_at(study: Study, scheme: Scheme, params: np.ndarray, k: int, tk: np.ndarray,
@@ -362,7 +401,7 @@ def consistency_warning(summary: dict) -> str | None:
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
                          seconds: float | None = None, samples_used: dict[int, int] | None = None,
                          calibration: Calibration | None = None, fit: FitCheck | None = None,
-                         segmentation: tuple | None = None) -> dict:
+                         segmentation: tuple | None = None, clock: dict | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
@@ -373,7 +412,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     ``fit`` (:func:`record_fit`) as its ``fit`` block (``verdict: not available`` when None).
     With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`);
     with ``segmentation`` (a continuous log's ``(t, |A|, dwells)``, :func:`continuous_input`) the
-    summary's ``dwells_found`` and ``dwells.png``, the log's ``|A|`` with the dwells shaded.
+    summary's ``dwells_found`` and ``dwells.png``, the log's ``|A|`` with the dwells shaded; with
+    ``clock`` (:func:`check_clock_rate`) the summary's ``clock`` block.
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
@@ -387,6 +427,8 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         summary["seconds"] = seconds
     if segmentation is not None:
         summary["dwells_found"] = dwells_found(segmentation[0], segmentation[2])
+    if clock is not None:
+        summary["clock"] = clock
     summary["fit"] = fit.as_dict() if fit is not None else {
         "verdict": "not available", "reason": f"estimator {study.filter.estimator!r} keeps no innovations"}
     if truth is not None:

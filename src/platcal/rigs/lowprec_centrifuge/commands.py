@@ -17,7 +17,8 @@ import numpy as np
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
-from ...rig import option
+from ...rig import option, whole
+from ...records import CHUNK_ROWS, chunk_rows_of
 from ...io import atomic_files, check_writable, json_text
 from ...study.montecarlo import replicate_seed
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
@@ -71,7 +72,7 @@ def identify(study: Study, args) -> int:
     check_writable(args.out, "--out", folder=True)
     max_gap = float(study.raw["record"]["max_gap_s"])
     rec = read_record(args.data, use_truth=not args.no_truth, rate_hz=study.rate_hz, max_gap_s=max_gap,
-                      mapping=RecordMapping.from_config(study.raw["record"], g=G0))
+                      mapping=RecordMapping.from_config(study.raw["record"], g=G0), window=chunk_rows_of(args))
     found = check_against_config(rec, study, method, max_gap)
     arm = study.centrifuge.arm_m
     check_plausible(rec, arm)
@@ -190,6 +191,9 @@ def sizes(command: str, study: Study, args) -> list[Size]:
 OPTIONS = {
     "simulate": (option("--platform", default=None, help="platform name of the config (required)"),
                  option("--run", default=None, help="run name of the platform, or traditional (required)")),
-    "identify": (option("--method", default=None, help="proposed (default) or traditional"),),
+    "identify": (option("--method", default=None, help="proposed (default) or traditional"),
+                 option("--chunk-rows", type=whole(0), default=None,
+                        help=f"samples of the velocity's spline evaluated at a time (default {CHUNK_ROWS}; 0: all "
+                             "at once); the record itself is read whole")),
 }
 """The rig's own options (``--seed`` of simulate: seed N of the study)."""

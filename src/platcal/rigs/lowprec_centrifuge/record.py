@@ -24,7 +24,7 @@ from ...errors import InputError
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
 from ... import records
-from ...records import check_times, read_table
+from ...records import CHUNK_ROWS, check_times, iter_table
 from .config import COEFFS, G0
 from .profile import HOLD, SCHEDULE_NAMES, SPINNING, STATIC
 from .proposed import cumtrap
@@ -57,6 +57,7 @@ class Record:
     schedule: np.ndarray   # (N,) int8
     truth: dict | None
     f_recorded: bool = True  # False: f differentiated from v (no fE, fN columns)
+    window: int = CHUNK_ROWS  # samples of the velocity's spline evaluated at a time (:func:`velocity_derivative`)
 
 
 def check_out_path(path, field: str = "--out") -> Path:
@@ -102,8 +103,8 @@ def write_record(df: pd.DataFrame, meta: dict, path) -> None:
 
 
 def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s: float = 0.05,
-                mapping: RecordMapping | None = None) -> Record:
-    """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.read_table`);
+                mapping: RecordMapping | None = None, window: int = CHUNK_ROWS) -> Record:
+    """Read and check a record (UTF-8 CSV or Parquet, :func:`platcal.records.iter_table`);
     InputError naming the column (and row) of the first problem.
 
     Times as recorded (docs/lowprec-centrifuge.md §12, "Recorded times"): ``t`` must increase,
@@ -111,43 +112,86 @@ def read_record(path, use_truth: bool = True, rate_hz: float = 100.0, max_gap_s:
     and no gap exceed ``max_gap_s`` (``record.max_gap_s``); jitter and a constant offset are kept
     (the windows, their integrals and the plateau spans all use the record's own times). A log in
     other columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
+    ``window`` (``--chunk-rows``): rows read at a time, and samples of the velocity's spline
+    evaluated at a time (:func:`velocity_derivative`); 0: all at once.
     """
-    df = read_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
-                    text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping, units=UNITS,
-                    positions=POSITIONS)
-    p = Path(path)
-    t = df["t"].to_numpy(float)
+    # read in chunks of ``window`` rows, each kept as the arrays the identification uses (65 bytes
+    # a sample: the table's other columns, the truth's and the schedule's text, are not held)
+    cols = {c: [] for c in ("t", "VE", "VN", "pE", "pN", "heading_deg", "fE", "fN")}
+    codes, bad, has_f, row = [], None, None, 0
+    for df in iter_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
+                         text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping,
+                         units=UNITS, positions=POSITIONS, chunk_rows=window or None):
+        if has_f is None:
+            has_f = ("fE" in df.columns, "fN" in df.columns)
+        for c, parts in cols.items():
+            if c in df.columns:
+                parts.append(df[c].to_numpy(float))
+        sched_s = df["schedule"].astype(str)
+        code = sched_s.map(SCHEDULE_CODES)
+        if bad is None and code.isna().any():  # the first unknown schedule, refused after the time checks
+            i = int(np.flatnonzero(code.isna().to_numpy())[0])
+            bad = (row + i, sched_s.iloc[i])
+        codes.append(code.fillna(-1).to_numpy(np.int8))
+        row += len(df)
+    t = np.concatenate(cols["t"])
     check_times(t, 1.0 / rate_hz, max_gap_s, "--data column t", f"profile.rate_hz = {rate_hz:g} Hz, a step of "
                 f"{1.0 / rate_hz:g} s")
-    sched_s = df["schedule"].astype(str)
-    bad = ~sched_s.isin(SCHEDULE_NAMES)
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise InputError(f"--data column schedule, row {i + 2}",
-                         f"{sched_s.iloc[i]!r} is not one of {list(SCHEDULE_NAMES)}")
-    schedule = np.array([SCHEDULE_NAMES.index(s) for s in sched_s], dtype=np.int8)
-    v = df[["VE", "VN"]].to_numpy()
-    if "fE" in df.columns and "fN" in df.columns:
-        f = df[["fE", "fN"]].to_numpy()
-    elif "fE" in df.columns or "fN" in df.columns:
-        raise InputError(f"--data column {'fN' if 'fE' in df.columns else 'fE'}",
+    if bad is not None:
+        raise InputError(f"--data column schedule, row {bad[0] + 2}",
+                         f"{bad[1]!r} is not one of {list(SCHEDULE_NAMES)}")
+    schedule = np.concatenate(codes)
+
+    def pair(a: str, b: str) -> np.ndarray:
+        return np.column_stack([np.concatenate(cols.pop(a)), np.concatenate(cols.pop(b))])
+
+    v = pair("VE", "VN")
+    if all(has_f):
+        f = pair("fE", "fN")
+    elif any(has_f):
+        raise InputError(f"--data column {'fN' if has_f[0] else 'fE'}",
                          "the specific force comes as both fE and fN or not at all")
     else:  # [D] no specific-force columns: differentiate the INS velocity (nav frame, Coriolis neglected)
-        f = velocity_derivative(t, v)
+        f = velocity_derivative(t, v, window or t.size)
     truth = None
     if use_truth:
-        truth = records.read_truth(p)
-    return Record(t=t, v=v, p=df[["pE", "pN"]].to_numpy(), psi=np.radians(df["heading_deg"].to_numpy()), f=f,
-                  schedule=schedule, truth=truth, f_recorded="fE" in df.columns)
+        truth = records.read_truth(Path(path))
+    return Record(t=t, v=v, p=pair("pE", "pN"), psi=np.radians(np.concatenate(cols.pop("heading_deg"))), f=f,
+                  schedule=schedule, truth=truth, f_recorded=all(has_f), window=window or t.size)
 
 
-def velocity_derivative(t: np.ndarray, v: np.ndarray) -> np.ndarray:
+SCHEDULE_CODES = {name: i for i, name in enumerate(SCHEDULE_NAMES)}
+"""A schedule's text -> its code (:data:`.profile.SCHEDULE_NAMES`)."""
+
+
+SPLINE_OVERLAP = 64
+"""Samples a window of :func:`velocity_derivative` reaches beyond the samples it returns, each side:
+a cubic spline's end effects decay by 2 - sqrt(3) = 0.268 per knot, so after 64 knots they are
+0.268^64 = 1e-37 of the signal, far below round-off (measured: 16 knots leave 5e-12 of the
+largest derivative, 32 and more none, bit-identical on P1 run 1 and on 2.16 M jittered samples)."""
+
+
+def velocity_derivative(t: np.ndarray, v: np.ndarray, window: int = CHUNK_ROWS,
+                        overlap: int = SPLINE_OVERLAP) -> np.ndarray:
     """(N, 2) m/s^2: the specific force a record without ``fE, fN`` is identified with, the time
     derivative of its velocity (m/s) at the record's own times t (s): the derivative of the cubic
     spline through the samples. A central difference attenuates the spinning velocity by
     (w dt)^2 / 6 (0.2 % at 40 g on the 3 m arm at 100 Hz, 0.4 % on f^2) and shifted k2_x by
-    +5.7 sigma (P2 run 1); the spline's error is of order (w dt)^4 (docs/lowprec-centrifuge.md §12)."""
-    return CubicSpline(t, v, axis=0).derivative()(t)
+    +5.7 sigma (P2 run 1); the spline's error is of order (w dt)^4 (docs/lowprec-centrifuge.md §12).
+
+    The spline through every sample is evaluated ``window`` samples at a time, each from the spline
+    through those samples and ``overlap`` more on each side (:data:`SPLINE_OVERLAP`), so its
+    memory is one window's, not the record's (a spline over 2.16 M samples, 6 h at 100 Hz, held
+    500 MB); the values are the whole spline's to round-off."""
+    n = t.size
+    if n <= window + 2 * overlap:
+        return CubicSpline(t, v, axis=0).derivative()(t)
+    out = np.empty(v.shape)
+    for a in range(0, n, window):
+        b = min(a + window, n)
+        lo, hi = max(a - overlap, 0), min(b + overlap, n)
+        out[a:b] = CubicSpline(t[lo:hi], v[lo:hi], axis=0).derivative()(t[a:b])
+    return out
 
 
 LEVEL_TOL = 0.05
@@ -236,7 +280,7 @@ def specific_force_scale(rec: Record) -> np.ndarray:
     """(2,) the median ratio of fE (fN) to its velocity derivative (:func:`velocity_derivative`)
     over the samples where that component exceeds half its 99th percentile (spinning, away from
     its zero crossings; a median, so a single bad sample is left to the filter's own checks)."""
-    d = velocity_derivative(rec.t, rec.v)
+    d = velocity_derivative(rec.t, rec.v, rec.window)
     out = np.ones(2)
     for c in range(2):
         big = np.abs(d[:, c]) > 0.5 * np.quantile(np.abs(d[:, c]), 0.99)

@@ -19,22 +19,23 @@ import numpy as np
 import pandas as pd
 
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
-from ...estimation.fit import FitCheck, fit_check, fit_exit_status
+from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, fit_exit_status, gross_errors_moments
 from ...errors import InputError
 from ...rig import option, resolve
 from ...io import atomic_files, check_writable, json_text
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log, gyro_note, read_mapped
-from ...logs.dwells import DWELL_FIGURE, dwells_found
+from ...logs.dwells import DWELL_FIGURE, dwells_found, lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...plausibility import refuse_recognised
-from ...sizes import Costs, Size, samples_in
-from .estimators import estimate, variant_choice
-from .filter import nees, replicate_seeds, simulate
+from ...plausibility import clock_rate_tolerance, refuse_clock_rate, refuse_recognised, refuse_recognised_moments
+from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, chunks_beyond_one, record_writer
+from ...sizes import Costs, Size, one_at_a_time, samples_in
+from .estimators import estimate, estimate_positions, variant_choice
+from .filter import nees, replicate_seeds, simulate_blocks, simulate_positions
 from .model import coef_names, group_of, unit_of
 from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
-                     compensate_frame, read_record, to_frame, write_record)
+                     compensate_frame, outputs, position_frame, read_chunks, read_record, scan_record)
 
 
 
@@ -44,8 +45,12 @@ def cmd_simulate(cfg, args) -> int:
     check_writable(args.out, "--out")
     t0 = time.perf_counter()
     # --seed N is replicate N of the study's cell (this scheme, noise.sigma_a_ug): the same SeedSequence
-    t, phi, z = simulate(cfg, scheme, replicate_seeds(cfg, scheme.name, [replicate]), noise_free=bool(args.noise_free))
-    write_record(to_frame(scheme, t, phi[0], z[0]), args.out)
+    # position by position (the numbers and CSV text of the whole record), so a long test does not
+    # need its record in memory
+    with record_writer(args.out) as write:
+        for k, t, phi, z in simulate_positions(cfg, scheme, replicate_seeds(cfg, scheme.name, [replicate])[0],
+                                               noise_free=bool(args.noise_free)):
+            write(position_frame(scheme, k, t, phi, z))
     what = "noise-free" if args.noise_free else (f"replicate {replicate} of the Monte Carlo cell {scheme.name}, "
                                                  f"sigma_a {cfg.sigma_a_ug:g} ug (root seed {cfg.seed})")
     print(f"platcal simulate: multiposition scheme {scheme.name!r}, {scheme.n_positions} positions x "
@@ -74,9 +79,23 @@ def innovation_buffer(rec) -> np.ndarray:
 def nominal_output(cfg, scheme, rec) -> np.ndarray:
     """(M, 6) ug, arcsec: the noise-free output of the nominal instrument (every coefficient 0)
     at the commanded angles and the record's filter instants (docs/multiposition-1g.md §7)."""
-    tn, _, zn = simulate(cfg, scheme, [0], noise_free=True, truth=np.zeros_like(cfg.truth()))
-    return np.concatenate([zn[0, k, np.clip(np.rint(tk / cfg.ts).astype(int), 0, tn.size - 1)]
+    return np.concatenate([nominal_position(cfg, scheme.angles_deg[k], scheme.dwell_s, tk)
                            for k, tk in enumerate(rec.t)])
+
+
+def nominal_position(cfg, cmd_deg: np.ndarray, dwell_s: float, tk: np.ndarray) -> np.ndarray:
+    """(m, 6) ug, arcsec: :func:`nominal_output` of one position (commanded angles ``cmd_deg`` (3,)
+    deg, the scheme's dwell ``dwell_s`` s) at its instants ``tk`` (s) (docs/multiposition-1g.md §7,
+    §12), from a simulation of that
+    position alone in blocks (:func:`.filter.simulate_blocks`: the simulator restarts each
+    position, so these are the same numbers while one block of samples is held)."""
+    n = int(round(dwell_s / cfg.ts)) + 1
+    idx = np.clip(np.rint(tk / cfg.ts).astype(int), 0, n - 1)
+    out = np.empty((tk.size, 6))
+    for j0, z in simulate_blocks(cfg, cmd_deg, dwell_s, truth=np.zeros_like(cfg.truth()), block=CHUNK_ROWS):
+        sel = (idx >= j0) & (idx < j0 + len(z))
+        out[sel] = z[idx[sel] - j0]
+    return out
 
 
 def check_plausible(cfg, scheme, rec) -> None:
@@ -88,6 +107,26 @@ def check_plausible(cfg, scheme, rec) -> None:
     nominal = nominal_output(cfg, scheme, rec)
     refuse_recognised(z[:, :3] * UG, nominal[:, :3] * UG, FIT_CHANNELS[:3], "g",
                       "Ax, Ay, Az must be the x, y, z accelerometers in g (a static platform reads |f| = 1 g)")
+
+
+def check_clock_rate(cfg, rec, est: np.ndarray, sigma: np.ndarray) -> dict:
+    """Refuse (exit 2, column t) a record whose clock runs off ``sampling.ts_ms`` by more than the
+    rate error that moves the most sensitive coefficient by 0.3 of its sigma
+    (docs/multiposition-1g.md §16, :func:`platcal.plausibility.clock_rate_tolerance`): a clock
+    1 + e fast stretches the time every drift (deg/h) is read over, moving it by e |D|, and the
+    Earth's turn the model integrates over it, an extra drift of up to e x Earth rate on any drift
+    coefficient (the platform is static at 1 g: one unit of a drift coefficient makes at most one
+    deg/h). Needs the run's sigmas, so it follows the filter (the outputs are not written).
+    Returns the summary's ``clock`` block when it passes."""
+    names = coef_names()
+    per_hour = [unit_of(n).startswith("deg/h") for n in names]
+    earth_deg_h = np.degrees(cfg.site.earth_rate) * 3600.0
+    tol, most = clock_rate_tolerance(names, est, sigma, per_hour, earth_deg_h, np.asarray(per_hour, float))
+    return refuse_clock_rate(rec.clock, tol, most,
+                             "the record cannot tell a wrong stamp clock from a logger sampling off its "
+                             "declared rate: stamp with the recorder's sample clock, or, if the stamps are the "
+                             f"true sample times, declare the logger's period sampling.ts_ms = {rec.clock.step_s * 1e3 * (1 + rec.clock.error):.9g} "
+                             "(a record sampled at the filter's period)", "docs/multiposition-1g.md §16")
 
 
 def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
@@ -108,6 +147,63 @@ def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
     return fit_check(innov, rows[:, 6:], FIT_CHANNELS, predicted=z - innov, nominal=nominal, t=t, segment=segment)
 
 
+def identify_streamed(cfg, choice, path, scheme, mapping, max_gap_s: float, rows_at_once: int):
+    """Identify a record read in chunks of ``rows_at_once`` rows (docs/multiposition-1g.md §9, §16):
+    a first read checks it and selects its filter instants (:func:`.record.scan_record`) and sums
+    its accelerometers against the nominal output (the plausibility check, as
+    :func:`check_plausible`); each filter pass reads it again and filters it one position at a
+    time (:func:`.estimators.estimate_positions`), the last pass's innovations going into the fit
+    check's running sums (:class:`~platcal.estimation.fit.FitSums`) and the diagnosis's sums
+    (:class:`~platcal.estimation.fit.Moments`). Memory holds one position, not the record.
+    Estimate and covariance are bit-identical to the whole read's, the mean NIS and the fit's
+    figures equal to rounding; the streamed diagnosis names units, signs and swaps, not a clock
+    (which the whole read finds in the innovations' time derivative). Returns ``(estimate,
+    covariance, mean NIS, skipped updates, scan, fit)``."""
+    plaus = Moments.zero(3)
+
+    def dwell(tk):  # the scheme's, else the position's own (the same nominal numbers: see nominal_position)
+        return scheme.dwell_s if scheme is not None else float(tk[-1])
+
+    def each(k, cmd, tk, a):
+        plaus.add(a, nominal_position(cfg, cmd, dwell(tk), tk)[:, :3] * UG)
+
+    scan = scan_record(read_chunks(path, mapping, rows_at_once), path, scheme, cfg.ts, max_gap_s, each=each)
+    refuse_recognised_moments(plaus, FIT_CHANNELS[:3], "g",
+                              "Ax, Ay, Az must be the x, y, z accelerometers in g (a static platform reads |f| = 1 g)")
+    held: dict = {}
+
+    def source():
+        """Each position's (t, z), read afresh in chunks; the last pass keeps its z for the fit."""
+        k, parts, r0 = 0, [], 0
+        for df in read_chunks(path, mapping, rows_at_once):
+            r1 = r0 + len(df)
+            while k < len(scan.positions):
+                rk = scan.rows[k]
+                i0, i1 = np.searchsorted(rk, r0), np.searchsorted(rk, r1)
+                if i1 > i0:
+                    parts.append(outputs(df, rk[i0:i1] - r0))
+                if i1 < rk.size:  # the position goes on in the next chunk
+                    break
+                held["z"] = np.concatenate(parts)
+                yield scan.t[k], held["z"]
+                k, parts = k + 1, []
+            r0 = r1
+
+    sums, diag = FitSums(6), Moments.zero(6)
+
+    def on_innovations(k, rec):
+        innov, z, tk = rec[:, :6], held["z"], scan.t[k]
+        ok = sums.add(innov, rec[:, 6:], np.full(tk.size, k))
+        nominal = nominal_position(cfg, scan.cmd_deg[k], dwell(tk), tk)
+        # the angle sensors against the filter's own (wrapped) prediction, as record_fit does
+        nominal[:, 3:] = z[:, 3:] - innov[:, 3:]
+        diag.add(z[ok], nominal[ok])
+
+    r = estimate_positions(cfg, choice, scan.cmd_deg, source, on_innovations)
+    fit = sums.check(FIT_CHANNELS, diagnosis=tuple(text for _, text in gross_errors_moments(diag, FIT_CHANNELS)))
+    return r.coef[0], r.cov[0], float(r.mean_nis[0]), int(r.failed_updates[0]), scan, fit
+
+
 def run_problems(est: np.ndarray, P: np.ndarray, nis: float, failed_updates: int = 0) -> list[str]:
     """Why an EKF run cannot be trusted (empty if it can): updates skipped because S was not
     positive definite, non-finite estimates, a covariance that is not finite or not positive
@@ -126,17 +222,35 @@ def cmd_identify(cfg, args) -> int:
     choice = cfg.filter_choice() if args.estimator is None else variant_choice(cfg, args.estimator)
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
-    rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=float(cfg.raw["record"]["max_gap_s"]),
-                              mapping=RecordMapping.from_config(cfg.raw["record"]))
-    check_plausible(cfg, scheme, rec)
-    t0 = time.perf_counter()
-    innovations = innovation_buffer(rec)
-    est, P, nis, failed = identify(cfg, rec, choice, innovations)
-    seconds = time.perf_counter() - t0
+    mapping = RecordMapping.from_config(cfg.raw["record"])
+    max_gap_s = float(cfg.raw["record"]["max_gap_s"])
+    rows_at_once = chunk_rows_of(args)
+    # a record longer than one chunk is streamed (memory does not grow with it); a shorter one, or
+    # a continuous log (no position column: its dwells are found in the whole log), is read whole
+    try:
+        streamed = bool(rows_at_once) and chunks_beyond_one(read_chunks(args.data, mapping, rows_at_once))
+    except InputError as exc:
+        if scheme is None or not lacks_position(exc, mapping):
+            raise
+        streamed = False
+    if streamed:
+        t0 = time.perf_counter()
+        est, P, nis, failed, rec, fit = identify_streamed(cfg, choice, args.data, scheme, mapping, max_gap_s,
+                                                          rows_at_once)
+        scheme = rec.scheme
+        seconds = time.perf_counter() - t0
+    else:
+        rec, scheme = read_record(args.data, scheme, ts=cfg.ts, max_gap_s=max_gap_s, mapping=mapping)
+        check_plausible(cfg, scheme, rec)
+        t0 = time.perf_counter()
+        innovations = innovation_buffer(rec)
+        est, P, nis, failed = identify(cfg, rec, choice, innovations)
+        seconds = time.perf_counter() - t0
     if failed_run_status(run_problems(est, P, nis, failed), "the multiposition EKF run", args.data, args.out,
                          "the record's units (Ax, Ay, Az in g, angles in deg) and the config's noise and filter "
                          "settings"):
         return EXIT_RUN_FAILED
+    clock = check_clock_rate(cfg, rec, est, np.sqrt(np.diag(P)))
     used = rec.samples_used()
     names = coef_names()
     sig = np.sqrt(np.diag(P))
@@ -146,10 +260,12 @@ def cmd_identify(cfg, args) -> int:
                "estimator": choice.estimator, "passes": choice.passes, "estimator_options": choice.options,
                "positions": int(len(rec.t)), "samples": int(sum(used.values())),
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
-               "seconds": seconds}
-    if rec.segmentation is not None:
-        summary["dwells_found"] = dwells_found(rec.segmentation[0], rec.segmentation[2])
-    fit = record_fit(cfg, scheme, rec, innovations)
+               "seconds": seconds, "clock": clock}
+    segmentation = None if streamed else rec.segmentation
+    if segmentation is not None:
+        summary["dwells_found"] = dwells_found(segmentation[0], segmentation[2])
+    if not streamed:
+        fit = record_fit(cfg, scheme, rec, innovations)
     summary["fit"] = fit.as_dict()
     use_truth = rec.has_truth and not args.no_truth
     if use_truth:
@@ -166,8 +282,8 @@ def cmd_identify(cfg, args) -> int:
     with atomic_files(out) as tmp:  # the files land together, summary.json last
         df.to_csv(tmp("estimates.csv"), index=False)
         write_calibration_files(tmp, cal)
-        if rec.segmentation is not None:
-            resolve(DWELL_FIGURE)(*rec.segmentation, tmp("dwells.png"))
+        if segmentation is not None:
+            resolve(DWELL_FIGURE)(*segmentation, tmp("dwells.png"))
         tmp("summary.json").write_text(json_text(summary))
     msg = (f"platcal identify: multiposition 27-state {choice.label}, {min(used.values())}-"
            f"{max(used.values())} samples per position, {seconds:.2f} s -> {out}")
@@ -225,14 +341,17 @@ def sizes(command: str, cfg, args) -> list[Size]:
     kind = "simulate" if command == "simulate" else "identify"
     field = f"schemes.{scheme.name}.dwell_s" if scheme.name in cfg.raw["schemes"] else "--scheme (its dwell_s)"
     held = COSTS.values[kind] if command != "observability" else 0
-    return [Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), held, 1,
-                 f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
-                 f"{cfg.ts * 1000:g} ms", COSTS.seconds[kind])]
+    size = Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), held, 1,
+                f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
+                f"{cfg.ts * 1000:g} ms", COSTS.seconds[kind])
+    # simulate writes, and identify streams past --chunk-rows, one position at a time
+    streams = command == "simulate" or (command == "identify" and chunk_rows_of(args))
+    return [one_at_a_time(size, scheme.n_positions) if streams else size]
 
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "
                                               "default: the config's default_scheme")
 OPTIONS = {"simulate": (SCHEME,), "observability": (SCHEME,),
-           "identify": (SCHEME, option("--estimator", default=None,
+           "identify": (SCHEME, CHUNK_OPTION, option("--estimator", default=None,
                                        help="ekf or iekf, or a study.estimators name (ekf1, ekf2, iekf)"))}
 """The rig's own options (``--seed`` of simulate: replicate N of the study's Monte Carlo cell)."""

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import InputError
-from .filter import run_filter
+from .filter import run_filter, run_filter_positions
 
 
 @dataclass(frozen=True)
@@ -52,10 +52,9 @@ def run_ekf_estimator(cfg, positions_deg, t, Z, nk=None, passes=None, options=No
 def run_iekf_estimator(cfg, positions_deg, t, Z, nk=None, passes=None, options=None, threads=None,
                        sigma_a_ug=None, innovations=None) -> Estimate:
     """The Gauss-Newton iterated EKF; ``options`` = ``filter.iekf`` (iterations, tolerance)."""
-    o = {**ESTIMATOR_DEFAULTS["iekf"], **(options or {})}
+    iterations, tolerance = linearisations(FilterChoice("iekf", 1, options or {}))
     return Estimate(*run_filter(cfg, positions_deg, t, Z, nk, passes, threads=threads, sigma_a_ug=sigma_a_ug,
-                                iterations=int(o["iterations"]), tolerance=float(o["tolerance"]),
-                                innovations=innovations))
+                                iterations=iterations, tolerance=tolerance, innovations=innovations))
 
 
 Runner = Callable[..., Estimate]
@@ -123,3 +122,24 @@ def estimate(cfg, choice: FilterChoice, positions_deg, t, Z, nk=None, threads=No
     return ESTIMATORS[choice.estimator](cfg, positions_deg, t, Z, nk=nk, passes=choice.passes,
                                         options=choice.options, threads=threads, sigma_a_ug=sigma_a_ug,
                                         innovations=innovations)
+
+
+def linearisations(choice: FilterChoice) -> tuple[int, float]:
+    """``(iterations, tolerance)`` of :func:`.filter.run_filter` for ``choice`` (docs/multiposition-1g.md
+    §9): 0 for the EKF, the ``filter.iekf`` options (defaults :data:`ESTIMATOR_DEFAULTS`) for the
+    iterated EKF; ValueError for an estimator that is neither (it has its own runner)."""
+    if choice.estimator == "ekf":
+        return 0, 0.0
+    if choice.estimator != "iekf":
+        raise ValueError(f"estimator {choice.estimator!r} is not run by run_filter's linearisations")
+    o = {**ESTIMATOR_DEFAULTS["iekf"], **(choice.options or {})}
+    return int(o["iterations"]), float(o["tolerance"])
+
+
+def estimate_positions(cfg, choice: FilterChoice, positions_deg, source, on_innovations=None) -> Estimate:
+    """:func:`estimate` (docs/multiposition-1g.md §9) of one record fed one position at a time (a streamed record,
+    :func:`.filter.run_filter_positions`: ``source()`` yields each position's ``(t, z)`` per pass);
+    the estimators of :data:`ESTIMATORS` are all sequential, so every one streams."""
+    iterations, tolerance = linearisations(choice)
+    return Estimate(*run_filter_positions(cfg, positions_deg, source, choice.passes, iterations, tolerance,
+                                          on_innovations))

@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
@@ -127,33 +128,111 @@ def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=N
     Returns ``(t (n,), phi (R, K, n, 3) rad, z (R, K, n, 6) ug / arcsec)``; z includes noise.
     Raises InputError if beta leaves the gimbal range (+ margin) during a dwell (§3).
     """
-    ts = cfg.ts
-    ns = int(round(scheme.dwell_s / ts)) + 1
-    t = np.arange(ns) * ts
-    phi0s = scheme.angles_deg * DEG
-    K = phi0s.shape[0]
-    coef = cfg.truth(ext) if truth is None else np.asarray(truth, float)
-    lay = layout_index(ext)
-    wn, wu = cfg.site.params()
+    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, scheme.dwell_s, scheme.angles_deg, ext, truth)
+    ns, K = t.size, phi0s.shape[0]
     R = len(seeds)
     phi = np.empty((R, K, ns, 3))
     z = np.empty((R, K, ns, 6))
     if noise_free:
         init, w, v = np.zeros((R, K, 3)), np.zeros((R, K, ns - 1, 3)), np.zeros((R, K, ns, 6))
     else:
-        if any(not isinstance(s, np.random.SeedSequence) for s in seeds):
-            seeds = [s if isinstance(s, np.random.SeedSequence) else replicate_seeds(cfg, scheme.name, [s])[0]
-                     for s in seeds]
-        init, w, v = draw_noise(cfg, seeds, K, ns)
-    _threaded(_simulate_range, R, threads, phi0s, coef, lay, wn, wu, ts, cfg.n_sub, init, w, phi, z)
+        init, w, v = draw_noise(cfg, _seed_sequences(cfg, scheme, seeds), K, ns)
+    _threaded(_simulate_range, R, threads, phi0s, coef, lay, wn, wu, cfg.ts, cfg.n_sub, init, w, phi, z)
     z += v
+    _check_gimbal(cfg, scheme, phi0s, phi)
+    return t, phi, z
+
+
+def _sim_setup(cfg, dwell_s: float, angles_deg: np.ndarray, ext: int, truth):
+    """``(t (n,) s, commanded angles (K, 3) rad, coefficients, layout, site rates)`` of a simulation
+    (§12) of positions ``angles_deg`` (K, 3) deg dwelling ``dwell_s`` s each."""
+    t = np.arange(int(round(dwell_s / cfg.ts)) + 1) * cfg.ts
+    coef = cfg.truth(ext) if truth is None else np.asarray(truth, float)
+    wn, wu = cfg.site.params()
+    return t, angles_deg * DEG, coef, layout_index(ext), wn, wu
+
+
+def _seed_sequences(cfg, scheme, seeds) -> list:
+    """``seeds`` as SeedSequences (a replicate number r: replicate r of the study's cell, :func:`replicate_seeds`)."""
+    return [s if isinstance(s, np.random.SeedSequence) else replicate_seeds(cfg, scheme.name, [s])[0] for s in seeds]
+
+
+def _check_gimbal(cfg, scheme, phi0s, phi, first: int = 0) -> None:
+    """InputError naming the scheme's position when beta (commanded ``phi0s`` (K, 3) rad plus the
+    simulated ``phi`` (R, K, n, 3) rad) leaves the gimbal range during a dwell (docs/multiposition-1g.md
+    §3); ``first``:
+    the 0-based scheme position of ``phi0s[0]``."""
     beta = np.abs(phi0s[None, :, None, 1] + phi[..., 1]) / DEG
     lim = cfg.beta_max_deg + cfg.beta_margin_deg
     if np.any(beta > lim):
-        k = int(np.argwhere(beta > lim)[0][1]) + 1
+        k = first + int(np.argwhere(beta > lim)[0][1]) + 1
         raise InputError(f"schemes.{scheme.name}.positions[{k}]",
                          f"beta leaves the gimbal range {lim:g} deg during the dwell (§3)")
-    return t, phi, z
+
+
+NORMAL_BLOCK = 1 << 20
+"""Normal draws skipped at a time when :func:`simulate_positions` moves a stream past the draws of
+the other positions (8 MB)."""
+
+
+def simulate_positions(cfg, scheme, seed, noise_free: bool = False):
+    """:func:`simulate` of one replicate (``seed``: a SeedSequence or replicate number), position by
+    position: yields ``(k, t (n,) s, phi (n, 3) rad, z (n, 6) ug / arcsec)`` for k = 0 .. K-1 with
+    the numbers :func:`simulate` gives, holding one position's samples (docs/multiposition-1g.md
+    §12). The draws are §14's order
+    of use (:func:`draw_noise`: setting errors, then every position's ARW, then every position's
+    sensor noise, from one stream): the sensor noise comes from a copy of the stream moved past
+    all the ARW draws (drawn in blocks and dropped), so each position's ARW and noise are the
+    slices of the whole draw."""
+    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, scheme.dwell_s, scheme.angles_deg, 0, None)
+    ns, K = t.size, phi0s.shape[0]
+    sig = np.array([cfg.sigma_a_ug] * 3 + [cfg.sigma_an_arcsec] * 3)
+    if noise_free:
+        init = np.zeros((K, 3))
+    else:
+        rng_w = np.random.default_rng(_seed_sequences(cfg, scheme, [seed])[0])
+        init = rng_w.standard_normal((K, 3)) * cfg.sigma_set_rad
+        rng_v = np.random.Generator(type(rng_w.bit_generator)())
+        rng_v.bit_generator.state = rng_w.bit_generator.state
+        skip = K * (ns - 1) * 3
+        while skip > 0:  # draws of a Generator in blocks are the draws of one call
+            rng_v.standard_normal(min(skip, NORMAL_BLOCK))
+            skip -= NORMAL_BLOCK
+    for k in range(K):
+        if noise_free:
+            w, v = np.zeros((ns - 1, 3)), 0.0
+        else:
+            w = rng_w.standard_normal((ns - 1, 3)) * (cfg.arw_rad / math.sqrt(cfg.ts))
+            v = rng_v.standard_normal((ns, 6)) * sig
+        phi = np.empty((1, 1, ns, 3))
+        z = np.empty((1, 1, ns, 6))
+        _simulate_range(0, 1, phi0s[k:k + 1], coef, lay, wn, wu, cfg.ts, cfg.n_sub, init[None, k:k + 1], w[None, None],
+                        phi, z)
+        z += v
+        _check_gimbal(cfg, scheme, phi0s[k:k + 1], phi, k)
+        yield k, t, phi[0, 0], z[0, 0]
+
+
+def simulate_blocks(cfg, cmd_deg, dwell_s: float, truth=None, block: int = 100_000):
+    """The noise-free simulation (docs/multiposition-1g.md §12) of one position (commanded angles ``cmd_deg`` (3,) deg,
+    dwell ``dwell_s`` s, coefficients ``truth`` (default the config's)) in blocks of at most
+    ``block`` samples: yields ``(j0, z (m, 6) ug / arcsec)``, samples j0 .. j0 + m - 1. Each block
+    starts from the attitude the previous one ended at (the state is phi and the constant
+    coefficients, so the numbers are :func:`simulate`'s) and only one block is held."""
+    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, dwell_s, np.asarray(cmd_deg, float).reshape(1, 3), 0, truth)
+    ns = t.size
+    phi_start = np.zeros((1, 1, 3))
+    j0 = 0
+    while j0 < ns:
+        m = min(block, ns - j0) + (1 if j0 else 0)  # a later block repeats the sample it starts from
+        phi = np.empty((1, 1, m, 3))
+        z = np.empty((1, 1, m, 6))
+        _simulate_range(0, 1, phi0s, coef, lay, wn, wu, cfg.ts, cfg.n_sub, phi_start, np.zeros((1, 1, m - 1, 3)),
+                        phi, z)
+        phi_start = phi[:, :, -1].copy()
+        skip = 1 if j0 else 0
+        yield j0, z[0, 0, skip:]
+        j0 += m - skip
 
 
 # ------------------------------------------------------------------ EKF kernel
@@ -354,23 +433,8 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     R, K, ns, _ = Z.shape
     tk = np.broadcast_to(np.asarray(t, float), (K, ns)).copy()
     nk = np.full(K, ns, dtype=np.int64) if nk is None else np.asarray(nk, dtype=np.int64)
-    p0 = cfg.p0(ext)
-    nc = p0.size
-    n = nc + 3
-    sa = cfg.sigma_a_ug if sigma_a_ug is None else sigma_a_ug
-    r_var = np.array([sa**2] * 3 + [cfg.sigma_an_arcsec**2] * 3)
-    if sa <= 0:
-        r_var[:3] = 1e-6  # a noise-free record still needs R > 0: 0.001 ug, far below any signal
-    X = np.zeros((R, n))
-    Ps = np.zeros((R, n, n))
-    Ps[:, 3:, 3:] = np.diag(p0**2)
-    if prior_x is not None:
-        X[:, 3:] = prior_x
-    if prior_P is not None:
-        Ps[:, 3:, 3:] = prior_P
-    lay = layout_index(ext)
-    wn, wu = cfg.site.params()
-    cols = dynamic_cols(ext)
+    st = FilterStart.of(cfg, R, ext, sigma_a_ug, prior_x, prior_P)
+    X, Ps = st.X, st.Ps
     phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
     nis = np.empty(R)
     nlin = np.zeros(R)
@@ -380,12 +444,94 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     rec = np.zeros((1, 0, 0, 12)) if innovations is None else innovations
     for p in range(npass):
         if p > 0:
-            C = Ps[:, 3:, 3:].copy()
-            Ps[:] = 0.0
-            Ps[:, 3:, 3:] = 100.0 * C
-        _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, cfg.arw_rad**2,
-                  cfg.sigma_set_rad**2, cols, True, int(iterations), float(tolerance), nis, nlin, nbad, rec)
+            st.next_pass()
+        _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2,
+                  cfg.sigma_set_rad**2, st.cols, True, int(iterations), float(tolerance), nis, nlin, nbad, rec)
     return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis, nlin / (npass * int(nk.sum())), nbad
+
+
+@dataclass
+class FilterStart:
+    """The EKF's start (docs/multiposition-1g.md §9) for R replicates: state X (R, n), covariance
+    Ps (R, n, n) (coefficients at ``prior_x``/``prior_P`` or 0 and diag(P0^2)), the measurement
+    variances ``r_var`` (6,) ug^2 and arcsec^2 and the model's layout, site rates and dynamic
+    columns; shared by :func:`run_filter` (all positions at once) and :func:`run_filter_positions`
+    (a streamed record, one position at a time)."""
+
+    X: np.ndarray
+    Ps: np.ndarray
+    r_var: np.ndarray
+    lay: np.ndarray
+    wn: object
+    wu: object
+    cols: np.ndarray
+
+    @classmethod
+    def of(cls, cfg, R: int, ext: int = 0, sigma_a_ug: float | None = None, prior_x=None,
+           prior_P=None) -> "FilterStart":
+        p0 = cfg.p0(ext)
+        n = p0.size + 3
+        sa = cfg.sigma_a_ug if sigma_a_ug is None else sigma_a_ug
+        r_var = np.array([sa**2] * 3 + [cfg.sigma_an_arcsec**2] * 3)
+        if sa <= 0:
+            r_var[:3] = 1e-6  # a noise-free record still needs R > 0: 0.001 ug, far below any signal
+        X = np.zeros((R, n))
+        Ps = np.zeros((R, n, n))
+        Ps[:, 3:, 3:] = np.diag(p0**2)
+        if prior_x is not None:
+            X[:, 3:] = prior_x
+        if prior_P is not None:
+            Ps[:, 3:, 3:] = prior_P
+        wn, wu = cfg.site.params()
+        return cls(X, Ps, r_var, layout_index(ext), wn, wu, dynamic_cols(ext))
+
+    def next_pass(self) -> None:
+        """A later pass (§9): from the previous estimate with P0 = 100 x its coefficient covariance."""
+        C = self.Ps[:, 3:, 3:].copy()
+        self.Ps[:] = 0.0
+        self.Ps[:, 3:, 3:] = 100.0 * C
+
+
+def run_filter_positions(cfg, positions_deg, source, passes: int | None = None, iterations: int = 0,
+                         tolerance: float = 0.0, on_innovations=None):
+    """:func:`run_filter` (docs/multiposition-1g.md §9) of one record (R = 1) fed one position at a
+    time, so only one position's
+    samples are held: ``source()`` is called once per pass and yields, per position in the order of
+    ``positions_deg`` (K, 3) deg, its filter instants ``t`` (m,) s and outputs ``z`` (m, 6) ug,
+    arcsec; ``on_innovations(k, rec)`` (last pass only) receives position k's innovations and S
+    diagonals (m, 12) (:func:`_ekf_one`). x and P carry from position to position exactly as in
+    the whole record's kernel call (the same kernel, the same operations), so the estimate and
+    covariance are bit-identical; the mean NIS is summed per position (equal to rounding).
+    Returns run_filter's tuple for R = 1."""
+    st = FilterStart.of(cfg, 1)
+    phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
+    npass = int(passes or cfg.passes)
+    nlin = nbad = 0
+    count = 0
+    for p in range(npass):
+        if p > 0:
+            st.next_pass()
+        nis = nup = 0.0
+        last = p == npass - 1 and on_innovations is not None
+        k = -1
+        for k, (t, z) in enumerate(source()):
+            m = t.size
+            rec = np.zeros((1, m, 12)) if last else np.zeros((0, 0, 12))
+            s, u, nl, nb = _ekf_one(st.X[0], st.Ps[0], phi0s[k:k + 1], np.ascontiguousarray(t, float)[None],
+                                    np.ascontiguousarray(z, float)[None], np.array([m], dtype=np.int64), st.lay,
+                                    st.wn, st.wu, st.r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, st.cols, True,
+                                    int(iterations), float(tolerance), rec)
+            nis += s
+            nup += u
+            nlin += nl
+            nbad += nb
+            count += m
+            if last:
+                on_innovations(k, rec[0])
+        if k + 1 != phi0s.shape[0]:
+            raise ValueError(f"the record's source gave {k + 1} positions, not {phi0s.shape[0]}")
+    return (st.X[:, 3:].copy(), st.Ps[:, 3:, 3:].copy(), np.array([nis / max(nup, 1) / 6.0]),
+            np.array([nlin / max(count, 1)]), np.array([nbad], dtype=np.int64))
 
 
 def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,

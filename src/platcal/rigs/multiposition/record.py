@@ -20,8 +20,9 @@ from ...errors import InputError
 from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_position
 from ...mapping import RecordMapping
 from ...model.frames import DEG
+from ...plausibility import ClockRate, segment_rate
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
-                         read_table, whole_group, write_record)  # write_record: re-exported for the rig's commands
+                         iter_table, position_blocks, read_table, whole_group)
 from ...scheme import Scheme
 from .model import drift, measure
 
@@ -52,6 +53,9 @@ class Record:
     """Position numbers (1-based) of ``t`` and ``z``; None: 1..K."""
     segmentation: tuple | None = None
     """For a continuous log cut here: ``(t (N,) s, angle sensors (N, 3) deg, dwells)``."""
+    clock: ClockRate = ClockRate.none()
+    """Every sample's stamps against ``sampling.ts_ms`` (or a whole divisor of it): the clock-rate
+    error the identification checks (:func:`platcal.plausibility.clock_rate`)."""
 
     def samples_used(self) -> dict[int, int]:
         """Samples the EKF uses, per position number."""
@@ -71,22 +75,29 @@ class Record:
         return tk, Z, nk
 
 
-def to_frame(scheme: Scheme, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> pd.DataFrame:
-    """One replicate (phi (K, n, 3) rad, z (K, n, 6) ug / arcsec) as a record table."""
-    K, n = phi.shape[:2]
-    cmd = scheme.angles_deg
-    true = cmd[:, None, :] + phi / DEG
-    meas = z[..., 3:] / 3600.0
-    df = {"position": np.repeat(np.arange(1, K + 1), n), "t": np.tile(t, K)}
+def position_frame(scheme: Scheme, k: int, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> pd.DataFrame:
+    """Position ``k`` (0-based) of one replicate (``t`` (n,) s, phi (n, 3) rad, z (n, 6) ug / arcsec)
+    as the rows of a record table (§12)."""
+    n = t.size
+    cmd = scheme.angles_deg[k]
+    true = cmd[None, :] + phi / DEG
+    meas = z[:, 3:] / 3600.0
+    df = {"position": np.full(n, k + 1), "t": t}
     for i, c in enumerate(("alpha_cmd", "beta_cmd", "gamma_cmd")):
-        df[c] = np.repeat(cmd[:, i], n)
+        df[c] = np.full(n, cmd[i])
     for i, c in enumerate(("Ax", "Ay", "Az")):
-        df[c] = z[..., i].ravel() * UG
+        df[c] = z[:, i] * UG
     for i, c in enumerate(ANGLE_COLUMNS):
-        df[c] = meas[..., i].ravel()
+        df[c] = meas[:, i]
     for i, c in enumerate(TRUTH_COLUMNS):
-        df[c] = true[..., i].ravel()
+        df[c] = true[:, i]
     return pd.DataFrame(df)
+
+
+def to_frame(scheme: Scheme, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> pd.DataFrame:
+    """One replicate (phi (K, n, 3) rad, z (K, n, 6) ug / arcsec) as a record table: every
+    position's :func:`position_frame`."""
+    return pd.concat([position_frame(scheme, k, t, phi[k], z[k]) for k in range(phi.shape[0])], ignore_index=True)
 
 
 def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float = 0.02,
@@ -109,8 +120,7 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     """
     segmentation = None
     try:
-        df = read_table(path, COLUMNS, TRUTH_COLUMNS + GYRO_COLUMNS, what="a multiposition record", mapping=mapping,
-                        units=UNITS)
+        df = next(read_chunks(path, mapping))
     except InputError as exc:  # no position column: a continuous log, cut into the scheme's dwells here
         if scheme is None or not lacks_position(exc, mapping):
             raise
@@ -119,6 +129,123 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     cols = list(df.columns)
     has_truth = whole_group(cols, TRUTH_COLUMNS, "the true angles")
     pos = df["position"].to_numpy()
+    check_position_numbers(pos, scheme)
+    present = sorted({int(k) for k in pos})
+    # the commanded angles first: a wrong scheme shows there before anywhere else
+    cmds = [check_commanded(k, df.loc[pos == k, ["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float), scheme)
+            for k in present]
+    if scheme is not None:
+        check_every_position(present, scheme)
+    ts_used, zs, rates = [], [], []
+    for k in present:
+        rows = df[pos == k]
+        keep, t, rate = instants(k, rows["t"].to_numpy(float), scheme, ts, max_gap_s)
+        rates.append(rate)
+        ts_used.append(t[keep])
+        zs.append(outputs(rows, keep))
+    cmd = np.array(cmds)
+    if scheme is None:
+        scheme = record_scheme(path, cmd, ts_used)
+    return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=has_truth, positions=present,
+                  segmentation=segmentation, clock=ClockRate.combine(rates)), scheme
+
+
+def outputs(rows: pd.DataFrame, keep: np.ndarray) -> np.ndarray:
+    """(m, 6) ug and arcsec: the EKF's measurements (Ax, Ay, Az, alpha_m, beta_m, gamma_m) of the
+    rows ``keep`` (positions in ``rows``) of a record table in g and deg (docs/multiposition-1g.md §7)."""
+    z = np.empty((keep.size, 6))
+    z[:, :3] = rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep] / UG
+    z[:, 3:] = rows[list(ANGLE_COLUMNS)].to_numpy(float)[keep] * 3600.0
+    return z
+
+
+def read_chunks(path: str | os.PathLike, mapping: RecordMapping | None = None, chunk_rows: int | None = None):
+    """The record's checked tables of at most ``chunk_rows`` rows, in file order
+    (:func:`platcal.records.iter_table`; None: one table), in :func:`read_record`'s columns."""
+    return iter_table(path, COLUMNS, TRUTH_COLUMNS + GYRO_COLUMNS, what="a multiposition record", mapping=mapping,
+                      units=UNITS, chunk_rows=chunk_rows)
+
+
+@dataclass
+class StreamScan:
+    """What the first read of a streamed record gives (:func:`scan_record`): per position (in
+    order) its number, commanded angles (deg), filter instants ``t`` (s from its start) and the
+    record's row of each instant ``rows`` (0-based data rows of the file); whether the true angles
+    are there; the scheme (given, or taken from the record as :func:`read_record` does)."""
+
+    positions: list[int]
+    cmd_deg: np.ndarray
+    t: list[np.ndarray]
+    rows: list[np.ndarray]
+    has_truth: bool
+    scheme: Scheme
+    clock: ClockRate
+    """Every sample's stamps against ``sampling.ts_ms``, as :attr:`Record.clock`."""
+
+    def samples_used(self) -> dict[int, int]:
+        """Samples the EKF uses, per position number."""
+        return {int(k): int(t.size) for k, t in zip(self.positions, self.t)}
+
+
+def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, ts: float = 0.02,
+                max_gap_s: float = 0.1, each=None) -> StreamScan:
+    """Check a record read in ``chunks`` (:func:`read_chunks` tables, file order) as
+    :func:`read_record` checks a whole one, holding one position at a time, and select its
+    filter instants (docs/multiposition-1g.md §12, §16).
+
+    A streamed record holds each position as one block of rows, positions in increasing order (a
+    logger's order; any other order is read whole, ``--chunk-rows 0``). Position numbers and
+    commanded angles are checked chunk by chunk; a position's time checks and instants need its
+    times whole (medians, :func:`platcal.records.check_times`, :func:`~platcal.records.grid_origin`),
+    so its ``t`` and ``Ax, Ay, Az`` are held until it ends (32 bytes per sample of the longest
+    position). ``each(k, cmd, t, a)``, when given, receives each position's number, commanded
+    angles (3,) deg, instants (s) and its ``Ax, Ay, Az`` there (g) as it ends (the plausibility sums)."""
+    positions, cmds, ts_used, rows, rates = [], [], [], [], []
+    has_truth = None
+    held: dict = {"k": None, "t": [], "a": [], "row0": 0, "cmd": None}
+
+    def finish() -> None:
+        k = held["k"]
+        if k is None:
+            return
+        t = np.concatenate(held["t"])
+        a = np.concatenate(held["a"])
+        keep, t, rate = instants(k, t, scheme, ts, max_gap_s)
+        rates.append(rate)
+        if each is not None:
+            each(k, held["cmd"], t[keep], a[keep])
+        positions.append(k)
+        cmds.append(held["cmd"])
+        ts_used.append(t[keep])
+        rows.append(held["row0"] + keep)
+        held.update(k=None, t=[], a=[], cmd=None)
+
+    def check(df) -> None:
+        nonlocal has_truth
+        if has_truth is None:
+            has_truth = whole_group(list(df.columns), TRUTH_COLUMNS, "the true angles")
+        check_position_numbers(df["position"].to_numpy(), scheme)
+
+    for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
+        cmd = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)[i0:i1]
+        if starts:
+            finish()
+            held.update(k=k, row0=row0 + i0, cmd=check_commanded(k, cmd, scheme))
+        elif np.ptp(np.vstack([held["cmd"][None], cmd]), axis=0).max() > 1e-9:
+            raise InputError(f"--data position {k}", "commanded angles change within the position")
+        held["t"].append(df["t"].to_numpy(float)[i0:i1])
+        held["a"].append(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
+    finish()
+    if scheme is not None:
+        check_every_position(positions, scheme)
+    cmd = np.array(cmds)
+    if scheme is None:
+        scheme = record_scheme(path, cmd, ts_used)
+    return StreamScan(positions, cmd, ts_used, rows, bool(has_truth), scheme, ClockRate.combine(rates))
+
+
+def check_position_numbers(pos: np.ndarray, scheme: Scheme | None) -> None:
+    """Refuse a ``position`` that is not a whole number from 1 (and, with ``scheme``, up to its K)."""
     off = (pos != np.round(pos)) | (pos < 1)
     if scheme is not None:
         off |= pos > scheme.n_positions
@@ -126,50 +253,55 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
         where = f"scheme {scheme.name!r} has positions 1..{scheme.n_positions}" if scheme else \
             "positions are whole numbers from 1"
         raise InputError("--data column position", f"index {num(pos[off][0])} is not a position: {where}")
-    present = sorted({int(k) for k in pos})
-    cmds = []
-    for k in present:  # the commanded angles first: a wrong scheme shows there before anywhere else
-        c = df.loc[pos == k, ["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
-        if np.ptp(c, axis=0).max() > 1e-9:
-            raise InputError(f"--data position {k}", "commanded angles change within the position")
-        if scheme is not None and np.max(np.abs(c[0] - scheme.angles_deg[k - 1])) > 1e-6:
-            raise InputError(f"--data position {k}", f"commanded angles {c[0].tolist()} are not those of "
-                             f"scheme {scheme.name!r} ({scheme.angles_deg[k - 1].tolist()}); pick the right "
-                             "--scheme or leave it out")
-        cmds.append(c[0])
+
+
+def check_commanded(k: int, c: np.ndarray, scheme: Scheme | None) -> np.ndarray:
+    """Position ``k``'s commanded angles (3,) deg from its rows ``c`` (n, 3) deg: refused when they
+    change within the position or (with ``scheme``) differ from the scheme's."""
+    if np.ptp(c, axis=0).max() > 1e-9:
+        raise InputError(f"--data position {k}", "commanded angles change within the position")
+    if scheme is not None and np.max(np.abs(c[0] - scheme.angles_deg[k - 1])) > 1e-6:
+        raise InputError(f"--data position {k}", f"commanded angles {c[0].tolist()} are not those of "
+                         f"scheme {scheme.name!r} ({scheme.angles_deg[k - 1].tolist()}); pick the right "
+                         "--scheme or leave it out")
+    return c[0]
+
+
+def check_every_position(present: list[int], scheme: Scheme) -> None:
+    """Refuse a record without every position 1..K of ``scheme``."""
+    missing = [k for k in range(1, scheme.n_positions + 1) if k not in present]
+    if missing:
+        raise InputError("--data column position", f"the record has positions {present} but scheme "
+                         f"{scheme.name!r} has {scheme.n_positions}: missing {missing}; pick the right "
+                         "--scheme or record every position")
+
+
+def instants(k: int, t: np.ndarray, scheme: Scheme | None, ts: float,
+             max_gap_s: float) -> tuple[np.ndarray, np.ndarray, ClockRate]:
+    """``(keep, t from the position's start, clock rate)``: position ``k``'s time checks
+    (increasing, seconds, no gap above ``max_gap_s``, spanning the scheme's dwell), the indices of
+    its samples nearest the filter instants (see :func:`read_record`) and its stamps' rate error
+    against ``ts`` or a whole divisor of it (:func:`platcal.plausibility.segment_rate`)."""
+    field = f"--data column t, position {k}"
+    med = check_times(t, ts, max_gap_s, field, f"sampling.ts_ms = {ts * 1e3:g} ms", where=" of the position")
+    t = t - (0.0 if abs(t[0]) <= max_gap_s else grid_origin(t, med))
     if scheme is not None:
-        missing = [k for k in range(1, scheme.n_positions + 1) if k not in present]
-        if missing:
-            raise InputError("--data column position", f"the record has positions {present} but scheme "
-                             f"{scheme.name!r} has {scheme.n_positions}: missing {missing}; pick the right "
-                             "--scheme or record every position")
-    ts_used, zs = [], []
-    for k in present:
-        rows = df[pos == k]
-        field = f"--data column t, position {k}"
-        t = rows["t"].to_numpy(float)
-        med = check_times(t, ts, max_gap_s, field, f"sampling.ts_ms = {ts * 1e3:g} ms", where=" of the position")
-        t = t - (0.0 if abs(t[0]) <= max_gap_s else grid_origin(t, med))
-        if scheme is not None:
-            span = float(t[-1])
-            if abs(span - scheme.dwell_s) > max_gap_s:
-                raise InputError(field, f"position {k} spans {num(span)} s (t = {num(t[0])} .. {num(t[-1])} s "
-                                 f"from its start), but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s per "
-                                 f"position (record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
-        keep = nearest_samples(t, ts, 0.5 * med)
-        if keep.size < 2:
-            raise InputError(field, f"only {keep.size} sample(s) fall on the {ts * 1e3:g} ms filter instants")
-        z = np.empty((keep.size, 6))
-        z[:, :3] = rows[["Ax", "Ay", "Az"]].to_numpy(float)[keep] / UG
-        z[:, 3:] = rows[list(ANGLE_COLUMNS)].to_numpy(float)[keep] * 3600.0
-        ts_used.append(t[keep])
-        zs.append(z)
-    cmd = np.array(cmds)
-    if scheme is None:
-        dwell = max(float(t[-1]) for t in ts_used) or 1.0
-        scheme = Scheme(name=f"record:{Path(path).name}", positions=tuple(map(tuple, cmd)), dwell_s=dwell)
-    return Record(cmd_deg=cmd, t=ts_used, z=zs, has_truth=has_truth, positions=present,
-                  segmentation=segmentation), scheme
+        span = float(t[-1])
+        if abs(span - scheme.dwell_s) > max_gap_s:
+            raise InputError(field, f"position {k} spans {num(span)} s (t = {num(t[0])} .. {num(t[-1])} s "
+                             f"from its start), but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s per "
+                             f"position (record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
+    keep = nearest_samples(t, ts, 0.5 * med)
+    if keep.size < 2:
+        raise InputError(field, f"only {keep.size} sample(s) fall on the {ts * 1e3:g} ms filter instants")
+    return keep, t, segment_rate(t, ts, divisor=True)
+
+
+def record_scheme(path: str | os.PathLike, cmd: np.ndarray, ts_used: list[np.ndarray]) -> Scheme:
+    """The scheme a record without ``--scheme`` implies: its positions' commanded angles (K, 3)
+    deg, dwelling as long as its longest position's instants ``ts_used`` (s)."""
+    dwell = max(float(t[-1]) for t in ts_used) or 1.0
+    return Scheme(name=f"record:{Path(path).name}", positions=tuple(map(tuple, cmd)), dwell_s=dwell)
 
 
 CONTINUOUS_COLUMNS = ("t", "Ax", "Ay", "Az") + ANGLE_COLUMNS

@@ -78,6 +78,7 @@ def sled_fits(config: str, seeds: range, batch: int = 10):
     """The fit check of each seed's record of the default case (``platcal simulate --seed N``)."""
     from platcal.rigs.sled.identify import identify, record_fit
     from platcal.rigs.sled.montecarlo import replicate_seeds
+    from platcal.rigs.sled.record import check_plausible
     from platcal.rigs.sled.simulate import simulate
 
     cfg = get_rig("sled").load_config(read_config(config))
@@ -85,8 +86,10 @@ def sled_fits(config: str, seeds: range, batch: int = 10):
         ns = list(range(a, min(a + batch, seeds.stop)))
         sb = simulate(cfg, replicate_seeds(cfg.raw, "default", ns))
         idn = identify(cfg, sb.traj, sb.f, sb.w)
+        t = np.arange(sb.traj.n) * cfg.dt
         for s, n in enumerate(ns):
-            yield n, record_fit(idn, s), None
+            # the checks before the filters (exit 2 in platcal identify) count as flags too
+            yield n, record_fit(idn, s), refusal(check_plausible, cfg, sb.traj, sb.f[s], sb.w[s], t)
 
 
 def lowprec_fits(config: str, seeds: range, batch: int = 5):

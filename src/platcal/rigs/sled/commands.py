@@ -20,12 +20,12 @@ from ...mapping import RecordMapping
 from ...sizes import Costs, Size, samples_in
 from ...study.tables import write_table
 from .config import G, SledConfig
-from .identify import (calibration, compensated_track, estimates, identify, metrics, phi_from_calibration, record_fit,
-                       run_problems)
+from .identify import (calibration, compensated_track, estimates, gyro_rate_error, identify, metrics,
+                       phi_from_calibration, record_fit, run_problems)
 from .montecarlo import replicate_seeds
 from .observability import rank_table
 from .record import (IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, check_plausible, read_record, record_arrays,
-                     record_truth, samples_per_phase, write_record)
+                     record_truth, samples_per_phase, static_rate_tolerance, write_record)
 from .simulate import simulate
 
 
@@ -67,6 +67,9 @@ def cmd_identify(cfg: SledConfig, args) -> int:
                     "filter_epochs": {"run": int(idn.j_stop), "stop": int(idn.j_end - idn.j_stop)}})
     fit = record_fit(idn)
     summary["fit"] = fit.as_dict()
+    # the filters' sigmas leave out the gyros' constant error, which the record cannot see below
+    # the check at rest: what it does to the estimates, and the sigma with it
+    summary["gyro_rate_error"] = gyro_rate_error(cfg, traj, f[0], w[0], t, est, static_rate_tolerance(cfg, traj, t))
     with atomic_files(out) as tmp:  # the files land together, metrics.json last
         est.to_csv(tmp("estimates.csv"), index=False, float_format="%.6g")
         write_calibration_files(tmp, calibration(idn, args.data, cfg.raw))
@@ -76,6 +79,15 @@ def cmd_identify(cfg: SledConfig, args) -> int:
            f"{max(met['y_after_a_max_run_cm'], met['z_after_a_max_run_cm']):.3f} cm after (A)")
     if truth is not None:
         msg += f"; X at stop naive {met['x_naive_stop_cm']:.1f} cm, constrained {met['x_constrained_stop_cm']:.1f} cm"
+    worst = max(summary["gyro_rate_error"]["estimates"].items(), default=None,
+                key=lambda kv: max(kv[1]["shift_at_tolerance_sigmas"]))
+    if worst is not None:
+        st = summary["gyro_rate_error"]["scale_tolerance"]
+        name, w_est = worst
+        msg += (f"; gyro rate errors (or scale errors up to {min(st):.2g}-{max(st):.2g}) too small to see at "
+                f"rest move {name} by up to {max(w_est['shift_at_tolerance_sigmas']):.1f} sigma: its sigma with "
+                f"the gyros' own errors is {w_est['sigma_with_gyro_arcsec']:.3g} arcsec (metrics.json "
+                "gyro_rate_error)")
     print(msg, file=sys.stderr)
     return fit_exit_status(fit, args.data, out, "metrics.json")
 

@@ -21,7 +21,7 @@ from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check
 from ...logs.calibration import Calibration, calibration_of
 from ...logs.increments import sample_intervals
-from .config import ARCSEC, G, SledConfig
+from .config import ARCSEC, DEG_H, G, SledConfig
 from .errmodel import propagate_run_model
 from ...records import nearest_samples
 from .filters import Epochs, FilterOut, run_filter, stop_filter
@@ -325,3 +325,41 @@ def record_fit(idn: Identification, s: int = 0) -> FitCheck:
     not the IMU's output, so a unit, sign or swap is recognised before the filters
     (:func:`.record.check_plausible`), and a clock cannot be told from a drift here."""
     return fit_check(idn.run.innov[s], idn.run.s_var[s], RUN_CHANNELS)
+
+
+def gyro_rate_error(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray, t: np.ndarray,
+                    est: pd.DataFrame, tolerance: np.ndarray) -> dict:
+    """What a constant gyro rate error the record cannot see does to the estimates (the
+    ``gyro_rate_error`` block of metrics.json; docs/rocket-sled.md §3, §6, §10).
+
+    The filters have no gyro-bias state, so their sigmas leave out the gyros' constant error
+    (``imu.gyro.bias_deg_h`` and the g-sensitivity at 1 g, ``g_sens_deg_h_g``: ``sigma_deg_h``),
+    and because the sled's true rate is the earth rate throughout, a gyro scale error 1 + e is the
+    same as a rate error e omega_i in every sample: the record tells them apart only at rest,
+    beyond ``tolerance`` (3,) rad/s (:func:`.record.static_rate_tolerance`). Each gyro of the
+    record ``f``, ``w`` (N,3), ``t`` (N,) is offset by ``sigma_deg_h`` in turn and identified
+    again (one batch of three), ``est`` the record's own :func:`estimates`; per estimate the
+    shift per sigma of each gyro (arcsec), the sigma with the three added in quadrature
+    (``sigma_with_gyro_arcsec``: the honest 1 sigma with the config's gyros) and the shift, in
+    the filter's sigma, of the largest rate error the check at rest lets pass
+    (``shift_at_tolerance_sigmas``); per gyro the largest scale error that passes
+    (``scale_tolerance``, ``tolerance / omega_i``)."""
+    sig = float(np.hypot(cfg.gyro["bias_deg_h"], cfg.gyro["g_sens_deg_h_g"])) * DEG_H
+    out = {"sigma_deg_h": sig / DEG_H, "rest_tolerance_deg_h": (np.asarray(tolerance) / DEG_H).tolist(),
+           "scale_tolerance": (np.abs(np.asarray(tolerance) / cfg.omega_ie)).tolist(), "estimates": {}}
+    if not sig > 0:
+        return out
+    ws = np.repeat(w[None], 3, axis=0) + sig * np.eye(3)[:, None, :]
+    idn = identify(cfg, traj, np.repeat(f[None], 3, axis=0), ws, t=t)
+    shifts = np.stack([estimates(idn, None, s)["estimate"].to_numpy() for s in range(3)], axis=1) \
+        - est["estimate"].to_numpy()[:, None]                     # (rows, 3 gyros), per sigma_deg_h
+    for i, row in est.iterrows():
+        if row["unit"] != "arcsec" or not np.isfinite(row["estimate"]):
+            continue
+        sh = shifts[i]
+        at_tol = np.abs(sh) / sig * np.asarray(tolerance) / row["sigma"]
+        out["estimates"][f"{row['name']} {row['filter']}"] = {
+            "sigma_arcsec": float(row["sigma"]), "shift_per_gyro_sigma_arcsec": sh.tolist(),
+            "sigma_with_gyro_arcsec": float(np.hypot(row["sigma"], np.linalg.norm(sh))),
+            "shift_at_tolerance_sigmas": at_tol.tolist()}
+    return out

@@ -16,14 +16,15 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.stats import norm
 
 from ...errors import InputError
-from ...logs.increments import increment_units, rates_from_increments
+from ...logs.increments import increment_units, rates_from_increments, sample_intervals
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
 from ... import records
 from ...records import check_times, grid_origin, num, read_table
-from .config import G, SledConfig
+from .config import ARCSEC, DEG_H, G, OMEGA_E, SledConfig
 from .sensors import ErrorParams
 from .simulate import SimBatch, Truth
 from .trajectory import Trajectory, build_trajectory, true_imu
@@ -147,11 +148,107 @@ def check_plausible(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndar
     """Refuse (InputError naming the column, exit 2, before the filters) a record whose specific
     force or rates are a unit, sign or swap of the trajectory's error-free output (docs/rocket-sled.md
     §10): the along-track force and the 1 g at rest for ``fx, fz``, the earth rate for the gyros
-    (:func:`platcal.plausibility.refuse_recognised`). ``f``, ``w`` (N,3) as :func:`record_arrays`
-    gives them for one record."""
+    (:func:`platcal.plausibility.refuse_recognised`); then from the rig's physics, each gyro's
+    mean at rest against the earth rate (:func:`check_static_rates`) and ``fy`` against the
+    Coriolis force of the record's own velocity (:func:`check_lateral_force`). ``f`` (N,3)
+    m/s^2, ``w`` (N,3) rad/s as :func:`record_arrays` gives them for one record, ``t`` (N,) s."""
     f_nom, w_nom = nominal_imu(cfg, traj, t)
     refuse_recognised(f, f_nom, ("fx", "fy", "fz"), "m/s^2", NOMINAL_FIX["f"])
     refuse_recognised(w, w_nom, ("wx", "wy", "wz"), "rad/s", NOMINAL_FIX["w"])
+    check_static_rates(cfg, traj, w, t)
+    check_lateral_force(cfg, traj, f, t)
+
+
+STATIC_RATE_LEVEL = 1e-3
+"""False-alarm probability of :func:`check_static_rates` for a clean record (split over the three
+gyros, two-sided): 1e-3 keeps it a tenth of the fit check's 1 % level, so the two together stay
+within issue 25's 1 % of clean records flagged."""
+
+
+def static_rate_sigma(cfg: SledConfig, seconds: float) -> np.ndarray:
+    """(3,) rad/s: the standard deviation of a clean record's mean gyro output over ``seconds`` of
+    rest about the earth rate's body components (docs/rocket-sled.md §1, §3, §12 "Record axes"),
+    from the config: the bias ``imu.gyro.bias_deg_h``, the g-sensitivity at 1 g
+    (``g_sens_deg_h_g``; at rest f = [0, 0, g] so one term per axis), the angle random walk
+    ``arw_deg_rth`` averaged over ``seconds``, and the record's axes turned by the initial
+    attitude error (``alignment.sigma_arcsec``: the record holds R w, R = exp(-[phi0 x]), so
+    component i moves by (phi0 x omega_ie)_i)."""
+    gy = cfg.gyro
+    om = cfg.omega_ie
+    sa = np.asarray(cfg.alignment_arcsec, float) * ARCSEC
+    # (phi x om)_i = sum_jk eps_ijk phi_j om_k, independent phi_j
+    turn = np.array([(sa[1] * om[2]) ** 2 + (sa[2] * om[1]) ** 2, (sa[2] * om[0]) ** 2 + (sa[0] * om[2]) ** 2,
+                     (sa[0] * om[1]) ** 2 + (sa[1] * om[0]) ** 2])
+    arw = gy["arw_deg_rth"] * np.pi / 180 / 60 / np.sqrt(max(seconds, cfg.dt))   # rad/s over the mean
+    var = (gy["bias_deg_h"] * DEG_H) ** 2 + (gy["g_sens_deg_h_g"] * DEG_H) ** 2 + arw ** 2 + turn
+    # a floor far below any gyro's resolution: a config of perfect gyros still compares with a tolerance
+    return np.sqrt(var + (1e-9 * OMEGA_E) ** 2)
+
+
+def rest_samples(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> np.ndarray:
+    """(N,) bool: the record's samples at rest, the static periods before launch and after the
+    stop (docs/rocket-sled.md §2) by time ``t`` (s from the record's start), two median steps in
+    from each end (a jittered stamp near a phase change is not taken for rest)."""
+    med = float(np.median(np.diff(t))) if t.size > 1 else cfg.dt
+    rest = np.zeros(t.size, bool)
+    for p in (0, len(traj.phase_names) - 1):
+        rows = np.flatnonzero(traj.phase == p)
+        if rows.size:
+            a, b = rows[0] * cfg.dt, (rows[-1] + 1) * cfg.dt
+            rest |= (t >= a + 2 * med) & (t < b - 2 * med)
+    return rest
+
+
+STATIC_RATE_K = float(norm.isf(STATIC_RATE_LEVEL / 6))
+"""Sigmas of :func:`static_rate_sigma` beyond which a gyro's mean at rest is refused: two-sided
+at :data:`STATIC_RATE_LEVEL` over the three gyros (3.59)."""
+
+
+def rest_seconds(rest: np.ndarray, t: np.ndarray) -> float:
+    """Seconds at rest: the samples of ``rest`` x the record's median step."""
+    return float(rest.sum()) * float(np.median(np.diff(t))) if t.size > 1 else 0.0
+
+
+def static_rate_tolerance(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> np.ndarray:
+    """(3,) rad/s: the largest constant rate error of each gyro :func:`check_static_rates` lets
+    pass on a record with stamps ``t`` (inf when it has no rest)."""
+    seconds = rest_seconds(rest_samples(cfg, traj, t), t)
+    return STATIC_RATE_K * static_rate_sigma(cfg, seconds) if seconds > 0 else np.full(3, np.inf)
+
+
+def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.ndarray) -> None:
+    """Refuse (InputError naming the gyro column, exit 2, before the filters) a record whose mean
+    rate at rest differs from the earth rate's body component (docs/rocket-sled.md §1: the sled
+    is level, track frame = body frame, so a gyro at rest reads omega_ie^l; issue 25 item 2) by
+    more than the config's gyro errors allow (:func:`static_rate_sigma`, two-sided at
+    :data:`STATIC_RATE_LEVEL` over the three gyros). The rest is the static periods before
+    launch and after the stop, two samples in from each end. Because the true rate is the earth
+    rate throughout the test, a gyro scale error 1 + e is, in every sample, a bias of
+    e x omega_i: this catches it once e omega_i passes the tolerance (about 0.2 deg/h with the
+    default config); below, the record cannot tell it from the gyro's own bias. ``w`` (N,3)
+    rad/s, ``t`` (N,) s from the record's start."""
+    rest = rest_samples(cfg, traj, t)
+    if rest.sum() < 2:
+        return
+    seconds = rest_seconds(rest, t)
+    mean = w[rest].mean(axis=0)
+    expected = cfg.omega_ie
+    sigma = static_rate_sigma(cfg, seconds)
+    k = STATIC_RATE_K
+    z = (mean - expected) / sigma
+    worst = int(np.argmax(np.abs(z)))
+    if abs(z[worst]) <= k:
+        return
+    col = ("wx", "wy", "wz")[worst]
+    ratio = mean[worst] / expected[worst] if expected[worst] else np.nan
+    raise InputError(f"--data column {col}",
+                     f"mean {mean[worst] / DEG_H:.4g} deg/h over {seconds:g} s at rest, expected the earth rate's "
+                     f"component {expected[worst] / DEG_H:.4g} deg/h +- {k * sigma[worst] / DEG_H:.2g} "
+                     f"(site.latitude_deg = {cfg.latitude_deg:g}, site.track_azimuth_deg = "
+                     f"{cfg.track_azimuth_deg:g}; {k:.2f} sigma of imu.gyro bias, g-sensitivity and ARW and "
+                     f"the alignment error; docs/rocket-sled.md §1, §3); it reads {ratio:.4g} x the earth rate "
+                     f"there, {z[worst]:+.1f} sigma off: a scale error of {col} (fix the gyro's scale factor), a "
+                     "bias beyond imu.gyro.bias_deg_h (declare the gyro's bias), or another site")
 
 
 def samples_per_phase(traj: Trajectory, t: np.ndarray, dt: float) -> dict[str, int]:
@@ -182,3 +279,55 @@ def record_truth(path: str | Path, df: pd.DataFrame) -> Truth | None:
         raise InputError(str(records.truth_path(path)), f"not a sled truth file ({exc.__class__.__name__}: {exc})") from None
     return Truth(params=p, x_true=df["x_true"].to_numpy(float)[None], vx_true=df["vx_true"].to_numpy(float)[None],
                  x_inst=df["x_inst"].to_numpy(float)[None], nabla_static=nab)
+
+
+LATERAL_LEVEL = 1e-3
+"""False-alarm probability of :func:`check_lateral_force` for a clean record (two-sided), a
+tenth of the fit check's 1 % as :data:`STATIC_RATE_LEVEL`."""
+
+
+def lateral_coriolis_gain(cfg: SledConfig, traj: Trajectory, f: np.ndarray, t: np.ndarray) -> tuple[float, float]:
+    """The gain of the record's lateral force ``fy`` on the Coriolis force ``2 omega_z v`` and its
+    standard error (docs/rocket-sled.md §2: the true specific force is ``[a_x, 2 omega_z v,
+    g - 2 omega_y v]``, so an error-free ``fy`` in m/s^2 has gain 1; a ``fy`` scaled by 1 + e has
+    1 + e). ``v`` (m/s) is the record's own along-track velocity, ``fx`` integrated over each
+    sample's interval after its mean at rest (the accelerometer's bias and the tilt's g) is
+    taken off. Least squares of ``fy`` on [1, fx, 2 omega_z v]: the constant takes the lateral
+    bias and the roll's g (phi_x, M_yz), the ``fx`` term the azimuth error and the misalignment
+    M_yx (phi_z f_x), which are unknown; the Coriolis term is not, up to the y scale factor
+    (``imu.accel.scale_ppm``). The standard error is the least-squares one from the residuals'
+    scatter (the accelerometer's white noise). ``f`` (N,3) m/s^2, ``t`` (N,) s."""
+    rest = rest_samples(cfg, traj, t)
+    fx = f[:, 0] - (float(f[rest, 0].mean()) if rest.any() else 0.0)
+    v = np.cumsum(fx * sample_intervals(t)) - 0.5 * fx * sample_intervals(t)   # mid-interval, as the Coriolis mean
+    cor = 2.0 * cfg.omega_ie[2] * v
+    A = np.column_stack([np.ones_like(v), f[:, 0], cor])
+    coef, *_ = np.linalg.lstsq(A, f[:, 1], rcond=None)
+    r = f[:, 1] - A @ coef
+    dof = max(t.size - A.shape[1], 1)
+    cov = np.linalg.pinv(A.T @ A) * float(r @ r) / dof
+    return float(coef[2]), float(np.sqrt(cov[2, 2]))
+
+
+def check_lateral_force(cfg: SledConfig, traj: Trajectory, f: np.ndarray, t: np.ndarray) -> None:
+    """Refuse (InputError naming column ``fy``, exit 2, before the filters) a record whose lateral
+    force does not carry the Coriolis force of its own along-track velocity at gain 1
+    (:func:`lateral_coriolis_gain`): beyond :data:`LATERAL_LEVEL` two-sided of its standard error
+    plus the y scale factor's 4 sigma (``imu.accel.scale_ppm``, a model tolerance). The run
+    filter reads the azimuth error from ``fy`` (phi_z f_x), so a ``fy`` scaled by 1 + e gives
+    phi_z (1 + e); this is the one term of ``fy`` the record fixes. Skipped (nothing to compare)
+    when the run has no speed."""
+    gain, se = lateral_coriolis_gain(cfg, traj, f, t)
+    if not (np.isfinite(gain) and np.isfinite(se) and se > 0):
+        return
+    k = float(norm.isf(LATERAL_LEVEL / 2))
+    tol = k * se + 4 * cfg.accel["scale_ppm"] * 1e-6
+    if abs(gain - 1.0) <= tol:
+        return
+    raise InputError("--data column fy",
+                     f"carries {gain:.4g} x the Coriolis force 2 omega_z v of the record's along-track velocity "
+                     f"(+- {se:.2g}), expected 1 +- {tol:.2g} (docs/rocket-sled.md §2: fy = 2 omega_z v on the "
+                     f"rail, omega_z = {cfg.omega_ie[2]:.4g} rad/s at site.latitude_deg = {cfg.latitude_deg:g}; "
+                     f"{k:.2f} standard errors and 4 sigma of imu.accel.scale_ppm); fy is scaled by about "
+                     f"{gain:.4g}: fix its scale factor (fy must be the lateral specific force in m/s^2), "
+                     "or the site's latitude")

@@ -21,6 +21,7 @@ Usage::
     pip install -e '.[bench]'
     python benchmarks/bench_filter.py                # about a minute on 2 cores
     python benchmarks/bench_filter.py --dwell 10     # quicker, shorter dwell
+    python benchmarks/bench_filter.py --lanes        # run_ekf rows with the state-major kernel
 
 Wall-clock times; the load average at start and end is printed because other processes on the
 machine slow every figure down.
@@ -182,6 +183,8 @@ def main(argv=None) -> None:
     ap.add_argument("--population", type=int, default=64, help="schemes per covariance-only batch")
     ap.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
     ap.add_argument("--repeat", type=int, default=2, help="timed repeats per platcal figure (best)")
+    ap.add_argument("--lanes", action="store_true",
+                    help="platcal run_ekf rows (and the agreement) with the state-major kernel, run_ekf(..., lanes=True)")
     args = ap.parse_args(argv)
 
     set_threads(args.threads)
@@ -207,7 +210,7 @@ def main(argv=None) -> None:
                                              scheme.angles_deg, params)
 
     def ekf(data, B):
-        return run_ekf(record(data, B), settings)
+        return run_ekf(record(data, B), settings, lanes=args.lanes)
 
     def estimator(kind, data, B):
         return KINDS[kind].run(record(data, B), settings)
@@ -216,7 +219,8 @@ def main(argv=None) -> None:
     warm = check_scheme("w", {"dwell_s": 0.2, "positions": [list(p) for p in TABLE1_POSITIONS[:2]]})
     wd = simulate(truth, warm, cen.scheme_params(warm), Noise(), seeds[:2], keep_every=keep)
     wparams = cen.scheme_params(warm)
-    run_ekf(centrifuge_ekf.EstimatorInput([wd.A[:, k] for k in range(2)], [wd.t] * 2, warm.angles_deg, wparams), settings)
+    run_ekf(centrifuge_ekf.EstimatorInput([wd.A[:, k] for k in range(2)], [wd.t] * 2, warm.angles_deg, wparams), settings,
+            lanes=args.lanes)
     run_ekf(centrifuge_ekf.EstimatorInput([None] * 2, [wd.t] * 2, warm.angles_deg, wparams), settings,
             linearise_about=np.repeat(truth[None], 2, axis=0))
 
@@ -225,7 +229,8 @@ def main(argv=None) -> None:
     flops = filter_flops_per_step()
     print(f"platcal filter benchmark: Table 1 scheme, {K} x {args.dwell:g} s, {n_steps} filter steps "
           f"of {settings.period_s * 1e3:g} ms per replicate, numba threads {get_threads()}, "
-          f"cores {os.cpu_count()}, load average {load0[0]:.2f}")
+          f"cores {os.cpu_count()}, load average {load0[0]:.2f}"
+          f"{', run_ekf rows: the state-major kernel (lanes=True)' if args.lanes else ''}")
     print(f"matrix-multiply peak (numpy BLAS, float64, 1500^3): {peak:.1f} GFLOP/s")
 
     data = sim(Bmax)

@@ -257,7 +257,27 @@ def resid6_k(ctx, x, z, res, hval, hcols, hnnz):
         hnnz[3 + j] = 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def transition_rows(F, T, cols, dt, arw2, phi, q):
+    """Phi's 3 phi rows at the dynamic columns ``cols``, ``phi (3, m) = (I + F dt + F^2 dt^2 / 2)``
+    (F's nonzero columns are phi's and the gyro coefficients', so ``F^2`` needs F's phi columns
+    only), and ``q (3, 3) = T T^T ARW^2 dt`` (rad^2), §9 of docs/multiposition-1g.md; ``dt`` s,
+    ``arw2`` rad^2/s."""
+    m = cols.shape[0]
+    for r in range(3):
+        for c in range(m):
+            v = F[r, cols[c]] * dt
+            v += 0.5 * dt * dt * (F[r, 0] * F[0, cols[c]] + F[r, 1] * F[1, cols[c]]
+                                  + F[r, 2] * F[2, cols[c]])
+            if cols[c] == r:
+                v += 1.0
+            phi[r, c] = v
+    for r in range(3):
+        for c in range(3):
+            q[r, c] = arw2 * dt * (T[r, 0] * T[c, 0] + T[r, 1] * T[c, 1] + T[r, 2] * T[c, 2])
+
+
+@njit(cache=True, error_model="numpy")  # numpy errors: no raise paths, see model.py's kernels
 def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, rec):
     """One pass over K positions for one replicate; x (n,), P (n, n) updated in place.
 
@@ -317,17 +337,7 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
             if s > 0:
                 dt = tk[k, s] - tk[k, s - 1]
                 rate_k(phi0s[k], x, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
-                for r in range(3):
-                    for c in range(m):
-                        v = F[r, cols[c]] * dt
-                        v += 0.5 * dt * dt * (F[r, 0] * F[0, cols[c]] + F[r, 1] * F[1, cols[c]]
-                                              + F[r, 2] * F[2, cols[c]])
-                        if cols[c] == r:
-                            v += 1.0
-                        phi[r, c] = v
-                for r in range(3):
-                    for c in range(3):
-                        q[r, c] = arw2 * dt * (T[r, 0] * T[c, 0] + T[r, 1] * T[c, 1] + T[r, 2] * T[c, 2])
+                transition_rows(F, T, cols, dt, arw2, phi, q)
                 propagate_sparse(P, dyn, cols, phi, q, W, blk)
                 for r in range(3):  # the rate at x, RK4's first stage
                     k4[0, r] = nxt[r]
@@ -384,7 +394,7 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     return nis, nup, nlin, nbad
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol,
                nis, nlin, nbad, rec):
     for b in range(lo, hi):

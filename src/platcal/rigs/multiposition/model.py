@@ -155,8 +155,15 @@ class Site:
 
 
 # ------------------------------------------------------------------ numba kernels
+#
+# The kernels are inlined into their callers (the filter step, the simulator) and use numpy's
+# error model (a division by zero gives inf instead of raising) because a call of a compiled
+# function with array arguments pays an atomic reference-count increment and decrement per array
+# (about 15 of each per rate evaluation, four evaluations per filter step), and the raise paths
+# keep numba from pruning them; the arithmetic is unchanged, so are the numbers (issue 22 item 2:
+# about 10 % of a multiposition filter step, benchmarks/profile_multiposition.py).
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def gyro_drift_k(c, lay, f, eps, deps, greg):
     """Drift of gyros x, y, z (deg/h) at ``f`` (g, in p), §5 (+ §13 terms when in ``lay``).
 
@@ -203,7 +210,7 @@ def gyro_drift_k(c, lay, f, eps, deps, greg):
             deps[j, k] = gI * GYRO_AXES[j, 0, k] + gO * GYRO_AXES[j, 1, k] + gS * GYRO_AXES[j, 2, k]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def rot_t_into(a0, a1, a2, C, dC, T, dT, want_d):
     """``C_n^p(a0, a1, a2)`` and ``T(a1, a2)`` (and, with ``want_d``, their partials ``dC``,
     ``dT``) from one evaluation of the six sines and cosines.
@@ -220,7 +227,7 @@ def rot_t_into(a0, a1, a2, C, dC, T, dT, want_d):
     euler_t_sc_into(sb, cb, sg, cg, T, dT, want_d)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def rate_k(phi0, x, lay, wn, wu, w, rate, F, want_jac, C, dC, T, dT, f, eps, deps, greg):
     """Error-angle rate of §4, rad/s: ``phi' = -T [eps DPH + C_n^p w_ie^n + w]``.
 
@@ -267,7 +274,7 @@ def rate_k(phi0, x, lay, wn, wu, w, rate, F, want_jac, C, dC, T, dT, f, eps, dep
                 F[r, col] = -T[r, j] * g
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def meas_k(phi0, x, lay, z, H, hcols, hnnz, C, dC):
     """The 6-D measurement of §7 without noise and its Jacobian.
 
@@ -337,7 +344,7 @@ def meas_k(phi0, x, lay, z, H, hcols, hnnz, C, dC):
         z[3 + i] = (phi0[i] + x[i]) / ARCSEC
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def rk4_k(phi0, x, lay, wn, wu, w, h, out, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, have_k1=False):
     """One RK4 step of §4 over ``h`` s with the white rate ``w`` held constant (§12); angles
     only (coefficients are constant). ``out`` (3,) the new phi. With ``have_k1`` the caller has

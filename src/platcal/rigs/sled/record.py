@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.stats import norm
 
 from ...errors import InputError
+from ...estimation.consistency import normal_quantile
 from ...logs.increments import increment_units, rates_from_increments, sample_intervals
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
@@ -199,7 +199,7 @@ def rest_samples(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> np.ndarray
     return rest
 
 
-STATIC_RATE_K = float(norm.isf(STATIC_RATE_LEVEL / 6))
+STATIC_RATE_K = -normal_quantile(STATIC_RATE_LEVEL / 6)  # scipy.stats.norm.isf, bit for bit
 """Sigmas of :func:`static_rate_sigma` beyond which a gyro's mean at rest is refused: two-sided
 at :data:`STATIC_RATE_LEVEL` over the three gyros (3.59)."""
 
@@ -320,7 +320,7 @@ def check_lateral_force(cfg: SledConfig, traj: Trajectory, f: np.ndarray, t: np.
     gain, se = lateral_coriolis_gain(cfg, traj, f, t)
     if not (np.isfinite(gain) and np.isfinite(se) and se > 0):
         return
-    k = float(norm.isf(LATERAL_LEVEL / 2))
+    k = -normal_quantile(LATERAL_LEVEL / 2)
     tol = k * se + 4 * cfg.accel["scale_ppm"] * 1e-6
     if abs(gain - 1.0) <= tol:
         return

@@ -186,14 +186,19 @@ def clock_block(rate: ClockRate, tolerance: float, coefficient: str) -> dict:
             "most_sensitive": coefficient or None, "share_of_sigma": CLOCK_RATE_SHARE}
 
 
-def refuse_clock_rate(rate: ClockRate, tolerance: float, coefficient: str, fix: str, spec: str,
-                      field: str = "--data column t") -> dict:
+def refuse_clock_rate(rate: ClockRate, tolerance: float, coefficient: str, period_key: str, spec: str,
+                      reference: str = "", field: str = "--data column t") -> dict:
     """InputError naming column t when the record's clock runs off the declared sample period by
     more than ``tolerance`` (relative) beyond :data:`CLOCK_RATE_Z` standard errors: the measured
     rate error, its standard error, the tolerance, the coefficient it protects, the ``spec``
-    section giving the tolerance's formula and ``fix``; else the summary's :func:`clock_block`."""
+    section giving the tolerance's formula and the fix (stamp with the recorder's sample clock or
+    ``reference``, or declare the period measured under the config key ``period_key``, ms); else
+    the summary's :func:`clock_block`."""
     if not np.isfinite(rate.error) or abs(rate.error) - CLOCK_RATE_Z * rate.se <= tolerance:
         return clock_block(rate, tolerance, coefficient)
+    fix = ("the record cannot tell a wrong stamp clock from a logger sampling off its declared rate: stamp with "
+           f"the recorder's sample clock{reference}, or, if the stamps are the true sample times, declare the "
+           f"logger's period {period_key} = {rate.step_s * 1e3 * (1 + rate.error):.9g}")
     raise InputError(field, f"the stamps run {rate.error:+.3g} (relative, +-{rate.se:.2g}) off the declared "
                      f"{rate.step_s * 1e3:g} ms sample period over {rate.samples} samples; a clock-rate error "
                      f"above {tolerance:.2g} moves {coefficient} by more than {CLOCK_RATE_SHARE:g} of its sigma "

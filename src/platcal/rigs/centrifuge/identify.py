@@ -143,11 +143,8 @@ def check_clock_rate(study: Study, scheme: Scheme, est: Estimate, rate: ClockRat
     gain = [drift_gain(n, force) for n in names]
     omega_deg_h = abs(study.centrifuge.rate_deg_s) * 3600.0
     tol, most = clock_rate_tolerance(names, est.coef[0], est.coef_sigma[0], per_hour, omega_deg_h, gain)
-    return refuse_clock_rate(rate, tol, most,
-                             "the record cannot tell a wrong stamp clock from a logger sampling off its "
-                             "declared rate: stamp with the recorder's sample clock (or the table's encoder "
-                             "angle), or, if the stamps are the true sample times, declare the logger's period "
-                             f"sampling.sample_ms = {study.sample_s * 1e3 * (1 + rate.error):.9g}", "docs/centrifuge-model.md §13")
+    return refuse_clock_rate(rate, tol, most, "sampling.sample_ms", "docs/centrifuge-model.md §13",
+                             " (or the table's encoder angle)")
 
 
 def expected_g(study: Study, scheme: Scheme) -> np.ndarray:

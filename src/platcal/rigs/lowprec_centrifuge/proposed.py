@@ -129,23 +129,50 @@ def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return c
 
 
+def boundary_integrals(t: np.ndarray, y: np.ndarray, c: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """(B, m) the integral of y (N, m) from t[0] to each instant ``tb`` (s, within [t[0], t[-1]]):
+    its cumulative trapezoid c at the sample before, plus the trapezoid to ``tb`` with y linearly
+    interpolated (§7). Only the samples around each instant are read, so a streamed record
+    (:mod:`.stream`) evaluates it on a block holding them and gets the whole record's numbers."""
+    k = np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
+    h = (tb - t[k])[:, None]
+    yb = y[k] + h / (t[k + 1] - t[k])[:, None] * (y[k + 1] - y[k])
+    return c[k] + 0.5 * h * (y[k] + yb)
+
+
 def interval_means(t: np.ndarray, y: np.ndarray, c: np.ndarray, ts: np.ndarray, te: np.ndarray) -> np.ndarray:
     """(W, m) means of y (N, m) over [ts, te] from its cumulative trapezoid c, boundary values interpolated."""
-    dtk = np.diff(t)
+    return (boundary_integrals(t, y, c, te) - boundary_integrals(t, y, c, ts)) / (te - ts)[:, None]
 
-    def at(tb):
-        k = np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
-        h = (tb - t[k])[:, None]
-        yb = y[k] + h / dtk[k][:, None] * (y[k + 1] - y[k])
-        return c[k] + 0.5 * h * (y[k] + yb)
 
-    return (at(te) - at(ts)) / (te - ts)[:, None]
+def window_means(ts, te, iy_s, iy_e, if_s, if_e, psi_s, psi_e, arm_m: float):
+    """Per window [ts, te] (s): T (s), z (zVE, zVN m/s, zPE, zPN m) and m (m1E, m1N, m2E, m2N) of §7
+    from the integrals at its ends (:func:`boundary_integrals`) of y = (VE, VN, pcE, pcN) (``iy``)
+    and of the force terms (``if_``), and the unwrapped heading there (rad)."""
+    tt = te - ts
+    mean = (iy_e - iy_s) / tt[:, None]
+    m = (if_e - if_s) / tt[:, None]
+    du = np.stack([np.cos(psi_e) - np.cos(psi_s), np.sin(psi_e) - np.sin(psi_s)], axis=-1)
+    z = np.concatenate([mean[:, 0:2] - arm_m * du / tt[:, None], mean[:, 2:4]], axis=1)
+    return tt, z, m
+
+
+def arm_offset(p_rel: np.ndarray, psi_u: np.ndarray, u0: np.ndarray, arm_m: float) -> np.ndarray:
+    """(N, 2) m: the position relative to the centrifuge's centre minus the arm vector (§7), the
+    centre at -arm u0 from the start (u0 = (cos, sin) of the first sample's heading)."""
+    u = np.stack([np.cos(psi_u), np.sin(psi_u)], axis=-1)
+    return p_rel + arm_m * u0 - arm_m * u
+
+
+def force_integrand(f: np.ndarray) -> np.ndarray:
+    """(|f|/g0, (f/g0)^2) per axis of f (N, 2) m/s^2: (N, 4) = (|aE|, |aN|, aE^2, aN^2) (§7)."""
+    a = f / G0
+    return np.concatenate([np.abs(a), a * a], axis=1)
 
 
 def force_terms(t: np.ndarray, f: np.ndarray):
-    """(|f|/g0, (f/g0)^2) per axis, (N, 4) = (|aE|, |aN|, aE^2, aN^2), and its cumulative integral."""
-    a = f / G0
-    y = np.concatenate([np.abs(a), a * a], axis=1)
+    """:func:`force_integrand` of f and its cumulative integral."""
+    y = force_integrand(f)
     return y, cumtrap(t, y)
 
 
@@ -155,16 +182,12 @@ def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None):
     ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds).
     """
     win = find_windows(t, psi_u, schedule)
-    u = np.stack([np.cos(psi_u), np.sin(psi_u)], axis=-1)
-    pc = p_rel + arm_m * u[0] - arm_m * u      # position relative to the centre minus the arm vector
-    y = np.concatenate([v, pc], axis=1)
-    mean = interval_means(t, y, cumtrap(t, y), win.ts, win.te)
+    y = np.concatenate([v, arm_offset(p_rel, psi_u, np.array([np.cos(psi_u[0]), np.sin(psi_u[0])]), arm_m)], axis=1)
+    c = cumtrap(t, y)
     yf, cf = force_terms(t, f) if force is None else force
-    m = interval_means(t, yf, cf, win.ts, win.te)
-    tt = win.te - win.ts
-    psi_s, psi_e = np.interp(win.ts, t, psi_u), np.interp(win.te, t, psi_u)
-    du = np.stack([np.cos(psi_e) - np.cos(psi_s), np.sin(psi_e) - np.sin(psi_s)], axis=-1)
-    z = np.concatenate([mean[:, 0:2] - arm_m * du / tt[:, None], mean[:, 2:4]], axis=1)
+    tt, z, m = window_means(win.ts, win.te, boundary_integrals(t, y, c, win.ts), boundary_integrals(t, y, c, win.te),
+                            boundary_integrals(t, yf, cf, win.ts), boundary_integrals(t, yf, cf, win.te),
+                            np.interp(win.ts, t, psi_u), np.interp(win.te, t, psi_u), arm_m)
     return win, tt, z, m
 
 

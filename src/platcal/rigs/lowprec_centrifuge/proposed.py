@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ...errors import InputError
@@ -266,50 +267,128 @@ def predict(F: np.ndarray, T: np.ndarray, x: np.ndarray, P: np.ndarray, q: np.nd
     return phi, H, xp, Pp
 
 
+@numba.njit(cache=True, error_model="numpy")
+def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations):
+    """The Kalman filter of §7 over windows, compiled; the state is carried in place, so windows
+    can come in blocks. Per seed s (leading axis, independent: batched over replicates) and
+    window w with ``valid[s, w]``: F of the window's force means m (:func:`f_matrix`, base ``fb``
+    = :func:`f_base`), Phi and H of its length T (s) (:func:`transition_and_h`, the same
+    operations in the same order), the prediction x = Phi x, P = Phi P Phi^T + q T (q the noise
+    density, :func:`q_density`), then the shared Joseph-form update of the window means z (zVE,
+    zVN m/s, zPE, zPN m; noise variances ``r_var``, :func:`platcal.estimation.kalman.joseph_update_sparse`,
+    H dense: every column listed). ``nis[s]`` gains each update's NIS, ``skipped[s]`` counts
+    updates whose innovation covariance was not positive definite (the prediction kept). With
+    ``innovations`` of shape (S, W, 8), each window's innovation and its predicted variance
+    diag(H P H^T) + r go there (invalid windows untouched); shape (0, W, 8): not kept."""
+    nb, nw = T.shape
+    keep = innovations.shape[0] == nb
+    s_acc = G0 * 1e-6
+    hcols = np.empty((4, NX), np.int64)
+    for r in range(4):
+        for j in range(NX):
+            hcols[r, j] = j
+    hnnz = np.full(4, NX, np.int64)
+    U, K, D = np.empty((4, NX)), np.empty((4, NX)), np.empty((4, NX))
+    S, Sinv = np.empty((4, 4)), np.empty((4, 4))
+    nu, innov = np.empty(4), np.empty(4)
+    ft, ft2, ft3 = np.empty((NX, NX)), np.empty((NX, NX)), np.empty((NX, NX))
+    phi, tmp, Pp = np.empty((NX, NX)), np.empty((NX, NX)), np.empty((NX, NX))
+    H = np.empty((4, NX))
+    xp = np.empty(NX)
+    for s in range(nb):
+        for w in range(nw):
+            if not valid[s, w]:
+                continue
+            tw = T[s, w]
+            for i in range(NX):
+                for j in range(NX):
+                    ft[i, j] = fb[i, j] * tw
+            ft[0, 7] = (s_acc * m[s, w, 0]) * tw
+            ft[0, 8] = (s_acc * m[s, w, 2]) * tw
+            ft[1, 9] = (s_acc * m[s, w, 1]) * tw
+            ft[1, 10] = (s_acc * m[s, w, 3]) * tw
+            _matmul(ft, ft, ft2)
+            _matmul(ft2, ft, ft3)
+            for i in range(NX):
+                for j in range(NX):
+                    e = 1.0 if i == j else 0.0
+                    phi[i, j] = e + ft[i, j] + ft2[i, j] / 2 + ft3[i, j] / 6
+                    if i < 4:
+                        H[i, j] = e - ft[i, j] / 2 + ft2[i, j] / 6
+            for i in range(NX):
+                v = 0.0
+                for j in range(NX):
+                    v += phi[i, j] * x[s, j]
+                xp[i] = v
+            _matmul(phi, P[s], tmp)
+            for i in range(NX):
+                for j in range(NX):
+                    v = 0.0
+                    for k in range(NX):
+                        v += tmp[i, k] * phi[j, k]
+                    Pp[i, j] = v
+            for i in range(NX):
+                Pp[i, i] += q[i] * tw
+            for r in range(4):
+                v = 0.0
+                for j in range(NX):
+                    v += H[r, j] * xp[j]
+                innov[r] = z[s, w, r] - v
+            if keep:
+                for r in range(4):
+                    v = 0.0
+                    for j in range(NX):
+                        u = 0.0
+                        for k in range(NX):
+                            u += Pp[j, k] * H[r, k]
+                        v += H[r, j] * u
+                    innovations[s, w, r] = innov[r]
+                    innovations[s, w, 4 + r] = v + r_var[r]
+            if joseph_update_sparse(xp, Pp, hcols, hnnz, H, innov, r_var, U, K, D, S, Sinv, nu, True):
+                nis[s] += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2] + nu[3] * nu[3]
+            else:
+                skipped[s] += 1
+            for i in range(NX):
+                x[s, i] = xp[i]
+                for j in range(NX):
+                    P[s, i, j] = Pp[i, j]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _matmul(a, b, out):
+    """out = a b for square matrices, sums in index order."""
+    n = a.shape[0]
+    for i in range(n):
+        for j in range(n):
+            v = 0.0
+            for k in range(n):
+                v += a[i, k] * b[k, j]
+            out[i, j] = v
+
+
 def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float,
                keep_innovations: bool = False) -> FilterResult:
-    """The Kalman filter over padded window arrays (S, W), batched over seeds: predict with Phi
-    (numpy, batched), then the shared Joseph-form update of :mod:`platcal.estimation.kalman` per
-    seed (H dense: every column listed). Window means of velocity (m/s) and position (m) (§7).
+    """The Kalman filter over padded window arrays (S, W), batched over seeds: the compiled
+    :func:`filter_windows` from x = 0, P = diag(P0_STD^2). Window means of velocity (m/s) and
+    position (m) (§7).
 
     ``keep_innovations``: the result's ``innovations`` (S, W, 8) holds each window's innovation
     (zVE, zVN m/s, zPE, zPN m) and its predicted variance diag(S) (NaN for padding), for the fit check.
     """
     nb, nw = T.shape
-    q = q_density()
     x = np.zeros((nb, NX))
-    P = np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)).copy()
-    r_var = R_DIAG.copy()
-    Fw = f_matrix(lat_rad, m)                    # (S, W, 14, 14)
-    hcols = np.tile(np.arange(NX), (4, 1))
-    hnnz = np.full(4, NX)
-    U, K, D = (np.empty((4, NX)) for _ in range(3))
-    S, Sinv = np.empty((4, 4)), np.empty((4, 4))
-    nu = np.empty(4)
+    P = np.ascontiguousarray(np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)))
     nis = np.zeros(nb)
     skipped = np.zeros(nb, dtype=np.int64)
-    innovations = np.full((nb, nw, 8), np.nan) if keep_innovations else None
-    for w in range(nw):
-        ok = valid[:, w]
-        Tw = np.where(ok, T[:, w], 0.0)
-        phi, H, xp, Pp = predict(Fw[:, w], Tw, x, P, q)
-        innov = z[:, w] - np.einsum("bij,bj->bi", H, xp)
-        H = np.ascontiguousarray(H)
-        for s in np.flatnonzero(ok):
-            if innovations is not None:   # before the update, which overwrites Pp[s]
-                innovations[s, w, :4] = innov[s]
-                innovations[s, w, 4:] = np.einsum("ij,jk,ik->i", H[s], Pp[s], H[s]) + r_var
-            if joseph_update_sparse(xp[s], Pp[s], hcols, hnnz, H[s], innov[s], r_var, U, K, D, S, Sinv, nu, True):
-                nis[s] += nu @ nu
-            else:
-                skipped[s] += 1
-        x = np.where(ok[:, None], xp, x)
-        P = np.where(ok[:, None, None], Pp, P)
+    innovations = np.full((nb if keep_innovations else 0, nw, 8), np.nan)
+    filter_windows(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(z, dtype=float),
+                   np.ascontiguousarray(m, dtype=float), np.ascontiguousarray(valid, dtype=np.bool_),
+                   f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis, skipped, innovations)
     n_upd = valid.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_nis = nis / (n_upd - skipped)
     return FilterResult(x=x, P=P, n_windows=n_upd, mean_nis=mean_nis, failed_updates=skipped,
-                        innovations=innovations)
+                        innovations=innovations if keep_innovations else None)
 
 
 def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float,

@@ -74,7 +74,7 @@ def test_compiled_filter_carries_its_state_across_blocks_of_windows():
     lat = np.radians(st.latitude_deg)
     whole = run_filter(T, z, m, valid, lat, keep_innovations=True)
     x = np.zeros((2, NX))
-    P = np.ascontiguousarray(np.broadcast_to(np.diag(P0_STD**2), (2, NX, NX)))
+    P = np.broadcast_to(np.diag(P0_STD**2), (2, NX, NX)).copy()
     nis, skipped = np.zeros(2), np.zeros(2, np.int64)
     inn = np.full((2, nw, 8), np.nan)
     cut = nw // 3

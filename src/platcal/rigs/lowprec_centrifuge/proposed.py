@@ -385,7 +385,7 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     """
     nb, nw = T.shape
     x = np.zeros((nb, NX))
-    P = np.ascontiguousarray(np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)))
+    P = np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)).copy()   # writable: the kernel updates it
     nis = np.zeros(nb)
     skipped = np.zeros(nb, dtype=np.int64)
     innovations = np.full((nb if keep_innovations else 0, nw, 8), np.nan)

@@ -133,7 +133,7 @@ def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
 def boundary_integrals(t: np.ndarray, y: np.ndarray, c: np.ndarray, tb: np.ndarray) -> np.ndarray:
     """(B, m) the integral of y (N, m) from t[0] to each instant ``tb`` (s, within [t[0], t[-1]]):
     its cumulative trapezoid c at the sample before, plus the trapezoid to ``tb`` with y linearly
-    interpolated (§7). Only the samples around each instant are read, so a streamed record
+    interpolated (docs/lowprec-centrifuge.md §7). Only the samples around each instant are read, so a streamed record
     (:mod:`.stream`) evaluates it on a block holding them and gets the whole record's numbers."""
     k = np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
     h = (tb - t[k])[:, None]
@@ -147,7 +147,8 @@ def interval_means(t: np.ndarray, y: np.ndarray, c: np.ndarray, ts: np.ndarray, 
 
 
 def window_means(ts, te, iy_s, iy_e, if_s, if_e, psi_s, psi_e, arm_m: float):
-    """Per window [ts, te] (s): T (s), z (zVE, zVN m/s, zPE, zPN m) and m (m1E, m1N, m2E, m2N) of §7
+    """Per window [ts, te] (s): T (s), z (zVE, zVN m/s, zPE, zPN m) and m (m1E, m1N, m2E, m2N, g and
+    g^2) of docs/lowprec-centrifuge.md §7
     from the integrals at its ends (:func:`boundary_integrals`) of y = (VE, VN, pcE, pcN) (``iy``)
     and of the force terms (``if_``), and the unwrapped heading there (rad)."""
     tt = te - ts
@@ -159,14 +160,16 @@ def window_means(ts, te, iy_s, iy_e, if_s, if_e, psi_s, psi_e, arm_m: float):
 
 
 def arm_offset(p_rel: np.ndarray, psi_u: np.ndarray, u0: np.ndarray, arm_m: float) -> np.ndarray:
-    """(N, 2) m: the position relative to the centrifuge's centre minus the arm vector (§7), the
+    """(N, 2) m: the position relative to the centrifuge's centre minus the arm vector
+    (docs/lowprec-centrifuge.md §7) from positions ``p_rel`` (m) and the unwrapped heading (rad), the
     centre at -arm u0 from the start (u0 = (cos, sin) of the first sample's heading)."""
     u = np.stack([np.cos(psi_u), np.sin(psi_u)], axis=-1)
     return p_rel + arm_m * u0 - arm_m * u
 
 
 def force_integrand(f: np.ndarray) -> np.ndarray:
-    """(|f|/g0, (f/g0)^2) per axis of f (N, 2) m/s^2: (N, 4) = (|aE|, |aN|, aE^2, aN^2) (§7)."""
+    """(|f|/g0, (f/g0)^2) per axis of f (N, 2) m/s^2: (N, 4) = (|aE|, |aN|, aE^2, aN^2), g and g^2
+    (docs/lowprec-centrifuge.md §7)."""
     a = f / G0
     return np.concatenate([np.abs(a), a * a], axis=1)
 
@@ -269,7 +272,7 @@ def predict(F: np.ndarray, T: np.ndarray, x: np.ndarray, P: np.ndarray, q: np.nd
 
 @numba.njit(cache=True, error_model="numpy")
 def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations):
-    """The Kalman filter of §7 over windows, compiled; the state is carried in place, so windows
+    """The Kalman filter of docs/lowprec-centrifuge.md §7 over windows, compiled; the state is carried in place, so windows
     can come in blocks. Per seed s (leading axis, independent: batched over replicates) and
     window w with ``valid[s, w]``: F of the window's force means m (:func:`f_matrix`, base ``fb``
     = :func:`f_base`), Phi and H of its length T (s) (:func:`transition_and_h`, the same

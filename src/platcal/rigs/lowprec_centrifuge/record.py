@@ -199,7 +199,8 @@ error of a poor centrifuge, a few 1e-3, and the heading noise are far below it).
 
 
 def level_g(rate_rad_s: float, arm_m: float) -> float:
-    """The level (g) of a turn at ``rate_rad_s`` on the nominal arm ``arm_m`` (m): A = w^2 r_nom / g0 (§2)."""
+    """The level (g) of a turn at ``rate_rad_s`` on the nominal arm ``arm_m`` (m): A = w^2 r_nom / g0
+    (docs/lowprec-centrifuge.md §2)."""
     return rate_rad_s * rate_rad_s * arm_m / G0
 
 
@@ -267,7 +268,8 @@ platform's runs)."""
 def large_force_ratios(f: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One spin's ratios fE / dE, fN / dN of its recorded specific force f (n, 2) to the derivative
     of its velocity d (n, 2) (:func:`velocity_derivative`), m/s^2, over the samples where that
-    component exceeds half the spin's 99th percentile (away from its zero crossings)."""
+    component exceeds half the spin's 99th percentile (away from its zero crossings;
+    docs/lowprec-centrifuge.md §10, "Data that do not fit")."""
     out = []
     for c in range(2):
         big = np.abs(d[:, c]) > 0.5 * np.quantile(np.abs(d[:, c]), 0.99)

@@ -46,7 +46,7 @@ def identify_traditional(t, v, psi, schedule, levels_g, arm_m: float) -> np.ndar
 
 
 def plateau_estimates(t_ends, v_ends, psi_ends, levels_g, arm_m: float) -> np.ndarray:
-    """(S, 4) eq. (2) from each plateau's first and last hold samples only: their times ``t_ends``
+    """(S, 4) kA ug/g, k2 ug/g^2 per axis by eq. (2) (docs/lowprec-centrifuge.md §6) from each plateau's first and last hold samples only: their times ``t_ends``
     (L, 2) s, velocities ``v_ends`` (S, L, 2, 2) m/s and headings ``psi_ends`` (S, L, 2) rad (a
     streamed record keeps no more, :mod:`.stream`)."""
     dv = np.empty((v_ends.shape[0], len(levels_g), 2))

@@ -11,8 +11,13 @@ import pytest
 import yaml
 
 from platcal.cli import main
-from platcal.rigs.lowprec_centrifuge.record import velocity_derivative
+from platcal.io import read_config
+from platcal.rig import get_rig
+from platcal.rigs.lowprec_centrifuge.montecarlo import SEED_KEY
+from platcal.rigs.lowprec_centrifuge.record import record_frame, truth_json, velocity_derivative, write_record
 from platcal.rigs.lowprec_centrifuge.stream import _unwrap_tail
+from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
+from platcal.study.montecarlo import replicate_seed
 
 SMALL = {"rig": "lowprec_centrifuge", "profile": {"rest_first_s": 10, "rest_between_s": 30},
          "runs": {"P1": {"run1": [5, 8]}, "P2": {"run1": [5, 8]}}}
@@ -117,3 +122,15 @@ def test_streamed_bad_input_still_refused(record, tmp_path, capsys):
                      str(tmp_path / "o"), "--chunk-rows", chunk]) == 2
         assert "starts while spinning" in capsys.readouterr().err
         assert not (tmp_path / "o" / "estimates.csv").exists()
+
+
+def test_simulate_writes_the_record_of_the_whole_batch(record, tmp_path):
+    """simulate navigates the INS without the sensitivity variants (less memory): the CSV text is
+    that of the batch with them (today's record)."""
+    d, cfg, _ = record
+    study = get_rig("lowprec_centrifuge").load_config(read_config(cfg))
+    ss = replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], 3)
+    rb = simulate_batch(study, "P1", "run1", [ss], [3], keep_phi=True, sens=True)
+    write_record(record_frame(rb), truth_json(rb, study), tmp_path / "with_sens.csv")
+    assert (tmp_path / "with_sens.csv").read_bytes() == (d / "rec.csv").read_bytes()
+    assert (tmp_path / "with_sens.csv.truth.json").read_text() == (d / "rec.csv.truth.json").read_text()

@@ -57,8 +57,10 @@ def simulate(study: Study, args) -> int:
     t0 = time.perf_counter()
     # --seed N is replicate N of the study's cells (any scenario: they share the seeds), root seed `seed`
     ss = replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], seed)
+    # the record needs the INS alone: without the four unit-coefficient variants (sens) the INS
+    # lane's numbers are the same (each lane is navigated as if alone) and the run holds 5x fewer lanes
     rb = simulate_batch(study, args.platform, args.run, [ss], [seed], keep_phi=True,
-                        noise_free=bool(args.noise_free))
+                        noise_free=bool(args.noise_free), sens=False)
     write_record(record_frame(rb), truth_json(rb, study), args.out)
     print(f"platcal simulate: lowprec_centrifuge {args.platform} {args.run} ({', '.join(f'{a:g}' for a in rb.prof.levels)}"
           f" g), {'noise-free' if args.noise_free else f'seed {seed}'}, {rb.prof.t[-1]:.0f} s -> {args.out} "

@@ -208,12 +208,44 @@ def effective_phi(truth: Truth) -> np.ndarray:
                      p.phi0[:, 2] - p.M[:, 1, 0]], axis=1)
 
 
-def after_a(idn: Identification) -> dict[str, np.ndarray]:
-    """Metric A (§8): nav minus the filter's position-error estimate at the epochs (S,J)."""
+def after_a(idn: Identification, static: bool = True) -> dict[str, np.ndarray]:
+    """Metric A (§8): nav minus the filter's position-error estimate at the epochs (S,J); the
+    stop filter's (``y_static``) only with ``static`` (a streamed record keeps its maximum,
+    :class:`Tail`)."""
     kr = idn.epochs.k[:idn.j_stop + 1]
-    ks = idn.epochs.k[idn.j_stop:idn.j_end + 1]
-    return {"y_run": idn.r[:, kr, 1] - idn.run.x[:, :, 1], "z_run": idn.r[:, kr, 2] - idn.run.x[:, :, 3],
-            "y_static": idn.r[:, ks, 1] - idn.stop.x[:, :, 1]}
+    out = {"y_run": idn.r[:, kr, 1] - idn.run.x[:, :, 1], "z_run": idn.r[:, kr, 2] - idn.run.x[:, :, 3]}
+    if static:
+        ks = idn.epochs.k[idn.j_stop:idn.j_end + 1]
+        out["y_static"] = idn.r[:, ks, 1] - idn.stop.x[:, :, 1]
+    return out
+
+
+@dataclass(frozen=True)
+class Tail:
+    """What :func:`metrics` takes from the record beyond the stop (§8): per seed the largest
+    lateral or vertical navigation error over every sample ``yz_max`` (m), metric A's largest
+    stop-filter residual ``y_static_max`` (m) and, with the truth, the along-track errors at the
+    last sample ``end`` (m: naive, compensated, the other compensation, instrument-only). A
+    streamed record (:mod:`.stream`) keeps them as running values; :meth:`of` takes them from a
+    whole one."""
+
+    yz_max: np.ndarray
+    y_static_max: np.ndarray
+    end: dict[str, np.ndarray] | None = None
+
+    @staticmethod
+    def of(idn: Identification, truth: Truth | None) -> "Tail":
+        end = None
+        if truth is not None:
+            end = end_errors(idn.r[:, -1, 0], idn.x_con[:, -1], idn.x_con_other[:, -1], truth.x_inst[:, -1],
+                             truth.x_true[:, -1])
+        return Tail(np.abs(idn.r[..., 1:]).max(axis=(1, 2)), np.abs(after_a(idn)["y_static"]).max(axis=1), end)
+
+
+def end_errors(x_nav, x_con, x_other, x_inst, x_true) -> dict[str, np.ndarray]:
+    """The along-track errors of :class:`Tail` ``end`` at one sample (S,) m from the navigated,
+    compensated (the config's and the other mode) and the truths' positions there."""
+    return {"naive": x_nav - x_inst, "con": x_con - x_inst, "other": x_other - x_inst, "inst": x_inst - x_true}
 
 
 def after_b(idn: Identification) -> np.ndarray:
@@ -223,22 +255,25 @@ def after_b(idn: Identification) -> np.ndarray:
     return rr - idn.r_model
 
 
-def metrics(idn: Identification, truth: Truth | None) -> pd.DataFrame:
-    """Per-seed metrics of §8 with the keys of §10 (cm, arcsec, µg; absolute values)."""
+def metrics(idn: Identification, truth: Truth | None, tail: Tail | None = None) -> pd.DataFrame:
+    """Per-seed metrics of §8 with the keys of §10 (cm, arcsec, µg; absolute values). ``tail``:
+    the values beyond the stop of a streamed record, whose ``idn`` and ``truth`` hold the run up
+    to the stop only (default: from ``idn``'s whole record)."""
     tr, ns = idn.traj, idn.n_stop
     S = idn.r.shape[0]
-    a = after_a(idn)
+    tail = Tail.of(idn, truth) if tail is None else tail
+    a = after_a(idn, static=False)
     b = after_b(idn)
     yz = np.abs(idn.r[..., 1:])
     out = {
         "stop_time_s": np.full(S, tr.stop_time_s), "run_length_m": np.full(S, tr.run_length_m),
         "v_max_m_s": np.full(S, tr.v_max_m_s),
         "yz_before_max_run_cm": 100 * yz[:, :ns + 1].max(axis=(1, 2)),
-        "yz_before_max_all_cm": 100 * yz.max(axis=(1, 2)),
+        "yz_before_max_all_cm": 100 * tail.yz_max,
         "yz_before_stop_cm": 100 * yz[:, ns].max(axis=1),
         "y_after_a_max_run_cm": 100 * np.abs(a["y_run"]).max(axis=1),
         "z_after_a_max_run_cm": 100 * np.abs(a["z_run"]).max(axis=1),
-        "y_after_a_max_static_cm": 100 * np.abs(a["y_static"]).max(axis=1),
+        "y_after_a_max_static_cm": 100 * tail.y_static_max,
         "y_after_b_max_run_cm": 100 * np.abs(b[..., 0]).max(axis=1),
         "z_after_b_max_run_cm": 100 * np.abs(b[..., 1]).max(axis=1),
         "nabla_x_hat_ug": idn.nabla_x_hat / G * 1e6,
@@ -248,14 +283,15 @@ def metrics(idn: Identification, truth: Truth | None) -> pd.DataFrame:
         e_con = idn.x_con - truth.x_inst
         e_oth = idn.x_con_other - truth.x_inst
         e_inst = truth.x_inst - truth.x_true
+        end = tail.end
         other = "post" if idn.cfg.compensation == "realtime" else "realtime"
         out.update({
             "x_naive_stop_cm": 100 * np.abs(e_naive[:, ns]), "x_constrained_stop_cm": 100 * np.abs(e_con[:, ns]),
-            "x_naive_end_cm": 100 * np.abs(e_naive[:, -1]), "x_constrained_end_cm": 100 * np.abs(e_con[:, -1]),
+            "x_naive_end_cm": 100 * np.abs(end["naive"]), "x_constrained_end_cm": 100 * np.abs(end["con"]),
             "x_naive_max_run_cm": 100 * np.abs(e_naive[:, :ns + 1]).max(axis=1),
             "x_constrained_max_run_cm": 100 * np.abs(e_con[:, :ns + 1]).max(axis=1),
-            f"x_{other}_stop_cm": 100 * np.abs(e_oth[:, ns]), f"x_{other}_end_cm": 100 * np.abs(e_oth[:, -1]),
-            "x_inst_stop_cm": 100 * np.abs(e_inst[:, ns]), "x_inst_end_cm": 100 * np.abs(e_inst[:, -1]),
+            f"x_{other}_stop_cm": 100 * np.abs(e_oth[:, ns]), f"x_{other}_end_cm": 100 * np.abs(end["other"]),
+            "x_inst_stop_cm": 100 * np.abs(e_inst[:, ns]), "x_inst_end_cm": 100 * np.abs(end["inst"]),
         })
         eff = effective_phi(truth)
         for i, ax in enumerate("xyz"):
@@ -344,14 +380,33 @@ def gyro_rate_error(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndar
     the filter's sigma, of the largest rate error the check at rest lets pass
     (``shift_at_tolerance_sigmas``); per gyro the largest scale error that passes
     (``scale_tolerance``, ``tolerance / omega_i``)."""
-    sig = float(np.hypot(cfg.gyro["bias_deg_h"], cfg.gyro["g_sens_deg_h_g"])) * DEG_H
+    sig = gyro_rate_sigma(cfg)
+    idn = identify(cfg, traj, np.repeat(f[None], 3, axis=0), gyro_offsets(cfg, w[None]), t=t) if sig > 0 else None
+    return gyro_rate_block(cfg, est, tolerance, idn)
+
+
+def gyro_rate_sigma(cfg: SledConfig) -> float:
+    """The gyros' constant rate error the filters leave out, 1 sigma (rad/s): the bias
+    ``imu.gyro.bias_deg_h`` and the g-sensitivity at 1 g ``g_sens_deg_h_g`` in quadrature."""
+    return float(np.hypot(cfg.gyro["bias_deg_h"], cfg.gyro["g_sens_deg_h_g"])) * DEG_H
+
+
+def gyro_offsets(cfg: SledConfig, w: np.ndarray) -> np.ndarray:
+    """(3,N,3) rad/s: the rates ``w`` (1,N,3) with each gyro offset by :func:`gyro_rate_sigma` in turn."""
+    return np.repeat(w, 3, axis=0) + gyro_rate_sigma(cfg) * np.eye(3)[:, None, :]
+
+
+def gyro_rate_block(cfg: SledConfig, est: pd.DataFrame, tolerance: np.ndarray,
+                    shifted: Identification | None, first: int = 0) -> dict:
+    """:func:`gyro_rate_error`'s block from the identification ``shifted`` whose seed slots
+    ``first`` … ``first + 2`` hold the record with each gyro offset (None: the config's gyros
+    have no constant error)."""
+    sig = gyro_rate_sigma(cfg)
     out = {"sigma_deg_h": sig / DEG_H, "rest_tolerance_deg_h": (np.asarray(tolerance) / DEG_H).tolist(),
            "scale_tolerance": (np.abs(np.asarray(tolerance) / cfg.omega_ie)).tolist(), "estimates": {}}
-    if not sig > 0:
+    if shifted is None:
         return out
-    ws = np.repeat(w[None], 3, axis=0) + sig * np.eye(3)[:, None, :]
-    idn = identify(cfg, traj, np.repeat(f[None], 3, axis=0), ws, t=t)
-    shifts = np.stack([estimates(idn, None, s)["estimate"].to_numpy() for s in range(3)], axis=1) \
+    shifts = np.stack([estimates(shifted, None, first + s)["estimate"].to_numpy() for s in range(3)], axis=1) \
         - est["estimate"].to_numpy()[:, None]                     # (rows, 3 gyros), per sigma_deg_h
     for i, row in est.iterrows():
         if row["unit"] != "arcsec" or not np.isfinite(row["estimate"]):

@@ -89,45 +89,83 @@ def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataF
     with ``record.kind: increments`` the f and w columns are delta-v (m/s) and delta-theta (rad)
     per sample, converted over each sample's interval (:mod:`platcal.logs.increments`).
     """
-    max_gap = float(cfg.raw["record"]["max_gap_s"])
-    mapping = RecordMapping.from_config(cfg.raw["record"], g=G)
-    incremental = mapping.kind == "increments"
-    df = read_table(path, IMU_COLUMNS, TRUTH_COLUMNS, what="a sled record", min_rows=2, mapping=mapping,
-                    units=increment_units(UNITS, IMU_COLUMNS[1:]) if incremental else UNITS,
-                    increments=IMU_COLUMNS[1:])
+    df = read_table(path, **table_options(cfg))
     traj = build_trajectory(cfg)
-    t = df["t"].to_numpy(dtype=float)
+    t, med = record_times(cfg, traj.n, df["t"].to_numpy(dtype=float))
+    if incremental(cfg):  # delta-v, delta-theta over each sample's interval (platcal.logs.increments)
+        df[list(IMU_COLUMNS[1:])] = rates_from_increments(df[list(IMU_COLUMNS[1:])].to_numpy(float), t)
+    fz = float(np.median(df["fz"].to_numpy(float)))
+    if not 0.9 * G <= fz <= 1.1 * G:
+        refuse_fz(fz)
+    fx = df["fx"].to_numpy(float)
+    for p, (name, (a, b), inside, level) in phase_windows(cfg, traj, t, med):
+        got = float(np.median(fx[inside]))
+        if phase_off(got, level):
+            refuse_phase(name, a, b, got, level)
+    return traj, df, t
+
+
+def incremental(cfg: SledConfig) -> bool:
+    """Whether the config's ``record.kind`` is ``increments`` (delta-v, delta-theta per sample)."""
+    return RecordMapping.from_config(cfg.raw["record"], g=G).kind == "increments"
+
+
+def table_options(cfg: SledConfig) -> dict:
+    """The keyword arguments of :func:`platcal.records.read_table` / ``iter_table`` for a sled
+    record read through the config's ``record:`` mapping."""
+    mapping = RecordMapping.from_config(cfg.raw["record"], g=G)
+    return dict(required=IMU_COLUMNS, optional=TRUTH_COLUMNS, what="a sled record", min_rows=2, mapping=mapping,
+                units=increment_units(UNITS, IMU_COLUMNS[1:]) if mapping.kind == "increments" else UNITS,
+                increments=IMU_COLUMNS[1:])
+
+
+def record_times(cfg: SledConfig, n_traj: int, t: np.ndarray) -> tuple[np.ndarray, float]:
+    """The record's times ``t`` (N,) s checked (increasing, in seconds, no gap above
+    ``record.max_gap_s``, lasting the trajectory's ``n_traj`` samples) and counted from its start
+    (a clock from any origin: :func:`platcal.records.grid_origin`); with their median step, s."""
+    max_gap = float(cfg.raw["record"]["max_gap_s"])
     field = "--data column t"
     med = check_times(t, cfg.dt, max_gap, field, f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
     t = t - (0.0 if abs(t[0]) <= max_gap else grid_origin(t, med))
-    if incremental:  # delta-v, delta-theta over each sample's interval (platcal.logs.increments)
-        df[list(IMU_COLUMNS[1:])] = rates_from_increments(df[list(IMU_COLUMNS[1:])].to_numpy(float), t)
-    span, want = float(t[-1] + med), traj.n * cfg.dt
+    span, want = float(t[-1] + med), n_traj * cfg.dt
     if abs(span - want) > max_gap:
-        raise InputError(field, f"the record lasts {span:g} s ({len(df)} rows from t = {num(t[0])} s), but the "
-                         f"config's trajectory lasts {want:g} s ({traj.n} IMU samples: static_before_s, phases, "
+        raise InputError(field, f"the record lasts {span:g} s ({t.size} rows from t = {num(t[0])} s), but the "
+                         f"config's trajectory lasts {want:g} s ({n_traj} IMU samples: static_before_s, phases, "
                          f"braking, static_after_s; record.max_gap_s = {max_gap:g} s); check the trajectory "
                          "section or the record")
-    fz = float(np.median(df["fz"].to_numpy(float)))
-    if not 0.9 * G <= fz <= 1.1 * G:
-        raise InputError("--data column fz", f"median fz = {fz:.4g}, expected about g = {G} m/s^2 (the sled is "
-                         "level); the specific force must be in m/s^2")
-    fx = df["fx"].to_numpy(float)
+    return t, med
+
+
+def refuse_fz(fz: float) -> None:
+    raise InputError("--data column fz", f"median fz = {fz:.4g}, expected about g = {G} m/s^2 (the sled is "
+                     "level); the specific force must be in m/s^2")
+
+
+def phase_windows(cfg: SledConfig, traj, t: np.ndarray, med: float):
+    """Per phase of ``traj`` (a :class:`.trajectory.Trajectory` or ``Timeline``) with samples of
+    the record inside it: ``(p, (name, (a, b), inside, level))``, its span a … b s, the mask of
+    the record's instants ``t`` two median steps ``med`` in from its ends, its acceleration m/s^2."""
     for p, name in enumerate(traj.phase_names):
-        rows = np.flatnonzero(traj.phase == p)
-        if rows.size == 0:
+        rows = traj.phase_rows(p)
+        if rows is None:
             continue
-        a, b = rows[0] * cfg.dt, (rows[-1] + 1) * cfg.dt
+        a, b = rows[0] * cfg.dt, rows[1] * cfg.dt
         inside = (t >= a + 2 * med) & (t < b - 2 * med)
         if not inside.any():
             continue
-        level = float(traj.accel[rows[0]])
-        got = float(np.median(fx[inside]))
-        if abs(got - level) > PHASE_TOL_G * G + 0.02 * abs(level):
-            raise InputError("--data column fx", f"in the {name} phase (t = {a:g} .. {b:g} s) the median fx is "
-                             f"{got / G:.3g} g, but the config's trajectory accelerates at {level / G:.3g} g there; "
-                             "the record is not a run of this trajectory (check the trajectory section)")
-    return traj, df, t
+        yield p, (name, (a, b), inside, float(traj.accel_at(rows[0])))
+
+
+def phase_off(got, level: float):
+    """Whether a phase's ``fx`` (m/s^2; an array: each value) is further from its acceleration
+    ``level`` than :data:`PHASE_TOL_G`."""
+    return np.abs(got - level) > PHASE_TOL_G * G + 0.02 * abs(level)
+
+
+def refuse_phase(name: str, a: float, b: float, got: float, level: float) -> None:
+    raise InputError("--data column fx", f"in the {name} phase (t = {a:g} .. {b:g} s) the median fx is "
+                     f"{got / G:.3g} g, but the config's trajectory accelerates at {level / G:.3g} g there; "
+                     "the record is not a run of this trajectory (check the trajectory section)")
 
 
 NOMINAL_FIX = {"f": "fx, fy, fz must be the body-axis specific force in m/s^2 (x along the track, z down-up: "
@@ -139,9 +177,8 @@ NOMINAL_FIX = {"f": "fx, fy, fz must be the body-axis specific force in m/s^2 (x
 def nominal_imu(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(N,3) m/s^2 and (N,3) rad/s: the error-free IMU output of the config's trajectory
     (docs/rocket-sled.md §2) at the record's instants ``t`` (s from its start; nearest grid sample)."""
-    f, w = true_imu(traj, cfg.omega_ie)
     k = np.clip(np.floor(t / cfg.dt + 0.5).astype(np.int64), 0, traj.n - 1)
-    return f[k], w[k]
+    return traj.true_imu_at(k, cfg.omega_ie)
 
 
 def check_plausible(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray, t: np.ndarray) -> None:
@@ -185,16 +222,18 @@ def static_rate_sigma(cfg: SledConfig, seconds: float) -> np.ndarray:
     return np.sqrt(var + (1e-9 * OMEGA_E) ** 2)
 
 
-def rest_samples(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> np.ndarray:
+def rest_samples(cfg: SledConfig, traj: Trajectory, t: np.ndarray, med: float | None = None) -> np.ndarray:
     """(N,) bool: the record's samples at rest, the static periods before launch and after the
     stop (docs/rocket-sled.md §2) by time ``t`` (s from the record's start), two median steps in
-    from each end (a jittered stamp near a phase change is not taken for rest)."""
-    med = float(np.median(np.diff(t))) if t.size > 1 else cfg.dt
+    from each end (a jittered stamp near a phase change is not taken for rest); ``med`` the
+    record's median step (default: that of ``t``, the whole record)."""
+    if med is None:
+        med = float(np.median(np.diff(t))) if t.size > 1 else cfg.dt
     rest = np.zeros(t.size, bool)
     for p in (0, len(traj.phase_names) - 1):
-        rows = np.flatnonzero(traj.phase == p)
-        if rows.size:
-            a, b = rows[0] * cfg.dt, (rows[-1] + 1) * cfg.dt
+        rows = traj.phase_rows(p)
+        if rows is not None:
+            a, b = rows[0] * cfg.dt, rows[1] * cfg.dt
             rest |= (t >= a + 2 * med) & (t < b - 2 * med)
     return rest
 
@@ -230,8 +269,11 @@ def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.n
     rest = rest_samples(cfg, traj, t)
     if rest.sum() < 2:
         return
-    seconds = rest_seconds(rest, t)
-    mean = w[rest].mean(axis=0)
+    refuse_static_rates(cfg, w[rest].mean(axis=0), rest_seconds(rest, t))
+
+
+def refuse_static_rates(cfg: SledConfig, mean: np.ndarray, seconds: float) -> None:
+    """:func:`check_static_rates`' verdict on the gyros' ``mean`` (3,) rad/s over ``seconds`` of rest."""
     expected = cfg.omega_ie
     sigma = static_rate_sigma(cfg, seconds)
     k = STATIC_RATE_K
@@ -254,7 +296,7 @@ def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.n
 def samples_per_phase(traj: Trajectory, t: np.ndarray, dt: float) -> dict[str, int]:
     """Record samples in each phase of the trajectory (by time), for the summary."""
     k = np.clip(np.floor(t / dt + 0.5).astype(np.int64), 0, traj.n - 1)   # nearest grid sample
-    counts = np.bincount(traj.phase[k], minlength=len(traj.phase_names))
+    counts = np.bincount(traj.phase_at(k), minlength=len(traj.phase_names))
     return {name: int(c) for name, c in zip(traj.phase_names, counts)}
 
 
@@ -304,8 +346,14 @@ def lateral_coriolis_gain(cfg: SledConfig, traj: Trajectory, f: np.ndarray, t: n
     A = np.column_stack([np.ones_like(v), f[:, 0], cor])
     coef, *_ = np.linalg.lstsq(A, f[:, 1], rcond=None)
     r = f[:, 1] - A @ coef
-    dof = max(t.size - A.shape[1], 1)
-    cov = np.linalg.pinv(A.T @ A) * float(r @ r) / dof
+    return gain_and_error(coef, A.T @ A, float(r @ r), t.size)
+
+
+def gain_and_error(coef: np.ndarray, gram: np.ndarray, rss: float, n: int) -> tuple[float, float]:
+    """:func:`lateral_coriolis_gain`'s gain (the Coriolis term's coefficient of ``coef`` (3,)) and
+    its least-squares standard error from the regressors' Gram matrix (3,3), the residual sum of
+    squares ``rss`` (m/s^2)^2 and the ``n`` samples."""
+    cov = np.linalg.pinv(gram) * rss / max(n - gram.shape[0], 1)
     return float(coef[2]), float(np.sqrt(cov[2, 2]))
 
 
@@ -317,7 +365,11 @@ def check_lateral_force(cfg: SledConfig, traj: Trajectory, f: np.ndarray, t: np.
     filter reads the azimuth error from ``fy`` (phi_z f_x), so a ``fy`` scaled by 1 + e gives
     phi_z (1 + e); this is the one term of ``fy`` the record fixes. Skipped (nothing to compare)
     when the run has no speed."""
-    gain, se = lateral_coriolis_gain(cfg, traj, f, t)
+    refuse_lateral(cfg, *lateral_coriolis_gain(cfg, traj, f, t))
+
+
+def refuse_lateral(cfg: SledConfig, gain: float, se: float) -> None:
+    """:func:`check_lateral_force`'s verdict on the Coriolis ``gain`` and its standard error ``se``."""
     if not (np.isfinite(gain) and np.isfinite(se) and se > 0):
         return
     k = -normal_quantile(LATERAL_LEVEL / 2)

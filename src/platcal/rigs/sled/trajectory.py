@@ -52,6 +52,16 @@ class Trajectory:
         rows = np.flatnonzero(self.phase == p)
         return (int(rows[0]), int(rows[-1]) + 1) if rows.size else None
 
+    def accel_at(self, k) -> np.ndarray:
+        return self.accel[k]
+
+    def phase_at(self, k) -> np.ndarray:
+        return self.phase[k]
+
+    def true_imu_at(self, k: np.ndarray, omega_ie: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`true_imu` at samples ``k``, (len(k),3) m/s^2 and rad/s."""
+        return _imu(self.accel[k], self.v[k], self.v[np.asarray(k) + 1], omega_ie)
+
 
 def _pieces(cfg: SledConfig) -> tuple[list[tuple[float, int, int]], list[str]]:
     """The profile of §2 as (acceleration m/s^2, IMU samples, phase index) pieces and their labels:

@@ -92,13 +92,17 @@ def compensate_x(fl: np.ndarray, r_x: np.ndarray, v_x: np.ndarray, phi_hat: np.n
     return r_x - dr[:, :r_x.shape[1]]
 
 
-def x_corrections(fl: np.ndarray, phi_hat: np.ndarray, dt) -> tuple[np.ndarray, np.ndarray]:
+def x_corrections(fl: np.ndarray, phi_hat: np.ndarray, dt, start: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The along-track velocity and position errors (S,N+1) at t_0 … t_N, m/s and m, that the
     attitude errors ``phi_hat`` (S,N,3) rad cause through the computed specific force ``fl``
-    (S,N,3) (§7, eqs. 20-21: ``Δa_x = f_y φ̂_z − f_z φ̂_y`` summed by the INS's rules)."""
+    (S,N,3) (§7, eqs. 20-21: ``Δa_x = f_y φ̂_z − f_z φ̂_y`` summed by the INS's rules), from
+    ``start`` (dv, dr) (S,) each at t_0 (default 0: a streamed record's next block continues from
+    the last values of the one before, the same sums as one block)."""
     da = fl[..., 1] * phi_hat[..., 2] - fl[..., 2] * phi_hat[..., 1]
-    dv = np.concatenate([np.zeros((da.shape[0], 1)), np.cumsum(da * dt, axis=1)], axis=1)   # at t_0 … t_N
-    dr = np.concatenate([np.zeros((da.shape[0], 1)), np.cumsum((dv[:, :-1] + dv[:, 1:]) * 0.5 * dt, axis=1)], axis=1)
+    dv0, dr0 = (np.zeros(da.shape[0]), np.zeros(da.shape[0])) if start is None else start
+    dv = np.cumsum(np.concatenate([np.asarray(dv0, float)[:, None], da * dt], axis=1), axis=1)   # at t_0 … t_N
+    dr = np.cumsum(np.concatenate([np.asarray(dr0, float)[:, None], (dv[:, :-1] + dv[:, 1:]) * 0.5 * dt], axis=1),
+                   axis=1)
     return dv, dr
 
 

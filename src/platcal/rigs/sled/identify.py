@@ -52,6 +52,7 @@ class Identification:
     t: np.ndarray            # (N,) sample times from the record's start, s
     epochs: Epochs           # filter epochs (sample indices) and intervals
     n_stop: int              # sample index of the stop in the record
+    tail_finite: np.ndarray | None = None   # (S,) a streamed record's navigation finite beyond its held run part
 
     @property
     def t_epochs(self) -> np.ndarray:
@@ -64,9 +65,15 @@ def record_epochs(t: np.ndarray, period_s: float) -> Epochs:
     a gap is skipped and the next prediction spans both periods), the first sample always being
     epoch 0 (the run filter's prior); sample intervals
     ``dts = diff(t)``, the last sample covering the median step."""
+    k, T = epoch_samples(t, period_s)
+    return Epochs(k=k, T=T, dts=sample_intervals(t))
+
+
+def epoch_samples(t: np.ndarray, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`record_epochs`' sample indices (J+1,) and intervals between them (J,) s."""
     step = float(np.median(np.diff(t)))
     k = np.union1d(0, nearest_samples(t, period_s, 0.5 * step))   # epoch 0 (the prior) is the first sample
-    return Epochs(k=k, T=np.diff(t[k]), dts=sample_intervals(t))
+    return k, np.diff(t[k])
 
 
 def stop_index(t: np.ndarray, stop_time_s: float) -> int:
@@ -134,6 +141,17 @@ def phi_per_sample(run: FilterOut, states: int, epochs: np.ndarray, j_stop: int,
     return est[:, j, :]
 
 
+def run_attitude(run: FilterOut, states: int) -> tuple[np.ndarray, np.ndarray]:
+    """The run filter's final [φ_x, φ_y, φ_z] and their sigmas (S,3) each, rad (φ_x NaN with 6 states)."""
+    S = run.x.shape[0]
+    phi_run = np.full((S, 3), np.nan)
+    sig_run = np.full((S, 3), np.nan)
+    for name, i in phi_columns(states).items():
+        phi_run[:, "xyz".index(name[-1])] = run.x[:, -1, i]
+        sig_run[:, "xyz".index(name[-1])] = run.sigma[:, -1, i]
+    return phi_run, sig_run
+
+
 def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
              t: np.ndarray | None = None) -> Identification:
     """Run §4-7 on recorded samples f, ω (S,N,3) in the record's body axes (Ĉ_0 = I).
@@ -156,14 +174,8 @@ def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
     j_stop = int(min(np.searchsorted(ep.k, n_stop), ep.k.size - 1))
     j_end = ep.k.size - 1
     run = run_filter(cfg, fl, v, r, j_stop, ep)
-    cols = phi_columns(cfg.states)
-    S = f.shape[0]
-    phi_run = np.full((S, 3), np.nan)
-    sig_run = np.full((S, 3), np.nan)
-    for name, i in cols.items():
-        phi_run[:, "xyz".index(name[-1])] = run.x[:, -1, i]
-        sig_run[:, "xyz".index(name[-1])] = run.sigma[:, -1, i]
-    iy = cols["phi_y"]
+    phi_run, sig_run = run_attitude(run, cfg.states)
+    iy = phi_columns(cfg.states)["phi_y"]
     stop = stop_filter(cfg, fl, v, r, j_stop, j_end, run.x[:, -1, iy], run.P[:, iy, iy], ep)
     phi_b = np.nan_to_num(phi_run)
     r_model = propagate_run_model(fl[:, :n_stop], cfg.omega_ie, phi_b, cfg.states, dts[:n_stop])
@@ -181,7 +193,8 @@ def run_problems(idn: Identification, s: int = 0) -> list[str]:
     estimates or sigmas of the run or stop filter, updates skipped because the innovation
     covariance was not positive definite, or a final covariance that is not positive definite."""
     out = []
-    if not (np.all(np.isfinite(idn.v[s])) and np.all(np.isfinite(idn.r[s]))):
+    if not (np.all(np.isfinite(idn.v[s])) and np.all(np.isfinite(idn.r[s]))
+            and (idn.tail_finite is None or idn.tail_finite[s])):
         out.append("the navigation is not finite (a non-physical sample?)")
     for name, fo in (("run", idn.run), ("stop", idn.stop)):
         if fo.failed_updates[s]:

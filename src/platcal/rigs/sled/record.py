@@ -27,7 +27,7 @@ from ...records import check_times, grid_origin, num, read_table
 from .config import ARCSEC, DEG_H, G, OMEGA_E, SledConfig
 from .sensors import ErrorParams
 from .simulate import SimBatch, Truth
-from .trajectory import Trajectory, build_trajectory, true_imu
+from .trajectory import Trajectory, build_trajectory
 
 IMU_COLUMNS = ("t", "fx", "fy", "fz", "wx", "wy", "wz")
 TRUTH_COLUMNS = ("x_true", "vx_true", "x_inst")
@@ -46,26 +46,40 @@ def check_out_path(path: str | Path, option: str = "--out") -> Path:
 
 def sim_frame(sb: SimBatch, s: int = 0) -> pd.DataFrame:
     """Seed slot ``s`` of a simulated batch as a record frame."""
-    df = pd.DataFrame({"t": sb.traj.t})
+    return record_frame(sb.traj.t, sb.f[s], sb.w[s], sb.truth.x_true[s], sb.truth.vx_true[s], sb.truth.x_inst[s])
+
+
+def record_frame(t, f, w, x_true, vx_true, x_inst) -> pd.DataFrame:
+    """A record frame (§10) of samples at ``t`` (N,) s: f (N,3) m/s^2, w (N,3) rad/s and the
+    truth columns (N,) m, m/s."""
+    df = pd.DataFrame({"t": t})
     for i, ax in enumerate("xyz"):
-        df[f"f{ax}"] = sb.f[s, :, i]
+        df[f"f{ax}"] = f[:, i]
     for i, ax in enumerate("xyz"):
-        df[f"w{ax}"] = sb.w[s, :, i]
-    df["x_true"] = sb.truth.x_true[s]
-    df["vx_true"] = sb.truth.vx_true[s]
-    df["x_inst"] = sb.truth.x_inst[s]
+        df[f"w{ax}"] = w[:, i]
+    df["x_true"] = x_true
+    df["vx_true"] = vx_true
+    df["x_inst"] = x_inst
     return df
+
+
+def truth_side(ss: np.random.SeedSequence, params: ErrorParams, nabla_static: np.ndarray, s: int = 0) -> dict:
+    """The truth side file of seed slot ``s``: its SeedSequence, the accelerometer error at rest
+    ``nabla_static`` (S,3) m/s^2 (in µg) and the drawn errors (:meth:`ErrorParams.to_json`)."""
+    return {"seed": {"entropy": int(ss.entropy), "spawn_key": [int(k) for k in ss.spawn_key]},
+            "nabla_static_ug": (nabla_static[s] / G * 1e6).tolist(), **params.to_json(s)}
+
+
+RECORD_FLOATS = "%.17g"
+"""A simulated record's floats in CSV: every digit (the record reads back bit for bit)."""
 
 
 def write_record(sb: SimBatch, path: str | Path, s: int = 0) -> None:
     """Write seed slot ``s`` as a record plus its truth side file, as a pair
     (:func:`platcal.records.write_record`)."""
     path = check_out_path(path)
-    ss = sb.seeds[s]
-    side = {"seed": {"entropy": int(ss.entropy), "spawn_key": [int(k) for k in ss.spawn_key]},
-            "nabla_static_ug": (sb.truth.nabla_static[s] / G * 1e6).tolist(),
-            **sb.truth.params.to_json(s)}
-    records.write_record(sim_frame(sb, s), path, truth=side, float_format="%.17g")
+    side = truth_side(sb.seeds[s], sb.truth.params, sb.truth.nabla_static, s)
+    records.write_record(sim_frame(sb, s), path, truth=side, float_format=RECORD_FLOATS)
 
 
 PHASE_TOL_G = 0.1
@@ -91,7 +105,7 @@ def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataF
     """
     df = read_table(path, **table_options(cfg))
     traj = build_trajectory(cfg)
-    t, med = record_times(cfg, traj.n, df["t"].to_numpy(dtype=float))
+    t, med, _ = record_times(cfg, traj.n, df["t"].to_numpy(dtype=float))
     if incremental(cfg):  # delta-v, delta-theta over each sample's interval (platcal.logs.increments)
         df[list(IMU_COLUMNS[1:])] = rates_from_increments(df[list(IMU_COLUMNS[1:])].to_numpy(float), t)
     fz = float(np.median(df["fz"].to_numpy(float)))
@@ -119,21 +133,23 @@ def table_options(cfg: SledConfig) -> dict:
                 increments=IMU_COLUMNS[1:])
 
 
-def record_times(cfg: SledConfig, n_traj: int, t: np.ndarray) -> tuple[np.ndarray, float]:
+def record_times(cfg: SledConfig, n_traj: int, t: np.ndarray) -> tuple[np.ndarray, float, float]:
     """The record's times ``t`` (N,) s checked (increasing, in seconds, no gap above
     ``record.max_gap_s``, lasting the trajectory's ``n_traj`` samples) and counted from its start
-    (a clock from any origin: :func:`platcal.records.grid_origin`); with their median step, s."""
+    (a clock from any origin: :func:`platcal.records.grid_origin`); with their median step and the
+    origin taken off, s."""
     max_gap = float(cfg.raw["record"]["max_gap_s"])
     field = "--data column t"
     med = check_times(t, cfg.dt, max_gap, field, f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
-    t = t - (0.0 if abs(t[0]) <= max_gap else grid_origin(t, med))
+    origin = 0.0 if abs(t[0]) <= max_gap else grid_origin(t, med)
+    t = t - origin
     span, want = float(t[-1] + med), n_traj * cfg.dt
     if abs(span - want) > max_gap:
         raise InputError(field, f"the record lasts {span:g} s ({t.size} rows from t = {num(t[0])} s), but the "
                          f"config's trajectory lasts {want:g} s ({n_traj} IMU samples: static_before_s, phases, "
                          f"braking, static_after_s; record.max_gap_s = {max_gap:g} s); check the trajectory "
                          "section or the record")
-    return t, med
+    return t, med, origin
 
 
 def refuse_fz(fz: float) -> None:
@@ -307,18 +323,26 @@ def record_arrays(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     return f, w
 
 
-def record_truth(path: str | Path, df: pd.DataFrame) -> Truth | None:
-    """The truth of a simulated record (columns + side file), or None when either is absent."""
-    if not all(c in df.columns for c in TRUTH_COLUMNS):
+def truth_params(path: str | Path, columns) -> tuple[ErrorParams, np.ndarray] | None:
+    """The drawn errors and the accelerometer error at rest (1,3) m/s^2 of a simulated record
+    with ``columns`` (its side file), or None when the truth columns or the side file are absent."""
+    if not all(c in columns for c in TRUTH_COLUMNS):
         return None
     d = records.read_truth(path)
     if d is None:
         return None
     try:
-        p = ErrorParams.from_json([d])
-        nab = np.asarray(d["nabla_static_ug"], dtype=float)[None] * G * 1e-6
+        return ErrorParams.from_json([d]), np.asarray(d["nabla_static_ug"], dtype=float)[None] * G * 1e-6
     except (ValueError, KeyError, TypeError) as exc:
         raise InputError(str(records.truth_path(path)), f"not a sled truth file ({exc.__class__.__name__}: {exc})") from None
+
+
+def record_truth(path: str | Path, df: pd.DataFrame) -> Truth | None:
+    """The truth of a simulated record (columns + side file), or None when either is absent."""
+    drawn = truth_params(path, df.columns)
+    if drawn is None:
+        return None
+    p, nab = drawn
     return Truth(params=p, x_true=df["x_true"].to_numpy(float)[None], vx_true=df["vx_true"].to_numpy(float)[None],
                  x_inst=df["x_inst"].to_numpy(float)[None], nabla_static=nab)
 

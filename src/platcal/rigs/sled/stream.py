@@ -94,11 +94,19 @@ def scan_times(path, cfg: SledConfig, tl: Timeline, chunk_rows: int) -> Times:
                  truth_columns=bool(has_truth))
 
 
+BLOCK = 16384
+"""Samples handled at a time inside a chunk (pass 2 and 3): the filters' pass holds some 1.2 kB
+of arrays per sample and lane (four lanes: the record and its gyro offsets), so a chunk of
+``--chunk-rows`` is worked through in blocks of this many samples (the results do not depend on
+the cut, ``tests/sled/test_sled_stream.py``)."""
+
+
 def blocks(path, cfg: SledConfig, tm: Times, chunk_rows: int):
-    """The record's chunks as ``(row0, t, dts, f, w, df)``: the first row's index, the times from
-    the record's start (s), the interval each sample covers (the next chunk's first sample read
-    ahead; the last sample the median step), f (N,3) m/s^2 and w (N,3) rad/s (increments turned
-    into rates over those intervals), and the chunk."""
+    """The record's samples as ``(row0, t, dts, f, w, truth)`` of at most :data:`BLOCK` rows: the
+    first row's index, the times from the record's start (s), the interval each sample covers
+    (the next chunk's first sample read ahead; the last sample the median step), f (N,3) m/s^2
+    and w (N,3) rad/s (increments turned into rates over those intervals), and the truth
+    columns present (name -> (N,))."""
     inc = incremental(cfg)
     cols_f, cols_w = list(IMU_COLUMNS[1:4]), list(IMU_COLUMNS[4:])
 
@@ -108,16 +116,19 @@ def blocks(path, cfg: SledConfig, tm: Times, chunk_rows: int):
         f, w = df[cols_f].to_numpy(dtype=float), df[cols_w].to_numpy(dtype=float)
         if inc:  # delta-v, delta-theta over each sample's interval (platcal.logs.increments)
             f, w = f / dts[:, None], w / dts[:, None]
-        return row0, t, dts, f, w, df
+        truth = {c: df[c].to_numpy(dtype=float) for c in TRUTH_COLUMNS if c in df.columns}
+        for i in range(0, t.size, BLOCK):
+            j = slice(i, i + BLOCK)
+            yield row0 + i, t[j], dts[j], f[j], w[j], {c: a[j] for c, a in truth.items()}
 
     pending, row = None, 0
     for df in _chunks(path, cfg, chunk_rows):
         t = df["t"].to_numpy(dtype=float) - tm.origin
         if pending is not None:
-            yield done(pending, t[0])
+            yield from done(pending, t[0])
         pending = (row, df, t)
         row += len(df)
-    yield done(pending, None)
+    yield from done(pending, None)
 
 
 class _Median:
@@ -245,14 +256,14 @@ def _filters(path, cfg: SledConfig, tl: Timeline, tm: Times, chunk_rows: int, dr
     finite = np.ones(lanes, bool)
     st: dict = {}
     end: dict = {}
-    for row0, t, dts, f, w, df in blocks(path, cfg, tm, chunk_rows):
+    for row0, t, dts, f, w, cols in blocks(path, cfg, tm, chunk_rows):
         nb = t.size
         wl = np.concatenate([w[None], gyro_offsets(cfg, w[None])]) if lanes == 4 else w[None]
         v, r, fl = nav.step(np.broadcast_to(f, (lanes, nb, 3)), wl, dts)
         v, r = v[:, :nb], r[:, :nb]           # the states at this block's samples
         finite &= np.isfinite(v).all(axis=(1, 2)) & np.isfinite(r).all(axis=(1, 2))
         yz_max = np.maximum(yz_max, np.abs(r[..., 1:]).max(axis=(1, 2)))
-        truth_cols = {c: df[c].to_numpy(dtype=float) for c in TRUTH_COLUMNS} if drawn is not None else {}
+        truth_cols = cols if drawn is not None else {}
         a = 0
         if row0 < K:
             a = min(nb, K - row0)

@@ -115,9 +115,10 @@ def discretise(F: np.ndarray, T) -> np.ndarray:
 
 
 @nb.njit(cache=True)
-def _kalman(Phis, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out):
-    """Predict with the dense Φ (every row of Φ is dynamic: the shared sparse propagation with
-    all rows), then the shared Joseph-form update with ``H = [I_m 0]`` (m = 4, diagonal R), from
+def _kalman(Fs, Ts, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out):
+    """Predict with the dense Φ = I + F T + (F T)²/2 of each epoch's ``Fs`` (S,J,n,n) over its
+    step ``Ts`` (J,) s (:func:`discretise`, formed here: every row of Φ is dynamic, the shared
+    sparse propagation with all rows), then the shared Joseph-form update with ``H = [I_m 0]`` (m = 4, diagonal R), from
     the state ``X`` (S,n), ``PP`` (S,n,n), updated in place to the state after the last epoch
     (a long record's next block of epochs continues from it). ``xs``, ``sig`` (S,J,n) receive
     the posteriors. An update whose innovation covariance is not positive definite is skipped
@@ -125,9 +126,11 @@ def _kalman(Phis, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out
     them (m degrees of freedom each). ``innov_out``, ``svar_out`` (S,J,m) receive each update's
     innovation and diag(S) = diag(P_pred) + R (H = [I_m 0]); NaN variances where the update was
     skipped."""
-    S, J, n = Phis.shape[0], Phis.shape[1], Phis.shape[2]
+    S, J, n = Fs.shape[0], Fs.shape[1], Fs.shape[2]
     m = z.shape[2]
     rows = np.arange(n)
+    Phi = np.empty((n, n))
+    FT = np.empty((n, n))
     hcols = np.arange(m).reshape(m, 1)   # row r of H is 1 at state r: z observes the first m states
     hnnz = np.ones(m, dtype=np.int64)
     hval = np.ones((m, 1))
@@ -149,7 +152,15 @@ def _kalman(Phis, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out
         total = acc[s, 0]
         made = acc[s, 1]
         for j in range(J):
-            Phi = Phis[s, j]
+            for a in range(n):
+                for b in range(n):
+                    FT[a, b] = Fs[s, j, a, b] * Ts[j]
+            for a in range(n):
+                for b in range(n):
+                    sq = 0.0
+                    for c in range(n):
+                        sq += FT[a, c] * FT[c, b]
+                    Phi[a, b] = ((1.0 if a == b else 0.0) + FT[a, b]) + sq / 2
             for a in range(n):
                 v = 0.0
                 for b in range(n):
@@ -213,8 +224,8 @@ class KalmanRun:
         m = z.shape[2]
         xs, sig = np.empty((S, J, n)), np.empty((S, J, n))
         innov, s_var = np.empty((S, J, m)), np.empty((S, J, m))
-        _kalman(np.ascontiguousarray(discretise(Fs, T)), np.ascontiguousarray(z, dtype=np.float64), self.x, self.P,
-                Qs, self.r_var, xs, sig, self.acc, self.failed, innov, s_var)
+        _kalman(np.ascontiguousarray(Fs, dtype=np.float64), np.ascontiguousarray(T), np.ascontiguousarray(z, dtype=np.float64),
+                self.x, self.P, Qs, self.r_var, xs, sig, self.acc, self.failed, innov, s_var)
         return xs, sig, innov, s_var
 
     def mean_nis(self) -> np.ndarray:

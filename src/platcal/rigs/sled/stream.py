@@ -82,8 +82,10 @@ def scan_times(path, cfg: SledConfig, tl: Timeline, chunk_rows: int) -> Times:
     for df in _chunks(path, cfg, chunk_rows):
         has_truth = all(c in df.columns for c in TRUTH_COLUMNS) if has_truth is None else has_truth
         parts.append(np.array(df["t"].to_numpy(dtype=float)))   # a copy: the chunk's block is let go
-    t, med, origin = record_times(cfg, tl.n, np.concatenate(parts))
+    t_raw = np.concatenate(parts)
     del parts
+    t, med, origin = record_times(cfg, tl.n, t_raw)
+    del t_raw
     k, T = epoch_samples(t, cfg.period_ms / 1000.0)
     n_stop = stop_index(t, tl.stop_time_s)
     rest = rest_samples(cfg, tl, t)

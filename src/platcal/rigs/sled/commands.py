@@ -163,19 +163,11 @@ COSTS = Costs(values={"simulate": 48, "identify": 96}, seconds={"simulate": 2.5e
 """The sled's costs (:class:`platcal.sizes.Costs`)."""
 
 
-STREAMED_VALUES = {"simulate": 0, "identify": 5}
-"""float64 values held per sample by a streamed simulate and identify (a record longer than
-``--chunk-rows``): simulate nothing that grows (303-309 MB from 10 min to 6 h); identify the first
-pass's ``t`` with the time checks' differences and copies, 38 bytes a sample measured (350 -> 488 MB
-from 1 h to 6 h, ``benchmarks/bench_memory.md``), rounded up."""
-
-
 def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
     """The work a command's inputs imply (:mod:`platcal.sizes`): simulate and identify hold and
     run the run's IMU samples (static before, the phases, the braking, static after, at
     ``imu.rate_hz``) x :data:`COSTS`, the longest part naming the field; inspect and compensate
-    the record file's bytes x :data:`COSTS`; a run longer than ``--chunk-rows`` streamed
-    (:data:`STREAMED_VALUES` held per sample).
+    the record file's bytes x :data:`COSTS`.
     observability's rank table holds and decomposes small matrices per phase (docs/rocket-sled.md
     §8), whatever the durations: the phases x :data:`OBSERVABILITY_PER_PHASE`."""
     if command in COSTS.per_byte:
@@ -191,13 +183,8 @@ def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
              "trajectory.brake_g": max(v_end, 0.0) / (cfg.brake_g * G)}
     parts.update({f"trajectory.phases[{i}].duration_s": ph.duration_s for i, ph in enumerate(cfg.phases)})
     seconds = sum(parts.values())
-    samples = samples_in(seconds, cfg.dt)
-    chunk_rows = chunk_rows_of(args)
-    streamed = bool(chunk_rows) and samples > chunk_rows
-    values = STREAMED_VALUES[command] if streamed else COSTS.values[command]
-    how = f", streamed {chunk_rows} rows at a time (.stream)" if streamed else ""
-    return [Size(max(parts, key=parts.get), samples, values, 1, f"a run of {seconds:g} s at {cfg.rate_hz:g} Hz{how}",
-                 COSTS.seconds[command])]
+    return [Size(max(parts, key=parts.get), samples_in(seconds, cfg.dt), COSTS.values[command], 1,
+                 f"a run of {seconds:g} s at {cfg.rate_hz:g} Hz", COSTS.seconds[command])]
 
 
 OPTIONS = {"simulate": (CHUNK_OPTION,), "identify": (CHUNK_OPTION,)}

@@ -28,7 +28,6 @@ four lanes of one batch. Estimates and metrics equal the whole read's
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 

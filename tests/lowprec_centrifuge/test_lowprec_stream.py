@@ -10,13 +10,15 @@ import pandas as pd
 import pytest
 import yaml
 
-from platcal.cli import main
+from platcal.cli import build_parser, main
+from platcal.errors import InputError
 from platcal.io import read_config
 from platcal.rig import get_rig
 from platcal.rigs.lowprec_centrifuge.montecarlo import SEED_KEY
 from platcal.rigs.lowprec_centrifuge.record import record_frame, truth_json, velocity_derivative, write_record
 from platcal.rigs.lowprec_centrifuge.stream import _unwrap_tail
 from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
+from platcal.sizes import DEFAULT_MAX_HOURS, DEFAULT_MAX_MEMORY_GB, check_sizes
 from platcal.study.montecarlo import replicate_seed
 
 SMALL = {"rig": "lowprec_centrifuge", "profile": {"rest_first_s": 10, "rest_between_s": 30},
@@ -134,3 +136,20 @@ def test_simulate_writes_the_record_of_the_whole_batch(record, tmp_path):
     write_record(record_frame(rb), truth_json(rb, study), tmp_path / "with_sens.csv")
     assert (tmp_path / "with_sens.csv").read_bytes() == (d / "rec.csv").read_bytes()
     assert (tmp_path / "with_sens.csv.truth.json").read_text() == (d / "rec.csv.truth.json").read_text()
+
+
+def test_a_streamed_identify_is_not_sized_as_the_whole_record(tmp_path):
+    """A 2 GB record (about 17 h at 100 Hz) passes the default memory limit streamed (it holds two
+    chunks and its windows) and is refused read whole (``--chunk-rows 0``), naming --data."""
+    data = tmp_path / "big.csv"
+    with open(data, "wb") as fh:
+        fh.truncate(2_000_000_000)   # sparse: only its size is read
+    rig = get_rig("lowprec_centrifuge")
+    cfg = rig.load_config({"rig": "lowprec_centrifuge"})
+    base = ["identify", "--config", "c.yaml", "--data", str(data), "--out", "o"]
+    check_sizes(rig.sizes("identify", cfg, build_parser(rig).parse_args(base)), DEFAULT_MAX_MEMORY_GB,
+                DEFAULT_MAX_HOURS)
+    with pytest.raises(InputError) as e:
+        check_sizes(rig.sizes("identify", cfg, build_parser(rig).parse_args(base + ["--chunk-rows", "0"])),
+                    DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
+    assert e.value.field == "--data"

@@ -25,7 +25,7 @@ from ...logs.calibration import calibration_of, calibration_values, read_calibra
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...sizes import Costs, Size, samples_in
+from ...sizes import Costs, Size, record_size, samples_in
 from .config import COEFFS, G0, Study
 from .montecarlo import SEED_KEY
 from .profile import run_duration
@@ -188,10 +188,19 @@ COSTS = Costs(values={"simulate": 160}, seconds={"simulate": 5e-5},
 """The low-precision centrifuge's costs (:class:`platcal.sizes.Costs`)."""
 
 
+STREAMED_IDENTIFY_VALUES = 0.02
+"""float64 values a streamed identify (``--chunk-rows`` not 0, :mod:`.stream`) holds per byte of its
+record as CSV: its peak RSS grew 342 -> 387 MB from the 1 h to the 6 h record (116 -> 691 MB of
+CSV, benchmarks/bench_memory.md), 0.078 bytes a byte, rounded up about 2x as :data:`COSTS`."""
+
+
 def sizes(command: str, study: Study, args) -> list[Size]:
     """The work a command's inputs imply (:mod:`platcal.sizes`): simulate holds and runs the run's
     record (its duration at ``profile.rate_hz``) x :data:`COSTS`; identify, inspect and
-    compensate read the record they are given, sized by its file's bytes x :data:`COSTS`."""
+    compensate read the record they are given, sized by its file's bytes x :data:`COSTS` (a
+    streamed identify by :data:`STREAMED_IDENTIFY_VALUES` per byte, its time as read whole)."""
+    if command == "identify" and chunk_rows_of(args) != 0:
+        return [record_size(args.data, STREAMED_IDENTIFY_VALUES, COSTS.per_byte["identify"][1])]
     if command in COSTS.per_byte:
         return COSTS.record(command, args.data)
     if command != "simulate" or args.platform not in study.platforms or args.run not in study.run_names(args.platform):

@@ -90,8 +90,9 @@ def shown(v) -> str:
     return repr(v) if isinstance(v, str) else str(num(v))
 
 
-CSV_BLOCK = 1 << 22
-"""Bytes read at a time when a CSV record's text is checked (4 MiB: the check holds no more)."""
+CSV_BLOCK = 1 << 20
+"""Bytes read at a time when a CSV record's text is checked (1 MiB: the check holds a few
+blocks' text at most, 10 MB above what it started with; 4 MiB blocks held 39 MB)."""
 
 
 def check_csv_file(path: Path, field: str = "--data", what: str = "a test record", skip: int = 0) -> None:
@@ -178,18 +179,19 @@ def _csv_columns(path: Path, skip: int) -> list[str]:
         reader.close()
 
 
-CSV_READ_BLOCK = 1 << 18
-"""Bytes of CSV text pyarrow's streaming reader parses at a time (256 KiB). The reader holds
+CSV_READ_BLOCK = 1 << 16
+"""Bytes of CSV text pyarrow's streaming reader parses at a time (64 KiB). The reader holds
 blocks ahead of the one it returns, so its memory follows this size: 2 M rows of the 6-hour
-centrifuge record (603 MB of CSV) read with 4 MiB blocks hold 212 MB more than before the read,
-with 1 MiB 62-79 MB, 256 KiB 21-31 MB, 128 KiB 15 MB (CPU 1.4, 1.2-1.3, 1.3-1.4, 1.45 s)."""
+centrifuge record (603 MB of CSV) read with 4 MiB blocks hold 212 MB more than before the
+read, with 1 MiB 62-79 MB, 256 KiB 21-31 MB, 64 KiB 10 MB; CPU 1.4, 1.2-1.3, 1.3-1.4, 1.6 s
+(pyarrow 26; the filter of those rows takes some 30 s)."""
 
 
 def _csv_batches(path: Path, skip: int, types: dict) -> Iterator[dict]:
     """The CSV record's blocks (:data:`CSV_READ_BLOCK` bytes of text each) as numpy columns, the
     columns of ``types`` read as those pyarrow types (the others as pyarrow infers them from the
     first block). pyarrow allocates from the system's allocator (malloc), which returns freed
-    blocks as pyarrow's own pool (mimalloc) does not: 74 against 84 MB above."""
+    blocks as pyarrow's own pool (mimalloc) does not (74 against 84 MB in the measurement above, 256 KiB)."""
     reader = pacsv.open_csv(path, read_options=pacsv.ReadOptions(skip_rows=skip, block_size=CSV_READ_BLOCK,
                                                                  use_threads=False),
                             convert_options=pacsv.ConvertOptions(column_types=types, null_values=list(PANDAS_NA),

@@ -58,6 +58,13 @@ class Column(np.ndarray):
         a = np.asarray(self)
         return a if dtype is None else a.astype(dtype, copy=False)
 
+    def astype(self, dtype, *args, **kwargs):
+        """As numpy's, except that ``astype(str)`` gives Python strings (an object column, as
+        pandas does: a value in a message reads ``'spin'``, not ``np.str_('spin')``)."""
+        if dtype is str:
+            return Column(np.array([str(v) for v in np.asarray(self).tolist()], dtype=object))
+        return super().astype(dtype, *args, **kwargs)
+
     @property
     def iloc(self) -> np.ndarray:
         """Positional access, as a Series' ``iloc``."""

@@ -1,10 +1,7 @@
 """The streamed reader without pandas (issue 22 item 3): ``platcal.records.iter_table`` reads a
 record with pyarrow into numpy columns (``platcal.lighttable.Table``), gives the numbers pandas'
-``read_csv`` gives, names a bad value by its line as before, and never loads pandas."""
-
-import json
-import subprocess
-import sys
+``read_csv`` gives and names a bad value by its line as before (that it loads no pandas:
+tests/test_import_weight.py)."""
 
 import numpy as np
 import pandas as pd
@@ -59,20 +56,3 @@ def test_a_bad_value_in_a_late_chunk_is_named_by_its_line(tmp_path, value, shown
             list(iter_table(path, ("t", "a", "k"), ("s",), text=("s",), chunk_rows=chunk))
         assert e.value.field == "--data column a, row 4322"
         assert f"value {shown} is not a finite number" in str(e.value)
-
-
-PROBE = """
-import json, sys
-from platcal.records import iter_table
-rows = sum(len(df) for df in iter_table(sys.argv[1], ("t", "a", "k"), ("s",), text=("s",), chunk_rows=1000))
-print(json.dumps([rows, "pandas" in sys.modules]))
-"""
-
-
-def test_reading_a_record_does_not_load_pandas(tmp_path):
-    path = _log(tmp_path)
-    parquet = tmp_path / "log.parquet"
-    pd.read_csv(path).to_parquet(parquet, index=False)
-    for p in (path, parquet):
-        out = subprocess.run([sys.executable, "-c", PROBE, str(p)], check=True, capture_output=True, text=True)
-        assert json.loads(out.stdout) == [5000, False]

@@ -1,0 +1,111 @@
+"""Replicates in SIMD lanes: the shared parts of the state-major filter kernels (issue 22).
+
+A state-major kernel runs a block of :data:`LANES` replicates with the lanes innermost: a
+block's symmetric covariance is ``P[e, l]``, entry ``e`` of the lower triangle packed by rows
+(:func:`packed_index`), lane ``l``; every covariance operation is then one vector instruction
+over the lanes, and P is stored once (no mirror). The kernels are compiled with their array
+arguments ``noalias`` (:class:`NoAliasCompiler`) and LLVM's SLP vectoriser on
+(:func:`slp_vectorize`), which is what merges the lanes' scalar operations into vectors.
+Used by the centrifuge's :mod:`platcal.rigs.centrifuge.ekf_lanes` and the multi-position
+rig's EKF.
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import numpy as np
+from numba import njit
+from numba.core import config as numba_config
+from numba.core.compiler import CompilerBase, DefaultPassBuilder
+
+LANES = 4
+"""Replicates per block: one AVX2 register of doubles (numba's LLVM prefers 256-bit vectors on
+this machine); a block's packed P (1176 x 4 doubles) stays in the 48 kB L1 cache."""
+
+
+
+class NoAliasCompiler(CompilerBase):
+    """numba's nopython pipeline with the compiled function's pointer arguments (the arrays'
+    data) marked ``noalias``: the callers pass distinct arrays, so LLVM may keep values in
+    registers across stores and merge the lanes' loads and stores into vectors."""
+
+    def define_pipelines(self):
+        self.state.flags.noalias = True
+        return [DefaultPassBuilder.define_nopython_pipeline(self.state)]
+
+
+@contextmanager
+def slp_vectorize():
+    """LLVM's SLP vectoriser on for numba compilations in this block (numba's default is off).
+    It turns identical scalar operations on adjacent lanes into vector operations; it changes
+    no floating-point result (no reassociation), so it is safe for any function compiled
+    meanwhile."""
+    old = numba_config.SLP_VECTORIZE
+    numba_config.SLP_VECTORIZE = 1
+    try:
+        yield
+    finally:
+        numba_config.SLP_VECTORIZE = old
+
+
+def packed_index(n: int) -> np.ndarray:
+    """(n, n) int64: the packed position of entry (i, j) of a symmetric n x n matrix stored as its
+    lower triangle by rows (``i (i + 1) / 2 + j`` for j <= i; symmetric)."""
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    hi, lo = np.maximum(i, j), np.minimum(i, j)
+    return np.ascontiguousarray(hi * (hi + 1) // 2 + lo, dtype=np.int64)
+
+
+@njit(cache=True, inline="always")
+def cholesky_inverse_lanes(S, Sinv, innov, nu, ok):
+    """Per lane, :func:`platcal.estimation.kalman.cholesky_inverse` of the 3 x 3 ``S`` (3, 3, LANES):
+    ``Sinv`` = S^-1 and ``nu`` = L^-1 innov (the standardised innovation), written out so that
+    the lanes run as vectors. A lane whose S is not positive definite gets ``ok = 0`` and
+    ``Sinv = 0``, ``nu = 0``: its gain is then zero and the update leaves x and P as they were
+    (the reference kernel skips it)."""
+    for l in range(LANES):  # the constant: unrolled, then merged into vectors
+        a00 = S[0, 0, l]
+        p0 = a00 > 0.0
+        f00 = np.sqrt(a00 if p0 else 1.0)
+        f10 = S[1, 0, l] / f00
+        f20 = S[2, 0, l] / f00
+        a11 = S[1, 1, l] - f10 * f10
+        p1 = a11 > 0.0
+        f11 = np.sqrt(a11 if p1 else 1.0)
+        f21 = (S[2, 1, l] - f20 * f10) / f11
+        a22 = S[2, 2, l] - f20 * f20 - f21 * f21
+        p2 = a22 > 0.0
+        f22 = np.sqrt(a22 if p2 else 1.0)
+        good = p0 and p1 and p2
+        n0 = innov[0, l] / f00
+        n1 = (innov[1, l] - f10 * n0) / f11
+        n2 = (innov[2, l] - f20 * n0 - f21 * n1) / f22
+        # L^-1 (lower): diagonal reciprocals, then the two sub-diagonals and the corner
+        i00 = 1.0 / f00
+        i11 = 1.0 / f11
+        i22 = 1.0 / f22
+        i10 = -(f10 * i00) * i11
+        i21 = -(f21 * i11) * i22
+        i20 = -(f20 * i00 + f21 * i10) * i22
+        # S^-1 = L^-T L^-1
+        s00 = i00 * i00 + i10 * i10 + i20 * i20
+        s01 = i10 * i11 + i20 * i21
+        s02 = i20 * i22
+        s11 = i11 * i11 + i21 * i21
+        s12 = i21 * i22
+        s22 = i22 * i22
+        z = 1.0 if good else 0.0
+        Sinv[0, 0, l] = s00 * z
+        Sinv[0, 1, l] = s01 * z
+        Sinv[0, 2, l] = s02 * z
+        Sinv[1, 0, l] = s01 * z
+        Sinv[1, 1, l] = s11 * z
+        Sinv[1, 2, l] = s12 * z
+        Sinv[2, 0, l] = s02 * z
+        Sinv[2, 1, l] = s12 * z
+        Sinv[2, 2, l] = s22 * z
+        nu[0, l] = n0 * z
+        nu[1, l] = n1 * z
+        nu[2, l] = n2 * z
+        ok[l] = z

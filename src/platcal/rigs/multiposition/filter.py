@@ -41,6 +41,7 @@ from numba import njit
 from ...errors import InputError
 from ...estimation.iterated import gauss_newton_point, make_iterated_scratch
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse, update_scratch
+from ...estimation.lanes import LANES, NoAliasCompiler, cholesky_inverse_lanes, packed_index, slp_vectorize
 from ...model.frames import ARCSEC, DEG
 from ...study.montecarlo import replicate_seed
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
@@ -405,6 +406,268 @@ def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_va
         nbad[b] += nb  # updates skipped because S was not positive definite
 
 
+# ------------------------------------------------------------------ EKF kernel, replicates in lanes
+
+@njit(cache=True, inline="always")
+def _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var, U, Kg, D, S, Sinv, nu, ok, acc, update_x):
+    """:func:`platcal.estimation.kalman.joseph_update_sparse` for m = 3 on every lane of a block
+    (``xl`` (n, LANES), packed ``Pl`` (n (n + 1) / 2, LANES); H's sparse rows ``hc``, ``nn`` shared
+    by the lanes, values ``hval`` (3, w, LANES)), the same operations in the same order, so each
+    lane's numbers are the reference kernel's bit for bit. A lane whose S is not positive definite
+    gets ``ok = 0`` and a zero gain: x and P stay as they were (the reference skips the update)."""
+    n = xl.shape[0]
+    L = LANES
+    # U = H P and S = H U^T + R (innovation_covariance)
+    for r in range(3):
+        for j in range(n):
+            for l in range(L):
+                U[r, j, l] = 0.0
+    for r in range(3):
+        for t in range(nn[r]):
+            rt = hc[r, t]
+            for j in range(n):
+                e = pidx[rt, j]
+                for l in range(L):
+                    U[r, j, l] += hval[r, t, l] * Pl[e, l]
+    for r in range(3):
+        for c in range(r + 1):
+            for l in range(L):
+                acc[l] = 0.0
+            for t in range(nn[c]):
+                ct = hc[c, t]
+                for l in range(L):
+                    acc[l] += U[r, ct, l] * hval[c, t, l]
+            for l in range(L):
+                S[r, c, l] = acc[l]
+                S[c, r, l] = acc[l]
+        for l in range(L):
+            S[r, r, l] += r_var[r]
+    cholesky_inverse_lanes(S, Sinv, innov, nu, ok)
+    # K = S^-1 U, D = U - S K, x += K innov, P -= K U^T + D K^T (kalman._correct3's order)
+    for c in range(3):
+        for j in range(n):
+            for l in range(L):
+                Kg[c, j, l] = Sinv[c, 0, l] * U[0, j, l] + Sinv[c, 1, l] * U[1, j, l] + Sinv[c, 2, l] * U[2, j, l]
+    for c in range(3):
+        for j in range(n):
+            for l in range(L):
+                D[c, j, l] = U[c, j, l] - (S[c, 0, l] * Kg[0, j, l] + S[c, 1, l] * Kg[1, j, l]
+                                           + S[c, 2, l] * Kg[2, j, l])
+    if update_x:
+        for j in range(n):
+            for l in range(L):
+                xl[j, l] += Kg[0, j, l] * innov[0, l] + Kg[1, j, l] * innov[1, l] + Kg[2, j, l] * innov[2, l]
+    e = 0
+    for i in range(n):
+        for j in range(i + 1):
+            for l in range(L):
+                Pl[e + j, l] -= ((Kg[0, i, l] * U[0, j, l] + Kg[1, i, l] * U[1, j, l] + Kg[2, i, l] * U[2, j, l])
+                                 + (D[0, i, l] * Kg[0, j, l] + D[1, i, l] * Kg[1, j, l] + D[2, i, l] * Kg[2, j, l]))
+        e += i + 1
+
+
+@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler)
+def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, sums, rec,
+               pidx, xl, Pl, xm, W, U, Kg, D, phiL, qL, hval, hvala, innov, S, Sinv, nu, ok, acc, cnt,
+               F, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, phi1, q1, zp, Hs, hc, nn, hca, nna, zero3):
+    """:func:`_ekf_one` (the EKF, ``iters = 0``) for the replicates ``blk * LANES ..`` of the batch
+    with the replicates in SIMD lanes (:mod:`platcal.estimation.lanes`): the covariance work
+    (propagation, both 3-row Joseph updates) is one vector operation over the lanes on the
+    packed lower triangle ``Pl``, the model (§4 rate and RK4, §7 measurement) the reference's
+    scalar code once per live lane. Lanes past the batch repeat the block's first replicate and
+    are not written back. Every sum runs in the reference kernel's order without fused
+    multiply-adds, so x, P, the NIS and the innovations record are bit-identical to
+    :func:`_ekf_one`'s and a replicate's numbers depend neither on its lane nor on the batch.
+
+    ``sums`` (R, 4) receives per replicate the NIS sum, the updates, the linearisations and the
+    skipped updates (``_ekf_one``'s return values); the arguments from ``pidx`` on are the
+    block's lane-layout state and scratch (:func:`_ekf_blocks`), distinct arrays as the
+    ``noalias`` compile requires.
+    """
+    B, n = X.shape
+    L = LANES
+    K = phi0s.shape[0]
+    m = cols.shape[0]
+    b0 = blk * L
+    nact = min(L, B - b0)
+    keep = rec.shape[1] > 0
+    for l in range(L):
+        src = b0 + l if l < nact else b0
+        for i in range(n):
+            xl[i, l] = X[src, i]
+            for j in range(i + 1):
+                Pl[pidx[i, j], l] = Ps[src, i, j]
+        for i in range(4):
+            cnt[i, l] = 0.0
+    for k in range(K):
+        # the position's start (§9): phi = 0 with variance sigma_set^2, no cross covariance
+        for r in range(3):
+            for l in range(L):
+                xl[r, l] = 0.0
+            for i in range(n):
+                e = pidx[r, i]
+                for l in range(L):
+                    Pl[e, l] = 0.0
+            e = pidx[r, r]
+            for l in range(L):
+                Pl[e, l] = set_var
+        for s in range(nk[k]):
+            if s > 0:
+                dt = tk[k, s] - tk[k, s - 1]
+                for l in range(nact):
+                    for i in range(n):
+                        xm[i] = xl[i, l]
+                    rate_k(phi0s[k], xm, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
+                    transition_rows(F, T, cols, dt, arw2, phi1, q1)
+                    for r in range(3):  # the rate at x, RK4's first stage
+                        k4[0, r] = nxt[r]
+                    rk4_k(phi0s[k], xm, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd,
+                          True)
+                    for r in range(3):
+                        xl[r, l] = nxt[r]
+                        for c in range(m):
+                            phiL[r, c, l] = phi1[r, c]
+                        for c in range(3):
+                            qL[r, c, l] = q1[r, c]
+                for l in range(nact, L):
+                    for r in range(3):
+                        xl[r, l] = xl[r, 0]
+                        for c in range(m):
+                            phiL[r, c, l] = phiL[r, c, 0]
+                        for c in range(3):
+                            qL[r, c, l] = qL[r, c, 0]
+                # P <- Phi P Phi^T + Q on phi's rows (propagate_sparse): W = Phi[:3] P, row by
+                # row through the packed index, then the 3 x 3 block, then the rows written
+                for r in range(3):
+                    for j in range(n):
+                        for l in range(L):
+                            W[r, j, l] = 0.0
+                for c in range(m):
+                    rc = cols[c]
+                    for j in range(n):
+                        e = pidx[rc, j]
+                        for l in range(L):
+                            W[0, j, l] += phiL[0, c, l] * Pl[e, l]
+                        for l in range(L):
+                            W[1, j, l] += phiL[1, c, l] * Pl[e, l]
+                        for l in range(L):
+                            W[2, j, l] += phiL[2, c, l] * Pl[e, l]
+                for i in range(6):
+                    for l in range(L):
+                        acc[i, l] = 0.0
+                for c in range(m):
+                    rc = cols[c]
+                    for l in range(L):
+                        w0, w1, w2 = W[0, rc, l], W[1, rc, l], W[2, rc, l]
+                        p0, p1, p2 = phiL[0, c, l], phiL[1, c, l], phiL[2, c, l]
+                        acc[0, l] += w0 * p0
+                        acc[1, l] += w1 * p0
+                        acc[2, l] += w1 * p1
+                        acc[3, l] += w2 * p0
+                        acc[4, l] += w2 * p1
+                        acc[5, l] += w2 * p2
+                for r in range(3):
+                    for j in range(n):
+                        e = pidx[r, j]
+                        for l in range(L):
+                            Pl[e, l] = W[r, j, l]
+                e00, e10, e11, e20, e21, e22 = pidx[0, 0], pidx[1, 0], pidx[1, 1], pidx[2, 0], pidx[2, 1], pidx[2, 2]
+                for l in range(L):
+                    Pl[e00, l] = acc[0, l] + 0.5 * (qL[0, 0, l] + qL[0, 0, l])
+                    Pl[e11, l] = acc[2, l] + 0.5 * (qL[1, 1, l] + qL[1, 1, l])
+                    Pl[e22, l] = acc[5, l] + 0.5 * (qL[2, 2, l] + qL[2, 2, l])
+                    Pl[e10, l] = acc[1, l] + 0.5 * (qL[1, 0, l] + qL[0, 1, l])
+                    Pl[e20, l] = acc[3, l] + 0.5 * (qL[2, 0, l] + qL[0, 2, l])
+                    Pl[e21, l] = acc[4, l] + 0.5 * (qL[2, 1, l] + qL[1, 2, l])
+            # the accelerometer outputs and H at the predicted state, lane by lane
+            for l in range(nact):
+                for i in range(n):
+                    xm[i] = xl[i, l]
+                meas_k(phi0s[k], xm, lay, zp, Hs, hc, nn, C, dC)
+                for r in range(3):
+                    for t in range(nn[r]):
+                        hval[r, t, l] = Hs[r, t]
+                    innov[r, l] = Z[b0 + l, k, s, r] - zp[r]
+            for l in range(nact, L):
+                for r in range(3):
+                    for t in range(nn[r]):
+                        hval[r, t, l] = hval[r, t, 0]
+                    innov[r, l] = innov[r, 0]
+            _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var[:3], U, Kg, D, S, Sinv, nu, ok, acc[0],
+                          update_x)
+            for l in range(nact):
+                cnt[2, l] += 1.0
+                if ok[l] > 0.0:
+                    cnt[0, l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
+                    cnt[1, l] += 1.0
+                else:
+                    cnt[3, l] += 1.0
+                if keep:
+                    for i in range(3):
+                        rec[b0 + l, k, s, i] = innov[i, l]
+                        rec[b0 + l, k, s, 6 + i] = S[i, i, l] if ok[l] > 0.0 else np.nan
+            # the angle sensors (H = 1/arcsec on phi), innovation from the updated state
+            for l in range(L):
+                src = b0 + l if l < nact else b0
+                for i in range(3):
+                    d = Z[src, k, s, 3 + i] - (phi0s[k, i] + xl[i, l]) / ARCSEC
+                    innov[i, l] = (d + 648000.0) % 1296000.0 - 648000.0
+            _update_lanes(xl, Pl, pidx, hca, nna, hvala, innov, r_var[3:], U, Kg, D, S, Sinv, nu, ok, acc[0],
+                          update_x)
+            for l in range(nact):
+                if ok[l] > 0.0:
+                    cnt[0, l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
+                else:
+                    cnt[3, l] += 1.0
+                if keep:
+                    for i in range(3):
+                        rec[b0 + l, k, s, 3 + i] = innov[i, l]
+                        rec[b0 + l, k, s, 9 + i] = S[i, i, l] if ok[l] > 0.0 else np.nan
+    for l in range(nact):
+        b = b0 + l
+        for i in range(n):
+            X[b, i] = xl[i, l]
+            for j in range(n):
+                Ps[b, i, j] = Pl[pidx[i, j], l]
+        for i in range(4):
+            sums[b, i] = cnt[i, l]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _ekf_blocks(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, sums, rec, pidx):
+    """Blocks ``lo .. hi - 1`` of the batch through :func:`_ekf_block`, with their scratch."""
+    n = X.shape[1]
+    L = LANES
+    m = cols.shape[0]
+    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    hvala = np.full((3, 1, L), 1.0 / ARCSEC)
+    hca = np.empty((3, 1), dtype=np.int64)
+    for i in range(3):
+        hca[i, 0] = i
+    e = np.empty
+    for blk in range(lo, hi):
+        _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, sums, rec,
+                   pidx, e((n, L)), e((n * (n + 1) // 2, L)), e(n), e((3, n, L)), e((3, n, L)), e((3, n, L)),
+                   e((3, n, L)), e((3, m, L)), e((3, 3, L)), np.zeros((3, 10, L)), hvala, e((3, L)), e((3, 3, L)),
+                   e((3, 3, L)), e((3, L)), e(L), e((6, L)), e((4, L)),
+                   np.zeros((3, n)), e(3), k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, e((3, m)), e((3, 3)), e(6),
+                   e((3, 10)), np.empty((3, 10), dtype=np.int64), np.empty(3, dtype=np.int64), hca,
+                   np.ones(3, dtype=np.int64), np.zeros(3))
+
+
+def _ekf_lanes(X, Ps, phi0s, tk, Z, nk, st, arw2, set_var, update_x, rec, threads):
+    """One EKF pass (§9) of the batch ``X`` (R, n), ``Ps`` (R, n, n) in place, replicates in lanes
+    (:func:`_ekf_block`); returns ``sums`` (R, 4): per replicate the NIS sum, the updates, the
+    linearisations and the skipped updates. ``rec`` (R, K, m, 12) or (1, 0, 0, 12) (none kept)."""
+    R = X.shape[0]
+    sums = np.zeros((R, 4))
+    nblk = -(-R // LANES)
+    with slp_vectorize():  # a first compile (or a cache miss) compiles the lanes as vectors
+        _threaded(_ekf_blocks, nblk, threads, X, Ps, phi0s, tk, Z, nk, st.lay, st.wn, st.wu, st.r_var, arw2,
+                  set_var, st.cols, update_x, sums, rec, packed_index(X.shape[1]))
+    return sums
+
+
 def dynamic_cols(ext: int) -> np.ndarray:
     """State columns where the phi rows of Phi can be nonzero: phi and the gyro coefficients."""
     lay = layout_index(ext)
@@ -445,6 +708,12 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     for p in range(npass):
         if p > 0:
             st.next_pass()
+        if iterations == 0:  # the EKF: replicates in lanes (bit-identical to _ekf_range's kernel)
+            sums = _ekf_lanes(X, Ps, phi0s, tk, Z, nk, st, cfg.arw_rad**2, cfg.sigma_set_rad**2, True, rec, threads)
+            nis[:] = sums[:, 0] / np.maximum(sums[:, 1], 1) / 6.0
+            nlin += sums[:, 2]
+            nbad += sums[:, 3].astype(np.int64)
+            continue
         _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2,
                   cfg.sigma_set_rad**2, st.cols, True, int(iterations), float(tolerance), nis, nlin, nbad, rec)
     return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis, nlin / (npass * int(nk.sum())), nbad
@@ -517,10 +786,15 @@ def run_filter_positions(cfg, positions_deg, source, passes: int | None = None, 
         for k, (t, z) in enumerate(source()):
             m = t.size
             rec = np.zeros((1, m, 12)) if last else np.zeros((0, 0, 12))
-            s, u, nl, nb = _ekf_one(st.X[0], st.Ps[0], phi0s[k:k + 1], np.ascontiguousarray(t, float)[None],
-                                    np.ascontiguousarray(z, float)[None], np.array([m], dtype=np.int64), st.lay,
-                                    st.wn, st.wu, st.r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, st.cols, True,
-                                    int(iterations), float(tolerance), rec)
+            tk, zk, nk = np.ascontiguousarray(t, float)[None], np.ascontiguousarray(z, float)[None], np.array([m])
+            if iterations == 0:  # the kernel run_filter's EKF runs (replicates in lanes)
+                s, u, nl, nb = _ekf_lanes(st.X, st.Ps, phi0s[k:k + 1], tk, zk[None], nk, st, cfg.arw_rad**2,
+                                          cfg.sigma_set_rad**2, True, rec[None] if last else np.zeros((1, 0, 0, 12)),
+                                          1)[0]
+            else:
+                s, u, nl, nb = _ekf_one(st.X[0], st.Ps[0], phi0s[k:k + 1], tk, zk, nk, st.lay, st.wn, st.wu,
+                                        st.r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, st.cols, True,
+                                        int(iterations), float(tolerance), rec)
             nis += s
             nup += u
             nlin += nl

@@ -6,8 +6,6 @@ block's symmetric covariance is ``P[e, l]``, entry ``e`` of the lower triangle p
 over the lanes, and P is stored once (no mirror). The kernels are compiled with their array
 arguments ``noalias`` (:class:`NoAliasCompiler`) and LLVM's SLP vectoriser on
 (:func:`slp_vectorize`), which is what merges the lanes' scalar operations into vectors.
-Used by the centrifuge's :mod:`platcal.rigs.centrifuge.ekf_lanes` and the multi-position
-rig's EKF.
 """
 
 from __future__ import annotations

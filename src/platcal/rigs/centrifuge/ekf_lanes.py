@@ -40,7 +40,8 @@ from numba import njit, prange
 from .attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from .base import specific_force_into
 from ...estimation.kalman import cholesky_inverse
-from ...estimation.lanes import LANES, NoAliasCompiler, packed_index, slp_vectorize
+from ...estimation.lanes import (LANES, NoAliasCompiler, innovation_covariance_lanes, joseph_correct_lanes,
+                                 packed_index, propagate_rows_lanes, slp_vectorize)
 from ...estimation.lanes import cholesky_inverse_lanes as _cholesky_inverse_lanes
 
 FASTMATH = False
@@ -175,60 +176,7 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                 # P <- Phi P Phi^T + Q on the 3 attitude rows: W = Phi[dyn] P (rows through
                 # the packed index), the 3 x 3 block, then the rows (= the columns) written
                 qd = q_rate * h
-                for j in range(n):
-                    for l in range(L):
-                        W[0, j, l] = 0.0
-                        W[1, j, l] = 0.0
-                        W[2, j, l] = 0.0
-                # two columns of Phi per pass over W (half its loads and stores), each row of W
-                # in its own lane loop (one lane loop updating three rows is not vectorised);
-                # every entry still sums in column order
-                for kk in range(0, npc - 1, 2):
-                    ea0 = pcols[kk]
-                    eb0 = pcols[kk + 1]
-                    for j in range(n):
-                        ea = pidx[ea0, j]
-                        eb = pidx[eb0, j]
-                        for l in range(L):
-                            W[0, j, l] = (W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
-                        for l in range(L):
-                            W[1, j, l] = (W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
-                        for l in range(L):
-                            W[2, j, l] = (W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
-                if npc % 2:
-                    kk = npc - 1
-                    ea0 = pcols[kk]
-                    for j in range(n):
-                        ea = pidx[ea0, j]
-                        for l in range(L):
-                            W[0, j, l] += phi[0, kk, l] * Pl[ea, l]
-                        for l in range(L):
-                            W[1, j, l] += phi[1, kk, l] * Pl[ea, l]
-                        for l in range(L):
-                            W[2, j, l] += phi[2, kk, l] * Pl[ea, l]
-                for l in range(L):
-                    acc[0, l] = 0.0
-                    acc[1, l] = 0.0
-                    acc[2, l] = 0.0
-                    acc[3, l] = 0.0
-                    acc[4, l] = 0.0
-                    acc[5, l] = 0.0
-                for kk in range(npc):
-                    c = pcols[kk]
-                    for l in range(L):
-                        w0, w1_, w2 = W[0, c, l], W[1, c, l], W[2, c, l]
-                        p0, p1, p2 = phi[0, kk, l], phi[1, kk, l], phi[2, kk, l]
-                        acc[0, l] += w0 * p0
-                        acc[1, l] += w1_ * p0
-                        acc[2, l] += w1_ * p1
-                        acc[3, l] += w2 * p0
-                        acc[4, l] += w2 * p1
-                        acc[5, l] += w2 * p2
-                for r in range(3):
-                    for j in range(n):
-                        e = pidx[nc + r, j]
-                        for l in range(L):
-                            Pl[e, l] = W[r, j, l]
+                propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, nc)
                 for l in range(L):
                     Pl[e00, l] = acc[0, l] + qd
                     Pl[e10, l] = acc[1, l]
@@ -260,54 +208,10 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                         hval[r, kk, l] = hval[r, kk, 0]
                     innov[r, l] = innov[r, 0]
             # U = H P (3 x n), through the packed index; S = H U^T + R
-            for j in range(n):
-                for l in range(L):
-                    U[0, j, l] = 0.0
-                    U[1, j, l] = 0.0
-                    U[2, j, l] = 0.0
-            for r in range(3):
-                for kk in range(hnnz[r]):
-                    hc = hcols[r, kk]
-                    for j in range(n):
-                        e = pidx[hc, j]
-                        for l in range(L):
-                            U[r, j, l] += hval[r, kk, l] * Pl[e, l]
-            for r in range(3):
-                for c in range(r + 1):
-                    for l in range(L):
-                        acc[0, l] = 0.0
-                    for kk in range(hnnz[c]):
-                        hc = hcols[c, kk]
-                        for l in range(L):
-                            acc[0, l] += U[r, hc, l] * hval[c, kk, l]
-                    for l in range(L):
-                        S[r, c, l] = acc[0, l]
-                        S[c, r, l] = acc[0, l]
-                for l in range(L):
-                    S[r, r, l] += r_var[r]
+            innovation_covariance_lanes(Pl, pidx, hcols, hnnz, hval, r_var, U, S, acc[0])
             _cholesky_inverse_lanes(S, Sinv, innov, nu, ok)
             # K = S^-1 U, D = U - S K, x += K innov, P -= K U^T + D K^T (packed lower triangle)
-            for c in range(3):
-                for j in range(n):
-                    for l in range(L):
-                        K[c, j, l] = Sinv[c, 0, l] * U[0, j, l] + Sinv[c, 1, l] * U[1, j, l] + Sinv[c, 2, l] * U[2, j, l]
-            for c in range(3):
-                for j in range(n):
-                    for l in range(L):
-                        D[c, j, l] = U[c, j, l] - (S[c, 0, l] * K[0, j, l] + S[c, 1, l] * K[1, j, l]
-                                                   + S[c, 2, l] * K[2, j, l])
-            if update_x:
-                for j in range(n):
-                    for l in range(L):
-                        xl[j, l] += K[0, j, l] * innov[0, l] + K[1, j, l] * innov[1, l] + K[2, j, l] * innov[2, l]
-            e = 0
-            for i in range(n):
-                for j in range(i + 1):
-                    for l in range(L):
-                        Pl[e + j, l] -= ((K[0, i, l] * U[0, j, l] + K[1, i, l] * U[1, j, l] + K[2, i, l] * U[2, j, l])
-                                         + (D[0, i, l] * K[0, j, l] + D[1, i, l] * K[1, j, l]
-                                            + D[2, i, l] * K[2, j, l]))
-                e += i + 1
+            joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x)
             for l in range(nact):
                 b = b0 + l
                 if ok[l] > 0.0:

@@ -46,7 +46,8 @@ from numba import njit
 from ...errors import InputError
 from ...estimation.iterated import gauss_newton_point, make_iterated_scratch
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse, update_scratch
-from ...estimation.lanes import LANES, NoAliasCompiler, cholesky_inverse_lanes, packed_index, slp_vectorize
+from ...estimation.lanes import (LANES, NoAliasCompiler, cholesky_inverse_lanes, innovation_covariance_lanes,
+                                 joseph_correct_lanes, packed_index, propagate_rows_lanes, slp_vectorize)
 from ...model.frames import ARCSEC, DEG
 from ...study.montecarlo import replicate_seed
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
@@ -424,62 +425,16 @@ def _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var, U, Kg, D, S, Sinv, n
     lane's numbers are the reference kernel's bit for bit. A lane whose S is not positive definite
     gets ``ok = 0`` and a zero gain: x and P stay as they were (the reference skips the update);
     so does a lane with ``live = 0`` (its step skipped: the iterated update's S failed)."""
-    n = xl.shape[0]
-    L = LANES
-    # U = H P and S = H U^T + R (innovation_covariance)
-    for r in range(3):
-        for j in range(n):
-            for l in range(L):
-                U[r, j, l] = 0.0
-    for r in range(3):
-        for t in range(nn[r]):
-            rt = hc[r, t]
-            for j in range(n):
-                e = pidx[rt, j]
-                for l in range(L):
-                    U[r, j, l] += hval[r, t, l] * Pl[e, l]
-    for r in range(3):
-        for c in range(r + 1):
-            for l in range(L):
-                acc[l] = 0.0
-            for t in range(nn[c]):
-                ct = hc[c, t]
-                for l in range(L):
-                    acc[l] += U[r, ct, l] * hval[c, t, l]
-            for l in range(L):
-                S[r, c, l] = acc[l]
-                S[c, r, l] = acc[l]
-        for l in range(L):
-            S[r, r, l] += r_var[r]
+    innovation_covariance_lanes(Pl, pidx, hc, nn, hval, r_var, U, S, acc)
     cholesky_inverse_lanes(S, Sinv, innov, nu, ok)
-    for l in range(L):
+    for l in range(LANES):
         if live[l] == 0.0:
             ok[l] = 0.0
             for r in range(3):
                 innov[r, l] = 0.0  # a skipped step's innovation may be anything: 0 * inf is no zero
                 for c in range(3):
                     Sinv[r, c, l] = 0.0
-    # K = S^-1 U, D = U - S K, x += K innov, P -= K U^T + D K^T (kalman._correct3's order)
-    for c in range(3):
-        for j in range(n):
-            for l in range(L):
-                Kg[c, j, l] = Sinv[c, 0, l] * U[0, j, l] + Sinv[c, 1, l] * U[1, j, l] + Sinv[c, 2, l] * U[2, j, l]
-    for c in range(3):
-        for j in range(n):
-            for l in range(L):
-                D[c, j, l] = U[c, j, l] - (S[c, 0, l] * Kg[0, j, l] + S[c, 1, l] * Kg[1, j, l]
-                                           + S[c, 2, l] * Kg[2, j, l])
-    if update_x:
-        for j in range(n):
-            for l in range(L):
-                xl[j, l] += Kg[0, j, l] * innov[0, l] + Kg[1, j, l] * innov[1, l] + Kg[2, j, l] * innov[2, l]
-    e = 0
-    for i in range(n):
-        for j in range(i + 1):
-            for l in range(L):
-                Pl[e + j, l] -= ((Kg[0, i, l] * U[0, j, l] + Kg[1, i, l] * U[1, j, l] + Kg[2, i, l] * U[2, j, l])
-                                 + (D[0, i, l] * Kg[0, j, l] + D[1, i, l] * Kg[1, j, l] + D[2, i, l] * Kg[2, j, l]))
-        e += i + 1
+    joseph_correct_lanes(xl, Pl, U, Kg, D, S, Sinv, innov, update_x)
 
 
 @njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler)
@@ -557,41 +512,9 @@ def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, 
                             phiL[r, c, l] = phiL[r, c, 0]
                         for c in range(3):
                             qL[r, c, l] = qL[r, c, 0]
-                # P <- Phi P Phi^T + Q on phi's rows (propagate_sparse): W = Phi[:3] P, row by
-                # row through the packed index, then the 3 x 3 block, then the rows written
-                for r in range(3):
-                    for j in range(n):
-                        for l in range(L):
-                            W[r, j, l] = 0.0
-                for c in range(m):
-                    rc = cols[c]
-                    for j in range(n):
-                        e = pidx[rc, j]
-                        for l in range(L):
-                            W[0, j, l] += phiL[0, c, l] * Pl[e, l]
-                        for l in range(L):
-                            W[1, j, l] += phiL[1, c, l] * Pl[e, l]
-                        for l in range(L):
-                            W[2, j, l] += phiL[2, c, l] * Pl[e, l]
-                for i in range(6):
-                    for l in range(L):
-                        acc[i, l] = 0.0
-                for c in range(m):
-                    rc = cols[c]
-                    for l in range(L):
-                        w0, w1, w2 = W[0, rc, l], W[1, rc, l], W[2, rc, l]
-                        p0, p1, p2 = phiL[0, c, l], phiL[1, c, l], phiL[2, c, l]
-                        acc[0, l] += w0 * p0
-                        acc[1, l] += w1 * p0
-                        acc[2, l] += w1 * p1
-                        acc[3, l] += w2 * p0
-                        acc[4, l] += w2 * p1
-                        acc[5, l] += w2 * p2
-                for r in range(3):
-                    for j in range(n):
-                        e = pidx[r, j]
-                        for l in range(L):
-                            Pl[e, l] = W[r, j, l]
+                # P <- Phi P Phi^T + Q on phi's rows (propagate_sparse): the rows through the
+                # packed index, then the 3 x 3 block with Q (kalman._block3's sums)
+                propagate_rows_lanes(Pl, pidx, cols, phiL, W, acc, 0)
                 e00, e10, e11, e20, e21, e22 = pidx[0, 0], pidx[1, 0], pidx[1, 1], pidx[2, 0], pidx[2, 1], pidx[2, 2]
                 for l in range(L):
                     Pl[e00, l] = acc[0, l] + 0.5 * (qL[0, 0, l] + qL[0, 0, l])

@@ -248,10 +248,10 @@ def sled(B: int, repeat: int) -> dict:
     return dict(rig="sled", test=f"85.9 s at 200 Hz, run + stop filters ({J} epochs), mechanisation, compensation",
                 platcal_s=tp[0] / B, filterpy_s=tf[0], platcal_cpu_s=tp[1] / B, filterpy_cpu_s=tf[1],
                 filter_platcal_s=timed_pc.wall / B, filter_filterpy_s=timed_fp.wall,
-                max_diff_sigma=d, note="the run and stop filters (7 and 6 states) are numpy loops over the epochs "
-                                        "batched over replicates (Phi = I + FT + (FT)^2/2 per epoch): filter_ratio; "
-                                        "the 200 Hz mechanisation and the compensation, shared by both sides, add "
-                                        "to platcal's time")
+                max_diff_sigma=d, note="the run and stop filters (7 and 6 states) are one compiled kernel over "
+                                        "replicates and epochs, Phi = I + FT + (FT)^2/2 formed in it (FilterPy's "
+                                        "side forms it with numpy): filter_ratio; the 200 Hz mechanisation and the "
+                                        "compensation, shared by both sides, add to platcal's time")
 
 
 def lowprec_centrifuge(B: int, repeat: int) -> dict:

@@ -11,7 +11,8 @@ has two), each from its natural length up (a sled record lasts 86 s, its stop at
 low-precision run 17 min). The centrifuge and the multi-position rig are measured streamed
 (``--chunk-rows``, default) and, up to 1 h, read whole (``--chunk-rows 0``) for comparison (the
 multi-position rig's simulate has no ``--chunk-rows``: it writes one position at a time in both
-rows); the sled and the low-precision centrifuge read their records whole. The ``import`` rows
+rows); so is the sled beyond its natural length (a natural record fits one chunk); the
+low-precision centrifuge reads its records whole. The ``import`` rows
 are ``platcal identify --config <rig> --help``: the command's imports and nothing else, the floor
 under every other row.
 
@@ -117,7 +118,9 @@ def all_cases(max_minutes: float, folder: Path):
             yield "multiposition", minutes, "whole", cfg, ["--scheme", "S8"], ["--scheme", "S8", "--chunk-rows", "0"]
         if minutes * 60 > SLED_RUN_S + 60:
             cfg = scaled_config("sled.yaml", ("trajectory", "static_after_s"), minutes * 60 - SLED_RUN_S, folder)
-            yield "sled", minutes, "whole", cfg, [], []
+            yield "sled", minutes, "streamed", cfg, [], []
+            if minutes <= 60:
+                yield "sled", minutes, "whole", cfg, ["--chunk-rows", "0"], ["--chunk-rows", "0"]
         if minutes * 60 > LOWPREC_NATURAL_S:
             cfg = scaled_config("lowprec_centrifuge.yaml", ("profile", "rest_between_s"),
                                 LOWPREC_REST_S + (minutes * 60 - LOWPREC_NATURAL_S) / 2, folder)

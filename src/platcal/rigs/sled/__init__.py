@@ -12,7 +12,7 @@ estimate it and the along-track (X) error is compensated open loop. Modules: :mo
 import pandas as pd
 
 from ...rig import Rig
-from .commands import COMMANDS, sizes
+from .commands import COMMANDS, OPTIONS, sizes
 from .config import load_config
 from .montecarlo import SledMonteCarlo
 
@@ -26,4 +26,4 @@ def catalogue() -> pd.DataFrame:
 
 RIG = Rig(name="sled", title="rocket-sled one-dimensional motion constraint, 6/7-state run + ZUPT filters",
           spec="rocket-sled.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
-          extras={"claims": f"{__name__}.claims"}, estimators=("run6", "run7"), montecarlo=SledMonteCarlo(), sizes=sizes)
+          extras={"claims": f"{__name__}.claims"}, estimators=("run6", "run7"), montecarlo=SledMonteCarlo(), options=OPTIONS, sizes=sizes)

@@ -17,16 +17,19 @@ from ...logs.compensate import compensate_log
 from ...logs.increments import increment_units
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
+from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one, iter_table
 from ...sizes import Costs, Size, samples_in
 from ...study.tables import write_table
 from .config import G, SledConfig
-from .identify import (calibration, compensated_track, estimates, gyro_rate_error, identify, metrics,
-                       phi_from_calibration, record_fit, run_problems)
+from .identify import (calibration, compensated_track, estimates, gyro_rate_block, gyro_rate_error, identify,
+                       metrics, phi_from_calibration, record_fit, run_problems)
 from .montecarlo import replicate_seeds
 from .observability import rank_table
 from .record import (IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, check_plausible, read_record, record_arrays,
-                     record_truth, samples_per_phase, static_rate_tolerance, write_record)
+                     record_truth, samples_per_phase, static_rate_tolerance, table_options, write_record)
 from .simulate import simulate
+from .stream import identify_streamed, simulate_streamed
+from .trajectory import Timeline
 
 
 def cmd_simulate(cfg: SledConfig, args) -> int:
@@ -35,11 +38,17 @@ def cmd_simulate(cfg: SledConfig, args) -> int:
     replicate = 0 if args.seed is None else args.seed
     out = check_out_path(args.out)
     check_writable(out, "--out")
+    chunk_rows = chunk_rows_of(args)
     t0 = time.perf_counter()
-    sb = simulate(cfg, replicate_seeds(cfg.raw, "default", [replicate]), noise_free=bool(args.noise_free))
-    write_record(sb, out)
+    seeds = replicate_seeds(cfg.raw, "default", [replicate])
+    if chunk_rows and Timeline.of(cfg).n > chunk_rows:   # written a block at a time (.stream)
+        traj = simulate_streamed(cfg, seeds[0], out, chunk_rows, noise_free=bool(args.noise_free))
+    else:
+        sb = simulate(cfg, seeds, noise_free=bool(args.noise_free))
+        write_record(sb, out)
+        traj = sb.traj
     what = "noise-free" if args.noise_free else f"replicate {replicate} of case default (root seed {cfg.seed})"
-    print(f"platcal simulate: sled, stop at {sb.traj.stop_time_s:.2f} s, {sb.traj.run_length_m:.1f} m, {what} "
+    print(f"platcal simulate: sled, stop at {traj.stop_time_s:.2f} s, {traj.run_length_m:.1f} m, {what} "
           f"-> {out} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
     return 0
 
@@ -47,29 +56,44 @@ def cmd_simulate(cfg: SledConfig, args) -> int:
 def cmd_identify(cfg: SledConfig, args) -> int:
     """INS, run and stop filters and X compensation of a record -> estimates.csv, metrics.json."""
     check_writable(args.out, "--out", folder=True)
-    traj, df, t = read_record(args.data, cfg)
-    truth = None if args.no_truth else record_truth(args.data, df)
-    t0 = time.perf_counter()
-    f, w = record_arrays(df)
-    check_plausible(cfg, traj, f[0], w[0], t)
-    idn = identify(cfg, traj, f, w, t=t)
+    chunk_rows = chunk_rows_of(args)
+    t0 = [time.perf_counter()]
+    if chunk_rows and chunks_beyond_one(iter_table(args.data, **table_options(cfg), chunk_rows=chunk_rows)):
+        # longer than one chunk: read three times, held in bounded memory (.stream)
+        res = identify_streamed(args.data, cfg, chunk_rows, with_truth=not args.no_truth,
+                                checked=lambda _: t0.__setitem__(0, time.perf_counter()))
+        idn, truth, tm = res.idn, res.truth, res.times
+        samples, per_phase, tolerance = tm.rows, tm.per_phase, tm.tolerance
+        one, tail = res.first()
+        gyro = lambda est: gyro_rate_block(cfg, est, tolerance, idn if res.gyro_lanes else None, first=1)  # noqa: E731
+    else:
+        traj, df, t = read_record(args.data, cfg)
+        truth = None if args.no_truth else record_truth(args.data, df)
+        t0[0] = time.perf_counter()
+        f, w = record_arrays(df)
+        check_plausible(cfg, traj, f[0], w[0], t)
+        idn = identify(cfg, traj, f, w, t=t)
+        one, tail = idn, None
+        samples, per_phase, tolerance = int(len(t)), samples_per_phase(traj, t, cfg.dt), None
+        gyro = lambda est: gyro_rate_error(cfg, traj, f[0], w[0], t, est,  # noqa: E731
+                                           static_rate_tolerance(cfg, traj, t))
     if failed_run_status(run_problems(idn), "the sled filters", args.data, args.out,
                          "the record's units (f in m/s^2, w in rad/s) and the config's filter settings"):
         return EXIT_RUN_FAILED
-    met = metrics(idn, truth).iloc[0]
+    met = metrics(one, truth, tail).iloc[0]
     est = estimates(idn, truth)
-    seconds = time.perf_counter() - t0
+    seconds = time.perf_counter() - t0[0]
     out = Path(args.out)
     summary = {k: (None if not np.isfinite(v) else float(v)) for k, v in met.items()}
     summary.update({"states": cfg.states, "compensation": cfg.compensation, "tuning": cfg.tuning,
                     "truth_known": truth is not None, "seconds": round(seconds, 3),
-                    "samples": int(len(t)), "samples_used_per_phase": samples_per_phase(traj, t, cfg.dt),
+                    "samples": samples, "samples_used_per_phase": per_phase,
                     "filter_epochs": {"run": int(idn.j_stop), "stop": int(idn.j_end - idn.j_stop)}})
     fit = record_fit(idn)
     summary["fit"] = fit.as_dict()
     # the filters' sigmas leave out the gyros' constant error, which the record cannot see below
     # the check at rest: what it does to the estimates, and the sigma with it
-    summary["gyro_rate_error"] = gyro_rate_error(cfg, traj, f[0], w[0], t, est, static_rate_tolerance(cfg, traj, t))
+    summary["gyro_rate_error"] = gyro(est)
     with atomic_files(out) as tmp:  # the files land together, metrics.json last
         est.to_csv(tmp("estimates.csv"), index=False, float_format="%.6g")
         write_calibration_files(tmp, calibration(idn, args.data, cfg.raw))
@@ -162,5 +186,9 @@ def sizes(command: str, cfg: SledConfig, args) -> list[Size]:
     return [Size(max(parts, key=parts.get), samples_in(seconds, cfg.dt), COSTS.values[command], 1,
                  f"a run of {seconds:g} s at {cfg.rate_hz:g} Hz", COSTS.seconds[command])]
 
+
+OPTIONS = {"simulate": (CHUNK_OPTION,), "identify": (CHUNK_OPTION,)}
+"""The sled's own options: ``--chunk-rows`` (a record longer than one chunk is simulated and
+identified block by block, :mod:`.stream`)."""
 
 COMMANDS = {"compensate": cmd_compensate, "inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}

@@ -115,16 +115,22 @@ def discretise(F: np.ndarray, T) -> np.ndarray:
 
 
 @nb.njit(cache=True)
-def _kalman(Phis, z, x0, P0, Qd, r_var, xs, sig, Pout, nis, failed, innov_out, svar_out):
-    """Predict with the dense Φ (every row of Φ is dynamic: the shared sparse propagation with
-    all rows), then the shared Joseph-form update with ``H = [I_m 0]`` (m = 4, diagonal R).
-    An update whose innovation covariance is not positive definite is skipped and counted in
-    ``failed``; ``nis`` is the mean NIS of the updates made (m degrees of freedom each).
-    ``innov_out``, ``svar_out`` (S,J,m) receive each update's innovation and diag(S) = diag(P_pred)
-    + R (H = [I_m 0]); NaN variances where the update was skipped."""
-    S, J, n = Phis.shape[0], Phis.shape[1], Phis.shape[2]
+def _kalman(Fs, Ts, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out):
+    """Predict with the dense Φ = I + F T + (F T)²/2 of each epoch's ``Fs`` (S,J,n,n) over its
+    step ``Ts`` (J,) s (:func:`discretise`, formed here: every row of Φ is dynamic, the shared
+    sparse propagation with all rows), then the shared Joseph-form update with ``H = [I_m 0]`` (m = 4, diagonal R), from
+    the state ``X`` (S,n), ``PP`` (S,n,n), updated in place to the state after the last epoch
+    (a long record's next block of epochs continues from it). ``xs``, ``sig`` (S,J,n) receive
+    the posteriors. An update whose innovation covariance is not positive definite is skipped
+    and counted in ``failed`` (S,); ``acc`` (S,2) sums the NIS of the updates made and counts
+    them (m degrees of freedom each). ``innov_out``, ``svar_out`` (S,J,m) receive each update's
+    innovation and diag(S) = diag(P_pred) + R (H = [I_m 0]); NaN variances where the update was
+    skipped."""
+    S, J, n = Fs.shape[0], Fs.shape[1], Fs.shape[2]
     m = z.shape[2]
     rows = np.arange(n)
+    Phi = np.empty((n, n))
+    FT = np.empty((n, n))
     hcols = np.arange(m).reshape(m, 1)   # row r of H is 1 at state r: z observes the first m states
     hnnz = np.ones(m, dtype=np.int64)
     hval = np.ones((m, 1))
@@ -141,21 +147,25 @@ def _kalman(Phis, z, x0, P0, Qd, r_var, xs, sig, Pout, nis, failed, innov_out, s
     nu = np.empty(m)
     innov = np.empty(m)
     for s in range(S):
-        x[:] = x0[s]
-        P[:, :] = P0[s]
-        for i in range(n):
-            xs[s, 0, i] = x[i]
-            sig[s, 0, i] = np.sqrt(P[i, i])
-        total = 0.0
-        made = 0
-        failed[s] = 0
+        x[:] = X[s]
+        P[:, :] = PP[s]
+        total = acc[s, 0]
+        made = acc[s, 1]
         for j in range(J):
-            Phi = Phis[s, j]
             for a in range(n):
-                acc = 0.0
                 for b in range(n):
-                    acc += Phi[a, b] * x[b]
-                xn[a] = acc
+                    FT[a, b] = Fs[s, j, a, b] * Ts[j]
+            for a in range(n):
+                for b in range(n):
+                    sq = 0.0
+                    for c in range(n):
+                        sq += FT[a, c] * FT[c, b]
+                    Phi[a, b] = ((1.0 if a == b else 0.0) + FT[a, b]) + sq / 2
+            for a in range(n):
+                v = 0.0
+                for b in range(n):
+                    v += Phi[a, b] * x[b]
+                xn[a] = v
             x[:] = xn
             propagate_sparse(P, rows, rows, Phi, Qd[j], W, blk)
             for b in range(m):
@@ -165,16 +175,63 @@ def _kalman(Phis, z, x0, P0, Qd, r_var, xs, sig, Pout, nis, failed, innov_out, s
             if joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, Sm, Sinv, nu, True):
                 for b in range(m):
                     total += nu[b] * nu[b]
-                made += 1
+                made += 1.0
             else:
                 failed[s] += 1
                 for b in range(m):
                     svar_out[s, j, b] = np.nan
             for i in range(n):
-                xs[s, j + 1, i] = x[i]
-                sig[s, j + 1, i] = np.sqrt(max(P[i, i], 0.0))
-        Pout[s] = P
-        nis[s] = total / made if made else np.nan
+                xs[s, j, i] = x[i]
+                sig[s, j, i] = np.sqrt(max(P[i, i], 0.0))
+        X[s] = x
+        PP[s] = P
+        acc[s, 0] = total
+        acc[s, 1] = made
+
+
+class KalmanRun:
+    """One open-loop linear KF (§6) stepped over blocks of epochs (:meth:`step`), its state x, P,
+    the NIS sum and the skipped updates carried from block to block, so a long record's stop
+    filter runs in bounded memory with the numbers of one pass (:func:`kalman` is its one-block
+    case). ``x0`` (S,n) and ``tun.P0`` ((n,n) or (S,n,n)) are the state at epoch 0; ``tun.Qd``
+    is for ``T_nominal`` s (None: every step's own) and scales with each step's length unless
+    ``tun.per_step``."""
+
+    def __init__(self, x0: np.ndarray, tun: Tuning, T_nominal: float | None = None):
+        S, n = x0.shape
+        self.x = np.ascontiguousarray(x0, dtype=np.float64).copy()
+        self.P = np.ascontiguousarray(np.broadcast_to(tun.P0, (S, n, n)), dtype=np.float64).copy()
+        R = np.asarray(tun.R, dtype=np.float64)
+        if np.count_nonzero(R - np.diag(np.diag(R))):
+            raise ValueError("the sled filters' R must be diagonal (the shared update takes variances)")
+        self.r_var = np.ascontiguousarray(np.diag(R))
+        self.tun, self.T_nominal = tun, T_nominal
+        self.acc = np.zeros((S, 2))
+        self.failed = np.zeros(S, dtype=np.int64)
+
+    def prior(self) -> tuple[np.ndarray, np.ndarray]:
+        """The current state and its sigma, (S,n) each."""
+        return self.x.copy(), np.sqrt(np.diagonal(self.P, axis1=1, axis2=2))
+
+    def step(self, Fs: np.ndarray, z: np.ndarray, T) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The next J epochs: ``Fs`` (S,J,n,n) per prediction, ``z`` (S,J,4) per update, ``T`` the
+        step (s) or (J,) the record's steps. Returns the posteriors x, sigma (S,J,n) and the
+        innovations and their predicted variances (S,J,4)."""
+        S, J, n = Fs.shape[0], Fs.shape[1], Fs.shape[-1]
+        T = np.broadcast_to(np.asarray(T, dtype=float), (J,))
+        scale = np.ones(J) if self.tun.per_step or self.T_nominal is None else T / self.T_nominal
+        Qs = np.ascontiguousarray(np.asarray(self.tun.Qd, dtype=np.float64)[None] * scale[:, None, None])
+        m = z.shape[2]
+        xs, sig = np.empty((S, J, n)), np.empty((S, J, n))
+        innov, s_var = np.empty((S, J, m)), np.empty((S, J, m))
+        _kalman(np.ascontiguousarray(Fs, dtype=np.float64), np.ascontiguousarray(T), np.ascontiguousarray(z, dtype=np.float64),
+                self.x, self.P, Qs, self.r_var, xs, sig, self.acc, self.failed, innov, s_var)
+        return xs, sig, innov, s_var
+
+    def mean_nis(self) -> np.ndarray:
+        """(S,) mean NIS of the updates made so far (NaN: none)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(self.acc[:, 1] > 0, self.acc[:, 0] / np.where(self.acc[:, 1] > 0, self.acc[:, 1], 1), np.nan)
 
 
 def kalman(Fs: np.ndarray, z: np.ndarray, x0: np.ndarray, tun: Tuning, T, T_nominal: float | None = None) -> FilterOut:
@@ -183,28 +240,13 @@ def kalman(Fs: np.ndarray, z: np.ndarray, x0: np.ndarray, tun: Tuning, T, T_nomi
     ``x0`` (S,n) and ``tun.P0`` ((n,n) or (S,n,n)) are the state at epoch 0. ``T``: the step (s),
     or (J,) the actual steps of a record; ``tun.Qd`` is for ``T_nominal`` (default ``T``) and
     scales with each step unless ``tun.per_step``. Returns the posteriors at epochs 0 … J (one
-    numba kernel looping over seeds and epochs).
+    numba kernel looping over seeds and epochs: one :class:`KalmanRun` step).
     """
-    S, J, n = Fs.shape[0], Fs.shape[1], Fs.shape[-1]
-    T = np.broadcast_to(np.asarray(T, dtype=float), (J,))
-    scale = np.ones(J) if tun.per_step or T_nominal is None else T / T_nominal
-    Qs = np.ascontiguousarray(np.asarray(tun.Qd, dtype=np.float64)[None] * scale[:, None, None])
-    P0 = np.ascontiguousarray(np.broadcast_to(tun.P0, (S, n, n)), dtype=np.float64)
-    R = np.asarray(tun.R, dtype=np.float64)
-    if np.count_nonzero(R - np.diag(np.diag(R))):
-        raise ValueError("the sled filters' R must be diagonal (the shared update takes variances)")
-    xs = np.empty((S, J + 1, n))
-    sig = np.empty((S, J + 1, n))
-    P = np.empty((S, n, n))
-    nis = np.empty(S)
-    failed = np.empty(S, dtype=np.int64)
-    m = z.shape[2]
-    innov = np.empty((S, J, m))
-    s_var = np.empty((S, J, m))
-    _kalman(np.ascontiguousarray(discretise(Fs, T)), np.ascontiguousarray(z, dtype=np.float64),
-            np.ascontiguousarray(x0, dtype=np.float64), P0, Qs, np.ascontiguousarray(np.diag(R)),
-            xs, sig, P, nis, failed, innov, s_var)
-    return FilterOut(xs, sig, P, nis, failed, innov, s_var)
+    run = KalmanRun(x0, tun, T_nominal)
+    x_prior, sig_prior = run.prior()
+    xs, sig, innov, s_var = run.step(Fs, z, T)
+    return FilterOut(np.concatenate([x_prior[:, None], xs], axis=1), np.concatenate([sig_prior[:, None], sig], axis=1),
+                     run.P, run.mean_nis(), run.failed, innov, s_var)
 
 
 def epoch_mean(fl: np.ndarray, ep: Epochs, j0: int, j1: int) -> np.ndarray:

@@ -52,6 +52,7 @@ class Identification:
     t: np.ndarray            # (N,) sample times from the record's start, s
     epochs: Epochs           # filter epochs (sample indices) and intervals
     n_stop: int              # sample index of the stop in the record
+    tail_finite: np.ndarray | None = None   # (S,) a streamed record's navigation finite beyond its held run part
 
     @property
     def t_epochs(self) -> np.ndarray:
@@ -64,9 +65,15 @@ def record_epochs(t: np.ndarray, period_s: float) -> Epochs:
     a gap is skipped and the next prediction spans both periods), the first sample always being
     epoch 0 (the run filter's prior); sample intervals
     ``dts = diff(t)``, the last sample covering the median step."""
+    k, T = epoch_samples(t, period_s)
+    return Epochs(k=k, T=T, dts=sample_intervals(t))
+
+
+def epoch_samples(t: np.ndarray, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`record_epochs`' sample indices (J+1,) and intervals between them (J,) s."""
     step = float(np.median(np.diff(t)))
     k = np.union1d(0, nearest_samples(t, period_s, 0.5 * step))   # epoch 0 (the prior) is the first sample
-    return Epochs(k=k, T=np.diff(t[k]), dts=sample_intervals(t))
+    return k, np.diff(t[k])
 
 
 def stop_index(t: np.ndarray, stop_time_s: float) -> int:
@@ -92,13 +99,17 @@ def compensate_x(fl: np.ndarray, r_x: np.ndarray, v_x: np.ndarray, phi_hat: np.n
     return r_x - dr[:, :r_x.shape[1]]
 
 
-def x_corrections(fl: np.ndarray, phi_hat: np.ndarray, dt) -> tuple[np.ndarray, np.ndarray]:
+def x_corrections(fl: np.ndarray, phi_hat: np.ndarray, dt, start: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The along-track velocity and position errors (S,N+1) at t_0 … t_N, m/s and m, that the
     attitude errors ``phi_hat`` (S,N,3) rad cause through the computed specific force ``fl``
-    (S,N,3) (§7, eqs. 20-21: ``Δa_x = f_y φ̂_z − f_z φ̂_y`` summed by the INS's rules)."""
+    (S,N,3) (§7, eqs. 20-21: ``Δa_x = f_y φ̂_z − f_z φ̂_y`` summed by the INS's rules), from
+    ``start`` (dv, dr) (S,) each at t_0 (default 0: a streamed record's next block continues from
+    the last values of the one before, the same sums as one block)."""
     da = fl[..., 1] * phi_hat[..., 2] - fl[..., 2] * phi_hat[..., 1]
-    dv = np.concatenate([np.zeros((da.shape[0], 1)), np.cumsum(da * dt, axis=1)], axis=1)   # at t_0 … t_N
-    dr = np.concatenate([np.zeros((da.shape[0], 1)), np.cumsum((dv[:, :-1] + dv[:, 1:]) * 0.5 * dt, axis=1)], axis=1)
+    dv0, dr0 = (np.zeros(da.shape[0]), np.zeros(da.shape[0])) if start is None else start
+    dv = np.cumsum(np.concatenate([np.asarray(dv0, float)[:, None], da * dt], axis=1), axis=1)   # at t_0 … t_N
+    dr = np.cumsum(np.concatenate([np.asarray(dr0, float)[:, None], (dv[:, :-1] + dv[:, 1:]) * 0.5 * dt], axis=1),
+                   axis=1)
     return dv, dr
 
 
@@ -130,6 +141,17 @@ def phi_per_sample(run: FilterOut, states: int, epochs: np.ndarray, j_stop: int,
     return est[:, j, :]
 
 
+def run_attitude(run: FilterOut, states: int) -> tuple[np.ndarray, np.ndarray]:
+    """The run filter's final [φ_x, φ_y, φ_z] and their sigmas (S,3) each, rad (φ_x NaN with 6 states)."""
+    S = run.x.shape[0]
+    phi_run = np.full((S, 3), np.nan)
+    sig_run = np.full((S, 3), np.nan)
+    for name, i in phi_columns(states).items():
+        phi_run[:, "xyz".index(name[-1])] = run.x[:, -1, i]
+        sig_run[:, "xyz".index(name[-1])] = run.sigma[:, -1, i]
+    return phi_run, sig_run
+
+
 def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
              t: np.ndarray | None = None) -> Identification:
     """Run §4-7 on recorded samples f, ω (S,N,3) in the record's body axes (Ĉ_0 = I).
@@ -152,14 +174,8 @@ def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
     j_stop = int(min(np.searchsorted(ep.k, n_stop), ep.k.size - 1))
     j_end = ep.k.size - 1
     run = run_filter(cfg, fl, v, r, j_stop, ep)
-    cols = phi_columns(cfg.states)
-    S = f.shape[0]
-    phi_run = np.full((S, 3), np.nan)
-    sig_run = np.full((S, 3), np.nan)
-    for name, i in cols.items():
-        phi_run[:, "xyz".index(name[-1])] = run.x[:, -1, i]
-        sig_run[:, "xyz".index(name[-1])] = run.sigma[:, -1, i]
-    iy = cols["phi_y"]
+    phi_run, sig_run = run_attitude(run, cfg.states)
+    iy = phi_columns(cfg.states)["phi_y"]
     stop = stop_filter(cfg, fl, v, r, j_stop, j_end, run.x[:, -1, iy], run.P[:, iy, iy], ep)
     phi_b = np.nan_to_num(phi_run)
     r_model = propagate_run_model(fl[:, :n_stop], cfg.omega_ie, phi_b, cfg.states, dts[:n_stop])
@@ -177,7 +193,8 @@ def run_problems(idn: Identification, s: int = 0) -> list[str]:
     estimates or sigmas of the run or stop filter, updates skipped because the innovation
     covariance was not positive definite, or a final covariance that is not positive definite."""
     out = []
-    if not (np.all(np.isfinite(idn.v[s])) and np.all(np.isfinite(idn.r[s]))):
+    if not (np.all(np.isfinite(idn.v[s])) and np.all(np.isfinite(idn.r[s]))
+            and (idn.tail_finite is None or idn.tail_finite[s])):
         out.append("the navigation is not finite (a non-physical sample?)")
     for name, fo in (("run", idn.run), ("stop", idn.stop)):
         if fo.failed_updates[s]:
@@ -208,12 +225,44 @@ def effective_phi(truth: Truth) -> np.ndarray:
                      p.phi0[:, 2] - p.M[:, 1, 0]], axis=1)
 
 
-def after_a(idn: Identification) -> dict[str, np.ndarray]:
-    """Metric A (§8): nav minus the filter's position-error estimate at the epochs (S,J)."""
+def after_a(idn: Identification, static: bool = True) -> dict[str, np.ndarray]:
+    """Metric A (§8): nav minus the filter's position-error estimate at the epochs (S,J); the
+    stop filter's (``y_static``) only with ``static`` (a streamed record keeps its maximum,
+    :class:`Tail`)."""
     kr = idn.epochs.k[:idn.j_stop + 1]
-    ks = idn.epochs.k[idn.j_stop:idn.j_end + 1]
-    return {"y_run": idn.r[:, kr, 1] - idn.run.x[:, :, 1], "z_run": idn.r[:, kr, 2] - idn.run.x[:, :, 3],
-            "y_static": idn.r[:, ks, 1] - idn.stop.x[:, :, 1]}
+    out = {"y_run": idn.r[:, kr, 1] - idn.run.x[:, :, 1], "z_run": idn.r[:, kr, 2] - idn.run.x[:, :, 3]}
+    if static:
+        ks = idn.epochs.k[idn.j_stop:idn.j_end + 1]
+        out["y_static"] = idn.r[:, ks, 1] - idn.stop.x[:, :, 1]
+    return out
+
+
+@dataclass(frozen=True)
+class Tail:
+    """What :func:`metrics` takes from the record beyond the stop (§8): per seed the largest
+    lateral or vertical navigation error over every sample ``yz_max`` (m), metric A's largest
+    stop-filter residual ``y_static_max`` (m) and, with the truth, the along-track errors at the
+    last sample ``end`` (m: naive, compensated, the other compensation, instrument-only). A
+    streamed record (:mod:`.stream`) keeps them as running values; :meth:`of` takes them from a
+    whole one."""
+
+    yz_max: np.ndarray
+    y_static_max: np.ndarray
+    end: dict[str, np.ndarray] | None = None
+
+    @staticmethod
+    def of(idn: Identification, truth: Truth | None) -> "Tail":
+        end = None
+        if truth is not None:
+            end = end_errors(idn.r[:, -1, 0], idn.x_con[:, -1], idn.x_con_other[:, -1], truth.x_inst[:, -1],
+                             truth.x_true[:, -1])
+        return Tail(np.abs(idn.r[..., 1:]).max(axis=(1, 2)), np.abs(after_a(idn)["y_static"]).max(axis=1), end)
+
+
+def end_errors(x_nav, x_con, x_other, x_inst, x_true) -> dict[str, np.ndarray]:
+    """The along-track errors of :class:`Tail` ``end`` at one sample (S,) m from the navigated,
+    compensated (the config's and the other mode) and the truths' positions there."""
+    return {"naive": x_nav - x_inst, "con": x_con - x_inst, "other": x_other - x_inst, "inst": x_inst - x_true}
 
 
 def after_b(idn: Identification) -> np.ndarray:
@@ -223,22 +272,25 @@ def after_b(idn: Identification) -> np.ndarray:
     return rr - idn.r_model
 
 
-def metrics(idn: Identification, truth: Truth | None) -> pd.DataFrame:
-    """Per-seed metrics of §8 with the keys of §10 (cm, arcsec, µg; absolute values)."""
+def metrics(idn: Identification, truth: Truth | None, tail: Tail | None = None) -> pd.DataFrame:
+    """Per-seed metrics of §8 with the keys of §10 (cm, arcsec, µg; absolute values). ``tail``:
+    the values beyond the stop of a streamed record, whose ``idn`` and ``truth`` hold the run up
+    to the stop only (default: from ``idn``'s whole record)."""
     tr, ns = idn.traj, idn.n_stop
     S = idn.r.shape[0]
-    a = after_a(idn)
+    tail = Tail.of(idn, truth) if tail is None else tail
+    a = after_a(idn, static=False)
     b = after_b(idn)
     yz = np.abs(idn.r[..., 1:])
     out = {
         "stop_time_s": np.full(S, tr.stop_time_s), "run_length_m": np.full(S, tr.run_length_m),
         "v_max_m_s": np.full(S, tr.v_max_m_s),
         "yz_before_max_run_cm": 100 * yz[:, :ns + 1].max(axis=(1, 2)),
-        "yz_before_max_all_cm": 100 * yz.max(axis=(1, 2)),
+        "yz_before_max_all_cm": 100 * tail.yz_max,
         "yz_before_stop_cm": 100 * yz[:, ns].max(axis=1),
         "y_after_a_max_run_cm": 100 * np.abs(a["y_run"]).max(axis=1),
         "z_after_a_max_run_cm": 100 * np.abs(a["z_run"]).max(axis=1),
-        "y_after_a_max_static_cm": 100 * np.abs(a["y_static"]).max(axis=1),
+        "y_after_a_max_static_cm": 100 * tail.y_static_max,
         "y_after_b_max_run_cm": 100 * np.abs(b[..., 0]).max(axis=1),
         "z_after_b_max_run_cm": 100 * np.abs(b[..., 1]).max(axis=1),
         "nabla_x_hat_ug": idn.nabla_x_hat / G * 1e6,
@@ -248,14 +300,15 @@ def metrics(idn: Identification, truth: Truth | None) -> pd.DataFrame:
         e_con = idn.x_con - truth.x_inst
         e_oth = idn.x_con_other - truth.x_inst
         e_inst = truth.x_inst - truth.x_true
+        end = tail.end
         other = "post" if idn.cfg.compensation == "realtime" else "realtime"
         out.update({
             "x_naive_stop_cm": 100 * np.abs(e_naive[:, ns]), "x_constrained_stop_cm": 100 * np.abs(e_con[:, ns]),
-            "x_naive_end_cm": 100 * np.abs(e_naive[:, -1]), "x_constrained_end_cm": 100 * np.abs(e_con[:, -1]),
+            "x_naive_end_cm": 100 * np.abs(end["naive"]), "x_constrained_end_cm": 100 * np.abs(end["con"]),
             "x_naive_max_run_cm": 100 * np.abs(e_naive[:, :ns + 1]).max(axis=1),
             "x_constrained_max_run_cm": 100 * np.abs(e_con[:, :ns + 1]).max(axis=1),
-            f"x_{other}_stop_cm": 100 * np.abs(e_oth[:, ns]), f"x_{other}_end_cm": 100 * np.abs(e_oth[:, -1]),
-            "x_inst_stop_cm": 100 * np.abs(e_inst[:, ns]), "x_inst_end_cm": 100 * np.abs(e_inst[:, -1]),
+            f"x_{other}_stop_cm": 100 * np.abs(e_oth[:, ns]), f"x_{other}_end_cm": 100 * np.abs(end["other"]),
+            "x_inst_stop_cm": 100 * np.abs(e_inst[:, ns]), "x_inst_end_cm": 100 * np.abs(end["inst"]),
         })
         eff = effective_phi(truth)
         for i, ax in enumerate("xyz"):
@@ -344,14 +397,33 @@ def gyro_rate_error(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndar
     the filter's sigma, of the largest rate error the check at rest lets pass
     (``shift_at_tolerance_sigmas``); per gyro the largest scale error that passes
     (``scale_tolerance``, ``tolerance / omega_i``)."""
-    sig = float(np.hypot(cfg.gyro["bias_deg_h"], cfg.gyro["g_sens_deg_h_g"])) * DEG_H
+    sig = gyro_rate_sigma(cfg)
+    idn = identify(cfg, traj, np.repeat(f[None], 3, axis=0), gyro_offsets(cfg, w[None]), t=t) if sig > 0 else None
+    return gyro_rate_block(cfg, est, tolerance, idn)
+
+
+def gyro_rate_sigma(cfg: SledConfig) -> float:
+    """The gyros' constant rate error the filters leave out, 1 sigma (rad/s): the bias
+    ``imu.gyro.bias_deg_h`` and the g-sensitivity at 1 g ``g_sens_deg_h_g`` in quadrature."""
+    return float(np.hypot(cfg.gyro["bias_deg_h"], cfg.gyro["g_sens_deg_h_g"])) * DEG_H
+
+
+def gyro_offsets(cfg: SledConfig, w: np.ndarray) -> np.ndarray:
+    """(3,N,3) rad/s: the rates ``w`` (1,N,3) with each gyro offset by :func:`gyro_rate_sigma` in turn."""
+    return np.repeat(w, 3, axis=0) + gyro_rate_sigma(cfg) * np.eye(3)[:, None, :]
+
+
+def gyro_rate_block(cfg: SledConfig, est: pd.DataFrame, tolerance: np.ndarray,
+                    shifted: Identification | None, first: int = 0) -> dict:
+    """:func:`gyro_rate_error`'s block from the identification ``shifted`` whose seed slots
+    ``first`` … ``first + 2`` hold the record with each gyro offset (None: the config's gyros
+    have no constant error)."""
+    sig = gyro_rate_sigma(cfg)
     out = {"sigma_deg_h": sig / DEG_H, "rest_tolerance_deg_h": (np.asarray(tolerance) / DEG_H).tolist(),
            "scale_tolerance": (np.abs(np.asarray(tolerance) / cfg.omega_ie)).tolist(), "estimates": {}}
-    if not sig > 0:
+    if shifted is None:
         return out
-    ws = np.repeat(w[None], 3, axis=0) + sig * np.eye(3)[:, None, :]
-    idn = identify(cfg, traj, np.repeat(f[None], 3, axis=0), ws, t=t)
-    shifts = np.stack([estimates(idn, None, s)["estimate"].to_numpy() for s in range(3)], axis=1) \
+    shifts = np.stack([estimates(shifted, None, first + s)["estimate"].to_numpy() for s in range(3)], axis=1) \
         - est["estimate"].to_numpy()[:, None]                     # (rows, 3 gyros), per sigma_deg_h
     for i, row in est.iterrows():
         if row["unit"] != "arcsec" or not np.isfinite(row["estimate"]):

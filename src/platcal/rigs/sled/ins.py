@@ -47,29 +47,33 @@ def _rodrigues(ax, ay, az, out):
 
 
 @nb.njit(cache=True)
-def _mechanise(f, w, phi0, wie, g, dts, v_out, r_out, fl_out):
+def _initial_attitude(phi0, C):
+    """Ĉ_0 = exp(−[φ0×]) per seed into ``C`` (S,3,3)."""
+    for s in range(phi0.shape[0]):
+        _rodrigues(-phi0[s, 0], -phi0[s, 1], -phi0[s, 2], C[s])
+
+
+@nb.njit(cache=True)
+def _mechanise(f, w, C, vr, wie, g, dts, v_out, r_out, fl_out):
+    """Navigate the samples f, w (S,N,3) from the state ``C`` (S,3,3) attitude and ``vr`` (S,6)
+    [v, r], both updated in place to the state after the last sample (a record's next block
+    continues from it: the same operations as one call over the whole record)."""
     S, N = f.shape[0], f.shape[1]
     E = np.empty((3, 3))
-    C = np.empty((3, 3))
     D = np.empty((3, 3))
     T = np.empty((3, 3))
     for s in range(S):
-        _rodrigues(-phi0[s, 0], -phi0[s, 1], -phi0[s, 2], C)
-        v0 = 0.0
-        v1 = 0.0
-        v2 = 0.0
-        r0 = 0.0
-        r1 = 0.0
-        r2 = 0.0
-        v_out[s, 0, :] = 0.0
-        r_out[s, 0, :] = 0.0
+        Cs = C[s]
+        v0, v1, v2, r0, r1, r2 = vr[s, 0], vr[s, 1], vr[s, 2], vr[s, 3], vr[s, 4], vr[s, 5]
+        v_out[s, 0, 0], v_out[s, 0, 1], v_out[s, 0, 2] = v0, v1, v2
+        r_out[s, 0, 0], r_out[s, 0, 1], r_out[s, 0, 2] = r0, r1, r2
         for k in range(N):
             dt = dts[k]
             if k == 0 or dt != dts[k - 1]:
                 _rodrigues(-wie[0] * dt, -wie[1] * dt, -wie[2] * dt, E)
-            fx = C[0, 0] * f[s, k, 0] + C[0, 1] * f[s, k, 1] + C[0, 2] * f[s, k, 2]
-            fy = C[1, 0] * f[s, k, 0] + C[1, 1] * f[s, k, 1] + C[1, 2] * f[s, k, 2]
-            fz = C[2, 0] * f[s, k, 0] + C[2, 1] * f[s, k, 1] + C[2, 2] * f[s, k, 2]
+            fx = Cs[0, 0] * f[s, k, 0] + Cs[0, 1] * f[s, k, 1] + Cs[0, 2] * f[s, k, 2]
+            fy = Cs[1, 0] * f[s, k, 0] + Cs[1, 1] * f[s, k, 1] + Cs[1, 2] * f[s, k, 2]
+            fz = Cs[2, 0] * f[s, k, 0] + Cs[2, 1] * f[s, k, 1] + Cs[2, 2] * f[s, k, 2]
             fl_out[s, k, 0] = fx
             fl_out[s, k, 1] = fy
             fl_out[s, k, 2] = fz
@@ -94,10 +98,37 @@ def _mechanise(f, w, phi0, wie, g, dts, v_out, r_out, fl_out):
             _rodrigues(w[s, k, 0] * dt, w[s, k, 1] * dt, w[s, k, 2] * dt, D)
             for i in range(3):
                 for j in range(3):
-                    T[i, j] = C[i, 0] * D[0, j] + C[i, 1] * D[1, j] + C[i, 2] * D[2, j]
+                    T[i, j] = Cs[i, 0] * D[0, j] + Cs[i, 1] * D[1, j] + Cs[i, 2] * D[2, j]
             for i in range(3):
                 for j in range(3):
-                    C[i, j] = E[i, 0] * T[0, j] + E[i, 1] * T[1, j] + E[i, 2] * T[2, j]
+                    Cs[i, j] = E[i, 0] * T[0, j] + E[i, 1] * T[1, j] + E[i, 2] * T[2, j]
+        vr[s, 0], vr[s, 1], vr[s, 2], vr[s, 3], vr[s, 4], vr[s, 5] = v0, v1, v2, r0, r1, r2
+
+
+class Navigator:
+    """The mechanisation of a record read in blocks (issue 22 item 3): :meth:`step` navigates the
+    next block's samples from where the previous one stopped (attitude, velocity, position
+    carried), so the blocks together give :func:`mechanise` of the whole record, bit for bit."""
+
+    def __init__(self, phi0: np.ndarray, omega_ie: np.ndarray):
+        phi0 = np.ascontiguousarray(np.atleast_2d(phi0), dtype=np.float64)
+        self.C = np.empty((phi0.shape[0], 3, 3))
+        _initial_attitude(phi0, self.C)
+        self.vr = np.zeros((phi0.shape[0], 6))
+        self.wie = np.asarray(omega_ie, dtype=np.float64)
+
+    def step(self, f: np.ndarray, w: np.ndarray, dt):
+        """``v, r`` (S,N+1,3) at the block's t_0 … t_N (t_N: the next block's first sample) and
+        ``f_l`` (S,N,3) of samples f̃, ω̃ (S,N,3) over ``dt`` (s, scalar or (N,)); see :func:`mechanise`."""
+        f = np.ascontiguousarray(f, dtype=np.float64)
+        w = np.ascontiguousarray(np.broadcast_to(w, f.shape), dtype=np.float64)
+        S, N = f.shape[:2]
+        v = np.empty((S, N + 1, 3))
+        r = np.empty((S, N + 1, 3))
+        fl = np.empty((S, N, 3))
+        dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
+        _mechanise(f, w, self.C, self.vr, self.wie, G, dts, v, r, fl)
+        return v, r, fl
 
 
 def mechanise(f: np.ndarray, w: np.ndarray, phi0: np.ndarray, omega_ie: np.ndarray, dt):
@@ -106,15 +137,7 @@ def mechanise(f: np.ndarray, w: np.ndarray, phi0: np.ndarray, omega_ie: np.ndarr
     ``dt``: the IMU period (s), or (N,) the interval each sample covers (recorded times).
 
     Returns ``v, r`` (S,N+1,3; m/s, m, at t_0 … t_N) and the computed specific force
-    ``f_l = Ĉ_k f̃_k`` (S,N,3; m/s^2) per interval.
+    ``f_l = Ĉ_k f̃_k`` (S,N,3; m/s^2) per interval: one :class:`Navigator` step.
     """
-    f = np.ascontiguousarray(f, dtype=np.float64)
-    w = np.ascontiguousarray(np.broadcast_to(w, f.shape), dtype=np.float64)
-    phi0 = np.ascontiguousarray(np.broadcast_to(phi0, (f.shape[0], 3)), dtype=np.float64)
-    S, N = f.shape[:2]
-    v = np.empty((S, N + 1, 3))
-    r = np.empty((S, N + 1, 3))
-    fl = np.empty((S, N, 3))
-    dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
-    _mechanise(f, w, phi0, np.asarray(omega_ie, dtype=np.float64), G, dts, v, r, fl)
-    return v, r, fl
+    f = np.asarray(f)
+    return Navigator(np.broadcast_to(phi0, (f.shape[0], 3)), omega_ie).step(f, w, dt)

@@ -27,7 +27,7 @@ from ...records import check_times, grid_origin, num, read_table
 from .config import ARCSEC, DEG_H, G, OMEGA_E, SledConfig
 from .sensors import ErrorParams
 from .simulate import SimBatch, Truth
-from .trajectory import Trajectory, build_trajectory, true_imu
+from .trajectory import Trajectory, build_trajectory
 
 IMU_COLUMNS = ("t", "fx", "fy", "fz", "wx", "wy", "wz")
 TRUTH_COLUMNS = ("x_true", "vx_true", "x_inst")
@@ -46,26 +46,40 @@ def check_out_path(path: str | Path, option: str = "--out") -> Path:
 
 def sim_frame(sb: SimBatch, s: int = 0) -> pd.DataFrame:
     """Seed slot ``s`` of a simulated batch as a record frame."""
-    df = pd.DataFrame({"t": sb.traj.t})
+    return record_frame(sb.traj.t, sb.f[s], sb.w[s], sb.truth.x_true[s], sb.truth.vx_true[s], sb.truth.x_inst[s])
+
+
+def record_frame(t, f, w, x_true, vx_true, x_inst) -> pd.DataFrame:
+    """A record frame (§10) of samples at ``t`` (N,) s: f (N,3) m/s^2, w (N,3) rad/s and the
+    truth columns (N,) m, m/s."""
+    df = pd.DataFrame({"t": t})
     for i, ax in enumerate("xyz"):
-        df[f"f{ax}"] = sb.f[s, :, i]
+        df[f"f{ax}"] = f[:, i]
     for i, ax in enumerate("xyz"):
-        df[f"w{ax}"] = sb.w[s, :, i]
-    df["x_true"] = sb.truth.x_true[s]
-    df["vx_true"] = sb.truth.vx_true[s]
-    df["x_inst"] = sb.truth.x_inst[s]
+        df[f"w{ax}"] = w[:, i]
+    df["x_true"] = x_true
+    df["vx_true"] = vx_true
+    df["x_inst"] = x_inst
     return df
+
+
+def truth_side(ss: np.random.SeedSequence, params: ErrorParams, nabla_static: np.ndarray, s: int = 0) -> dict:
+    """The truth side file of seed slot ``s``: its SeedSequence, the accelerometer error at rest
+    ``nabla_static`` (S,3) m/s^2 (in µg) and the drawn errors (:meth:`ErrorParams.to_json`)."""
+    return {"seed": {"entropy": int(ss.entropy), "spawn_key": [int(k) for k in ss.spawn_key]},
+            "nabla_static_ug": (nabla_static[s] / G * 1e6).tolist(), **params.to_json(s)}
+
+
+RECORD_FLOATS = "%.17g"
+"""A simulated record's floats in CSV: every digit (the record reads back bit for bit)."""
 
 
 def write_record(sb: SimBatch, path: str | Path, s: int = 0) -> None:
     """Write seed slot ``s`` as a record plus its truth side file, as a pair
     (:func:`platcal.records.write_record`)."""
     path = check_out_path(path)
-    ss = sb.seeds[s]
-    side = {"seed": {"entropy": int(ss.entropy), "spawn_key": [int(k) for k in ss.spawn_key]},
-            "nabla_static_ug": (sb.truth.nabla_static[s] / G * 1e6).tolist(),
-            **sb.truth.params.to_json(s)}
-    records.write_record(sim_frame(sb, s), path, truth=side, float_format="%.17g")
+    side = truth_side(sb.seeds[s], sb.truth.params, sb.truth.nabla_static, s)
+    records.write_record(sim_frame(sb, s), path, truth=side, float_format=RECORD_FLOATS)
 
 
 PHASE_TOL_G = 0.1
@@ -89,45 +103,85 @@ def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataF
     with ``record.kind: increments`` the f and w columns are delta-v (m/s) and delta-theta (rad)
     per sample, converted over each sample's interval (:mod:`platcal.logs.increments`).
     """
-    max_gap = float(cfg.raw["record"]["max_gap_s"])
-    mapping = RecordMapping.from_config(cfg.raw["record"], g=G)
-    incremental = mapping.kind == "increments"
-    df = read_table(path, IMU_COLUMNS, TRUTH_COLUMNS, what="a sled record", min_rows=2, mapping=mapping,
-                    units=increment_units(UNITS, IMU_COLUMNS[1:]) if incremental else UNITS,
-                    increments=IMU_COLUMNS[1:])
+    df = read_table(path, **table_options(cfg))
     traj = build_trajectory(cfg)
-    t = df["t"].to_numpy(dtype=float)
-    field = "--data column t"
-    med = check_times(t, cfg.dt, max_gap, field, f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
-    t = t - (0.0 if abs(t[0]) <= max_gap else grid_origin(t, med))
-    if incremental:  # delta-v, delta-theta over each sample's interval (platcal.logs.increments)
+    t, med, _ = record_times(cfg, traj.n, df["t"].to_numpy(dtype=float))
+    if incremental(cfg):  # delta-v, delta-theta over each sample's interval (platcal.logs.increments)
         df[list(IMU_COLUMNS[1:])] = rates_from_increments(df[list(IMU_COLUMNS[1:])].to_numpy(float), t)
-    span, want = float(t[-1] + med), traj.n * cfg.dt
-    if abs(span - want) > max_gap:
-        raise InputError(field, f"the record lasts {span:g} s ({len(df)} rows from t = {num(t[0])} s), but the "
-                         f"config's trajectory lasts {want:g} s ({traj.n} IMU samples: static_before_s, phases, "
-                         f"braking, static_after_s; record.max_gap_s = {max_gap:g} s); check the trajectory "
-                         "section or the record")
     fz = float(np.median(df["fz"].to_numpy(float)))
     if not 0.9 * G <= fz <= 1.1 * G:
-        raise InputError("--data column fz", f"median fz = {fz:.4g}, expected about g = {G} m/s^2 (the sled is "
-                         "level); the specific force must be in m/s^2")
+        refuse_fz(fz)
     fx = df["fx"].to_numpy(float)
+    for p, (name, (a, b), inside, level) in phase_windows(cfg, traj, t, med):
+        got = float(np.median(fx[inside]))
+        if phase_off(got, level):
+            refuse_phase(name, a, b, got, level)
+    return traj, df, t
+
+
+def incremental(cfg: SledConfig) -> bool:
+    """Whether the config's ``record.kind`` is ``increments`` (delta-v, delta-theta per sample)."""
+    return RecordMapping.from_config(cfg.raw["record"], g=G).kind == "increments"
+
+
+def table_options(cfg: SledConfig) -> dict:
+    """The keyword arguments of :func:`platcal.records.read_table` / ``iter_table`` for a sled
+    record read through the config's ``record:`` mapping."""
+    mapping = RecordMapping.from_config(cfg.raw["record"], g=G)
+    return dict(required=IMU_COLUMNS, optional=TRUTH_COLUMNS, what="a sled record", min_rows=2, mapping=mapping,
+                units=increment_units(UNITS, IMU_COLUMNS[1:]) if mapping.kind == "increments" else UNITS,
+                increments=IMU_COLUMNS[1:])
+
+
+def record_times(cfg: SledConfig, n_traj: int, t: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """The record's times ``t`` (N,) s checked (increasing, in seconds, no gap above
+    ``record.max_gap_s``, lasting the trajectory's ``n_traj`` samples) and counted from its start
+    (a clock from any origin: :func:`platcal.records.grid_origin`); with their median step and the
+    origin taken off, s."""
+    max_gap = float(cfg.raw["record"]["max_gap_s"])
+    field = "--data column t"
+    med = check_times(t, cfg.dt, max_gap, field, f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
+    origin = 0.0 if abs(t[0]) <= max_gap else grid_origin(t, med)
+    t = t - origin
+    span, want = float(t[-1] + med), n_traj * cfg.dt
+    if abs(span - want) > max_gap:
+        raise InputError(field, f"the record lasts {span:g} s ({t.size} rows from t = {num(t[0])} s), but the "
+                         f"config's trajectory lasts {want:g} s ({n_traj} IMU samples: static_before_s, phases, "
+                         f"braking, static_after_s; record.max_gap_s = {max_gap:g} s); check the trajectory "
+                         "section or the record")
+    return t, med, origin
+
+
+def refuse_fz(fz: float) -> None:
+    raise InputError("--data column fz", f"median fz = {fz:.4g}, expected about g = {G} m/s^2 (the sled is "
+                     "level); the specific force must be in m/s^2")
+
+
+def phase_windows(cfg: SledConfig, traj, t: np.ndarray, med: float):
+    """Per phase of ``traj`` (a :class:`.trajectory.Trajectory` or ``Timeline``) with samples of
+    the record inside it: ``(p, (name, (a, b), inside, level))``, its span a … b s, the mask of
+    the record's instants ``t`` two median steps ``med`` in from its ends, its acceleration m/s^2."""
     for p, name in enumerate(traj.phase_names):
-        rows = np.flatnonzero(traj.phase == p)
-        if rows.size == 0:
+        rows = traj.phase_rows(p)
+        if rows is None:
             continue
-        a, b = rows[0] * cfg.dt, (rows[-1] + 1) * cfg.dt
+        a, b = rows[0] * cfg.dt, rows[1] * cfg.dt
         inside = (t >= a + 2 * med) & (t < b - 2 * med)
         if not inside.any():
             continue
-        level = float(traj.accel[rows[0]])
-        got = float(np.median(fx[inside]))
-        if abs(got - level) > PHASE_TOL_G * G + 0.02 * abs(level):
-            raise InputError("--data column fx", f"in the {name} phase (t = {a:g} .. {b:g} s) the median fx is "
-                             f"{got / G:.3g} g, but the config's trajectory accelerates at {level / G:.3g} g there; "
-                             "the record is not a run of this trajectory (check the trajectory section)")
-    return traj, df, t
+        yield p, (name, (a, b), inside, float(traj.accel_at(rows[0])))
+
+
+def phase_off(got, level: float):
+    """Whether a phase's ``fx`` (m/s^2; an array: each value) is further from its acceleration
+    ``level`` than :data:`PHASE_TOL_G`."""
+    return np.abs(got - level) > PHASE_TOL_G * G + 0.02 * abs(level)
+
+
+def refuse_phase(name: str, a: float, b: float, got: float, level: float) -> None:
+    raise InputError("--data column fx", f"in the {name} phase (t = {a:g} .. {b:g} s) the median fx is "
+                     f"{got / G:.3g} g, but the config's trajectory accelerates at {level / G:.3g} g there; "
+                     "the record is not a run of this trajectory (check the trajectory section)")
 
 
 NOMINAL_FIX = {"f": "fx, fy, fz must be the body-axis specific force in m/s^2 (x along the track, z down-up: "
@@ -139,9 +193,8 @@ NOMINAL_FIX = {"f": "fx, fy, fz must be the body-axis specific force in m/s^2 (x
 def nominal_imu(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(N,3) m/s^2 and (N,3) rad/s: the error-free IMU output of the config's trajectory
     (docs/rocket-sled.md §2) at the record's instants ``t`` (s from its start; nearest grid sample)."""
-    f, w = true_imu(traj, cfg.omega_ie)
     k = np.clip(np.floor(t / cfg.dt + 0.5).astype(np.int64), 0, traj.n - 1)
-    return f[k], w[k]
+    return traj.true_imu_at(k, cfg.omega_ie)
 
 
 def check_plausible(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray, t: np.ndarray) -> None:
@@ -185,16 +238,18 @@ def static_rate_sigma(cfg: SledConfig, seconds: float) -> np.ndarray:
     return np.sqrt(var + (1e-9 * OMEGA_E) ** 2)
 
 
-def rest_samples(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> np.ndarray:
+def rest_samples(cfg: SledConfig, traj: Trajectory, t: np.ndarray, med: float | None = None) -> np.ndarray:
     """(N,) bool: the record's samples at rest, the static periods before launch and after the
     stop (docs/rocket-sled.md §2) by time ``t`` (s from the record's start), two median steps in
-    from each end (a jittered stamp near a phase change is not taken for rest)."""
-    med = float(np.median(np.diff(t))) if t.size > 1 else cfg.dt
+    from each end (a jittered stamp near a phase change is not taken for rest); ``med`` the
+    record's median step (default: that of ``t``, the whole record)."""
+    if med is None:
+        med = float(np.median(np.diff(t))) if t.size > 1 else cfg.dt
     rest = np.zeros(t.size, bool)
     for p in (0, len(traj.phase_names) - 1):
-        rows = np.flatnonzero(traj.phase == p)
-        if rows.size:
-            a, b = rows[0] * cfg.dt, (rows[-1] + 1) * cfg.dt
+        rows = traj.phase_rows(p)
+        if rows is not None:
+            a, b = rows[0] * cfg.dt, rows[1] * cfg.dt
             rest |= (t >= a + 2 * med) & (t < b - 2 * med)
     return rest
 
@@ -230,8 +285,11 @@ def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.n
     rest = rest_samples(cfg, traj, t)
     if rest.sum() < 2:
         return
-    seconds = rest_seconds(rest, t)
-    mean = w[rest].mean(axis=0)
+    refuse_static_rates(cfg, w[rest].mean(axis=0), rest_seconds(rest, t))
+
+
+def refuse_static_rates(cfg: SledConfig, mean: np.ndarray, seconds: float) -> None:
+    """:func:`check_static_rates`' verdict on the gyros' ``mean`` (3,) rad/s over ``seconds`` of rest."""
     expected = cfg.omega_ie
     sigma = static_rate_sigma(cfg, seconds)
     k = STATIC_RATE_K
@@ -254,7 +312,7 @@ def check_static_rates(cfg: SledConfig, traj: Trajectory, w: np.ndarray, t: np.n
 def samples_per_phase(traj: Trajectory, t: np.ndarray, dt: float) -> dict[str, int]:
     """Record samples in each phase of the trajectory (by time), for the summary."""
     k = np.clip(np.floor(t / dt + 0.5).astype(np.int64), 0, traj.n - 1)   # nearest grid sample
-    counts = np.bincount(traj.phase[k], minlength=len(traj.phase_names))
+    counts = np.bincount(traj.phase_at(k), minlength=len(traj.phase_names))
     return {name: int(c) for name, c in zip(traj.phase_names, counts)}
 
 
@@ -265,18 +323,26 @@ def record_arrays(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     return f, w
 
 
-def record_truth(path: str | Path, df: pd.DataFrame) -> Truth | None:
-    """The truth of a simulated record (columns + side file), or None when either is absent."""
-    if not all(c in df.columns for c in TRUTH_COLUMNS):
+def truth_params(path: str | Path, columns) -> tuple[ErrorParams, np.ndarray] | None:
+    """The drawn errors and the accelerometer error at rest (1,3) m/s^2 of a simulated record
+    with ``columns`` (its side file), or None when the truth columns or the side file are absent."""
+    if not all(c in columns for c in TRUTH_COLUMNS):
         return None
     d = records.read_truth(path)
     if d is None:
         return None
     try:
-        p = ErrorParams.from_json([d])
-        nab = np.asarray(d["nabla_static_ug"], dtype=float)[None] * G * 1e-6
+        return ErrorParams.from_json([d]), np.asarray(d["nabla_static_ug"], dtype=float)[None] * G * 1e-6
     except (ValueError, KeyError, TypeError) as exc:
         raise InputError(str(records.truth_path(path)), f"not a sled truth file ({exc.__class__.__name__}: {exc})") from None
+
+
+def record_truth(path: str | Path, df: pd.DataFrame) -> Truth | None:
+    """The truth of a simulated record (columns + side file), or None when either is absent."""
+    drawn = truth_params(path, df.columns)
+    if drawn is None:
+        return None
+    p, nab = drawn
     return Truth(params=p, x_true=df["x_true"].to_numpy(float)[None], vx_true=df["vx_true"].to_numpy(float)[None],
                  x_inst=df["x_inst"].to_numpy(float)[None], nabla_static=nab)
 
@@ -304,8 +370,14 @@ def lateral_coriolis_gain(cfg: SledConfig, traj: Trajectory, f: np.ndarray, t: n
     A = np.column_stack([np.ones_like(v), f[:, 0], cor])
     coef, *_ = np.linalg.lstsq(A, f[:, 1], rcond=None)
     r = f[:, 1] - A @ coef
-    dof = max(t.size - A.shape[1], 1)
-    cov = np.linalg.pinv(A.T @ A) * float(r @ r) / dof
+    return gain_and_error(coef, A.T @ A, float(r @ r), t.size)
+
+
+def gain_and_error(coef: np.ndarray, gram: np.ndarray, rss: float, n: int) -> tuple[float, float]:
+    """:func:`lateral_coriolis_gain`'s gain (the Coriolis term's coefficient of ``coef`` (3,)) and
+    its least-squares standard error from the regressors' Gram matrix (3,3), the residual sum of
+    squares ``rss`` (m/s^2)^2 and the ``n`` samples."""
+    cov = np.linalg.pinv(gram) * rss / max(n - gram.shape[0], 1)
     return float(coef[2]), float(np.sqrt(cov[2, 2]))
 
 
@@ -317,7 +389,11 @@ def check_lateral_force(cfg: SledConfig, traj: Trajectory, f: np.ndarray, t: np.
     filter reads the azimuth error from ``fy`` (phi_z f_x), so a ``fy`` scaled by 1 + e gives
     phi_z (1 + e); this is the one term of ``fy`` the record fixes. Skipped (nothing to compare)
     when the run has no speed."""
-    gain, se = lateral_coriolis_gain(cfg, traj, f, t)
+    refuse_lateral(cfg, *lateral_coriolis_gain(cfg, traj, f, t))
+
+
+def refuse_lateral(cfg: SledConfig, gain: float, se: float) -> None:
+    """:func:`check_lateral_force`'s verdict on the Coriolis ``gain`` and its standard error ``se``."""
     if not (np.isfinite(gain) and np.isfinite(se) and se > 0):
         return
     k = -normal_quantile(LATERAL_LEVEL / 2)

@@ -82,13 +82,18 @@ def draw_noise(cfg: SledConfig, rngs, n: int) -> tuple[np.ndarray, np.ndarray]:
 
     Per-sample sigma: ``noise_ug_rthz·1e-6·g·sqrt(1/dt)`` and ``arw (rad/sqrt(s)) / sqrt(dt)``.
     """
-    sa = cfg.accel["noise_ug_rthz"] * 1e-6 * G * np.sqrt(1.0 / cfg.dt)
-    sg = cfg.gyro["arw_deg_rth"] * np.pi / 180 / 60 / np.sqrt(cfg.dt)
+    sa, sg = noise_sigmas(cfg)
     wa, wg = [], []
     for rng in rngs:
         wa.append(rng.standard_normal((n, 3)) * sa)
         wg.append(rng.standard_normal((n, 3)) * sg)
     return np.array(wa), np.array(wg)
+
+
+def noise_sigmas(cfg: SledConfig) -> tuple[float, float]:
+    """Per-sample white-noise sigmas of :func:`draw_noise`: accelerometer (m/s^2), gyro (rad/s)."""
+    return (cfg.accel["noise_ug_rthz"] * 1e-6 * G * np.sqrt(1.0 / cfg.dt),
+            cfg.gyro["arw_deg_rth"] * np.pi / 180 / 60 / np.sqrt(cfg.dt))
 
 
 def accel_error(p: ErrorParams, f: np.ndarray) -> np.ndarray:

@@ -47,9 +47,25 @@ class Trajectory:
     def v_max_m_s(self) -> float:
         return float(self.v.max())
 
+    def phase_rows(self, p: int) -> tuple[int, int] | None:
+        """First and one past the last sample of phase ``p`` (None: the phase is empty)."""
+        rows = np.flatnonzero(self.phase == p)
+        return (int(rows[0]), int(rows[-1]) + 1) if rows.size else None
 
-def build_trajectory(cfg: SledConfig) -> Trajectory:
-    """The piecewise-constant acceleration profile of §2 (config already validated)."""
+    def accel_at(self, k) -> np.ndarray:
+        return self.accel[k]
+
+    def phase_at(self, k) -> np.ndarray:
+        return self.phase[k]
+
+    def true_imu_at(self, k: np.ndarray, omega_ie: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`true_imu` at samples ``k``, (len(k),3) m/s^2 and rad/s."""
+        return _imu(self.accel[k], self.v[k], self.v[np.asarray(k) + 1], omega_ie)
+
+
+def _pieces(cfg: SledConfig) -> tuple[list[tuple[float, int, int]], list[str]]:
+    """The profile of §2 as (acceleration m/s^2, IMU samples, phase index) pieces and their labels:
+    static before, the config's phases, the braking to rest, static after."""
     dt = cfg.dt
     pieces, labels = [(0.0, int(round(cfg.static_before_s * cfg.rate_hz)), 0)], ["static before"]
     v_end = 0.0
@@ -63,6 +79,10 @@ def build_trajectory(cfg: SledConfig) -> Trajectory:
     labels.append("braking")
     pieces.append((0.0, int(round(cfg.static_after_s * cfg.rate_hz)), len(cfg.phases) + 2))
     labels.append("static after")
+    return pieces, labels
+
+
+def _assemble(pieces, labels, dt: float) -> Trajectory:
     accel = np.concatenate([np.full(n, a) for a, n, _ in pieces])
     phase = np.concatenate([np.full(n, p, dtype=np.int64) for _, n, p in pieces])
     v = np.concatenate([[0.0], np.cumsum(accel * dt)])
@@ -72,17 +92,106 @@ def build_trajectory(cfg: SledConfig) -> Trajectory:
     return Trajectory(dt=dt, accel=accel, phase=phase, v=v, x=x, n_stop=n_stop, phase_names=tuple(labels))
 
 
+def build_trajectory(cfg: SledConfig) -> Trajectory:
+    """The piecewise-constant acceleration profile of §2 (config already validated)."""
+    return _assemble(*_pieces(cfg), cfg.dt)
+
+
+REST_KEPT = 2
+"""Samples of each rest a :class:`Timeline` keeps as arrays (the rest's values are constant)."""
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """The trajectory of §2 at any IMU sample without arrays of the whole run's length (a long
+    record streamed, issue 22 item 3): the rests before launch and after the stop are constant
+    (a = 0, v = 0, x = 0 before and x = the run length after: the cumulative sums add exact
+    zeros there), so ``core`` is the trajectory with each rest cut to :data:`REST_KEPT` samples
+    and a sample of the whole run maps into it (:meth:`index`); every value is the whole
+    trajectory's, bit for bit."""
+
+    core: Trajectory
+    n: int                   # IMU samples of the whole run
+    n_before: int            # samples of the rest before launch (whole run)
+    kept_before: int         # of them in ``core``
+    n_stop: int              # sample index of the stop (whole run)
+    bounds: tuple            # per phase (first sample, one past its last) of the whole run, or None
+
+    @staticmethod
+    def of(cfg: SledConfig) -> "Timeline":
+        pieces, labels = _pieces(cfg)
+        full = [n for _, n, _ in pieces]
+        cut = list(pieces)
+        for i in (0, len(pieces) - 1):
+            a, n, p = pieces[i]
+            cut[i] = (a, min(n, REST_KEPT), p)
+        starts = np.r_[0, np.cumsum(full)]
+        bounds = tuple((int(starts[i]), int(starts[i + 1])) if full[i] else None for i in range(len(full)))
+        return Timeline(core=_assemble(cut, labels, cfg.dt), n=sum(full), n_before=full[0],
+                        kept_before=cut[0][1], n_stop=sum(full[:-1]), bounds=bounds)
+
+    @property
+    def dt(self) -> float:
+        return self.core.dt
+
+    @property
+    def phase_names(self) -> tuple[str, ...]:
+        return self.core.phase_names
+
+    @property
+    def stop_time_s(self) -> float:
+        return self.n_stop * self.dt
+
+    @property
+    def run_length_m(self) -> float:
+        return self.core.run_length_m
+
+    @property
+    def v_max_m_s(self) -> float:
+        return self.core.v_max_m_s
+
+    def index(self, k, states: bool = False) -> np.ndarray:
+        """Samples ``k`` of the whole run (0 … n−1; with ``states`` 0 … n, n the state after the
+        last sample, for ``v`` and ``x``) as samples of ``core``."""
+        k = np.asarray(k, dtype=np.int64)
+        shift = self.n_before - self.kept_before
+        last = self.core.n if states else self.core.n - 1
+        return np.where(k < self.n_before, np.minimum(k, self.kept_before - 1),
+                        np.where(k <= self.n_stop, k - shift, np.minimum(k - shift, last)))
+
+    def phase_rows(self, p: int) -> tuple[int, int] | None:
+        """First and one past the last sample of phase ``p`` in the whole run (None: empty)."""
+        return self.bounds[p]
+
+    def accel_at(self, k) -> np.ndarray:
+        return self.core.accel[self.index(k)]
+
+    def phase_at(self, k) -> np.ndarray:
+        return self.core.phase[self.index(k)]
+
+    def true_imu_at(self, k: np.ndarray, omega_ie: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`true_imu` at samples ``k`` (0 … n−1) of the whole run, (len(k),3) m/s^2, rad/s."""
+        i = self.index(k)
+        return _imu(self.core.accel[i], self.core.v[i], self.core.v[i + 1], omega_ie)
+
+
 def true_imu(traj: Trajectory, omega_ie: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """True specific force and rate in the body (= track) frame per IMU interval (§2).
 
     ``f = [a_x,0,0] + 2 ω_ie × [v̄_x,0,0] + [0,0,g]`` with v̄_x the interval's mean velocity;
     ``ω_ib^b = ω_ie^l``. Returns (N,3) arrays in m/s^2 and rad/s.
     """
-    vbar = (traj.v[:-1] + traj.v[1:]) / 2
-    vel = np.zeros((traj.n, 3))
+    return _imu(traj.accel, traj.v[:-1], traj.v[1:], omega_ie)
+
+
+def _imu(accel: np.ndarray, v0: np.ndarray, v1: np.ndarray, omega_ie: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """§2's specific force and rate of samples with along-track acceleration ``accel`` and
+    velocities ``v0``, ``v1`` at their start and end (m/s^2, m/s; (N,) each)."""
+    vbar = (v0 + v1) / 2
+    vel = np.zeros((accel.size, 3))
     vel[:, 0] = vbar
     f = 2 * np.cross(omega_ie, vel)
-    f[:, 0] += traj.accel
+    f[:, 0] += accel
     f[:, 2] += G
-    w = np.broadcast_to(omega_ie, (traj.n, 3)).copy()
+    w = np.broadcast_to(omega_ie, (accel.size, 3)).copy()
     return f, w

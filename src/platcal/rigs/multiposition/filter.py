@@ -642,6 +642,8 @@ def _ekf_lanes(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols,
     sums = np.zeros((R, 4))
     nblk = -(-R // LANES)
     phi0s = np.ascontiguousarray(phi0s, dtype=float).reshape(-1, tk.shape[0], 3)
+    if phi0s.shape[0] not in (1, R) or Z.shape[:2] != (R, tk.shape[0]):  # the kernel does not check bounds
+        raise ValueError(f"angles {phi0s.shape}, outputs {Z.shape} and times {tk.shape} do not match {R} replicates")
     rec = np.zeros((1, 0, 0, 12)) if rec is None else rec
     with slp_vectorize():  # a first compile (or a cache miss) compiles the lanes as vectors
         _threaded(_ekf_blocks, nblk, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols,
@@ -761,6 +763,8 @@ def run_filter_positions(cfg, positions_deg, source, passes: int | None = None, 
         last = p == npass - 1 and on_innovations is not None
         k = -1
         for k, (t, z) in enumerate(source()):
+            if k >= phi0s.shape[0]:
+                raise ValueError(f"the record's source gave more positions than {phi0s.shape[0]}")
             m = t.size
             rec = np.zeros((1, 1, m, 12)) if last else None
             s, u, nl, nb = _ekf_lanes(st.X, st.Ps, phi0s[k:k + 1], np.ascontiguousarray(t, float)[None],

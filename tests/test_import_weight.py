@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy import stats
 
@@ -76,3 +77,26 @@ def test_quantiles_are_scipy_stats_bit_for_bit():
     for dof in (1, 2, 3, 6, 24, 45, 48, 1000, 350_000):
         assert [chi2_quantile(q, dof) for q in qs] == [float(stats.chi2.ppf(q, dof)) for q in qs]
     assert [normal_quantile(q) for q in qs] == [float(stats.norm.ppf(q)) for q in qs]
+
+
+READ_PROBE = """
+import json, sys
+from platcal.records import iter_table
+rows = sum(len(df) for df in iter_table(sys.argv[1], ("t", "a", "k"), ("s",), text=("s",), chunk_rows=1000))
+print(json.dumps([rows, "pandas" in sys.modules]))
+"""
+
+
+def test_reading_a_record_does_not_load_pandas(tmp_path):
+    """The streamed reader (platcal.records.iter_table, CSV and Parquet) in a fresh interpreter:
+    pandas, some 80 MB of a command's floor, stays out (the rest of an identify still loads it:
+    README, Long records in bounded memory)."""
+    n = 5000
+    path = tmp_path / "log.csv"
+    pd.DataFrame({"t": np.arange(n) * 0.005, "a": np.sin(np.arange(n)), "k": np.arange(n) // 700 + 1,
+                  "s": np.where(np.arange(n) % 3 == 0, "on", "off")}).to_csv(path, index=False)
+    parquet = tmp_path / "log.parquet"
+    pd.read_csv(path).to_parquet(parquet, index=False)
+    for p in (path, parquet):
+        out = subprocess.run([sys.executable, "-c", READ_PROBE, str(p)], check=True, capture_output=True, text=True)
+        assert json.loads(out.stdout) == [5000, False]

@@ -124,7 +124,7 @@ def test_iter_table_chunks_are_the_whole_table(tmp_path):
     whole = read_table(path, ("t", "a"), mapping=mapping, units=units)
     parts = list(iter_table(path, ("t", "a"), mapping=mapping, units=units, chunk_rows=7))
     assert len(parts) == 8
-    pd.testing.assert_frame_equal(pd.concat(parts, ignore_index=True), whole)
+    pd.testing.assert_frame_equal(pd.concat([p.to_pandas() for p in parts], ignore_index=True), whole)
     np.testing.assert_allclose(whole["t"].to_numpy(), np.arange(50) * 0.005, atol=1e-12)
     df.loc[33, "a"] = np.nan
     df.to_csv(path, index=False)

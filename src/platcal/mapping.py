@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-import pandas as pd
 import pint
 import pymap3d
 
 from .errors import InputError
+from .lighttable import numeric
 
 STANDARD_GRAVITY = 9.80665
 """m/s^2: the value of the unit ``g`` unless a rig passes its own."""
@@ -104,13 +104,18 @@ def conversion_factor(unit: str, native: str, g: float, field_: str) -> float:
     return float(ureg.Quantity(1.0, have).to(want).magnitude)
 
 
-def iso_seconds(values: pd.Series, field_: str, carry: dict | None = None) -> np.ndarray:
-    """ISO 8601 date-times as seconds since the first one (InputError naming ``field_``).
+def iso_seconds(values, field_: str, carry: dict | None = None) -> np.ndarray:
+    """ISO 8601 date-times (a column of text) as seconds since the first one (InputError naming ``field_``).
 
     ``carry`` (a chunk of a streamed log, :func:`platcal.records.iter_table`): ``row0`` the file
     row of the chunk's first value (0-based data row), and the log's first stamp under
     ``iso_origin``, set by the first chunk, so every chunk counts from the log's first sample."""
+    # pandas parses ISO 8601 in all its forms (offsets, Z, fractions); only a log mapped with
+    # iso times loads it, so the read of a plain log (every streamed identify) does not
+    import pandas as pd
+
     carry = {} if carry is None else carry
+    values = pd.Series(np.asarray(values))
     stamps = pd.to_datetime(values, errors="coerce", utc=True, format="ISO8601")
     bad = stamps.isna().to_numpy()
     if bad.any():
@@ -122,8 +127,7 @@ def iso_seconds(values: pd.Series, field_: str, carry: dict | None = None) -> np
     return ns * 1e-9
 
 
-def geodetic_positions(df: pd.DataFrame, geodetic: dict, positions: tuple[str, ...], source: str,
-                       carry: dict | None = None) -> pd.DataFrame:
+def geodetic_positions(df, geodetic: dict, positions: tuple[str, ...], source: str, carry: dict | None = None):
     """``df`` with its latitude, longitude (and height, m) columns named in ``geodetic`` replaced
     by the local east and north positions ``positions`` (m) from the first sample, on the WGS84
     ellipsoid (pymap3d.geodetic2enu); InputError naming ``record.geodetic.<key>`` for a column
@@ -140,7 +144,7 @@ def geodetic_positions(df: pd.DataFrame, geodetic: dict, positions: tuple[str, .
         src = geodetic[key]
         if src not in cols:
             raise InputError(f"record.geodetic.{key}", f"{source} has no column {src!r}; its columns: {cols}")
-        v = pd.to_numeric(df[src], errors="coerce").to_numpy(float)
+        v = numeric(df[src])
         if not np.all(np.isfinite(v)):
             row = int(np.argmax(~np.isfinite(v)))
             raise InputError(f"record.geodetic.{key}, row {row0 + row + 2}", f"value {df[src].iloc[row]!r} of column "
@@ -204,10 +208,9 @@ class RecordMapping:
                 continue
             conversion_factor(unit, native[col], self.g, field_)
 
-    def apply(self, df: pd.DataFrame, native: dict, required: tuple[str, ...], source: str = "the log",
-              increments: tuple[str, ...] = (), positions: tuple[str, ...] = (),
-              carry: dict | None = None) -> pd.DataFrame:
-        """The log ``df`` renamed to the rig's columns and converted to its units (``native``:
+    def apply(self, df, native: dict, required: tuple[str, ...], source: str = "the log",
+              increments: tuple[str, ...] = (), positions: tuple[str, ...] = (), carry: dict | None = None):
+        """The log ``df`` (a :class:`platcal.lighttable.Table`) renamed to the rig's columns and converted to its units (``native``:
         rig column -> unit, None for text). Unmapped columns keep their names; with
         ``ignore_extra`` the columns the rig does not read are dropped. A required column that is
         missing afterwards is refused naming ``record.columns.<col>``. ``increments``: the columns
@@ -244,11 +247,11 @@ class RecordMapping:
             if unit.strip() == ISO_TIME:
                 out[col] = iso_seconds(out[col], f"record.units.{col}", carry)
                 continue
-            values = pd.to_numeric(out[col], errors="coerce").to_numpy(float)
+            values = numeric(out[col])
             factor = conversion_factor(unit, native[col], self.g, f"record.units.{col}")
             bad = ~np.isfinite(values)
             if bad.any():  # left for the rig's reader to report with its own message
-                out[col] = out[col].where(bad, values * factor)
+                out[col] = np.where(bad, np.asarray(out[col], dtype=object), values * factor)
             else:
                 out[col] = values * factor
         return out

@@ -19,13 +19,14 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pyarrow as pa
+import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from .errors import InputError
 from .io import atomic_files
-from .mapping import RecordMapping
+from .lighttable import Table, numeric
+from .mapping import ISO_TIME, RecordMapping
 from .rig import option, whole
 
 PARQUET_MAGIC = b"PAR1"
@@ -89,8 +90,9 @@ def shown(v) -> str:
     return repr(v) if isinstance(v, str) else str(num(v))
 
 
-CSV_BLOCK = 1 << 22
-"""Bytes read at a time when a CSV record's text is checked (4 MiB: the check holds no more)."""
+CSV_BLOCK = 1 << 20
+"""Bytes read at a time when a CSV record's text is checked (1 MiB: the check holds a few
+blocks' text at most, 10 MB above what it started with; 4 MiB blocks held 39 MB)."""
 
 
 def check_csv_file(path: Path, field: str = "--data", what: str = "a test record", skip: int = 0) -> None:
@@ -132,17 +134,149 @@ def check_csv_file(path: Path, field: str = "--data", what: str = "a test record
                              f"{n_head + 1} fields (was the file cut off while being written?)")
 
 
+PANDAS_NA = ("", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan", "1.#IND", "1.#QNAN", "<NA>",
+             "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null")
+"""The texts read as a missing value (NaN), pandas ``read_csv``'s defaults: a log reads as it did
+when pandas read it."""
+
+
+def _arrow_values(col) -> np.ndarray:
+    """One pyarrow column (array or chunked array) as numpy: numbers from the array's buffers
+    (float64 with NaN where a value is missing), anything else (text) as an object array with NaN
+    where missing, as pandas reads them. pyarrow's own ``to_numpy`` is not used: it imports pandas."""
+    if isinstance(col, pa.ChunkedArray):
+        parts = [_arrow_values(c) for c in col.chunks]
+        return np.concatenate(parts) if parts else np.zeros(0)
+    t = col.type
+    if pa.types.is_integer(t) or pa.types.is_floating(t):
+        kind = "float" if pa.types.is_floating(t) else "uint" if pa.types.is_unsigned_integer(t) else "int"
+        dtype = np.dtype(f"{kind}{t.bit_width}")
+        values = np.frombuffer(col.buffers()[1], dtype=dtype, count=len(col), offset=col.offset * dtype.itemsize)
+        if not col.null_count:
+            return values
+        bits = np.unpackbits(np.frombuffer(col.buffers()[0], np.uint8), bitorder="little")
+        valid = bits[col.offset:col.offset + len(col)].astype(bool)
+        return np.where(valid, values.astype(float), np.nan)
+    values = np.empty(len(col), dtype=object)
+    values[:] = [np.nan if v is None else v for v in col.to_pylist()]
+    return values
+
+
+def _numpy_columns(batch) -> dict:
+    """A pyarrow record batch (or table) as numpy columns (:func:`_arrow_values`)."""
+    return {name: _arrow_values(col) for name, col in zip(batch.schema.names, batch.columns)}
+
+
+def _csv_columns(path: Path, skip: int) -> list[str]:
+    """The column names of a CSV record (pyarrow reads its header and first block)."""
+    reader = pacsv.open_csv(path, read_options=pacsv.ReadOptions(skip_rows=skip, block_size=CSV_READ_BLOCK,
+                                                                 use_threads=False),
+                            convert_options=pacsv.ConvertOptions(null_values=list(PANDAS_NA)),
+                            memory_pool=pa.system_memory_pool())
+    try:
+        return list(reader.schema.names)
+    finally:
+        reader.close()
+
+
+CSV_READ_BLOCK = 1 << 16
+"""Bytes of CSV text pyarrow's streaming reader parses at a time (64 KiB). The reader holds
+blocks ahead of the one it returns, so its memory follows this size: 2 M rows of the 6-hour
+centrifuge record (603 MB of CSV) read with 4 MiB blocks hold 212 MB more than before the
+read, with 1 MiB 62-79 MB, 256 KiB 21-31 MB, 64 KiB 10 MB; CPU 1.4, 1.2-1.3, 1.3-1.4, 1.6 s
+(pyarrow 26; the filter of those rows takes some 30 s)."""
+
+
+def _csv_batches(path: Path, skip: int, types: dict) -> Iterator[dict]:
+    """The CSV record's blocks (:data:`CSV_READ_BLOCK` bytes of text each) as numpy columns, the
+    columns of ``types`` read as those pyarrow types (the others as pyarrow infers them from the
+    first block). pyarrow allocates from the system's allocator (malloc), which returns freed
+    blocks as pyarrow's own pool (mimalloc) does not (74 against 84 MB in the measurement above, 256 KiB)."""
+    reader = pacsv.open_csv(path, read_options=pacsv.ReadOptions(skip_rows=skip, block_size=CSV_READ_BLOCK,
+                                                                 use_threads=False),
+                            convert_options=pacsv.ConvertOptions(column_types=types, null_values=list(PANDAS_NA),
+                                                                 strings_can_be_null=True),
+                            memory_pool=pa.system_memory_pool())
+    try:
+        for batch in reader:
+            yield _numpy_columns(batch)
+    finally:
+        reader.close()
+
+
+def _rechunked(batches: Iterator[dict], chunk_rows: int | None) -> Iterator[dict]:
+    """Columns of ``batches`` regrouped into chunks of exactly ``chunk_rows`` rows (the last one
+    shorter; None: one chunk of everything). Each batch is copied into its chunk's arrays as it
+    comes, so pyarrow's buffers are let go at once and a chunk is held once, not again while joined."""
+    if chunk_rows is None:
+        parts = [{c: v.copy() for c, v in cols.items()} for cols in batches]  # a copy: the buffers go
+        if parts:
+            yield _joined(parts)
+        return
+    out: dict | None = None
+    rows = 0
+    for cols in batches:
+        n = len(next(iter(cols.values()))) if cols else 0
+        at = 0
+        while at < n:
+            if out is None:
+                out = {c: np.empty(chunk_rows, dtype=v.dtype) for c, v in cols.items()}
+            take = min(n - at, chunk_rows - rows)
+            for c, v in cols.items():
+                out[c][rows:rows + take] = v[at:at + take]
+            rows, at = rows + take, at + take
+            if rows == chunk_rows:
+                yield out
+                out, rows = None, 0
+    if out is not None:
+        yield {c: v[:rows] for c, v in out.items()}
+
+
+def _joined(parts: list[dict]) -> dict:
+    """Numpy columns of ``parts`` one after another (a column of text and numbers is object)."""
+    return parts[0] if len(parts) == 1 else {c: np.concatenate([p[c] for p in parts]) for c in parts[0]}
+
+
+def _csv_chunks(path: Path, skip: int, chunk_rows: int | None, numbers) -> Iterator[dict]:
+    """The CSV record's chunks of ``chunk_rows`` rows as numpy columns: the columns ``numbers``
+    parsed by pyarrow as float64, the others as text (``numbers`` None: as pyarrow infers them).
+    A value pyarrow does not take for a number (text, ``1,5``, a space, a float after a first
+    block of whole numbers) switches to reading every column as text (the file read again from
+    the start, the chunks already yielded skipped): :func:`_checked` then takes each value as
+    pandas would and names a bad one by its line, as for any log."""
+    names = _csv_columns(path, skip)
+    types = {} if numbers is None else {n: pa.float64() if n in numbers else pa.string() for n in names}
+    done = 0
+    try:
+        for cols in _rechunked(_csv_batches(path, skip, types), chunk_rows):
+            yield cols
+            done += 1
+    except pa.ArrowInvalid as exc:
+        if "conversion error" not in str(exc):
+            raise
+        text = {n: pa.string() for n in names}
+        for i, cols in enumerate(_rechunked(_csv_batches(path, skip, text), chunk_rows)):
+            if i >= done:
+                yield cols
+                done += 1
+    if not done:  # a header without rows: the columns, for the checks that name a missing one
+        yield {n: np.zeros(0) for n in names}
+
+
 def iter_frames(path: str | os.PathLike, field: str = "--data", what: str = "a test record",
-                chunk_rows: int | None = None, skip: int = 0) -> Iterator[pd.DataFrame]:
-    """Read a record file as tables of at most ``chunk_rows`` rows (None: one table, the whole
-    file): Parquet when named ``.parquet`` (its row batches, pyarrow ``iter_batches``), UTF-8
-    CSV otherwise (pandas ``chunksize``), its first ``skip`` lines (a logger's metadata above
-    the column header, ``record.header_lines``) skipped. Whole-file reading is the one-chunk case.
+                chunk_rows: int | None = None, skip: int = 0, numbers=None) -> Iterator[Table]:
+    """Read a record file as tables (:class:`platcal.lighttable.Table`, numpy columns) of at
+    most ``chunk_rows`` rows (None: one table, the whole file): Parquet when named ``.parquet``
+    (its row batches, pyarrow ``iter_batches``), UTF-8 CSV otherwise (pyarrow's streaming CSV
+    reader, :data:`CSV_READ_BLOCK` bytes at a time), its first ``skip`` lines (a logger's metadata
+    above the column header, ``record.header_lines``) skipped. Whole-file reading is the
+    one-chunk case. ``numbers``: the CSV columns parsed as numbers straight away, the others read
+    as text (None: as pyarrow infers them). pandas is not imported.
 
     Refused before the first table (InputError naming ``field``): a missing file, a folder, a
     file whose content is not what its name says (Parquet named .csv or the reverse), text that
-    is not UTF-8 or holds NUL bytes, a truncated last line; then anything pandas or pyarrow
-    cannot parse, when it is met.
+    is not UTF-8 or holds NUL bytes, a truncated last line; then anything pyarrow cannot parse,
+    when it is met.
     """
     path = Path(path)
     if not path.exists():
@@ -168,19 +302,20 @@ def iter_frames(path: str | os.PathLike, field: str = "--data", what: str = "a t
     if not parquet:
         check_csv_file(path, field, what, skip)
     try:
-        if chunk_rows is None:
-            yield pd.read_parquet(path) if parquet else pd.read_csv(path, encoding="utf-8", skiprows=skip)
-        elif parquet:
-            for batch in pq.ParquetFile(path).iter_batches(batch_size=chunk_rows):
-                yield batch.to_pandas()
+        if parquet:
+            if chunk_rows is None:
+                yield Table(_numpy_columns(pq.read_table(path)))
+            else:
+                for batch in pq.ParquetFile(path).iter_batches(batch_size=chunk_rows):
+                    yield Table(_numpy_columns(batch))
         else:
-            with pd.read_csv(path, encoding="utf-8", chunksize=chunk_rows, skiprows=skip) as reader:
-                yield from reader
-    except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+            for cols in _csv_chunks(path, skip, chunk_rows, None if numbers is None else set(numbers)):
+                yield Table(cols)
+    except (OSError, ValueError, pa.ArrowException) as exc:
         raise InputError(field, f"cannot read {path} as {what}: {exc}") from None
 
 
-def read_frame(path: str | os.PathLike, field: str = "--data", what: str = "a test record") -> pd.DataFrame:
+def read_frame(path: str | os.PathLike, field: str = "--data", what: str = "a test record") -> Table:
     """The whole record file as one table (:func:`iter_frames` with one chunk)."""
     return next(iter_frames(path, field, what))
 
@@ -189,18 +324,19 @@ def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
                text: tuple[str, ...] = (), field: str = "--data", what: str = "a test record",
                min_rows: int = 1, mapping: RecordMapping | None = None, units: dict | None = None,
                increments: tuple[str, ...] = (), positions: tuple[str, ...] = (),
-               chunk_rows: int | None = None) -> Iterator[pd.DataFrame]:
+               chunk_rows: int | None = None) -> Iterator[Table]:
     """:func:`read_table` in chunks of at most ``chunk_rows`` rows (None: one chunk): every chunk
     is mapped, converted and checked as the whole file is (a row named by its line in the file;
     ISO times and geodetic positions count from the log's first sample, not the chunk's), so
     memory does not grow with the record. ``min_rows`` is checked when the last chunk is read
     (before it is yielded, so a record that is too short yields nothing). Checks that span rows
-    (time increasing, gaps) are the rig's, on the chunks it is handed (:class:`TimeCheck`)."""
+    (time increasing, gaps) are the rig's, on the chunks it is handed (:class:`TimeCheck`).
+    The chunks are :class:`platcal.lighttable.Table` (numpy columns; pandas is not imported)."""
     skip = 0 if mapping is None else mapping.header_lines
     # row0 + row + 2 is a row's line in the file (the header line and 1-based counting), the
     # metadata lines above the header included
     carry: dict = {"row0": skip}
-    chunks = iter_frames(path, field, what, chunk_rows, skip)
+    chunks = iter_frames(path, field, what, chunk_rows, skip, numbers=_file_numbers(required + optional, text, mapping))
     pending = None
     rows = 0
     for df in chunks:
@@ -217,7 +353,7 @@ def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     yield pending
 
 
-def position_blocks(chunks, check: Callable[[pd.DataFrame], None] | None = None) -> Iterator[tuple]:
+def position_blocks(chunks, check: Callable[[Table], None] | None = None) -> Iterator[tuple]:
     """The blocks of rows of one position in a positioned-platform log (docs/centrifuge-model.md §13,
     docs/multiposition-1g.md §12) read in ``chunks`` (tables
     in file order, :func:`iter_table`): ``(df, row0, i0, i1, k, starts)`` for rows ``i0:i1`` of
@@ -244,8 +380,20 @@ def position_blocks(chunks, check: Callable[[pd.DataFrame], None] | None = None)
         row += len(df)
 
 
-def _checked(df: pd.DataFrame, required: tuple[str, ...], optional: tuple[str, ...], text: tuple[str, ...],
-             field: str, what: str, row0: int) -> pd.DataFrame:
+def _file_numbers(columns: tuple[str, ...], text: tuple[str, ...], mapping: RecordMapping | None) -> set[str]:
+    """The file columns a CSV reader parses as numbers straight away: those that fill the rig's
+    numeric ``columns`` (not ``text``, not ISO date-times; by the file's names when ``mapping``
+    renames them) and a geodetic mapping's latitude, longitude and height. The others are read
+    as text (a vendor's extra columns, the rig's text); a number among them is converted as any."""
+    if mapping is None:
+        return {c for c in columns if c not in text}
+    iso = {c for c, u in mapping.units.items() if u.strip() == ISO_TIME}
+    out = {mapping.columns.get(c, c) for c in columns if c not in text and c not in iso}
+    return out | {v for k, v in mapping.geodetic.items() if k in ("lat", "lon", "height")}
+
+
+def _checked(df: Table, required: tuple[str, ...], optional: tuple[str, ...], text: tuple[str, ...],
+             field: str, what: str, row0: int) -> Table:
     """One chunk's columns and values checked (see :func:`read_table`); ``row0``: the file's
     data row of its first row (0-based), for the line numbers of messages."""
     cols = [str(c) for c in df.columns]
@@ -262,21 +410,21 @@ def _checked(df: pd.DataFrame, required: tuple[str, ...], optional: tuple[str, .
     for c in cols:
         if c in text:
             continue
-        values = pd.to_numeric(df[c], errors="coerce")
-        bad = ~np.isfinite(values.to_numpy(float))
+        values = numeric(df[c])
+        bad = ~np.isfinite(values)
         if bad.any():
             row = int(np.argmax(bad))
             raise InputError(f"{field} column {c}, row {row0 + row + 2}",
                              f"value {shown(df[c].iloc[row])} is not a finite number (NaN, infinite or text)")
-        df[c] = values.astype(float)
+        df[c] = values
     return df
 
 
 def read_table(path: str | os.PathLike, required: tuple[str, ...], optional: tuple[str, ...] = (),
                text: tuple[str, ...] = (), field: str = "--data", what: str = "a test record",
                min_rows: int = 1, mapping: RecordMapping | None = None, units: dict | None = None,
-               increments: tuple[str, ...] = (), positions: tuple[str, ...] = ()) -> pd.DataFrame:
-    """:func:`read_frame` plus the columns: every ``required`` one present, nothing outside
+               increments: tuple[str, ...] = (), positions: tuple[str, ...] = ()):
+    """A pandas DataFrame (for the whole-log tools that work on one): :func:`read_frame` plus the columns: every ``required`` one present, nothing outside
     ``required + optional``, at least ``min_rows`` rows, every column except ``text`` a finite
     number (InputError naming the column and the file's line). Numeric columns come back as float.
     With a config's ``mapping`` (:class:`platcal.mapping.RecordMapping`) and the rig's column
@@ -285,7 +433,7 @@ def read_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     and north position columns ``record.geodetic`` fills). The one-chunk case of :func:`iter_table`.
     """
     return next(iter_table(path, required, optional, text, field, what, min_rows, mapping, units, increments,
-                           positions))
+                           positions)).to_pandas()
 
 
 class TimeCheck:
@@ -403,7 +551,7 @@ def truth_path(record: str | os.PathLike) -> Path:
     return Path(str(record) + TRUTH_SUFFIX)
 
 
-def write_record(df: pd.DataFrame, path: str | os.PathLike, truth: dict | None = None,
+def write_record(df, path: str | os.PathLike, truth: dict | None = None,
                  float_format: str | None = None) -> None:
     """Write a whole test record atomically (:func:`record_writer` with one chunk): ``.parquet``
     as Parquet, anything else as CSV, with its ``truth`` side file as a pair."""
@@ -425,7 +573,7 @@ def read_truth(record: str | os.PathLike) -> dict | None:
 
 @contextmanager
 def record_writer(path: str | os.PathLike, truth: dict | None = None,
-                  float_format: str | None = None) -> Iterator[Callable[[pd.DataFrame], None]]:
+                  float_format: str | None = None) -> Iterator[Callable]:
     """Write a test record chunk by chunk: yields ``write(df)``, each chunk appended (CSV rows
     after one header, floats at ``float_format``, default full precision; a Parquet row group
     each) to a temporary file, so a long record is written without being held. With ``truth``,
@@ -442,7 +590,7 @@ def record_writer(path: str | os.PathLike, truth: dict | None = None,
         out = tmp(path.name)
         state: dict = {}
 
-        def write(df: pd.DataFrame) -> None:
+        def write(df) -> None:  # a pandas DataFrame
             if parquet:
                 table = pa.Table.from_pandas(df, preserve_index=False)
                 if "writer" not in state:

@@ -99,10 +99,12 @@ import importlib.metadata
 import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # annotations only: importing the rig registry (every command) does not load pandas
+    import pandas as pd
 
 from . import rigs as _rigs_package
 from .errors import InputError

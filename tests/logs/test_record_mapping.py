@@ -100,7 +100,7 @@ def test_metadata_header_lines(tmp_path):
     pd.testing.assert_frame_equal(read_table(tmp_path / "meta.csv", ("t", "Ax"), mapping=m, units=units), plain)
     chunks = list(iter_table(tmp_path / "meta.csv", ("t", "Ax"), mapping=m, units=units, chunk_rows=3))
     assert [len(c) for c in chunks] == [3, 1]
-    pd.testing.assert_frame_equal(pd.concat(chunks, ignore_index=True), plain)
+    pd.testing.assert_frame_equal(pd.concat([c.to_pandas() for c in chunks], ignore_index=True), plain)
     with pytest.raises(InputError):  # the metadata read as the header
         read_table(tmp_path / "meta.csv", ("t", "Ax"))
     (tmp_path / "bad.csv").write_text("Logger X\nstarted 10:00\n" + body.replace("0.04,3.0", "0.04,x"))

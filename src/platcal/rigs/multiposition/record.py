@@ -132,8 +132,8 @@ def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float
     check_position_numbers(pos, scheme)
     present = sorted({int(k) for k in pos})
     # the commanded angles first: a wrong scheme shows there before anywhere else
-    cmds = [check_commanded(k, df.loc[pos == k, ["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float), scheme)
-            for k in present]
+    commanded = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)
+    cmds = [check_commanded(k, commanded[pos == k], scheme) for k in present]
     if scheme is not None:
         check_every_position(present, scheme)
     ts_used, zs, rates = [], [], []

@@ -191,10 +191,10 @@ def multiposition(B: int, repeat: int) -> dict:
     d = np.max(np.abs(coef[0] - x_fp) / np.sqrt(np.diag(cov[0])))
     return dict(rig="multiposition", test=f"S8, 8 x 60 s, {n}-state EKF at {1 / (t[1] - t[0]):g} Hz, one pass",
                 platcal_s=tp[0] / B, filterpy_s=tf[0], platcal_cpu_s=tp[1] / B, filterpy_cpu_s=tf[1],
-                max_diff_sigma=d, note="a step is flop-bound covariance algebra (two 3-row Joseph updates on the "
-                                       "lower triangle, no fused multiply-adds: the numbers stay bit-identical) and "
-                                       "a scalar model chain (4 rates and the measurement, 15 sin/cos pairs); "
-                                       "benchmarks/profile_multiposition.py")
+                max_diff_sigma=d, note="the covariance algebra runs 4 replicates per vector (SIMD lanes, no fused "
+                                       "multiply-adds: the numbers stay bit-identical); the scalar model chain per "
+                                       "replicate (4 rates and the measurement, 15 sin/cos pairs) is then about "
+                                       "half of a step; benchmarks/profile_multiposition.py")
 
 
 def sled(B: int, repeat: int) -> dict:

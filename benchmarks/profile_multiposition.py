@@ -2,14 +2,17 @@
 timed alone, in a compiled loop on one thread, on a realistic state and covariance (the end of
 one pass of scheme S8, 27 states; docs/multiposition-1g.md §9).
 
-Parts, in the order the step runs them (:func:`platcal.rigs.multiposition.filter._ekf_one`):
+Parts, in the order the step runs them (the one-replicate reference kernel
+:func:`platcal.rigs.multiposition.filter._ekf_one`):
 the rate of §4 with its analytic Jacobian F, Phi's 3 rows (I + F dt + F^2 dt^2 / 2 on the
 dynamic columns) and Q, the sparse propagation of P, RK4's three further rate evaluations, the
 measurement of §7 with its Jacobian, the accelerometer update (3 rows, sparse H) and the angle
 update (3 rows of 1/arcsec on phi) in Joseph form. Prints ns per call (CPU time of the thread)
-and the share of the whole step (``run_filter`` on one replicate, one thread).
+and the share of the reference kernel's whole step (one replicate, one thread), then the whole
+step of the kernel the filter runs (``run_filter``: replicates in SIMD lanes, the same numbers)
+per replicate at B = 1 (one live lane) and at ``--batch`` replicates.
 
-    python benchmarks/profile_multiposition.py [--steps 20000]
+    python benchmarks/profile_multiposition.py [--steps 20000] [--batch 64]
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from platcal.estimation.lanes import LANES
 from platcal.model.frames import ARCSEC, DEG
 from platcal.rigs.multiposition.config import load_config
 from platcal.rigs.multiposition.filter import _ekf_range, dynamic_cols, run_filter, simulate, transition_rows
@@ -101,28 +105,41 @@ def _loop_meas(steps, phi0, x, lay):
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=20000)
+    ap.add_argument("--batch", type=int, default=64, help="replicates of the lane kernel's batch run (64)")
     args = ap.parse_args(argv)
     cfg = load_config({"rig": "multiposition"})
     s8 = cfg.scheme("S8")
-    t, _, Z = simulate(cfg, s8, [0])
-    # the whole step: run_filter on one replicate, one thread, per filter step (per_call's best
-    # of 5 CPU times of one call, divided by the steps)
+    t, _, Zb = simulate(cfg, s8, list(range(args.batch)))
+    Z = np.ascontiguousarray(Zb[:1])
+    # the whole step per replicate, one thread (per_call's best of 5 CPU times of one call,
+    # divided by the steps): the reference kernel on one replicate (the parts below are its),
+    # and run_filter (replicates in lanes) on one replicate and on the batch
     steps = s8.n_positions * t.size
-    whole = per_call(lambda k: run_filter(cfg, s8.angles_deg, t[:k], Z[:, :, :k], passes=1, threads=1),
-                     t.size) * t.size / steps
+    lay, wn, wu, cols = layout_index(0), *cfg.site.params(), dynamic_cols(0)
+    r_var = np.array([cfg.sigma_a_ug**2] * 3 + [cfg.sigma_an_arcsec**2] * 3)
+    phi0s = np.asarray(s8.angles_deg, float) * DEG
+    nc = cfg.p0(0).size
+    n = nc + 3
+
+    def reference(k):
+        X, Ps = np.zeros((1, n)), np.zeros((1, n, n))
+        Ps[0, 3:, 3:] = np.diag(cfg.p0(0) ** 2)
+        tk = np.broadcast_to(t[:k], (phi0s.shape[0], k)).copy()
+        _ekf_range(0, 1, X, Ps, phi0s, tk, np.ascontiguousarray(Z[:, :, :k]), np.full(phi0s.shape[0], k), lay, wn,
+                   wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, cols, True, 0, 0.0, np.empty(1), np.zeros(1),
+                   np.zeros(1, dtype=np.int64), np.zeros((1, 0, 0, 12)))
+
+    whole = per_call(reference, t.size) * t.size / steps
+    lanes1 = per_call(lambda k: run_filter(cfg, s8.angles_deg, t[:k], Z[:, :, :k], passes=1, threads=1),
+                      t.size) * t.size / steps
+    lanes = per_call(lambda k: run_filter(cfg, s8.angles_deg, t[:k], Zb[:, :, :k], passes=1, threads=1),
+                     t.size, repeat=3) * t.size / steps / args.batch
     # a realistic point: the coefficients and covariance at the end of a short run, phi and its
     # covariance as after the last position's dwell
     tc, Zc = t[:500], Z[:, :, :500]
-    nc = cfg.p0(0).size
-    n = nc + 3
     X = np.zeros((1, n))
     Ps = np.zeros((1, n, n))
     Ps[0, 3:, 3:] = np.diag(cfg.p0(0) ** 2)
-    lay = layout_index(0)
-    wn, wu = cfg.site.params()
-    cols = dynamic_cols(0)
-    phi0s = np.asarray(s8.angles_deg, float) * DEG
-    r_var = np.array([cfg.sigma_a_ug**2] * 3 + [cfg.sigma_an_arcsec**2] * 3)
     tk = np.broadcast_to(tc, (phi0s.shape[0], tc.size)).copy()
     nk = np.full(phi0s.shape[0], tc.size, dtype=np.int64)
     _ekf_range(0, 1, X, Ps, phi0s, tk, np.ascontiguousarray(Zc), nk, lay, wn, wu, r_var, cfg.arw_rad**2,
@@ -172,7 +189,11 @@ def main(argv=None) -> None:
         total += net
         print(f"| {name} | {ns:.0f}" + (f" (net {net:.0f})" if restores else "") + f" | {100 * net / whole:.0f} |")
     print(f"| sum of the parts | {total:.0f} | {100 * total / whole:.0f} |")
-    print(f"| whole step (run_filter, B = 1, one thread) | {whole:.0f} | 100 |")
+    print(f"| whole step (reference kernel _ekf_one, one replicate) | {whole:.0f} | 100 |")
+    print(f"| whole step, lanes (run_filter, B = 1: one live lane, {LANES - 1} filler lanes) | {lanes1:.0f} | "
+          f"{100 * lanes1 / whole:.0f} |")
+    print(f"| whole step, lanes (run_filter, B = {args.batch}), per replicate | {lanes:.0f} | "
+          f"{100 * lanes / whole:.0f} |")
 
 
 if __name__ == "__main__":

@@ -33,57 +33,20 @@ reference kernel's scalar code, run once per live lane.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 import numba
 import numpy as np
 from numba import njit, prange
-from numba.core import config as numba_config
-from numba.core.compiler import CompilerBase, DefaultPassBuilder
 
 from .attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
 from .base import specific_force_into
 from ...estimation.kalman import cholesky_inverse
-
-LANES = 4
-"""Replicates per block: one AVX2 register of doubles (numba's LLVM prefers 256-bit vectors on
-this machine); a block's packed P (1176 x 4 doubles) stays in the 48 kB L1 cache."""
+from ...estimation.lanes import (LANES, NoAliasCompiler, innovation_covariance_lanes, joseph_correct_lanes,
+                                 packed_index, propagate_rows_lanes, slp_vectorize)
+from ...estimation.lanes import cholesky_inverse_lanes as _cholesky_inverse_lanes
 
 FASTMATH = False
 """LLVM fast-math flags of the block kernel: none (``{"contract"}``, fused multiply-adds, was 13 %
 faster but made the numbers depend on the build: see the module docstring)."""
-
-
-class NoAliasCompiler(CompilerBase):
-    """numba's nopython pipeline with the compiled function's pointer arguments (the arrays'
-    data) marked ``noalias``: the callers pass distinct arrays, so LLVM may keep values in
-    registers across stores and merge the lanes' loads and stores into vectors."""
-
-    def define_pipelines(self):
-        self.state.flags.noalias = True
-        return [DefaultPassBuilder.define_nopython_pipeline(self.state)]
-
-
-@contextmanager
-def slp_vectorize():
-    """LLVM's SLP vectoriser on for numba compilations in this block (numba's default is off).
-    It turns identical scalar operations on adjacent lanes into vector operations; it changes
-    no floating-point result (no reassociation), so it is safe for any function compiled
-    meanwhile."""
-    old = numba_config.SLP_VECTORIZE
-    numba_config.SLP_VECTORIZE = 1
-    try:
-        yield
-    finally:
-        numba_config.SLP_VECTORIZE = old
-
-
-def packed_index(n: int) -> np.ndarray:
-    """(n, n) int64: the packed position of entry (i, j) of a symmetric n x n matrix stored as its
-    lower triangle by rows (``i (i + 1) / 2 + j`` for j <= i; symmetric)."""
-    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    hi, lo = np.maximum(i, j), np.minimum(i, j)
-    return np.ascontiguousarray(hi * (hi + 1) // 2 + lo, dtype=np.int64)
 
 
 @njit(cache=True)
@@ -213,60 +176,7 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                 # P <- Phi P Phi^T + Q on the 3 attitude rows: W = Phi[dyn] P (rows through
                 # the packed index), the 3 x 3 block, then the rows (= the columns) written
                 qd = q_rate * h
-                for j in range(n):
-                    for l in range(L):
-                        W[0, j, l] = 0.0
-                        W[1, j, l] = 0.0
-                        W[2, j, l] = 0.0
-                # two columns of Phi per pass over W (half its loads and stores), each row of W
-                # in its own lane loop (one lane loop updating three rows is not vectorised);
-                # every entry still sums in column order
-                for kk in range(0, npc - 1, 2):
-                    ea0 = pcols[kk]
-                    eb0 = pcols[kk + 1]
-                    for j in range(n):
-                        ea = pidx[ea0, j]
-                        eb = pidx[eb0, j]
-                        for l in range(L):
-                            W[0, j, l] = (W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
-                        for l in range(L):
-                            W[1, j, l] = (W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
-                        for l in range(L):
-                            W[2, j, l] = (W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
-                if npc % 2:
-                    kk = npc - 1
-                    ea0 = pcols[kk]
-                    for j in range(n):
-                        ea = pidx[ea0, j]
-                        for l in range(L):
-                            W[0, j, l] += phi[0, kk, l] * Pl[ea, l]
-                        for l in range(L):
-                            W[1, j, l] += phi[1, kk, l] * Pl[ea, l]
-                        for l in range(L):
-                            W[2, j, l] += phi[2, kk, l] * Pl[ea, l]
-                for l in range(L):
-                    acc[0, l] = 0.0
-                    acc[1, l] = 0.0
-                    acc[2, l] = 0.0
-                    acc[3, l] = 0.0
-                    acc[4, l] = 0.0
-                    acc[5, l] = 0.0
-                for kk in range(npc):
-                    c = pcols[kk]
-                    for l in range(L):
-                        w0, w1_, w2 = W[0, c, l], W[1, c, l], W[2, c, l]
-                        p0, p1, p2 = phi[0, kk, l], phi[1, kk, l], phi[2, kk, l]
-                        acc[0, l] += w0 * p0
-                        acc[1, l] += w1_ * p0
-                        acc[2, l] += w1_ * p1
-                        acc[3, l] += w2 * p0
-                        acc[4, l] += w2 * p1
-                        acc[5, l] += w2 * p2
-                for r in range(3):
-                    for j in range(n):
-                        e = pidx[nc + r, j]
-                        for l in range(L):
-                            Pl[e, l] = W[r, j, l]
+                propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, nc)
                 for l in range(L):
                     Pl[e00, l] = acc[0, l] + qd
                     Pl[e10, l] = acc[1, l]
@@ -298,54 +208,10 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                         hval[r, kk, l] = hval[r, kk, 0]
                     innov[r, l] = innov[r, 0]
             # U = H P (3 x n), through the packed index; S = H U^T + R
-            for j in range(n):
-                for l in range(L):
-                    U[0, j, l] = 0.0
-                    U[1, j, l] = 0.0
-                    U[2, j, l] = 0.0
-            for r in range(3):
-                for kk in range(hnnz[r]):
-                    hc = hcols[r, kk]
-                    for j in range(n):
-                        e = pidx[hc, j]
-                        for l in range(L):
-                            U[r, j, l] += hval[r, kk, l] * Pl[e, l]
-            for r in range(3):
-                for c in range(r + 1):
-                    for l in range(L):
-                        acc[0, l] = 0.0
-                    for kk in range(hnnz[c]):
-                        hc = hcols[c, kk]
-                        for l in range(L):
-                            acc[0, l] += U[r, hc, l] * hval[c, kk, l]
-                    for l in range(L):
-                        S[r, c, l] = acc[0, l]
-                        S[c, r, l] = acc[0, l]
-                for l in range(L):
-                    S[r, r, l] += r_var[r]
+            innovation_covariance_lanes(Pl, pidx, hcols, hnnz, hval, r_var, U, S, acc[0])
             _cholesky_inverse_lanes(S, Sinv, innov, nu, ok)
             # K = S^-1 U, D = U - S K, x += K innov, P -= K U^T + D K^T (packed lower triangle)
-            for c in range(3):
-                for j in range(n):
-                    for l in range(L):
-                        K[c, j, l] = Sinv[c, 0, l] * U[0, j, l] + Sinv[c, 1, l] * U[1, j, l] + Sinv[c, 2, l] * U[2, j, l]
-            for c in range(3):
-                for j in range(n):
-                    for l in range(L):
-                        D[c, j, l] = U[c, j, l] - (S[c, 0, l] * K[0, j, l] + S[c, 1, l] * K[1, j, l]
-                                                   + S[c, 2, l] * K[2, j, l])
-            if update_x:
-                for j in range(n):
-                    for l in range(L):
-                        xl[j, l] += K[0, j, l] * innov[0, l] + K[1, j, l] * innov[1, l] + K[2, j, l] * innov[2, l]
-            e = 0
-            for i in range(n):
-                for j in range(i + 1):
-                    for l in range(L):
-                        Pl[e + j, l] -= ((K[0, i, l] * U[0, j, l] + K[1, i, l] * U[1, j, l] + K[2, i, l] * U[2, j, l])
-                                         + (D[0, i, l] * K[0, j, l] + D[1, i, l] * K[1, j, l]
-                                            + D[2, i, l] * K[2, j, l]))
-                e += i + 1
+            joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x)
             for l in range(nact):
                 b = b0 + l
                 if ok[l] > 0.0:
@@ -370,60 +236,6 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                 seg_nis[b] = nis[l]
             n_bad[b] += int(bad[l])
     _from_lanes(xl, Pl, blk, x, P, pidx)
-
-
-@njit(cache=True, fastmath=FASTMATH, inline="always")
-def _cholesky_inverse_lanes(S, Sinv, innov, nu, ok):
-    """Per lane, :func:`platcal.estimation.kalman.cholesky_inverse` of the 3 x 3 ``S`` (3, 3, L):
-    ``Sinv`` = S^-1 and ``nu`` = L^-1 innov (the standardised innovation), written out so that
-    the lanes run as vectors. A lane whose S is not positive definite gets ``ok = 0`` and
-    ``Sinv = 0``, ``nu = 0``: its gain is then zero and the update leaves x and P as they were
-    (the reference kernel skips it)."""
-    for l in range(LANES):
-        a00 = S[0, 0, l]
-        p0 = a00 > 0.0
-        f00 = np.sqrt(a00 if p0 else 1.0)
-        f10 = S[1, 0, l] / f00
-        f20 = S[2, 0, l] / f00
-        a11 = S[1, 1, l] - f10 * f10
-        p1 = a11 > 0.0
-        f11 = np.sqrt(a11 if p1 else 1.0)
-        f21 = (S[2, 1, l] - f20 * f10) / f11
-        a22 = S[2, 2, l] - f20 * f20 - f21 * f21
-        p2 = a22 > 0.0
-        f22 = np.sqrt(a22 if p2 else 1.0)
-        good = p0 and p1 and p2
-        n0 = innov[0, l] / f00
-        n1 = (innov[1, l] - f10 * n0) / f11
-        n2 = (innov[2, l] - f20 * n0 - f21 * n1) / f22
-        # L^-1 (lower): diagonal reciprocals, then the two sub-diagonals and the corner
-        i00 = 1.0 / f00
-        i11 = 1.0 / f11
-        i22 = 1.0 / f22
-        i10 = -(f10 * i00) * i11
-        i21 = -(f21 * i11) * i22
-        i20 = -(f20 * i00 + f21 * i10) * i22
-        # S^-1 = L^-T L^-1
-        s00 = i00 * i00 + i10 * i10 + i20 * i20
-        s01 = i10 * i11 + i20 * i21
-        s02 = i20 * i22
-        s11 = i11 * i11 + i21 * i21
-        s12 = i21 * i22
-        s22 = i22 * i22
-        z = 1.0 if good else 0.0
-        Sinv[0, 0, l] = s00 * z
-        Sinv[0, 1, l] = s01 * z
-        Sinv[0, 2, l] = s02 * z
-        Sinv[1, 0, l] = s01 * z
-        Sinv[1, 1, l] = s11 * z
-        Sinv[1, 2, l] = s12 * z
-        Sinv[2, 0, l] = s02 * z
-        Sinv[2, 1, l] = s12 * z
-        Sinv[2, 2, l] = s22 * z
-        nu[0, l] = n0 * z
-        nu[1, l] = n1 * z
-        nu[2, l] = n2 * z
-        ok[l] = z
 
 
 @njit(cache=True, inline="always")

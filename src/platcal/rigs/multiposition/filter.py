@@ -22,7 +22,12 @@ innovation at the prior), then the angle sensors, whose measurement is linear, w
 recomputed from the updated state (wrapped to +-180 deg). With R diagonal this equals the one
 6-D update exactly. At each position phi is reset to 0 with variance sigma_set^2 and no cross
 covariance; ``passes`` restart from the previous estimate with P0 = 100 x its coefficient
-covariance. Replicates run in ``nogil`` compiled loops on a thread pool (see :func:`_threaded`).
+covariance. Replicates run in blocks of :data:`platcal.estimation.lanes.LANES` with the replicates
+in SIMD lanes (:func:`_ekf_block`: P packed, every covariance operation one vector instruction over
+the block; issue 22 item 2), the same operations in the same order as the one-replicate reference
+kernel :func:`_ekf_one`, so the numbers are its numbers bit for bit and a replicate's numbers do not
+depend on its lane, the batch or the thread count; blocks run in ``nogil`` compiled loops on a
+thread pool (see :func:`_threaded`).
 
 **Covariance-only** (§8, §14): the same kernel with ``update_x = False`` started at the truth:
 the state then follows the noise-free truth trajectory and F, H are evaluated on it.
@@ -41,6 +46,8 @@ from numba import njit
 from ...errors import InputError
 from ...estimation.iterated import gauss_newton_point, make_iterated_scratch
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse, update_scratch
+from ...estimation.lanes import (LANES, NoAliasCompiler, cholesky_inverse_lanes, innovation_covariance_lanes,
+                                 joseph_correct_lanes, packed_index, propagate_rows_lanes, slp_vectorize)
 from ...model.frames import ARCSEC, DEG
 from ...study.montecarlo import replicate_seed
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
@@ -279,7 +286,10 @@ def transition_rows(F, T, cols, dt, arw2, phi, q):
 
 @njit(cache=True, error_model="numpy")  # numpy errors: no raise paths, see model.py's kernels
 def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, rec):
-    """One pass over K positions for one replicate; x (n,), P (n, n) updated in place.
+    """One pass over K positions for one replicate; x (n,), P (n, n) updated in place. The
+    reference kernel: the filter runs :func:`_ekf_block` (the same numbers, replicates in lanes);
+    this one is kept as its test oracle and for the per-part profile
+    (``benchmarks/profile_multiposition.py``).
 
     ``tk`` (K, m) sample times, ``zk`` (K, m, 6) outputs (ug, arcsec), ``nk`` (K,) samples used.
     ``iters`` 0: the EKF update (two 3-D Joseph updates); >= 1: the Gauss-Newton iterated update
@@ -405,6 +415,242 @@ def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_va
         nbad[b] += nb  # updates skipped because S was not positive definite
 
 
+# ------------------------------------------------------------------ EKF kernel, replicates in lanes
+
+@njit(cache=True, inline="always")
+def _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var, U, Kg, D, S, Sinv, nu, ok, acc, live, update_x):
+    """:func:`platcal.estimation.kalman.joseph_update_sparse` for m = 3 on every lane of a block
+    (``xl`` (n, LANES), packed ``Pl`` (n (n + 1) / 2, LANES); H's sparse rows ``hc``, ``nn`` shared
+    by the lanes, values ``hval`` (3, w, LANES)), the same operations in the same order, so each
+    lane's numbers are the reference kernel's bit for bit. A lane whose S is not positive definite
+    gets ``ok = 0`` and a zero gain: x and P stay as they were (the reference skips the update);
+    so does a lane with ``live = 0`` (its step skipped: the iterated update's S failed)."""
+    innovation_covariance_lanes(Pl, pidx, hc, nn, hval, r_var, U, S, acc)
+    cholesky_inverse_lanes(S, Sinv, innov, nu, ok)
+    for l in range(LANES):
+        if live[l] == 0.0:
+            ok[l] = 0.0
+            for r in range(3):
+                innov[r, l] = 0.0  # a skipped step's innovation may be anything: 0 * inf is no zero
+                for c in range(3):
+                    Sinv[r, c, l] = 0.0
+    joseph_correct_lanes(xl, Pl, U, Kg, D, S, Sinv, innov, update_x)
+
+
+@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler)
+def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
+               rec, pidx, xl, Pl, xm, Pm, W, U, Kg, D, phiL, qL, hval, hvala, innov, S, Sinv, nu, ok, acc, cnt, gn,
+               nu6L, F, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, phi1, q1, zp, Hs, hc, nn, hca, nna, zero3,
+               scr, nu6):
+    """:func:`_ekf_one` for the replicates ``blk * LANES ..`` of the batch, replicates in SIMD
+    lanes (:mod:`platcal.estimation.lanes`; docs/multiposition-1g.md §9): the covariance work
+    (propagation, both 3-row Joseph updates) is one vector operation over the lanes on the
+    packed lower triangle ``Pl``; the model (§4 rate and RK4, §7 measurement; with ``iters >= 1``
+    the iterated update's Gauss-Newton point, on the lane's P unpacked) is the reference's
+    scalar code once per live lane. Lanes past the batch repeat the block's first replicate and
+    are not written back. Every sum runs in the reference kernel's order without fused
+    multiply-adds, so x, P, the NIS and the innovations record are bit-identical to
+    :func:`_ekf_one`'s and a replicate's numbers depend neither on its lane nor on the batch.
+
+    ``phi0s`` (1, K, 3) commanded angles (rad) shared by the batch, or (R, K, 3) per replicate
+    (the covariance-only run of one position per batch entry). ``sums`` (R, 4) receives per
+    replicate the NIS sum, the updates, the linearisations and the skipped updates
+    (``_ekf_one``'s return values); the arguments from ``pidx`` on are the block's lane-layout
+    state and scratch (:func:`_ekf_blocks`), distinct arrays as the ``noalias`` compile requires.
+    """
+    B, n = X.shape
+    L = LANES
+    K = phi0s.shape[1]
+    m = cols.shape[0]
+    b0 = blk * L
+    nact = min(L, B - b0)
+    keep = rec.shape[1] > 0
+    own = phi0s.shape[0] > 1  # angles per replicate
+    for l in range(L):
+        src = b0 + l if l < nact else b0
+        for i in range(n):
+            xl[i, l] = X[src, i]
+            for j in range(i + 1):
+                Pl[pidx[i, j], l] = Ps[src, i, j]
+        for i in range(4):
+            cnt[i, l] = 0.0
+    for k in range(K):
+        # the position's start (§9): phi = 0 with variance sigma_set^2, no cross covariance
+        for r in range(3):
+            for l in range(L):
+                xl[r, l] = 0.0
+            for i in range(n):
+                e = pidx[r, i]
+                for l in range(L):
+                    Pl[e, l] = 0.0
+            e = pidx[r, r]
+            for l in range(L):
+                Pl[e, l] = set_var
+        for s in range(nk[k]):
+            if s > 0:
+                dt = tk[k, s] - tk[k, s - 1]
+                for l in range(nact):
+                    a0 = phi0s[b0 + l if own else 0, k]
+                    for i in range(n):
+                        xm[i] = xl[i, l]
+                    rate_k(a0, xm, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
+                    transition_rows(F, T, cols, dt, arw2, phi1, q1)
+                    for r in range(3):  # the rate at x, RK4's first stage
+                        k4[0, r] = nxt[r]
+                    rk4_k(a0, xm, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd,
+                          True)
+                    for r in range(3):
+                        xl[r, l] = nxt[r]
+                        for c in range(m):
+                            phiL[r, c, l] = phi1[r, c]
+                        for c in range(3):
+                            qL[r, c, l] = q1[r, c]
+                for l in range(nact, L):
+                    for r in range(3):
+                        xl[r, l] = xl[r, 0]
+                        for c in range(m):
+                            phiL[r, c, l] = phiL[r, c, 0]
+                        for c in range(3):
+                            qL[r, c, l] = qL[r, c, 0]
+                # P <- Phi P Phi^T + Q on phi's rows (propagate_sparse): the rows through the
+                # packed index, then the 3 x 3 block with Q (kalman._block3's sums)
+                propagate_rows_lanes(Pl, pidx, cols, phiL, W, acc, 0)
+                e00, e10, e11, e20, e21, e22 = pidx[0, 0], pidx[1, 0], pidx[1, 1], pidx[2, 0], pidx[2, 1], pidx[2, 2]
+                for l in range(L):
+                    Pl[e00, l] = acc[0, l] + 0.5 * (qL[0, 0, l] + qL[0, 0, l])
+                    Pl[e11, l] = acc[2, l] + 0.5 * (qL[1, 1, l] + qL[1, 1, l])
+                    Pl[e22, l] = acc[5, l] + 0.5 * (qL[2, 2, l] + qL[2, 2, l])
+                    Pl[e10, l] = acc[1, l] + 0.5 * (qL[1, 0, l] + qL[0, 1, l])
+                    Pl[e20, l] = acc[3, l] + 0.5 * (qL[2, 0, l] + qL[0, 2, l])
+                    Pl[e21, l] = acc[4, l] + 0.5 * (qL[2, 1, l] + qL[1, 2, l])
+            # the accelerometer outputs and H at the predicted state (iters >= 1: at the
+            # Gauss-Newton point, with its innovation), lane by lane
+            for l in range(nact):
+                a0 = phi0s[b0 + l if own else 0, k]
+                for i in range(n):
+                    xm[i] = xl[i, l]
+                gn[0, l] = 1.0  # linearisations; 0: the step is skipped (_ekf_one's continue)
+                gn[1, l] = 0.0  # a gain step ran: NIS from the first linearisation (nu6L)
+                if iters > 0:
+                    for i in range(n):
+                        for j in range(n):
+                            Pm[i, j] = Pl[pidx[i, j], l]
+                    used, gained = gauss_newton_point(xm, Pm, Z[b0 + l, k, s], r_var, resid6_k,
+                                                      (a0, lay, zp, Hs, hc, nn, C, dC), iters, tol, scr, nu6)
+                    gn[0, l] = used
+                    gn[1, l] = 1.0 if gained else 0.0
+                    hv6, hc6, nn6, in6 = scr[5], scr[6], scr[7], scr[4]
+                    for r in range(3):
+                        nn[r] = nn6[r]
+                        innov[r, l] = in6[r]
+                        for t in range(nn6[r]):
+                            hval[r, t, l] = hv6[r, t]
+                            hc[r, t] = hc6[r, t]
+                    for i in range(6):
+                        nu6L[i, l] = nu6[i]
+                else:
+                    meas_k(a0, xm, lay, zp, Hs, hc, nn, C, dC)
+                    for r in range(3):
+                        for t in range(nn[r]):
+                            hval[r, t, l] = Hs[r, t]
+                        innov[r, l] = Z[b0 + l, k, s, r] - zp[r]
+            for l in range(nact, L):
+                gn[0, l] = gn[0, 0]
+                for r in range(3):
+                    for t in range(nn[r]):
+                        hval[r, t, l] = hval[r, t, 0]
+                    innov[r, l] = innov[r, 0]
+            _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var[:3], U, Kg, D, S, Sinv, nu, ok, acc[0], gn[0],
+                          update_x)
+            for l in range(nact):
+                if gn[0, l] == 0.0:
+                    continue
+                cnt[2, l] += gn[0, l]
+                if ok[l] > 0.0:
+                    if gn[1, l] == 0.0:
+                        cnt[0, l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
+                    cnt[1, l] += 1.0
+                else:
+                    cnt[3, l] += 1.0
+                if keep:
+                    for i in range(3):
+                        rec[b0 + l, k, s, i] = innov[i, l]
+                        rec[b0 + l, k, s, 6 + i] = S[i, i, l] if ok[l] > 0.0 else np.nan
+            # the angle sensors (H = 1/arcsec on phi), innovation from the updated state
+            for l in range(L):
+                src = b0 + l if l < nact else b0
+                for i in range(3):
+                    d = Z[src, k, s, 3 + i] - (phi0s[src if own else 0, k, i] + xl[i, l]) / ARCSEC
+                    innov[i, l] = (d + 648000.0) % 1296000.0 - 648000.0
+            _update_lanes(xl, Pl, pidx, hca, nna, hvala, innov, r_var[3:], U, Kg, D, S, Sinv, nu, ok, acc[0], gn[0],
+                          update_x)
+            for l in range(nact):
+                if gn[0, l] == 0.0:
+                    continue
+                if ok[l] > 0.0:
+                    if gn[1, l] == 0.0:
+                        cnt[0, l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
+                else:
+                    cnt[3, l] += 1.0
+                if keep:
+                    for i in range(3):
+                        rec[b0 + l, k, s, 3 + i] = innov[i, l]
+                        rec[b0 + l, k, s, 9 + i] = S[i, i, l] if ok[l] > 0.0 else np.nan
+                if gn[1, l] > 0.0:
+                    for i in range(6):
+                        cnt[0, l] += nu6L[i, l] * nu6L[i, l]
+    for l in range(nact):
+        b = b0 + l
+        for i in range(n):
+            X[b, i] = xl[i, l]
+            for j in range(n):
+                Ps[b, i, j] = Pl[pidx[i, j], l]
+        for i in range(4):
+            sums[b, i] = cnt[i, l]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _ekf_blocks(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
+                rec, pidx):
+    """Blocks ``lo .. hi - 1`` of the batch through :func:`_ekf_block`, with their scratch."""
+    n = X.shape[1]
+    L = LANES
+    m = cols.shape[0]
+    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    hvala = np.full((3, 1, L), 1.0 / ARCSEC)
+    hca = np.empty((3, 1), dtype=np.int64)
+    for i in range(3):
+        hca[i, 0] = i
+    e = np.empty
+    for blk in range(lo, hi):
+        _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
+                   rec, pidx, e((n, L)), e((n * (n + 1) // 2, L)), e(n), e((n, n)), e((3, n, L)), e((3, n, L)),
+                   e((3, n, L)), e((3, n, L)), e((3, m, L)), e((3, 3, L)), np.zeros((3, 10, L)), hvala, e((3, L)),
+                   e((3, 3, L)), e((3, 3, L)), e((3, L)), e(L), e((6, L)), e((4, L)), e((2, L)), e((6, L)),
+                   np.zeros((3, n)), e(3), k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, e((3, m)), e((3, 3)), e(6),
+                   e((3, 10)), np.empty((3, 10), dtype=np.int64), np.empty(3, dtype=np.int64), hca,
+                   np.ones(3, dtype=np.int64), np.zeros(3), make_iterated_scratch(n, 6, 10), e(6))
+
+
+def _ekf_lanes(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x=True, iters=0, tol=0.0,
+               rec=None, threads=1):
+    """One pass (§9) of the batch ``X`` (R, n), ``Ps`` (R, n, n) in place, replicates in lanes
+    (:func:`_ekf_block`; arguments as :func:`_ekf_one`'s, ``phi0s`` (K, 3) rad shared or
+    (R, K, 3) per replicate); returns ``sums`` (R, 4): per replicate the NIS sum, the updates,
+    the linearisations and the skipped updates. ``rec`` (R, K, m, 12) or None (none kept)."""
+    R = X.shape[0]
+    sums = np.zeros((R, 4))
+    nblk = -(-R // LANES)
+    phi0s = np.ascontiguousarray(phi0s, dtype=float).reshape(-1, tk.shape[0], 3)
+    if phi0s.shape[0] not in (1, R) or Z.shape[:2] != (R, tk.shape[0]):  # the kernel does not check bounds
+        raise ValueError(f"angles {phi0s.shape}, outputs {Z.shape} and times {tk.shape} do not match {R} replicates")
+    rec = np.zeros((1, 0, 0, 12)) if rec is None else rec
+    with slp_vectorize():  # a first compile (or a cache miss) compiles the lanes as vectors
+        _threaded(_ekf_blocks, nblk, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols,
+                  bool(update_x), int(iters), float(tol), sums, rec, packed_index(X.shape[1]))
+    return sums
+
+
 def dynamic_cols(ext: int) -> np.ndarray:
     """State columns where the phi rows of Phi can be nonzero: phi and the gyro coefficients."""
     lay = layout_index(ext)
@@ -440,13 +686,15 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     nlin = np.zeros(R)
     nbad = np.zeros(R, dtype=np.int64)
     npass = int(passes or cfg.passes)
-    # one placeholder row when none is kept: the kernel indexes rec[0] (numba types both branches)
-    rec = np.zeros((1, 0, 0, 12)) if innovations is None else innovations
     for p in range(npass):
         if p > 0:
             st.next_pass()
-        _threaded(_ekf_range, R, threads, X, Ps, phi0s, tk, Z, nk, st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2,
-                  cfg.sigma_set_rad**2, st.cols, True, int(iterations), float(tolerance), nis, nlin, nbad, rec)
+        # replicates in lanes: the numbers of _ekf_one (_ekf_range) bit for bit
+        sums = _ekf_lanes(X, Ps, phi0s, tk, Z, nk, st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2,
+                          cfg.sigma_set_rad**2, st.cols, True, iterations, tolerance, innovations, threads)
+        nis[:] = sums[:, 0] / np.maximum(sums[:, 1], 1) / 6.0
+        nlin += sums[:, 2]
+        nbad += sums[:, 3].astype(np.int64)
     return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis, nlin / (npass * int(nk.sum())), nbad
 
 
@@ -515,19 +763,21 @@ def run_filter_positions(cfg, positions_deg, source, passes: int | None = None, 
         last = p == npass - 1 and on_innovations is not None
         k = -1
         for k, (t, z) in enumerate(source()):
+            if k >= phi0s.shape[0]:
+                raise ValueError(f"the record's source gave more positions than {phi0s.shape[0]}")
             m = t.size
-            rec = np.zeros((1, m, 12)) if last else np.zeros((0, 0, 12))
-            s, u, nl, nb = _ekf_one(st.X[0], st.Ps[0], phi0s[k:k + 1], np.ascontiguousarray(t, float)[None],
-                                    np.ascontiguousarray(z, float)[None], np.array([m], dtype=np.int64), st.lay,
-                                    st.wn, st.wu, st.r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, st.cols, True,
-                                    int(iterations), float(tolerance), rec)
+            rec = np.zeros((1, 1, m, 12)) if last else None
+            s, u, nl, nb = _ekf_lanes(st.X, st.Ps, phi0s[k:k + 1], np.ascontiguousarray(t, float)[None],
+                                      np.ascontiguousarray(z, float)[None, None], np.array([m], dtype=np.int64),
+                                      st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, st.cols,
+                                      True, iterations, tolerance, rec)[0]
             nis += s
             nup += u
             nlin += nl
             nbad += nb
             count += m
             if last:
-                on_innovations(k, rec[0])
+                on_innovations(k, rec[0, 0])
         if k + 1 != phi0s.shape[0]:
             raise ValueError(f"the record's source gave {k + 1} positions, not {phi0s.shape[0]}")
     return (st.X[:, 3:].copy(), st.Ps[:, 3:, 3:].copy(), np.array([nis / max(nup, 1) / 6.0]),
@@ -569,28 +819,15 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
     Pinit[3:, 3:] = np.diag(p0**2)
     if sequential:
         X, Ps = x0[None].copy(), Pinit[None].copy()
-        Zd = np.zeros((1, K, ns, 6))
-        _ekf_range(0, 1, X, Ps, phi0s, tk, Zd, nk, lay, wn, wu, r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, cols,
-                   False, 0, 0.0, np.empty(1), np.zeros(1), np.zeros(1, dtype=np.int64), np.zeros((1, 0, 0, 12)))
+        _ekf_lanes(X, Ps, phi0s, tk, np.zeros((1, K, ns, 6)), nk, lay, wn, wu, r_var, cfg.arw_rad**2,
+                   cfg.sigma_set_rad**2, cols, update_x=False)
         return Ps[0, 3:, 3:]
+    # one run per position: position k is batch entry k with its own commanded angles
     X = np.repeat(x0[None], K, axis=0)
     Ps = np.repeat(Pinit[None], K, axis=0)
-    out = np.empty((K, nc, nc))
-    Zd = np.zeros((K, 1, ns, 6))
-    nis = np.empty(K)
-    _threaded(_ekf_pos_range, K, threads, X, Ps, phi0s, tk[:1], Zd, nk[:1], lay, wn, wu, r_var, cfg.arw_rad**2,
-              cfg.sigma_set_rad**2, cols, nis)
-    out[:] = Ps[:, 3:, 3:]
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _ekf_pos_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, nis):
-    """One covariance-only position per batch entry (position b from ``phi0s[b]``)."""
-    for b in range(lo, hi):
-        s, u, _, _ = _ekf_one(X[b], Ps[b], phi0s[b:b + 1], tk, Z[b], nk, lay, wn, wu, r_var, arw2, set_var, cols, False,
-                           0, 0.0, np.zeros((0, 0, 12)))
-        nis[b] = s
+    _ekf_lanes(X, Ps, phi0s[:, None], tk[:1], np.zeros((K, 1, ns, 6)), nk[:1], lay, wn, wu, r_var, cfg.arw_rad**2,
+               cfg.sigma_set_rad**2, cols, update_x=False, threads=threads)
+    return Ps[:, 3:, 3:].copy()
 
 
 def position_information(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: float | None = None,

@@ -11,8 +11,8 @@ has two), each from its natural length up (a sled record lasts 86 s, its stop at
 low-precision run 17 min). The centrifuge and the multi-position rig are measured streamed
 (``--chunk-rows``, default) and, up to 1 h, read whole (``--chunk-rows 0``) for comparison (the
 multi-position rig's simulate has no ``--chunk-rows``: it writes one position at a time in both
-rows); so is the sled beyond its natural length (a natural record fits one chunk); the
-low-precision centrifuge reads its records whole. The ``import`` rows
+rows); so is the sled beyond its natural length (a natural record fits one chunk), and so is the
+low-precision centrifuge's identify (its simulate holds the run in both rows). The ``import`` rows
 are ``platcal identify --config <rig> --help``: the command's imports and nothing else, the floor
 under every other row.
 
@@ -102,8 +102,10 @@ def all_cases(max_minutes: float, folder: Path):
         cfg = ROOT / "config" / f"{rig}.yaml"
         yield rig, None, "import", cfg, None, ["--help"]
     yield "sled", None, "whole", ROOT / "config" / "sled.yaml", [], []
-    yield ("lowprec_centrifuge", None, "whole", ROOT / "config" / "lowprec_centrifuge.yaml",
-           ["--platform", "P1", "--run", "run1"], [])
+    lowprec_run = ["--platform", "P1", "--run", "run1"]
+    yield "lowprec_centrifuge", None, "streamed", ROOT / "config" / "lowprec_centrifuge.yaml", lowprec_run, []
+    yield ("lowprec_centrifuge", None, "whole", ROOT / "config" / "lowprec_centrifuge.yaml", lowprec_run,
+           ["--chunk-rows", "0"])
     for minutes in MINUTES:
         if minutes > max_minutes:
             continue
@@ -124,7 +126,9 @@ def all_cases(max_minutes: float, folder: Path):
         if minutes * 60 > LOWPREC_NATURAL_S:
             cfg = scaled_config("lowprec_centrifuge.yaml", ("profile", "rest_between_s"),
                                 LOWPREC_REST_S + (minutes * 60 - LOWPREC_NATURAL_S) / 2, folder)
-            yield "lowprec_centrifuge", minutes, "whole", cfg, ["--platform", "P1", "--run", "run1"], []
+            yield "lowprec_centrifuge", minutes, "streamed", cfg, lowprec_run, []
+            if minutes <= 60:
+                yield "lowprec_centrifuge", minutes, "whole", cfg, lowprec_run, ["--chunk-rows", "0"]
 
 
 def warm_up(base: list[str], todo, folder: Path, env: dict) -> None:

@@ -4,7 +4,8 @@ same estimates and covariances as the rig's former dense batched Joseph update, 
 import numpy as np
 
 from platcal.rigs.lowprec_centrifuge.config import load_config
-from platcal.rigs.lowprec_centrifuge.proposed import (NX, P0_STD, R_DIAG, f_matrix, predict, q_density, run_filter,
+from platcal.rigs.lowprec_centrifuge.proposed import (NX, P0_STD, R_DIAG, f_base, f_matrix, filter_windows, predict,
+                                                      q_density, run_filter,
                                                       window_data)
 from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
 from platcal.study.montecarlo import replicate_seed
@@ -58,3 +59,27 @@ def test_shared_update_matches_the_dense_joseph_filter():
     assert np.allclose(new.coeffs, x0[:, 7:11], rtol=1e-12, atol=1e-9)
     assert new.failed_updates.tolist() == [0, 0]
     assert np.all(np.isfinite(new.mean_nis)) and np.all(new.mean_nis > 0)
+
+
+def test_compiled_filter_carries_its_state_across_blocks_of_windows():
+    """filter_windows updates x, P, NIS in place: windows fed in two blocks give the one call's numbers."""
+    st = load_config(TINY)
+    rb = simulate_batch(st, "P1", "run1", [replicate_seed(0, "k", 10, r) for r in range(2)])
+    per = [window_data(rb.prof.t, rb.v_ind[s], rb.p_ind[s], np.unwrap(rb.psi[s]), rb.f_meas[s], rb.prof.schedule,
+                       st.centrifuge.arm_m)[1:] for s in range(2)]
+    nw = min(len(p[0]) for p in per)
+    T = np.stack([p[0][:nw] for p in per])
+    z, m = np.stack([p[1][:nw] for p in per]), np.stack([p[2][:nw] for p in per])
+    valid = np.ones((2, nw), bool)
+    lat = np.radians(st.latitude_deg)
+    whole = run_filter(T, z, m, valid, lat, keep_innovations=True)
+    x = np.zeros((2, NX))
+    P = np.broadcast_to(np.diag(P0_STD**2), (2, NX, NX)).copy()
+    nis, skipped = np.zeros(2), np.zeros(2, np.int64)
+    inn = np.full((2, nw, 8), np.nan)
+    cut = nw // 3
+    for sl in (slice(0, cut), slice(cut, nw)):
+        filter_windows(T[:, sl].copy(), z[:, sl].copy(), m[:, sl].copy(), valid[:, sl].copy(), f_base(lat),
+                       q_density(), R_DIAG.copy(), x, P, nis, skipped, inn[:, sl])
+    assert np.array_equal(x, whole.x) and np.array_equal(P, whole.P)
+    assert np.array_equal(nis / nw, whole.mean_nis) and np.array_equal(inn, whole.innovations)

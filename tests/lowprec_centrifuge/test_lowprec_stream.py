@@ -10,8 +10,16 @@ import pandas as pd
 import pytest
 import yaml
 
-from platcal.cli import main
-from platcal.rigs.lowprec_centrifuge.record import velocity_derivative
+from platcal.cli import build_parser, main
+from platcal.errors import InputError
+from platcal.io import read_config
+from platcal.rig import get_rig
+from platcal.rigs.lowprec_centrifuge.montecarlo import SEED_KEY
+from platcal.rigs.lowprec_centrifuge.record import record_frame, truth_json, velocity_derivative, write_record
+from platcal.rigs.lowprec_centrifuge.stream import _unwrap_tail
+from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
+from platcal.sizes import DEFAULT_MAX_HOURS, DEFAULT_MAX_MEMORY_GB, check_sizes
+from platcal.study.montecarlo import replicate_seed
 
 SMALL = {"rig": "lowprec_centrifuge", "profile": {"rest_first_s": 10, "rest_between_s": 30},
          "runs": {"P1": {"run1": [5, 8]}, "P2": {"run1": [5, 8]}}}
@@ -55,3 +63,93 @@ def test_identify_with_small_chunks_equals_whole_spline(record):
     np.testing.assert_allclose(e1["estimate"], e0["estimate"], rtol=1e-9, atol=0)
     np.testing.assert_allclose(e1["sigma"], e0["sigma"], rtol=1e-9, atol=0)
     assert s0["windows"] == s1["windows"]
+
+
+def _identified(cfg, data, out, chunk, *extra):
+    assert main(["identify", "--config", cfg, "--data", str(data), "--out", str(out), "--chunk-rows", chunk,
+                 *extra]) == 0
+    return pd.read_csv(out / "estimates.csv"), json.loads((out / "summary.json").read_text())
+
+
+@pytest.mark.parametrize("suffix", ["csv", "parquet"])
+def test_streamed_identify_equals_whole_read(record, suffix):
+    """issue 22 item 3: the record processed chunk by chunk (chunks smaller than the spline's and
+    the heading rate's context, and chunks that cut windows and spins) gives the whole read's
+    estimates, sigmas, window count, levels and fit check."""
+    d, cfg, df = record
+    data = d / f"rec.{suffix}"
+    if suffix == "parquet":
+        df.to_parquet(data)
+    e0, s0 = _identified(cfg, data, d / f"w_{suffix}", "0")
+    for chunk in ("997", "50"):
+        e1, s1 = _identified(cfg, data, d / f"c{chunk}_{suffix}", chunk)
+        np.testing.assert_allclose(e1["estimate"], e0["estimate"], rtol=1e-9, atol=0)
+        np.testing.assert_allclose(e1["sigma"], e0["sigma"], rtol=1e-9, atol=0)
+        for key in ("windows", "levels_g", "samples_per_spin", "samples_per_phase", "samples"):
+            assert s1[key] == s0[key], key
+        assert s1["fit"]["verdict"] == s0["fit"]["verdict"]
+        np.testing.assert_allclose(s1["fit"]["nis_per_dof"], s0["fit"]["nis_per_dof"], rtol=1e-9)
+
+
+def test_streamed_traditional_equals_whole_read(tmp_path):
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text(yaml.safe_dump({**SMALL, "traditional": {"levels_g": [5, 8], "hold_s": 20, "rest_last_s": 10}}))
+    assert main(["simulate", "--config", str(cfg), "--platform", "P1", "--run", "traditional", "--seed", "1",
+                 "--out", str(tmp_path / "t.csv")]) == 0
+    e0, s0 = _identified(str(cfg), tmp_path / "t.csv", tmp_path / "w", "0", "--method", "traditional")
+    e1, s1 = _identified(str(cfg), tmp_path / "t.csv", tmp_path / "c", "333", "--method", "traditional")
+    np.testing.assert_allclose(e1["estimate"], e0["estimate"], rtol=1e-12, atol=0)
+    assert s1["samples_per_plateau"] == s0["samples_per_plateau"] and s1["levels_g"] == s0["levels_g"]
+
+
+def test_unwrap_continued_over_chunks_is_numpys():
+    rng = np.random.default_rng(5)
+    psi = np.mod(np.cumsum(rng.uniform(-3.5, 3.5, 5000)), 2 * np.pi)
+    parts, prev, corr = [], None, 0.0
+    for a in range(0, psi.size, 613):
+        out, corr = _unwrap_tail(prev, corr, psi[a:a + 613])
+        prev = float(psi[a + out.size - 1])
+        parts.append(out)
+    assert np.array_equal(np.concatenate(parts), np.unwrap(psi))
+
+
+def test_streamed_bad_input_still_refused(record, tmp_path, capsys):
+    """A record that starts while spinning is refused after its other checks, as the whole read did."""
+    d, cfg, df = record
+    moving = np.flatnonzero(df["schedule"].to_numpy() != "static")
+    bad = df.iloc[moving[0]:].reset_index(drop=True)
+    bad.to_csv(tmp_path / "bad.csv", index=False)
+    for chunk in ("0", "500"):
+        assert main(["identify", "--config", cfg, "--data", str(tmp_path / "bad.csv"), "--out",
+                     str(tmp_path / "o"), "--chunk-rows", chunk]) == 2
+        assert "starts while spinning" in capsys.readouterr().err
+        assert not (tmp_path / "o" / "estimates.csv").exists()
+
+
+def test_simulate_writes_the_record_of_the_whole_batch(record, tmp_path):
+    """simulate navigates the INS without the sensitivity variants (less memory): the CSV text is
+    that of the batch with them (today's record)."""
+    d, cfg, _ = record
+    study = get_rig("lowprec_centrifuge").load_config(read_config(cfg))
+    ss = replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], 3)
+    rb = simulate_batch(study, "P1", "run1", [ss], [3], keep_phi=True, sens=True)
+    write_record(record_frame(rb), truth_json(rb, study), tmp_path / "with_sens.csv")
+    assert (tmp_path / "with_sens.csv").read_bytes() == (d / "rec.csv").read_bytes()
+    assert (tmp_path / "with_sens.csv.truth.json").read_text() == (d / "rec.csv.truth.json").read_text()
+
+
+def test_a_streamed_identify_is_not_sized_as_the_whole_record(tmp_path):
+    """A 2 GB record (about 17 h at 100 Hz) passes the default memory limit streamed (it holds two
+    chunks and its windows) and is refused read whole (``--chunk-rows 0``), naming --data."""
+    data = tmp_path / "big.csv"
+    with open(data, "wb") as fh:
+        fh.truncate(2_000_000_000)   # sparse: only its size is read
+    rig = get_rig("lowprec_centrifuge")
+    cfg = rig.load_config({"rig": "lowprec_centrifuge"})
+    base = ["identify", "--config", "c.yaml", "--data", str(data), "--out", "o"]
+    check_sizes(rig.sizes("identify", cfg, build_parser(rig).parse_args(base)), DEFAULT_MAX_MEMORY_GB,
+                DEFAULT_MAX_HOURS)
+    with pytest.raises(InputError) as e:
+        check_sizes(rig.sizes("identify", cfg, build_parser(rig).parse_args(base + ["--chunk-rows", "0"])),
+                    DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
+    assert e.value.field == "--data"

@@ -25,15 +25,16 @@ from ...logs.calibration import calibration_of, calibration_values, read_calibra
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
-from ...sizes import Costs, Size, samples_in
+from ...sizes import Costs, Size, record_size, samples_in
 from .config import COEFFS, G0, Study
 from .montecarlo import SEED_KEY
 from .profile import run_duration
-from .proposed import K_SLICE, identify_proposed
+from .proposed import K_SLICE, run_filter
 from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, check_plausible,
                      compensated_frame, estimates_frame,
                      read_record, record_frame, truth_json, write_record)
-from .traditional import identify_traditional
+from .stream import scan_record
+from .traditional import plateau_estimates
 from .truth import simulate_batch
 
 METHODS = ("proposed", "traditional")
@@ -56,8 +57,10 @@ def simulate(study: Study, args) -> int:
     t0 = time.perf_counter()
     # --seed N is replicate N of the study's cells (any scenario: they share the seeds), root seed `seed`
     ss = replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], seed)
+    # the record needs the INS alone: without the four unit-coefficient variants (sens) the INS
+    # lane's numbers are the same (each lane is navigated as if alone) and the run holds 5x fewer lanes
     rb = simulate_batch(study, args.platform, args.run, [ss], [seed], keep_phi=True,
-                        noise_free=bool(args.noise_free))
+                        noise_free=bool(args.noise_free), sens=False)
     write_record(record_frame(rb), truth_json(rb, study), args.out)
     print(f"platcal simulate: lowprec_centrifuge {args.platform} {args.run} ({', '.join(f'{a:g}' for a in rb.prof.levels)}"
           f" g), {'noise-free' if args.noise_free else f'seed {seed}'}, {rb.prof.t[-1]:.0f} s -> {args.out} "
@@ -71,24 +74,35 @@ def identify(study: Study, args) -> int:
         raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
     check_writable(args.out, "--out", folder=True)
     max_gap = float(study.raw["record"]["max_gap_s"])
-    rec = read_record(args.data, use_truth=not args.no_truth, rate_hz=study.rate_hz, max_gap_s=max_gap,
-                      mapping=RecordMapping.from_config(study.raw["record"], g=G0), window=chunk_rows_of(args))
-    found = check_against_config(rec, study, method, max_gap)
     arm = study.centrifuge.arm_m
-    check_plausible(rec, arm)
+    chunk = chunk_rows_of(args)
+    # one pass over the record, chunk_rows rows at a time: what the identification needs is kept
+    # as sums and per-window integrals, not the record (issue 22 item 3, :mod:`.stream`)
+    scan = scan_record(args.data, arm, study.rate_hz, max_gap, RecordMapping.from_config(study.raw["record"], g=G0),
+                       chunk or None, windows=method == "proposed", use_truth=not args.no_truth)
+    found = check_against_config(scan, study, method, max_gap)
+    check_plausible(scan, arm)
     t0 = time.perf_counter()
     fit = None
     if method == "proposed":
-        res = identify_proposed(rec.t, rec.v[None], rec.p[None], rec.psi[None], rec.f, rec.schedule, arm,
-                                study.latitude_deg, keep_innovations=True)
+        if scan.window_error is not None:
+            raise scan.window_error
+        T, z, m, _ = scan.windows
+        res = run_filter(T[None], z[None], m[None], np.ones((1, T.size), bool), np.radians(study.latitude_deg),
+                         keep_innovations=True)
         fit = record_fit(res)
         est, sig = res.coeffs[0], res.sigmas[0]
         extra = f"{int(res.n_windows[0])} windows"
         problems = run_problems(res.x[0], res.P[0])
         found["windows"] = int(res.n_windows[0])
     else:
-        est = identify_traditional(rec.t, rec.v[None], rec.psi[None], rec.schedule,
-                                   study.traditional["levels_g"], arm)[0]
+        if any(h[3] < 2 for h in scan.holds):
+            raise InputError("schedule", f"the traditional method needs {len(scan.holds)} 'hold' plateaus of at "
+                                         f"least two samples; the record has {len(scan.holds)}")
+        est = plateau_estimates(np.array([[e[0][0], e[1][0]] for e in scan.plateau_ends]),
+                                np.array([[[e[0][1], e[1][1]] for e in scan.plateau_ends]]),
+                                np.array([[[e[0][2], e[1][2]] for e in scan.plateau_ends]]),
+                                study.traditional["levels_g"], arm)[0]
         sig = np.full(4, np.nan)   # eq. (2) gives no uncertainty
         extra = "eq. (2)"
         problems = run_problems(est, None)
@@ -96,9 +110,9 @@ def identify(study: Study, args) -> int:
                          "the record's units (VE, VN in m/s, heading_deg in deg) and its schedule"):
         return EXIT_RUN_FAILED
     seconds = time.perf_counter() - t0
-    truth = rec.truth["coefficients"] if rec.truth and "coefficients" in rec.truth else None
+    truth = scan.truth["coefficients"] if scan.truth and "coefficients" in scan.truth else None
     df = estimates_frame(COEFFS, est, sig, truth)
-    summary = {"rig": "lowprec_centrifuge", "method": method, "samples": int(rec.t.size), **found,
+    summary = {"rig": "lowprec_centrifuge", "method": method, "samples": int(scan.samples), **found,
                "coefficients": dict(zip(COEFFS, map(float, est))), "truth_known": truth is not None,
                "seconds": round(seconds, 3),
                "fit": fit.as_dict() if fit is not None else {
@@ -174,10 +188,19 @@ COSTS = Costs(values={"simulate": 160}, seconds={"simulate": 5e-5},
 """The low-precision centrifuge's costs (:class:`platcal.sizes.Costs`)."""
 
 
+STREAMED_IDENTIFY_VALUES = 0.02
+"""float64 values a streamed identify (``--chunk-rows`` not 0, :mod:`.stream`) holds per byte of its
+record as CSV: its peak RSS grew 342 -> 387 MB from the 1 h to the 6 h record (116 -> 691 MB of
+CSV, benchmarks/bench_memory.md), 0.078 bytes a byte, rounded up about 2x as :data:`COSTS`."""
+
+
 def sizes(command: str, study: Study, args) -> list[Size]:
     """The work a command's inputs imply (:mod:`platcal.sizes`): simulate holds and runs the run's
     record (its duration at ``profile.rate_hz``) x :data:`COSTS`; identify, inspect and
-    compensate read the record they are given, sized by its file's bytes x :data:`COSTS`."""
+    compensate read the record they are given, sized by its file's bytes x :data:`COSTS` (a
+    streamed identify by :data:`STREAMED_IDENTIFY_VALUES` per byte, its time as read whole)."""
+    if command == "identify" and chunk_rows_of(args) != 0:
+        return [record_size(args.data, STREAMED_IDENTIFY_VALUES, COSTS.per_byte["identify"][1])]
     if command in COSTS.per_byte:
         return COSTS.record(command, args.data)
     if command != "simulate" or args.platform not in study.platforms or args.run not in study.run_names(args.platform):
@@ -193,7 +216,7 @@ OPTIONS = {
                  option("--run", default=None, help="run name of the platform, or traditional (required)")),
     "identify": (option("--method", default=None, help="proposed (default) or traditional"),
                  option("--chunk-rows", type=whole(0), default=None,
-                        help=f"samples of the velocity's spline evaluated at a time (default {CHUNK_ROWS}; 0: all "
-                             "at once); the record itself is read whole")),
+                        help=f"rows read and processed at a time (default {CHUNK_ROWS}; 0: the whole record at "
+                             "once); the identification keeps sums and per-window integrals, not the record")),
 }
 """The rig's own options (``--seed`` of simulate: seed N of the study)."""

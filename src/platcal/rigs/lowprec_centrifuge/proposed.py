@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ...errors import InputError
@@ -129,23 +130,53 @@ def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return c
 
 
+def boundary_integrals(t: np.ndarray, y: np.ndarray, c: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """(B, m) the integral of y (N, m) from t[0] to each instant ``tb`` (s, within [t[0], t[-1]]):
+    its cumulative trapezoid c at the sample before, plus the trapezoid to ``tb`` with y linearly
+    interpolated (docs/lowprec-centrifuge.md §7). Only the samples around each instant are read, so a streamed record
+    (:mod:`.stream`) evaluates it on a block holding them and gets the whole record's numbers."""
+    k = np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
+    h = (tb - t[k])[:, None]
+    yb = y[k] + h / (t[k + 1] - t[k])[:, None] * (y[k + 1] - y[k])
+    return c[k] + 0.5 * h * (y[k] + yb)
+
+
 def interval_means(t: np.ndarray, y: np.ndarray, c: np.ndarray, ts: np.ndarray, te: np.ndarray) -> np.ndarray:
     """(W, m) means of y (N, m) over [ts, te] from its cumulative trapezoid c, boundary values interpolated."""
-    dtk = np.diff(t)
+    return (boundary_integrals(t, y, c, te) - boundary_integrals(t, y, c, ts)) / (te - ts)[:, None]
 
-    def at(tb):
-        k = np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
-        h = (tb - t[k])[:, None]
-        yb = y[k] + h / dtk[k][:, None] * (y[k + 1] - y[k])
-        return c[k] + 0.5 * h * (y[k] + yb)
 
-    return (at(te) - at(ts)) / (te - ts)[:, None]
+def window_means(ts, te, iy_s, iy_e, if_s, if_e, psi_s, psi_e, arm_m: float):
+    """Per window [ts, te] (s): T (s), z (zVE, zVN m/s, zPE, zPN m) and m (m1E, m1N, m2E, m2N, g and
+    g^2) of docs/lowprec-centrifuge.md §7
+    from the integrals at its ends (:func:`boundary_integrals`) of y = (VE, VN, pcE, pcN) (``iy``)
+    and of the force terms (``if_``), and the unwrapped heading there (rad)."""
+    tt = te - ts
+    mean = (iy_e - iy_s) / tt[:, None]
+    m = (if_e - if_s) / tt[:, None]
+    du = np.stack([np.cos(psi_e) - np.cos(psi_s), np.sin(psi_e) - np.sin(psi_s)], axis=-1)
+    z = np.concatenate([mean[:, 0:2] - arm_m * du / tt[:, None], mean[:, 2:4]], axis=1)
+    return tt, z, m
+
+
+def arm_offset(p_rel: np.ndarray, psi_u: np.ndarray, u0: np.ndarray, arm_m: float) -> np.ndarray:
+    """(N, 2) m: the position relative to the centrifuge's centre minus the arm vector
+    (docs/lowprec-centrifuge.md §7) from positions ``p_rel`` (m) and the unwrapped heading (rad), the
+    centre at -arm u0 from the start (u0 = (cos, sin) of the first sample's heading)."""
+    u = np.stack([np.cos(psi_u), np.sin(psi_u)], axis=-1)
+    return p_rel + arm_m * u0 - arm_m * u
+
+
+def force_integrand(f: np.ndarray) -> np.ndarray:
+    """(|f|/g0, (f/g0)^2) per axis of f (N, 2) m/s^2: (N, 4) = (|aE|, |aN|, aE^2, aN^2), g and g^2
+    (docs/lowprec-centrifuge.md §7)."""
+    a = f / G0
+    return np.concatenate([np.abs(a), a * a], axis=1)
 
 
 def force_terms(t: np.ndarray, f: np.ndarray):
-    """(|f|/g0, (f/g0)^2) per axis, (N, 4) = (|aE|, |aN|, aE^2, aN^2), and its cumulative integral."""
-    a = f / G0
-    y = np.concatenate([np.abs(a), a * a], axis=1)
+    """:func:`force_integrand` of f and its cumulative integral."""
+    y = force_integrand(f)
     return y, cumtrap(t, y)
 
 
@@ -155,16 +186,12 @@ def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None):
     ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds).
     """
     win = find_windows(t, psi_u, schedule)
-    u = np.stack([np.cos(psi_u), np.sin(psi_u)], axis=-1)
-    pc = p_rel + arm_m * u[0] - arm_m * u      # position relative to the centre minus the arm vector
-    y = np.concatenate([v, pc], axis=1)
-    mean = interval_means(t, y, cumtrap(t, y), win.ts, win.te)
+    y = np.concatenate([v, arm_offset(p_rel, psi_u, np.array([np.cos(psi_u[0]), np.sin(psi_u[0])]), arm_m)], axis=1)
+    c = cumtrap(t, y)
     yf, cf = force_terms(t, f) if force is None else force
-    m = interval_means(t, yf, cf, win.ts, win.te)
-    tt = win.te - win.ts
-    psi_s, psi_e = np.interp(win.ts, t, psi_u), np.interp(win.te, t, psi_u)
-    du = np.stack([np.cos(psi_e) - np.cos(psi_s), np.sin(psi_e) - np.sin(psi_s)], axis=-1)
-    z = np.concatenate([mean[:, 0:2] - arm_m * du / tt[:, None], mean[:, 2:4]], axis=1)
+    tt, z, m = window_means(win.ts, win.te, boundary_integrals(t, y, c, win.ts), boundary_integrals(t, y, c, win.te),
+                            boundary_integrals(t, yf, cf, win.ts), boundary_integrals(t, yf, cf, win.te),
+                            np.interp(win.ts, t, psi_u), np.interp(win.te, t, psi_u), arm_m)
     return win, tt, z, m
 
 
@@ -243,50 +270,136 @@ def predict(F: np.ndarray, T: np.ndarray, x: np.ndarray, P: np.ndarray, q: np.nd
     return phi, H, xp, Pp
 
 
+@numba.njit(cache=True, error_model="numpy")
+def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations):
+    """The Kalman filter of docs/lowprec-centrifuge.md §7 over windows, compiled; the state is carried in place, so windows
+    can come in blocks. Per seed s (leading axis, independent: batched over replicates) and
+    window w with ``valid[s, w]``: F of the window's force means m (:func:`f_matrix`, base ``fb``
+    = :func:`f_base`), Phi and H of its length T (s) (:func:`transition_and_h`, the same
+    operations in the same order), the prediction x = Phi x, P = Phi P Phi^T + q T (q the noise
+    density, :func:`q_density`), then the shared Joseph-form update of the window means z (zVE,
+    zVN m/s, zPE, zPN m; noise variances ``r_var``, :func:`platcal.estimation.kalman.joseph_update_sparse`,
+    H dense: every column listed). ``nis[s]`` gains each update's NIS, ``skipped[s]`` counts
+    updates whose innovation covariance was not positive definite (the prediction kept). With
+    ``innovations`` of shape (S, W, 8), each window's innovation and its predicted variance
+    diag(H P H^T) + r go there (invalid windows untouched); shape (0, W, 8): not kept."""
+    nb, nw = T.shape
+    keep = innovations.shape[0] == nb
+    s_acc = G0 * 1e-6
+    hcols = np.empty((4, NX), np.int64)
+    for r in range(4):
+        for j in range(NX):
+            hcols[r, j] = j
+    hnnz = np.full(4, NX, np.int64)
+    U, K, D = np.empty((4, NX)), np.empty((4, NX)), np.empty((4, NX))
+    S, Sinv = np.empty((4, 4)), np.empty((4, 4))
+    nu, innov = np.empty(4), np.empty(4)
+    ft, ft2, ft3 = np.empty((NX, NX)), np.empty((NX, NX)), np.empty((NX, NX))
+    phi, tmp, Pp = np.empty((NX, NX)), np.empty((NX, NX)), np.empty((NX, NX))
+    H = np.empty((4, NX))
+    xp = np.empty(NX)
+    for s in range(nb):
+        for w in range(nw):
+            if not valid[s, w]:
+                continue
+            tw = T[s, w]
+            for i in range(NX):
+                for j in range(NX):
+                    ft[i, j] = fb[i, j] * tw
+            ft[0, 7] = (s_acc * m[s, w, 0]) * tw
+            ft[0, 8] = (s_acc * m[s, w, 2]) * tw
+            ft[1, 9] = (s_acc * m[s, w, 1]) * tw
+            ft[1, 10] = (s_acc * m[s, w, 3]) * tw
+            _matmul(ft, ft, ft2)
+            _matmul(ft2, ft, ft3)
+            for i in range(NX):
+                for j in range(NX):
+                    e = 1.0 if i == j else 0.0
+                    phi[i, j] = e + ft[i, j] + ft2[i, j] / 2 + ft3[i, j] / 6
+                    if i < 4:
+                        H[i, j] = e - ft[i, j] / 2 + ft2[i, j] / 6
+            for i in range(NX):
+                v = 0.0
+                for j in range(NX):
+                    v += phi[i, j] * x[s, j]
+                xp[i] = v
+            _matmul(phi, P[s], tmp)
+            for j in range(NX):   # Pp = tmp Phi^T, Phi's zeros skipped (each sum in index order)
+                for i in range(NX):
+                    Pp[i, j] = 0.0
+                for k in range(NX):
+                    c = phi[j, k]
+                    if c != 0.0:
+                        for i in range(NX):
+                            Pp[i, j] += tmp[i, k] * c
+            for i in range(NX):
+                Pp[i, i] += q[i] * tw
+            for r in range(4):
+                v = 0.0
+                for j in range(NX):
+                    v += H[r, j] * xp[j]
+                innov[r] = z[s, w, r] - v
+            if keep:
+                for r in range(4):
+                    v = 0.0
+                    for j in range(NX):
+                        u = 0.0
+                        for k in range(NX):
+                            u += Pp[j, k] * H[r, k]
+                        v += H[r, j] * u
+                    innovations[s, w, r] = innov[r]
+                    innovations[s, w, 4 + r] = v + r_var[r]
+            if joseph_update_sparse(xp, Pp, hcols, hnnz, H, innov, r_var, U, K, D, S, Sinv, nu, True):
+                nis[s] += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2] + nu[3] * nu[3]
+            else:
+                skipped[s] += 1
+            for i in range(NX):
+                x[s, i] = xp[i]
+                for j in range(NX):
+                    P[s, i, j] = Pp[i, j]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _matmul(a, b, out):
+    """out = a b for square matrices, each sum in index order with a's zeros skipped (F T and its
+    powers are sparse: 22 of 196 entries of F; adding an exact 0 changes no sum, so the result is
+    the dense loop's bit for bit)."""
+    n = a.shape[0]
+    for i in range(n):
+        oi = out[i]
+        for j in range(n):
+            oi[j] = 0.0
+        for k in range(n):
+            c = a[i, k]
+            if c != 0.0:
+                bk = b[k]
+                for j in range(n):
+                    oi[j] += c * bk[j]
+
+
 def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float,
                keep_innovations: bool = False) -> FilterResult:
-    """The Kalman filter over padded window arrays (S, W), batched over seeds: predict with Phi
-    (numpy, batched), then the shared Joseph-form update of :mod:`platcal.estimation.kalman` per
-    seed (H dense: every column listed). Window means of velocity (m/s) and position (m) (§7).
+    """The Kalman filter over padded window arrays (S, W), batched over seeds: the compiled
+    :func:`filter_windows` from x = 0, P = diag(P0_STD^2). Window means of velocity (m/s) and
+    position (m) (§7).
 
     ``keep_innovations``: the result's ``innovations`` (S, W, 8) holds each window's innovation
     (zVE, zVN m/s, zPE, zPN m) and its predicted variance diag(S) (NaN for padding), for the fit check.
     """
     nb, nw = T.shape
-    q = q_density()
     x = np.zeros((nb, NX))
-    P = np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)).copy()
-    r_var = R_DIAG.copy()
-    Fw = f_matrix(lat_rad, m)                    # (S, W, 14, 14)
-    hcols = np.tile(np.arange(NX), (4, 1))
-    hnnz = np.full(4, NX)
-    U, K, D = (np.empty((4, NX)) for _ in range(3))
-    S, Sinv = np.empty((4, 4)), np.empty((4, 4))
-    nu = np.empty(4)
+    P = np.broadcast_to(np.diag(P0_STD**2), (nb, NX, NX)).copy()   # writable: the kernel updates it
     nis = np.zeros(nb)
     skipped = np.zeros(nb, dtype=np.int64)
-    innovations = np.full((nb, nw, 8), np.nan) if keep_innovations else None
-    for w in range(nw):
-        ok = valid[:, w]
-        Tw = np.where(ok, T[:, w], 0.0)
-        phi, H, xp, Pp = predict(Fw[:, w], Tw, x, P, q)
-        innov = z[:, w] - np.einsum("bij,bj->bi", H, xp)
-        H = np.ascontiguousarray(H)
-        for s in np.flatnonzero(ok):
-            if innovations is not None:   # before the update, which overwrites Pp[s]
-                innovations[s, w, :4] = innov[s]
-                innovations[s, w, 4:] = np.einsum("ij,jk,ik->i", H[s], Pp[s], H[s]) + r_var
-            if joseph_update_sparse(xp[s], Pp[s], hcols, hnnz, H[s], innov[s], r_var, U, K, D, S, Sinv, nu, True):
-                nis[s] += nu @ nu
-            else:
-                skipped[s] += 1
-        x = np.where(ok[:, None], xp, x)
-        P = np.where(ok[:, None, None], Pp, P)
+    innovations = np.full((nb if keep_innovations else 0, nw, 8), np.nan)
+    filter_windows(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(z, dtype=float),
+                   np.ascontiguousarray(m, dtype=float), np.ascontiguousarray(valid, dtype=np.bool_),
+                   f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis, skipped, innovations)
     n_upd = valid.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_nis = nis / (n_upd - skipped)
     return FilterResult(x=x, P=P, n_windows=n_upd, mean_nis=mean_nis, failed_updates=skipped,
-                        innovations=innovations)
+                        innovations=innovations if keep_innovations else None)
 
 
 def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float,

@@ -22,12 +22,11 @@ from scipy.interpolate import CubicSpline
 
 from ...errors import InputError
 from ...mapping import RecordMapping
-from ...plausibility import refuse_recognised
+from ...plausibility import refuse_recognised_moments
 from ... import records
 from ...records import CHUNK_ROWS, check_times, iter_table
 from .config import COEFFS, G0
-from .profile import HOLD, SCHEDULE_NAMES, SPINNING, STATIC
-from .proposed import cumtrap
+from .profile import SCHEDULE_NAMES, STATIC
 from .errormodel import integrate_error_model
 from .truth import RunBatch
 
@@ -199,44 +198,33 @@ LEVEL_TOL = 0.05
 error of a poor centrifuge, a few 1e-3, and the heading noise are far below it)."""
 
 
-def spin_levels(rec: Record, arm_m: float, kind: str = "spin") -> list[tuple[float, float, float, int]]:
-    """Per spin (``kind='spin'``: non-static stretches) or plateau (``'hold'``): ``(level g, start s,
-    end s, samples)``. The level comes from the heading rate over about 0.1 s (10 samples, so the
-    heading noise averages out): its peak for a spin, its median for a plateau; A = w^2 r_nom / g0."""
-    psi = np.unwrap(rec.psi)
-    h = 5
-    rate = np.zeros_like(psi)
-    rate[h:-h] = (psi[2 * h:] - psi[:-2 * h]) / (rec.t[2 * h:] - rec.t[:-2 * h])
-    mask = rec.schedule != STATIC if kind == "spin" else rec.schedule == HOLD
-    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
-    out = []
-    for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
-        w = np.abs(rate[a:b])
-        w = float(np.median(w) if kind == "hold" else np.max(w))
-        out.append((w * w * arm_m / G0, float(rec.t[a]), float(rec.t[b - 1]), int(b - a)))
-    return out
+def level_g(rate_rad_s: float, arm_m: float) -> float:
+    """The level (g) of a turn at ``rate_rad_s`` on the nominal arm ``arm_m`` (m): A = w^2 r_nom / g0
+    (docs/lowprec-centrifuge.md §2)."""
+    return rate_rad_s * rate_rad_s * arm_m / G0
 
 
-def check_against_config(rec: Record, study, method: str, max_gap_s: float) -> dict:
+def check_against_config(scan, study, method: str, max_gap_s: float) -> dict:
     """Refuse a record that is not a run of the config (InputError naming the column), before any
-    filtering; return what was found (levels, samples per phase) for the summary.
+    filtering; return what was found (levels, samples per phase) for the summary. ``scan``: the
+    record as read (:class:`.stream.Scan`: its spins, plateaus and samples per phase). A level comes
+    from the heading rate over about 0.1 s (10 samples, so the heading noise averages out): its
+    peak for a spin (schedule not static), its median for a plateau (hold), :func:`level_g`.
 
-    ``proposed``: the record's spins (schedule not static) must peak at the two levels of one of
-    the config's proposed runs (``runs``, any platform; :data:`LEVEL_TOL`). ``traditional``: it
-    must hold two plateaus at ``traditional.levels_g`` for ``traditional.hold_s`` each (within
-    ``max_gap_s`` plus a sample): the method's eq. (2) uses those config values, not the record's.
+    ``proposed``: the record's spins must peak at the two levels of one of the config's proposed
+    runs (``runs``, any platform; :data:`LEVEL_TOL`). ``traditional``: it must hold two plateaus at
+    ``traditional.levels_g`` for ``traditional.hold_s`` each (within ``max_gap_s`` plus the
+    plateau's median step): the method's eq. (2) uses those config values, not the record's.
     """
     arm = study.centrifuge.arm_m
-    step = float(np.median(np.diff(rec.t)))
-    found = {"static": int(np.sum(rec.schedule == STATIC)), "spinning": int(np.sum(rec.schedule == SPINNING)),
-             "hold": int(np.sum(rec.schedule == HOLD))}
+    found = dict(scan.counts)
     if method == "traditional":
-        holds = spin_levels(rec, arm, "hold")
+        holds = scan.holds
         want = list(study.traditional["levels_g"])
         if len(holds) != len(want):
             raise InputError("--data column schedule", f"the record has {len(holds)} 'hold' plateau(s); the "
                              f"traditional method (traditional.levels_g = {want}) needs {len(want)}")
-        for i, ((lvl, a, b, _), w) in enumerate(zip(holds, want)):
+        for i, ((lvl, a, b, _, step), w) in enumerate(zip(holds, want)):
             if abs(lvl - w) > LEVEL_TOL * w:
                 raise InputError("--data column heading_deg", f"plateau {i + 1} (t = {a:g} .. {b:g} s) turns at "
                                  f"{lvl:.4g} g by the heading rate, but traditional.levels_g[{i}] = {w:g} g: the "
@@ -247,7 +235,7 @@ def check_against_config(rec: Record, study, method: str, max_gap_s: float) -> d
                                  f"but traditional.hold_s = {hold:g} s (record.max_gap_s = {max_gap_s:g} s)")
         return {"levels_g": [round(h[0], 4) for h in holds], "samples_per_phase": found,
                 "samples_per_plateau": [h[3] for h in holds]}
-    spins = spin_levels(rec, arm, "spin")
+    spins = scan.spins
     got = [s[0] for s in spins]
     runs = {f"{p}.{r}": lv for p, rr in study.runs.items() for r, lv in rr.items()}
     match = [n for n, lv in runs.items() if len(lv) == len(got)
@@ -260,11 +248,12 @@ def check_against_config(rec: Record, study, method: str, max_gap_s: float) -> d
             "samples_per_spin": [s[3] for s in spins]}
 
 
-def nominal_velocity(rec: Record, arm_m: float) -> np.ndarray:
+def nominal_velocity(t: np.ndarray, psi_u: np.ndarray, arm_m: float) -> np.ndarray:
     """(N, 2) m/s: the error-free velocity (VE, VN) of a platform on an arm of ``arm_m`` turned to
-    the record's heading (docs/lowprec-centrifuge.md §7: d/dt arm (cos psi, sin psi))."""
-    psi = np.unwrap(rec.psi)
-    return np.gradient(arm_m * np.stack([np.cos(psi), np.sin(psi)], axis=-1), rec.t, axis=0)
+    the unwrapped heading ``psi_u`` (rad) at times t (s) (docs/lowprec-centrifuge.md §7: d/dt arm
+    (cos psi, sin psi)); central differences, so a block with one sample of context each side
+    gives the whole record's values."""
+    return np.gradient(arm_m * np.stack([np.cos(psi_u), np.sin(psi_u)], axis=-1), t, axis=0)
 
 
 F_SCALE_TOL = 1e-3
@@ -276,38 +265,54 @@ check; on the default runs 2e-3 in fE (5e-3 in fN) moves an estimate by one sigm
 platform's runs)."""
 
 
-def specific_force_scale(rec: Record) -> np.ndarray:
-    """(2,) the median ratio of fE (fN) to its velocity derivative (:func:`velocity_derivative`)
-    over the samples where that component exceeds half its 99th percentile (spinning, away from
-    its zero crossings; a median, so a single bad sample is left to the filter's own checks)."""
-    d = velocity_derivative(rec.t, rec.v, rec.window)
-    out = np.ones(2)
+def large_force_ratios(f: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One spin's ratios fE / dE, fN / dN of its recorded specific force f (n, 2) to the derivative
+    of its velocity d (n, 2) (:func:`velocity_derivative`), m/s^2, over the samples where that
+    component exceeds half the spin's 99th percentile (away from its zero crossings;
+    docs/lowprec-centrifuge.md §10, "Data that do not fit")."""
+    out = []
     for c in range(2):
         big = np.abs(d[:, c]) > 0.5 * np.quantile(np.abs(d[:, c]), 0.99)
-        if big.any():
-            out[c] = float(np.median(rec.f[big, c] / d[big, c]))
-    return out
+        out.append(f[big, c] / d[big, c])
+    return out[0], out[1]
 
 
-def check_plausible(rec: Record, arm_m: float) -> None:
+def force_scale(ratios) -> np.ndarray:
+    """(2,) the median of each component's spin ratios (:func:`large_force_ratios`, every spin's
+    together; 1 where there are none): a median, so a single bad sample is left to the filter's
+    own checks."""
+    return np.array([float(np.median(r)) if r.size else 1.0 for r in ratios])
+
+
+def specific_force_scale(rec: Record) -> np.ndarray:
+    """(2,) :func:`force_scale` of a record held whole: its spins (schedule not static) one by one."""
+    d = velocity_derivative(rec.t, rec.v, rec.window)
+    moving = np.diff(np.r_[0, (rec.schedule != STATIC).astype(np.int8), 0])
+    parts = [large_force_ratios(rec.f[a:b], d[a:b]) for a, b in zip(np.flatnonzero(moving == 1),
+                                                                      np.flatnonzero(moving == -1))]
+    return force_scale([np.concatenate([p[c] for p in parts]) if parts else np.zeros(0) for c in range(2)])
+
+
+def check_plausible(scan, arm_m: float) -> None:
     """Refuse (InputError naming the column, exit 2, before the filter) a record whose velocities
     are a unit, sign or swap of the motion the config's arm and the record's heading imply
     (:func:`nominal_velocity`), or whose positions are one of the integral of its velocities
     (the INS's own position drifts by hundreds of metres on a spinning arm, its integral of
-    velocity with it; :func:`platcal.plausibility.refuse_recognised`): e.g. pE, pN in km are
-    1/1000 of the integrated VE, VN. Recorded ``fE``, ``fN`` must agree with the derivative of VE,
-    VN (:func:`specific_force_scale`) within :data:`F_SCALE_TOL`, a unit or a scale error of
-    theirs being invisible to the fit check (the coefficients absorb it)."""
-    refuse_recognised(rec.v, nominal_velocity(rec, arm_m), ("VE", "VN"), "m/s",
-                      f"VE, VN must be the INS's east and north velocities in m/s (on the arm of {arm_m:g} m: "
-                      "arm x heading rate)")
-    refuse_recognised(rec.p - rec.p[0], cumtrap(rec.t, rec.v), ("pE", "pN"), "m",
-                      "pE, pN must be the INS's east and north positions in m (the integral of VE, VN); map "
-                      "lat/lon or other units through the config's record.units",
-                      source="the integral of the record's VE, VN")
-    if not rec.f_recorded:  # differentiated from VE, VN: nothing to compare
+    velocity with it; :func:`platcal.plausibility.refuse_recognised_moments`): e.g. pE, pN in km
+    are 1/1000 of the integrated VE, VN. Recorded ``fE``, ``fN`` must agree with the derivative of
+    VE, VN (:func:`force_scale` of the spins' ratios) within :data:`F_SCALE_TOL`, a unit or a scale
+    error of theirs being invisible to the fit check (the coefficients absorb it). ``scan``: the
+    record's sums (:class:`.stream.Scan`: ``velocity``, ``position`` Moments, ``force_ratios``)."""
+    refuse_recognised_moments(scan.velocity, ("VE", "VN"), "m/s",
+                              f"VE, VN must be the INS's east and north velocities in m/s (on the arm of {arm_m:g} m: "
+                              "arm x heading rate)")
+    refuse_recognised_moments(scan.position, ("pE", "pN"), "m",
+                              "pE, pN must be the INS's east and north positions in m (the integral of VE, VN); map "
+                              "lat/lon or other units through the config's record.units",
+                              source="the integral of the record's VE, VN")
+    if not scan.f_recorded:  # differentiated from VE, VN: nothing to compare
         return
-    for name, vel, ratio in zip(("fE", "fN"), ("VE", "VN"), specific_force_scale(rec)):
+    for name, vel, ratio in zip(("fE", "fN"), ("VE", "VN"), force_scale(scan.force_ratios)):
         if not abs(ratio - 1.0) <= F_SCALE_TOL:
             raise InputError(f"--data column {name} (or {vel})",
                              f"{ratio:.6g} x the time derivative of {vel} while spinning, expected 1 within "

@@ -39,16 +39,27 @@ def design_matrix(levels_g, durations_s) -> np.ndarray:
 def identify_traditional(t, v, psi, schedule, levels_g, arm_m: float) -> np.ndarray:
     """(S, 4) estimates kA_x, k2_x, kA_y, k2_y from S records (v (S, N, 2), psi (S, N) rad)."""
     segs = hold_segments(schedule, len(levels_g))
-    dv = np.empty((v.shape[0], len(segs), 2))
+    return plateau_estimates(np.array([[t[k] for k in e] for e in segs]),
+                             np.stack([np.stack([v[:, k, :] for k in e], axis=1) for e in segs], axis=1),
+                             np.stack([np.stack([psi[:, k] for k in e], axis=1) for e in segs], axis=1),
+                             levels_g, arm_m)
+
+
+def plateau_estimates(t_ends, v_ends, psi_ends, levels_g, arm_m: float) -> np.ndarray:
+    """(S, 4) kA ug/g, k2 ug/g^2 per axis by eq. (2) (docs/lowprec-centrifuge.md §6) from each plateau's first and last hold samples only: their times ``t_ends``
+    (L, 2) s, velocities ``v_ends`` (S, L, 2, 2) m/s and headings ``psi_ends`` (S, L, 2) rad (a
+    streamed record keeps no more, :mod:`.stream`)."""
+    dv = np.empty((v_ends.shape[0], len(levels_g), 2))
     durs = []
-    for i, ((ks, ke), a) in enumerate(zip(segs, levels_g)):
+    for i, a in enumerate(levels_g):
         speed = np.sqrt(a * G0 / arm_m) * arm_m
-        err = [v[:, k, :] - speed * np.stack([-np.sin(psi[:, k]), np.cos(psi[:, k])], axis=-1) for k in (ks, ke)]
+        err = [v_ends[:, i, e, :] - speed * np.stack([-np.sin(psi_ends[:, i, e]), np.cos(psi_ends[:, i, e])], axis=-1)
+               for e in (0, 1)]
         dv[:, i, :] = err[1] - err[0]
-        durs.append(t[ke] - t[ks])
+        durs.append(t_ends[i][1] - t_ends[i][0])
     M = design_matrix(levels_g, durs)
     # one 2x2 solve per seed (stacked): a multi-right-hand-side solve rounds by the batch size
-    Ms = np.broadcast_to(M, (v.shape[0], 2, 2))
+    Ms = np.broadcast_to(M, (v_ends.shape[0], 2, 2))
     cx = np.linalg.solve(Ms, dv[:, :, 0:1])[:, :, 0]
     cy = np.linalg.solve(Ms, dv[:, :, 1:2])[:, :, 0]
     return np.stack([cx[:, 0], cx[:, 1], cy[:, 0], cy[:, 1]], axis=1)

@@ -88,7 +88,7 @@ def scan_times(path, cfg: SledConfig, tl: Timeline, chunk_rows: int) -> Times:
     k, T = epoch_samples(t, cfg.period_ms / 1000.0)
     n_stop = stop_index(t, tl.stop_time_s)
     rest = rest_samples(cfg, tl, t)
-    med_t = float(np.median(np.diff(t)))
+    med_t = float(np.median(np.diff(t), overwrite_input=True))  # the steps are a temporary: no second copy
     return Times(rows=t.size, origin=origin, med=med, med_t=med_t, k=k, T=T, n_stop=n_stop,
                  j_stop=int(min(np.searchsorted(k, n_stop), k.size - 1)), per_phase=samples_per_phase(tl, t, cfg.dt),
                  rest_s=float(rest.sum()) * med_t, tolerance=static_rate_tolerance(cfg, tl, t),

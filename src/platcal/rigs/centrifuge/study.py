@@ -34,7 +34,7 @@ from ...model.instruments import group_of, unit_of
 from ...parallel import set_threads
 from ...rig import NoiseAxis, ReplicateBatch
 from ...seeding import stable_key
-from ...study.montecarlo import StudySectionHooks, noise_key, noise_label, replicate_seed
+from ...study.sweep import StudySectionHooks, noise_key, noise_label, replicate_seed
 from .config import check_filter, study_from_config, validate_config
 from .estimators import check_kind
 from .identify import simulate_identify

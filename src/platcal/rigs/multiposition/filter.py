@@ -49,7 +49,7 @@ from ...estimation.kalman import joseph_update_sparse, propagate_sparse, update_
 from ...estimation.lanes import (LANES, NoAliasCompiler, cholesky_inverse_lanes, innovation_covariance_lanes,
                                  joseph_correct_lanes, packed_index, propagate_rows_lanes, slp_vectorize)
 from ...model.frames import ARCSEC, DEG
-from ...study.montecarlo import replicate_seed
+from ...study.sweep import replicate_seed
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
 
 

@@ -34,7 +34,7 @@ from ...io import read_yaml
 from ...parallel import get_threads
 from ...rig import NoiseAxis, ReplicateBatch
 from ...scheme import Scheme
-from ...study.montecarlo import StudySectionHooks, noise_key, noise_label
+from ...study.sweep import StudySectionHooks, noise_key, noise_label
 from .config import load_config, make_scheme, scheme_table
 from .estimators import estimate, raw_variant_choice, variant_choice
 from .filter import nees, simulate

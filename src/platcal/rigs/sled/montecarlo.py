@@ -31,7 +31,7 @@ import pandas as pd
 from ...errors import InputError
 from ...io import sorted_mapping
 from ...rig import NoiseAxis, ReplicateBatch, RunSettings
-from ...study.montecarlo import replicate_seed
+from ...study.sweep import replicate_seed
 from .config import ARCSEC, SledConfig, load_config
 from .identify import Identification, effective_phi, identify, metrics, phi_columns, run_problems
 from .simulate import SimBatch, simulate

@@ -38,11 +38,11 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed, parallel_config
 
+from ..estimation.consistency import rel_err_pct
 from ..io import atomic_files, json_safe
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
 from ..rig import Rig, get_rig
-from .stats import rel_err_pct
 from .sweep import StudySectionHooks, noise_key, noise_label, replicate_seed  # noqa: F401 (the sweep's keys, used here and by callers of the runner)
 
 CELL = ["scheme", "noise", "estimator"]

@@ -27,10 +27,10 @@ import re
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ...errors import InputError
 from ...io import read_yaml
+from ...lighttable import Table
 from ...parallel import get_threads
 from ...rig import NoiseAxis, ReplicateBatch
 from ...scheme import Scheme
@@ -89,11 +89,13 @@ def check_study(raw) -> dict:
     return cfg.raw
 
 
-def quantities(cfg) -> pd.DataFrame:
-    """The 24 identified coefficients of a config: name, group (gyro / accel), unit, truth."""
+def quantities(cfg):
+    """The 24 identified coefficients of a config: name, group (gyro / accel), unit, truth (a
+    pandas DataFrame for the runner's tables, :meth:`platcal.lighttable.Table.to_pandas`: the
+    rig's identify, which imports this module for its hooks, loads no pandas)."""
     names = coef_names()
-    return pd.DataFrame({"name": names, "group": [group_of(n) for n in names],
-                         "unit": [unit_of(n) for n in names], "truth": cfg.truth()})
+    return Table({"name": names, "group": [group_of(n) for n in names],
+                  "unit": [unit_of(n) for n in names], "truth": cfg.truth()}).to_pandas()
 
 
 def run_cell_batch(cfg, scheme: Scheme, sigma_a_ug: float, estimator: str, seeds, threads: int = 1) -> ReplicateBatch:

@@ -177,11 +177,12 @@ def atomic_to_csv(df, path: str | os.PathLike, **kw) -> None:
         df.to_csv(tmp, index=kw.pop("index", False), **kw)
 
 
-def csv_text(columns: dict, index: tuple[str, list] | None = None) -> str:
+def csv_text(columns: dict, index: tuple[str, list] | None = None, float_format: str | None = None) -> str:
     """The CSV text ``DataFrame.to_csv`` writes for ``columns`` (name -> values, equal lengths;
     ``index``: (label, values) written first, as ``to_csv(index=True)`` of a named index), without
     pandas: floats at full precision (``repr``), NaN and None empty, text quoted only when it holds
-    a comma, quote or line break. An identify writes its estimates through this, so it never
+    a comma, quote or line break; ``float_format`` (``"%.6g"``) formats the floats as ``to_csv``'s
+    does. An identify writes its estimates through this, so it never
     loads pandas (issue 22 item 3: pandas is some 40 MB of a streamed identify's floor)."""
     names = ([index[0]] if index else []) + [str(c) for c in columns]
     cols = ([list(index[1])] if index else []) + [np.asarray(v).tolist() if isinstance(v, np.ndarray) else list(v)
@@ -190,7 +191,8 @@ def csv_text(columns: dict, index: tuple[str, list] | None = None) -> str:
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(names)
     for row in zip(*cols):
-        writer.writerow(["" if v is None or (isinstance(v, float) and math.isnan(v)) else v for v in row])
+        writer.writerow(["" if v is None or (isinstance(v, float) and math.isnan(v))
+                         else float_format % v if float_format and isinstance(v, float) else v for v in row])
     return out.getvalue()
 
 

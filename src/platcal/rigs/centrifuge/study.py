@@ -11,7 +11,7 @@ and ``ga_*`` / any name listed in ``study.generated_schemes``, which resolve to 
 
 The swept noise is the accelerometer's ``sigma_a_ug`` (ug per 5 ms sample); replicate r of
 scheme S at level sigma_a draws from ``SeedSequence(seed, spawn_key=(stable_key(S),
-round(1000 sigma_a), r))`` (:func:`platcal.study.montecarlo.replicate_seed`).
+round(1000 sigma_a), r))`` (:func:`platcal.study.sweep.replicate_seed`).
 """
 
 from __future__ import annotations

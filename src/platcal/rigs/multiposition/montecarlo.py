@@ -12,7 +12,7 @@ replicates, run by :mod:`platcal.study.montecarlo` (one Snakemake job per cell, 
 - Estimators: the keys of ``study.estimators`` (overrides of ``filter``: ``ekf1``, ``ekf2``,
   ``iekf`` by default); every estimator of a cell sees the same simulated records.
 - Seeds: replicate r of scheme S at sigma_a draws from ``SeedSequence(seed, spawn_key=
-  (stable_key(S), round(1000 sigma_a), r))`` (:func:`platcal.study.montecarlo.replicate_seed`;
+  (stable_key(S), round(1000 sigma_a), r))`` (:func:`platcal.study.sweep.replicate_seed`;
   ``seed`` is the config's root ``seed``) in §14's order of use (:func:`.filter.draw_noise`), so
   its numbers are the same whatever the batch, thread count or job order, and
   ``platcal simulate --seed r`` writes the same record.

@@ -20,7 +20,7 @@ import yaml
 
 from .. import __version__
 from ..errors import InputError
-from ..io import csv_text, json_safe, read_config
+from ..io import json_safe, read_config, write_csv
 
 KEYS = ("rig", "model_version", "names", "units", "values", "covariance", "log_sha256", "config")
 
@@ -71,11 +71,12 @@ def sha256_file(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def covariance_csv(names, P) -> str:
-    """``covariance.csv``: the covariance (units squared) with the names as row (``state``) and
-    column labels, the text pandas' ``to_csv`` wrote (written without it: an identify loads no pandas)."""
+def write_covariance(path, names, P) -> None:
+    """``covariance.csv`` at ``path``: the covariance (units squared) with the names as row
+    (``state``) and column labels, the text pandas' ``to_csv`` wrote (written without it by
+    :func:`platcal.io.write_csv`: an identify loads no pandas)."""
     P = np.asarray(P)
-    return csv_text({n: P[:, i] for i, n in enumerate(names)}, index=("state", list(names)))
+    write_csv(path, {n: P[:, i] for i, n in enumerate(names)}, index=("state", list(names)))
 
 
 def read_calibration(path: str | os.PathLike, field: str = "--calibration") -> Calibration:
@@ -118,7 +119,7 @@ def write_calibration_files(tmp, cal: Calibration, covariance: bool = True) -> N
     :func:`platcal.io.atomic_files` block (``tmp(name) -> Path``)."""
     tmp("calibration.yaml").write_text(cal.text())
     if covariance:
-        tmp("covariance.csv").write_text(covariance_csv(cal.names, cal.covariance))
+        write_covariance(tmp("covariance.csv"), cal.names, cal.covariance)
 
 
 def calibration_values(cal: Calibration, names, rig: str) -> np.ndarray:

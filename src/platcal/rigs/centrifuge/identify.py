@@ -11,8 +11,8 @@ import numpy as np
 
 from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
-from ...io import atomic_files, csv_text, json_text
-from ...logs.calibration import Calibration, calibration_of, covariance_csv, write_calibration_files
+from ...io import atomic_files, json_text, write_csv
+from ...logs.calibration import Calibration, calibration_of, write_calibration_files, write_covariance
 from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...model.instruments import unit_of
 from ...plausibility import (ClockRate, clock_rate, clock_rate_tolerance, refuse_clock_rate, refuse_recognised,
@@ -441,9 +441,9 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         summary["max_abs_rel_err_pct_gyro"] = float(np.nanmax(rel[gyro]))
         summary["max_abs_rel_err_pct_accel"] = float(np.nanmax(rel[~gyro]))
     with atomic_files(out_dir) as tmp:
-        tmp("estimates.csv").write_text(csv_text(table))
-        tmp("covariance.csv").write_text(covariance_csv(est.names, est.P[0]))
-        tmp("history.csv").write_text(csv_text(history_columns(est)))
+        write_csv(tmp("estimates.csv"), table)
+        write_covariance(tmp("covariance.csv"), est.names, est.P[0])
+        write_csv(tmp("history.csv"), history_columns(est))
         tmp("table2.md").write_text(table2_markdown(table))
         if calibration is not None:
             write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state

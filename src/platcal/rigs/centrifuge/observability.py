@@ -47,7 +47,7 @@ from ...errors import InputError
 from ...estimation import information
 from ...estimation.information import (CRITERIA, correlation, crb_sigma, criteria, gram_singular_values,
                                        j_objective, numerical_rank, posterior_covariance, relative_scale)
-from ...io import atomic_files, csv_text, json_text
+from ...io import atomic_files, json_text, write_csv
 from .attitude import make_rk4_scratch, make_work, measure_into, rk4_step_jac
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, N_FULL, N_IDENTIFIED, group_of, unit_of
@@ -471,7 +471,7 @@ def write_observability(out_dir, study, scheme, replicates: int = 0, **kw) -> di
     result, P, names = evaluate_scheme(study, scheme, **kw)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    # coefficients.csv's columns (csv_text: pandas' to_csv text; this module is loaded by identify)
+    # coefficients.csv's columns (write_csv: pandas' to_csv text; this module is loaded by identify)
     coef = {k: [c[k] for c in result["coefficients"]] for k in result["coefficients"][0]}
     coef["crb_sigma"] = np.array([np.nan if v is None else v for v in coef["crb_sigma"]], float)
     if replicates > 0:
@@ -500,8 +500,8 @@ def write_observability(out_dir, study, scheme, replicates: int = 0, **kw) -> di
     rho = correlation(P)
     # the three files land together, observability.json (strict JSON: null for NaN) last
     with atomic_files(out) as tmp:
-        tmp("correlation.csv").write_text(csv_text({n: rho[:, i] for i, n in enumerate(names)}, index=("", list(names))))
-        tmp("coefficients.csv").write_text(csv_text(coef))
+        write_csv(tmp("correlation.csv"), {n: rho[:, i] for i, n in enumerate(names)}, index=("", list(names)))
+        write_csv(tmp("coefficients.csv"), coef)
         tmp("observability.json").write_text(json_text(result))
     return result
 

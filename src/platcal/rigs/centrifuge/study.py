@@ -27,9 +27,9 @@ import numpy as np
 
 from ...errors import InputError
 from ...estimation.consistency import nees
-from ...io import atomic_to_parquet, atomic_write_csv, atomic_write_text, normalise_numbers
+from ...io import atomic_path, atomic_to_parquet, atomic_write_csv, atomic_write_text, normalise_numbers
 from ...lighttable import Table
-from ...logs.calibration import covariance_csv
+from ...logs.calibration import write_covariance
 from ...log import job_logger
 from ...model.instruments import group_of, unit_of
 from ...parallel import set_threads
@@ -359,7 +359,8 @@ def write_single(out_dir: str | os.PathLike, study, est, scheme, sigma_a_ug, est
     out = Path(out_dir)
     nc = est.n_coef
     atomic_write_csv(out / "estimates.csv", estimates_columns(est.names[:nc], est.coef[0], est.coef_sigma[0], study.truth))
-    atomic_write_text(out / "covariance.csv", covariance_csv(est.names, est.P[0]))
+    with atomic_path(out / "covariance.csv") as tmp:
+        write_covariance(tmp, est.names, est.P[0])
     atomic_to_parquet(history_frame(est, scheme), out / "history.parquet")
     info = {"scheme": scheme.name, "sigma_a_ug": float(sigma_a_ug), "estimator": estimator,
             "replicate": int(replicate), "passes": int(study.filter.passes), "dwell_s": scheme.dwell_s,

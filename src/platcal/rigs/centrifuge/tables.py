@@ -2,7 +2,7 @@
 
 Relative error is eq. 28: ``e = (estimate - truth) / truth * 100 %``. The tables are columns by
 name (a dict of arrays, or a DataFrame read back by the report): ``identify`` writes them
-without pandas (:func:`platcal.io.csv_text`), so it does not load pandas (issue 22 item 3).
+without pandas (:func:`platcal.io.write_csv`), so it does not load pandas (issue 22 item 3).
 """
 
 from __future__ import annotations

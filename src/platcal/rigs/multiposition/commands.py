@@ -21,7 +21,7 @@ from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, fit_exit_status, gross_errors_moments
 from ...errors import InputError
 from ...rig import option, resolve
-from ...io import atomic_files, check_writable, csv_text, json_text
+from ...io import atomic_files, check_writable, json_text, write_csv
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log, gyro_note, read_mapped
 from ...logs.dwells import DWELL_FIGURE, dwells_found, lacks_position
@@ -252,7 +252,7 @@ def cmd_identify(cfg, args) -> int:
     sig = np.sqrt(np.diag(P))
     units = [unit_of(n) for n in names]
     groups = [group_of(n) for n in names]
-    # estimates.csv's columns, written by platcal.io.csv_text (pandas' to_csv text, without pandas)
+    # estimates.csv's columns, written by platcal.io.write_csv (pandas' to_csv text, without pandas)
     table = {"name": names, "unit": units, "group": groups, "estimate": est, "sigma": sig}
     summary = {"rig": "multiposition", "scheme": scheme.name, "n_states": len(names) + 3,
                "estimator": choice.estimator, "passes": choice.passes, "estimator_options": choice.options,
@@ -277,7 +277,7 @@ def cmd_identify(cfg, args) -> int:
     out = Path(args.out)
     cal = calibration_of("multiposition", "multiposition-1g.md", names, units, est, P, args.data, cfg.raw)
     with atomic_files(out) as tmp:  # the files land together, summary.json last
-        tmp("estimates.csv").write_text(csv_text(table))
+        write_csv(tmp("estimates.csv"), table)
         write_calibration_files(tmp, cal)
         if segmentation is not None:
             resolve(DWELL_FIGURE)(*segmentation, tmp("dwells.png"))

@@ -11,7 +11,7 @@ import numpy as np
 from ...errors import InputError
 from ...estimation.consistency import EXIT_RUN_FAILED, failed_run_status
 from ...estimation.fit import fit_exit_status
-from ...io import atomic_files, check_writable, csv_text, json_text
+from ...io import atomic_files, check_writable, json_text, write_csv
 from ...logs.calibration import read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log
 from ...logs.increments import increment_units
@@ -93,7 +93,7 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     # the check at rest: what it does to the estimates, and the sigma with it
     summary["gyro_rate_error"] = gyro(est)
     with atomic_files(out) as tmp:  # the files land together, metrics.json last
-        tmp("estimates.csv").write_text(csv_text(est, float_format="%.6g"))
+        write_csv(tmp("estimates.csv"), est, float_format="%.6g")
         write_calibration_files(tmp, calibration(idn, args.data, cfg.raw))
         tmp("metrics.json").write_text(json_text(summary))
     msg = (f"platcal identify: sled {cfg.states}-state run filter, {cfg.compensation} X compensation, "

@@ -20,7 +20,7 @@ from ...mapping import RecordMapping
 from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one, iter_table
 from ...sizes import Costs, Size, samples_in
 from .config import G, SledConfig
-from .identify import (calibration, compensated_track, estimates, gyro_rate_block, gyro_rate_error, identify,
+from .identify import (calibration, compensated_track, estimate_columns, gyro_rate_block, gyro_rate_error, identify,
                        metric_columns, phi_from_calibration, record_fit, run_problems)
 from .montecarlo import replicate_seeds
 from .record import (IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, check_plausible, read_record, record_arrays,
@@ -79,7 +79,7 @@ def cmd_identify(cfg: SledConfig, args) -> int:
                          "the record's units (f in m/s^2, w in rad/s) and the config's filter settings"):
         return EXIT_RUN_FAILED
     met = {k: v[0] for k, v in metric_columns(one, truth, tail).items()}  # the first seed slot: the record
-    est = estimates(idn, truth)
+    est = estimate_columns(idn, truth)
     seconds = time.perf_counter() - t0[0]
     out = Path(args.out)
     summary = {k: (None if not np.isfinite(v) else float(v)) for k, v in met.items()}

@@ -331,7 +331,7 @@ def metrics(idn: Identification, truth: Truth | None, tail: Tail | None = None) 
     return Table(metric_columns(idn, truth, tail)).to_pandas()
 
 
-def estimates(idn: Identification, truth: Truth | None, s: int = 0) -> dict:
+def estimate_columns(idn: Identification, truth: Truth | None, s: int = 0) -> dict:
     """estimates.csv of one seed slot, as columns: run-filter attitude (arcsec) with sigma, truth,
     effective; the stop filter's φ_x, φ_y and the by-product ∇̂_x (µg)."""
     eff = effective_phi(truth)[s] if truth is not None else np.full(3, np.nan)
@@ -348,6 +348,11 @@ def estimates(idn: Identification, truth: Truth | None, s: int = 0) -> dict:
     rows.append({"name": "nabla_x", "filter": "stop", "unit": "ug", "estimate": idn.nabla_x_hat[s] / G * 1e6,
                  "sigma": np.nan, "truth": nab, "effective": np.nan})
     return {k: [r[k] for r in rows] for k in rows[0]}
+
+
+def estimates(idn: Identification, truth: Truth | None, s: int = 0) -> pd.DataFrame:
+    """:func:`estimate_columns` as a pandas DataFrame (:meth:`platcal.lighttable.Table.to_pandas`)."""
+    return Table(estimate_columns(idn, truth, s)).to_pandas()
 
 
 def calibration(idn: Identification, log_path, config: dict, s: int = 0) -> Calibration:
@@ -402,7 +407,7 @@ def gyro_rate_error(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndar
     same as a rate error e omega_i in every sample: the record tells them apart only at rest,
     beyond ``tolerance`` (3,) rad/s (:func:`.record.static_rate_tolerance`). Each gyro of the
     record ``f``, ``w`` (N,3), ``t`` (N,) is offset by ``sigma_deg_h`` in turn and identified
-    again (one batch of three), ``est`` the record's own :func:`estimates`; per estimate the
+    again (one batch of three), ``est`` the record's own :func:`estimate_columns`; per estimate the
     shift per sigma of each gyro (arcsec), the sigma with the three added in quadrature
     (``sigma_with_gyro_arcsec``: the honest 1 sigma with the config's gyros) and the shift, in
     the filter's sigma, of the largest rate error the check at rest lets pass
@@ -434,7 +439,7 @@ def gyro_rate_block(cfg: SledConfig, est: dict, tolerance: np.ndarray,
            "scale_tolerance": (np.abs(np.asarray(tolerance) / cfg.omega_ie)).tolist(), "estimates": {}}
     if shifted is None:
         return out
-    shifts = np.stack([np.array(estimates(shifted, None, first + s)["estimate"]) for s in range(3)], axis=1) \
+    shifts = np.stack([np.array(estimate_columns(shifted, None, first + s)["estimate"]) for s in range(3)], axis=1) \
         - np.array(est["estimate"])[:, None]                     # (rows, 3 gyros), per sigma_deg_h
     rows = [dict(zip(est, values)) for values in zip(*est.values())]
     for i, row in enumerate(rows):

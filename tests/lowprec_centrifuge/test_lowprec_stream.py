@@ -207,13 +207,3 @@ def test_record_run_is_the_monte_carlos_replicate(record):
     for f in ("k0_ug", "scale_ppm", "drift_deg_h", "phi0_rad", "gyro_g"):
         assert np.array_equal(getattr(run.draws, f)[0], getattr(rb.draws, f)[1]), f
 
-
-def test_a_streamed_simulate_is_sized_by_its_chunk():
-    """simulate holds --chunk-rows samples, not the run: its memory is the whole run's x chunk / n."""
-    rig = get_rig("lowprec_centrifuge")
-    cfg = rig.load_config({"rig": "lowprec_centrifuge"})
-    base = ["simulate", "--config", "c.yaml", "--platform", "P1", "--run", "run1", "--out", "o.csv"]
-    whole = rig.sizes("simulate", cfg, build_parser(rig).parse_args(base + ["--chunk-rows", "0"]))[0]
-    part = rig.sizes("simulate", cfg, build_parser(rig).parse_args(base + ["--chunk-rows", "1000"]))[0]
-    assert part.gigabytes == pytest.approx(whole.gigabytes * 1000 / whole.samples)
-    assert part.hours == whole.hours

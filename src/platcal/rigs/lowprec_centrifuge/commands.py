@@ -207,8 +207,9 @@ CSV, benchmarks/bench_memory.md), 0.078 bytes a byte, rounded up about 2x as :da
 
 def sizes(command: str, study: Study, args) -> list[Size]:
     """The work a command's inputs imply (:mod:`platcal.sizes`): simulate runs the run's record
-    (its duration at ``profile.rate_hz``) x :data:`COSTS` and holds ``--chunk-rows`` samples of it
-    (all with ``--chunk-rows 0``); identify, inspect and
+    (its duration at ``profile.rate_hz``) x :data:`COSTS`, its memory counted as the whole run's
+    even when streamed (as the sled's: a bound on the record it writes too, and an absurd run is
+    refused before it writes gigabytes); identify, inspect and
     compensate read the record they are given, sized by its file's bytes x :data:`COSTS` (a
     streamed identify by :data:`STREAMED_IDENTIFY_VALUES` per byte, its time as read whole)."""
     if command == "identify" and chunk_rows_of(args) != 0:
@@ -218,14 +219,8 @@ def sizes(command: str, study: Study, args) -> list[Size]:
     if command != "simulate" or args.platform not in study.platforms or args.run not in study.run_names(args.platform):
         return []   # the command names a missing platform or run itself
     seconds, longest = run_duration(study, args.platform, args.run)
-    n = samples_in(seconds, 1.0 / study.rate_hz)
-    chunk = chunk_rows_of(args)
-    # simulated and written --chunk-rows samples at a time (:class:`.truth.RecordRun`): one block's
-    # values are held, every sample's time is spent
-    held = n if chunk == 0 else min(float(n), float(chunk))
-    return [Size(_segment_field(study, longest), n, COSTS.values["simulate"] * held / max(float(n), 1.0), 1,
-                 f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz"
-                 + ("" if held == n else f", {chunk} samples held at a time (--chunk-rows)"),
+    return [Size(_segment_field(study, longest), samples_in(seconds, 1.0 / study.rate_hz),
+                 COSTS.values["simulate"], 1, f"run {args.platform} {args.run}, {seconds:g} s at {study.rate_hz:g} Hz",
                  COSTS.seconds["simulate"])]
 
 

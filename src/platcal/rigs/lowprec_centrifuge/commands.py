@@ -1,6 +1,7 @@
 """``platcal simulate`` and ``platcal identify`` for ``rig: lowprec_centrifuge`` (docs/lowprec-centrifuge.md §10).
 
-simulate: ``--platform P --run run1|run2|traditional [--seed N] [--noise-free] --out rec.csv``;
+simulate: ``--platform P --run run1|run2|traditional [--seed N] [--noise-free] [--chunk-rows N] --out rec.csv``
+(written N rows at a time, the same text as the whole run);
 ``--seed N`` writes replicate N (default 0) of the study's Monte Carlo cells (root seed: the
 config's ``seed``; the same record in every centrifuge scenario's cells, §9, §12)
 identify: ``--data rec.csv --out DIR [--method proposed|traditional] [--no-truth]``

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...model.instruments import INDEX, N_FULL
+from ...records import CHUNK_ROWS
 from .config import G0, Study
 from .insim import W, FineTruth, _lanes_init, _navigate_block, quaternion_of, truth_table
 from .profile import Kinematics, Profile, build_profile, grid_gradient, kinematics, motion, profile_grid
@@ -256,7 +257,7 @@ class RecordRun:
     errors (``final``: dVE, dVN m/s, dpE, dpN m)."""
 
     def __init__(self, study: Study, platform: str, run: str, seed: np.random.SeedSequence,
-                 noise_free: bool = False, keep_phi: bool = True, rows: int = 100_000):
+                 noise_free: bool = False, keep_phi: bool = True, rows: int = CHUNK_ROWS):
         self.study, self.platform, self.run = study, platform, run
         self.noise_free, self.keep_phi, self.rows = bool(noise_free), bool(keep_phi), max(int(rows), 1)
         self.param_seed, self.noise_seed = run_streams(seed, study.platform_index(platform),

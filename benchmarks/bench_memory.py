@@ -11,8 +11,8 @@ has two), each from its natural length up (a sled record lasts 86 s, its stop at
 low-precision run 17 min). The centrifuge and the multi-position rig are measured streamed
 (``--chunk-rows``, default) and, up to 1 h, read whole (``--chunk-rows 0``) for comparison (the
 multi-position rig's simulate has no ``--chunk-rows``: it writes one position at a time in both
-rows); so is the sled beyond its natural length (a natural record fits one chunk), and so is the
-low-precision centrifuge's identify (its simulate holds the run in both rows). The ``import`` rows
+rows); so are the sled beyond its natural length (a natural record fits one chunk) and the
+low-precision centrifuge. The ``import`` rows
 are ``platcal identify --config <rig> --help``: the command's imports and nothing else, the floor
 under every other row.
 
@@ -25,7 +25,8 @@ under every other row.
 
 Writes ``benchmarks/bench_memory.{csv,md}`` (every run) and ``bench_memory_by_length.{csv,md}``
 (peak RSS by rig and length: the README's table) through platcal.study.tables (the .html is not
-kept in git). Run it niced on a shared
+kept in git). With ``--rigs``, the other rigs' rows of the files already there are kept (the note
+says so), so one rig is measured again without the others. Run it niced on a shared
 machine; RSS does not depend on the load, wall time does (CPU time is given beside it).
 """
 
@@ -104,8 +105,8 @@ def all_cases(max_minutes: float, folder: Path):
     yield "sled", None, "whole", ROOT / "config" / "sled.yaml", [], []
     lowprec_run = ["--platform", "P1", "--run", "run1"]
     yield "lowprec_centrifuge", None, "streamed", ROOT / "config" / "lowprec_centrifuge.yaml", lowprec_run, []
-    yield ("lowprec_centrifuge", None, "whole", ROOT / "config" / "lowprec_centrifuge.yaml", lowprec_run,
-           ["--chunk-rows", "0"])
+    yield ("lowprec_centrifuge", None, "whole", ROOT / "config" / "lowprec_centrifuge.yaml",
+           lowprec_run + ["--chunk-rows", "0"], ["--chunk-rows", "0"])
     for minutes in MINUTES:
         if minutes > max_minutes:
             continue
@@ -128,7 +129,7 @@ def all_cases(max_minutes: float, folder: Path):
                                 LOWPREC_REST_S + (minutes * 60 - LOWPREC_NATURAL_S) / 2, folder)
             yield "lowprec_centrifuge", minutes, "streamed", cfg, lowprec_run, []
             if minutes <= 60:
-                yield "lowprec_centrifuge", minutes, "whole", cfg, lowprec_run, ["--chunk-rows", "0"]
+                yield "lowprec_centrifuge", minutes, "whole", cfg, lowprec_run + ["--chunk-rows", "0"], ["--chunk-rows", "0"]
 
 
 def warm_up(base: list[str], todo, folder: Path, env: dict) -> None:
@@ -180,6 +181,24 @@ def write_tables(df: pd.DataFrame, out: str, note: str) -> None:
     wide = by_length(df)
     write_table(wide, f"{out}_by_length", "Peak RSS (MB) against record length", note,
                 {c: (".3g" if c == "natural_min" else ".0f") for c in wide.columns[3:]})
+
+
+def kept_rows(df: pd.DataFrame, note: str, out: str, rigs: tuple[str, ...]) -> tuple[pd.DataFrame, str]:
+    """``df`` with the rows of the rigs not measured (not in ``rigs``) from ``<out>.csv`` when it
+    exists, in :data:`RIGS` order (the import rows first, as a full run writes them), and the note
+    saying which rows were kept."""
+    old = Path(f"{out}.csv")
+    others = [r for r in RIGS if r not in rigs]
+    if not others or not old.is_file():
+        return df, note
+    prev = pd.read_csv(old)
+    prev = prev[prev["rig"].isin(others)]
+    if prev.empty:
+        return df, note
+    both = pd.concat([prev, df], ignore_index=True)
+    order = both["rig"].map({r: i for i, r in enumerate(RIGS)}) + 100 * (both["mode"] != "import")
+    both = both.iloc[order.argsort(kind="stable")].reset_index(drop=True)
+    return both, note + f" The rows of {', '.join(sorted(prev['rig'].unique()))} are an earlier run's (kept: --rigs)."
 
 
 def main(argv=None) -> int:
@@ -245,6 +264,7 @@ def main(argv=None) -> int:
             f"length; CPU and wall s. Load average at the end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} on "
             f"{os.cpu_count()} cores, NUMBA_NUM_THREADS={env['NUMBA_NUM_THREADS']}, {a.format} records. "
             "`python benchmarks/bench_memory.py`.")
+    df, note = kept_rows(df, note, a.out, tuple(a.rigs))
     write_tables(df, a.out, note)
     print(f"-> {a.out}.csv, .md, {a.out}_by_length.csv, .md", file=sys.stderr)
     return 0

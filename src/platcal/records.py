@@ -588,12 +588,14 @@ def read_truth(record: str | os.PathLike) -> dict | None:
 
 
 @contextmanager
-def record_writer(path: str | os.PathLike, truth: dict | None = None,
+def record_writer(path: str | os.PathLike, truth: dict | Callable[[], dict] | None = None,
                   float_format: str | None = None) -> Iterator[Callable]:
     """Write a test record chunk by chunk: yields ``write(df)``, each chunk appended (CSV rows
     after one header, floats at ``float_format``, default full precision; a Parquet row group
-    each) to a temporary file, so a long record is written without being held. With ``truth``,
-    its side file (:func:`truth_path`, JSON) is written as a pair with it: both go to temporaries
+    each) to a temporary file, so a long record is written without being held. With ``truth`` (a
+    mapping, or a callable giving it once the block's writes are done, e.g. a streamed run's final
+    errors), its side
+    file (:func:`truth_path`, JSON) is written as a pair with it: both go to temporaries
     and are renamed together when the block ends without error, the side file first (a record
     never appears without its truth; :func:`platcal.io.atomic_files`); a failed write (a full
     disk) removes both temporaries and leaves the files already there untouched, so no orphan
@@ -601,8 +603,9 @@ def record_writer(path: str | os.PathLike, truth: dict | None = None,
     path = Path(path)
     parquet = path.suffix == ".parquet"
     with atomic_files(path.parent) as tmp:
-        if truth is not None:
-            tmp(truth_path(path).name).write_text(json.dumps(truth, indent=1) + "\n")
+        # the side file's temporary asked for first, so it is renamed first; its text written when
+        # the record is complete (a callable ``truth`` is then known: a streamed run's final state)
+        side = None if truth is None else tmp(truth_path(path).name)
         out = tmp(path.name)
         state: dict = {}
 
@@ -621,3 +624,5 @@ def record_writer(path: str | os.PathLike, truth: dict | None = None,
         finally:
             if "writer" in state:
                 state["writer"].close()
+        if side is not None:
+            side.write_text(json.dumps(truth() if callable(truth) else truth, indent=1) + "\n")

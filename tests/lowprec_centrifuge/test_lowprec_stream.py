@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 import yaml
 
@@ -17,7 +18,8 @@ from platcal.rig import get_rig
 from platcal.rigs.lowprec_centrifuge.montecarlo import SEED_KEY
 from platcal.rigs.lowprec_centrifuge.record import record_frame, truth_json, velocity_derivative, write_record
 from platcal.rigs.lowprec_centrifuge.stream import _unwrap_tail
-from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
+from platcal.records import truth_path
+from platcal.rigs.lowprec_centrifuge.truth import RecordBlock, RecordRun, simulate_batch
 from platcal.sizes import DEFAULT_MAX_HOURS, DEFAULT_MAX_MEMORY_GB, check_sizes
 from platcal.study.montecarlo import replicate_seed
 
@@ -153,3 +155,55 @@ def test_a_streamed_identify_is_not_sized_as_the_whole_record(tmp_path):
         check_sizes(rig.sizes("identify", cfg, build_parser(rig).parse_args(base + ["--chunk-rows", "0"])),
                     DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
     assert e.value.field == "--data"
+
+
+STREAM_CFG = {**SMALL, "traditional": {"levels_g": [5, 8], "hold_s": 20, "rest_last_s": 10}}
+
+
+@pytest.mark.parametrize("run,extra", [("run1", []), ("traditional", []), ("run1", ["--noise-free"])])
+def test_streamed_simulate_equals_whole(tmp_path, run, extra):
+    """issue 22 item 3: simulate written chunk by chunk (blocks that cut spins, the fine truth's
+    w'' context and the noise streams) gives the whole simulation's CSV text, truth side file
+    (its final errors known only at the end) and Parquet values."""
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text(yaml.safe_dump(STREAM_CFG))
+    files = {}
+    for chunk in ("0", "997", "50"):
+        for suffix in ("csv", "parquet"):
+            out = tmp_path / f"r{chunk}.{suffix}"
+            assert main(["simulate", "--config", str(cfg), "--platform", "P1", "--run", run, "--seed", "2",
+                         "--chunk-rows", chunk, "--out", str(out), *extra]) == 0
+            files[chunk, suffix] = out
+    whole_csv = files["0", "csv"].read_bytes()
+    assert len(whole_csv.splitlines()) > 3 * 997   # several blocks of 997 rows
+    whole_truth = json.loads((tmp_path / "r0.csv.truth.json").read_text())
+    for chunk in ("997", "50"):
+        assert files[chunk, "csv"].read_bytes() == whole_csv, chunk
+        for suffix in ("csv", "parquet"):
+            assert json.loads(truth_path(files[chunk, suffix]).read_text()) == whole_truth
+        pd.testing.assert_frame_equal(pd.read_parquet(files[chunk, "parquet"]), pd.read_parquet(files["0", "parquet"]),
+                                      check_exact=True)
+    assert pq.ParquetFile(files["997", "parquet"]).num_row_groups > 1
+    assert whole_truth["final_errors"]["dVE"] == pd.read_csv(files["0", "csv"])["truth_dVE"].iloc[-1]
+
+
+def test_record_run_is_the_monte_carlos_replicate(record):
+    """The streamed record (:class:`RecordRun`, small blocks) is, array for array, replicate 1 of
+    the Monte Carlo's batch (:func:`simulate_batch` with the floor and the four variants, as a
+    study cell runs it): a simulated record still is a run of the study."""
+    _, cfg, _ = record
+    study = get_rig("lowprec_centrifuge").load_config(read_config(cfg))
+    seeds = [replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], r) for r in range(3)]
+    rb = simulate_batch(study, "P2", "run1", seeds, [0, 1, 2], keep_phi=True, floor=True, sens=True)
+    run = RecordRun(study, "P2", "run1", seeds[1], rows=1234)
+    blocks = list(run.blocks())
+    assert len(blocks) > 5
+    got = {f: np.concatenate([getattr(b, f) for b in blocks]) for f in RecordBlock.__dataclass_fields__}
+    want = {"t": rb.prof.t, "schedule": rb.prof.schedule, "theta": rb.kin.theta, "err": rb.err[1], "phi": rb.phi[1],
+            "v_ind": rb.v_ind[1], "f_meas": rb.f_meas[1], "p_ind": rb.p_ind[1], "psi": rb.psi[1]}
+    for f, v in want.items():
+        assert np.array_equal(got[f], v), f
+    assert np.array_equal(run.final, rb.final[1])
+    for f in ("k0_ug", "scale_ppm", "drift_deg_h", "phi0_rad", "gyro_g"):
+        assert np.array_equal(getattr(run.draws, f)[0], getattr(rb.draws, f)[1]), f
+

@@ -1,6 +1,7 @@
 """``platcal simulate`` and ``platcal identify`` for ``rig: lowprec_centrifuge`` (docs/lowprec-centrifuge.md §10).
 
-simulate: ``--platform P --run run1|run2|traditional [--seed N] [--noise-free] --out rec.csv``;
+simulate: ``--platform P --run run1|run2|traditional [--seed N] [--noise-free] [--chunk-rows N] --out rec.csv``
+(written N rows at a time, the same text as the whole run);
 ``--seed N`` writes replicate N (default 0) of the study's Monte Carlo cells (root seed: the
 config's ``seed``; the same record in every centrifuge scenario's cells, §9, §12)
 identify: ``--data rec.csv --out DIR [--method proposed|traditional] [--no-truth]``
@@ -18,7 +19,7 @@ from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed
 from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option, whole
-from ...records import CHUNK_ROWS, chunk_rows_of
+from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, record_writer
 from ...io import atomic_files, check_writable, json_text
 from ...study.montecarlo import replicate_seed
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
@@ -28,14 +29,13 @@ from ...mapping import RecordMapping
 from ...sizes import Costs, Size, record_size, samples_in
 from .config import COEFFS, G0, Study
 from .montecarlo import SEED_KEY
-from .profile import run_duration
+from .profile import profile_grid, run_duration
 from .proposed import K_SLICE, run_filter
-from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, check_against_config, check_out_path, check_plausible,
-                     compensated_frame, estimates_frame,
-                     read_record, record_frame, truth_json, write_record)
+from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, block_frame, check_against_config, check_out_path,
+                     check_plausible, compensated_frame, estimates_frame, read_record, truth_side)
 from .stream import scan_record
 from .traditional import plateau_estimates
-from .truth import simulate_batch
+from .truth import RecordRun
 
 METHODS = ("proposed", "traditional")
 COEFF_UNITS = ("ug/g", "ug/g^2", "ug/g", "ug/g^2")
@@ -54,18 +54,30 @@ def simulate(study: Study, args) -> int:
     check_out_path(args.out)
     check_writable(args.out, "--out")
     seed = 0 if args.seed is None else int(args.seed)
+    chunk = chunk_rows_of(args)
     t0 = time.perf_counter()
     # --seed N is replicate N of the study's cells (any scenario: they share the seeds), root seed `seed`
     ss = replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], seed)
-    # the record needs the INS alone: without the four unit-coefficient variants (sens) the INS
-    # lane's numbers are the same (each lane is navigated as if alone) and the run holds 5x fewer lanes
-    rb = simulate_batch(study, args.platform, args.run, [ss], [seed], keep_phi=True,
-                        noise_free=bool(args.noise_free), sens=False)
-    write_record(record_frame(rb), truth_json(rb, study), args.out)
-    print(f"platcal simulate: lowprec_centrifuge {args.platform} {args.run} ({', '.join(f'{a:g}' for a in rb.prof.levels)}"
-          f" g), {'noise-free' if args.noise_free else f'seed {seed}'}, {rb.prof.t[-1]:.0f} s -> {args.out} "
+    # the record needs the INS alone (each lane is navigated as if alone, so its numbers are the
+    # Monte Carlo's), simulated and written chunk rows at a time: the same numbers and CSV text as
+    # the whole run, in one block's memory (issue 22 item 3); the truth side file, which holds the
+    # final errors, is written once the last block is
+    run = RecordRun(study, args.platform, args.run, ss, noise_free=bool(args.noise_free), keep_phi=True,
+                    rows=chunk or run_samples(study, args.platform, args.run))
+    with record_writer(check_out_path(args.out),
+                       truth=lambda: truth_side(study, args.platform, args.run, seed, run.levels, run.coeffs,
+                                                run.draws, 0, run.final)) as write:
+        for b in run.blocks():
+            write(block_frame(b.t, b.schedule, b.theta, b.err, b.phi, b.v_ind, b.f_meas, b.p_ind, b.psi))
+    print(f"platcal simulate: lowprec_centrifuge {args.platform} {args.run} ({', '.join(f'{a:g}' for a in run.levels)}"
+          f" g), {'noise-free' if args.noise_free else f'seed {seed}'}, {(run.n - 1) * run.dt:.0f} s -> {args.out} "
           f"({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
     return 0
+
+
+def run_samples(study: Study, platform: str, run: str) -> int:
+    """Data samples of a run (``--chunk-rows 0``: the whole run as one block)."""
+    return profile_grid(study, platform, run)[0]
 
 
 def identify(study: Study, args) -> int:
@@ -195,8 +207,10 @@ CSV, benchmarks/bench_memory.md), 0.078 bytes a byte, rounded up about 2x as :da
 
 
 def sizes(command: str, study: Study, args) -> list[Size]:
-    """The work a command's inputs imply (:mod:`platcal.sizes`): simulate holds and runs the run's
-    record (its duration at ``profile.rate_hz``) x :data:`COSTS`; identify, inspect and
+    """The work a command's inputs imply (:mod:`platcal.sizes`): simulate runs the run's record
+    (its duration at ``profile.rate_hz``) x :data:`COSTS`, its memory counted as the whole run's
+    even when streamed (as the sled's: a bound on the record it writes too, and an absurd run is
+    refused before it writes gigabytes); identify, inspect and
     compensate read the record they are given, sized by its file's bytes x :data:`COSTS` (a
     streamed identify by :data:`STREAMED_IDENTIFY_VALUES` per byte, its time as read whole)."""
     if command == "identify" and chunk_rows_of(args) != 0:
@@ -213,7 +227,8 @@ def sizes(command: str, study: Study, args) -> list[Size]:
 
 OPTIONS = {
     "simulate": (option("--platform", default=None, help="platform name of the config (required)"),
-                 option("--run", default=None, help="run name of the platform, or traditional (required)")),
+                 option("--run", default=None, help="run name of the platform, or traditional (required)"),
+                 CHUNK_OPTION),
     "identify": (option("--method", default=None, help="proposed (default) or traditional"),
                  option("--chunk-rows", type=whole(0), default=None,
                         help=f"rows read and processed at a time (default {CHUNK_ROWS}; 0: the whole record at "

@@ -157,10 +157,16 @@ def _navigate(h, m, tr, cos_lat0, coef, gcoef, eps, q0, acc_w, gyro_w, noise_of,
     R dL), out_phi the attitude error 2 q_vec / q0 (rad; 0 lanes: not kept), out_f the measured
     horizontal specific force (m/s^2).
     """
+    lanes, y = _lanes_init(coef, gcoef, eps, q0)
+    _navigate_block(h, m, tr, cos_lat0, lanes, y, acc_w, gyro_w, noise_of, out_err, out_phi, out_f, True)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _lanes_init(coef, gcoef, eps, q0):
+    """The lanes' input L and state y (flat arrays of blocks, :func:`_navigate`) at the run's start:
+    coef (8, K) g/g, gcoef (48, K), eps (3, K) rad/s, q0 (4, K) the initial attitude quaternion."""
     K = coef.shape[1]
-    n = out_err.shape[1]
     nb = (K + W - 1) // W
-    keep_phi = out_phi.shape[0] == K
     # every lane's input in one flat array of blocks (block, row, lane); lanes past K are idle
     # INSs (no error, no noise) whose numbers are dropped
     L = np.zeros(nb * ROWS * W)
@@ -177,6 +183,22 @@ def _navigate(h, m, tr, cos_lat0, coef, gcoef, eps, q0, acc_w, gyro_w, noise_of,
             y[oy + W * (4 + r) + i] = q0[r, ln]
     for ln in range(K, nb * W):
         y[(ln // W) * 8 * W + W * 4 + ln % W] = 1.0
+    return L, y
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _navigate_block(h, m, tr, cos_lat0, L, y, acc_w, gyro_w, noise_of, out_err, out_phi, out_f, last):
+    """The lanes (input L, state y: :func:`_lanes_init`, y carried from block to block) through the
+    ``n = out_err.shape[1]`` data samples of one block: outputs at each, then the RK4 steps to the
+    next; ``tr`` the truth's fine rows from the block's first sample through the next block's
+    first (2 m n + 1 rows), or through its own last sample when ``last`` (the run's end: no step
+    after it, 2 m (n - 1) + 1 rows). acc_w, gyro_w: the noises of the block's data intervals (S, n,
+    ...). The same operations in the same order as one call over the whole run (docs/
+    lowprec-centrifuge.md §12, a record simulated block by block, bit-identical)."""
+    K = noise_of.shape[0]
+    n = out_err.shape[1]
+    nb = L.shape[0] // (ROWS * W)
+    keep_phi = out_phi.shape[0] == K
     k1 = np.empty(nb * 8 * W)
     k2 = np.empty(nb * 8 * W)
     k3 = np.empty(nb * 8 * W)
@@ -205,7 +227,7 @@ def _navigate(h, m, tr, cos_lat0, coef, gcoef, eps, q0, acc_w, gyro_w, noise_of,
             of, i = (ln // W) * 2 * W, ln % W
             out_f[ln, k, 0] = fm[of + i]
             out_f[ln, k, 1] = fm[of + W + i]
-        if k == n - 1:
+        if last and k == n - 1:
             break
         for i in range(m):
             j = 2 * (m * k + i)
@@ -260,6 +282,19 @@ def nav_rate(kin) -> np.ndarray:
                      OMEGA_IE * np.sin(kin.lat) + ve * np.tan(kin.lat) / R_EARTH], axis=-1)
 
 
+def truth_table(kin) -> np.ndarray:
+    """(N, 13) the truth rows :func:`_stage` reads, from the true motion ``kin``
+    (:class:`.profile.Kinematics`) on the fine grid: f^n, V, sin L, cos L, w_in^n and the truth's
+    own navigation terms (units as :func:`_stage`); row by row, so a block of the grid gives the
+    whole table's rows."""
+    slt, clt = np.sin(kin.lat), np.cos(kin.lat)
+    vte, vtn = kin.v[:, 0], kin.v[:, 1]
+    # the truth's terms of _rates, computed here once in the kernel's operation order (same bits)
+    kt = 2.0 * OMEGA_IE * slt + vte * slt / (clt * R_EARTH)
+    return np.ascontiguousarray(np.column_stack([kin.f, kin.f_up, kin.v, slt, clt, nav_rate(kin),
+                                                 kt * vtn, kt * vte, vte / (R_EARTH * clt)]))
+
+
 class FineTruth:
     """The true motion of one run on the fine grid (step dt / (2 steps)), shared by every replicate
     and variant: ``kin`` (:class:`.profile.Kinematics`) and the table ``tr`` the kernel reads."""
@@ -268,12 +303,7 @@ class FineTruth:
         self.kin = kin
         self.steps = int(steps)
         self.h = dt / self.steps
-        slt, clt = np.sin(kin.lat), np.cos(kin.lat)
-        vte, vtn = kin.v[:, 0], kin.v[:, 1]
-        # the truth's terms of _rates, computed here once in the kernel's operation order (same bits)
-        kt = 2.0 * OMEGA_IE * slt + vte * slt / (clt * R_EARTH)
-        self.tr = np.ascontiguousarray(np.column_stack([kin.f, kin.f_up, kin.v, slt, clt, nav_rate(kin),
-                                                        kt * vtn, kt * vte, vte / (R_EARTH * clt)]))
+        self.tr = truth_table(kin)
         self.cos_lat0 = float(np.cos(np.radians(lat_deg)))
 
     def navigate(self, n: int, coef: np.ndarray, gcoef: np.ndarray, eps: np.ndarray, phi0: np.ndarray,

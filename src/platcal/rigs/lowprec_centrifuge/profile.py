@@ -114,10 +114,20 @@ def run_duration(study: Study, platform: str, run: str) -> tuple[float, tuple]:
     return float(sum(durations)), segs[max(range(len(segs)), key=durations.__getitem__)]
 
 
-def build_profile(study: Study, platform: str, run: str, substeps: int = 1) -> Profile:
+def profile_grid(study: Study, platform: str, run: str, substeps: int = 1) -> tuple[int, float]:
+    """``(samples, step s)`` of :func:`build_profile`'s grid, without building it."""
+    durs = [_duration(s, study.centrifuge) for s in segments(study, platform, run)]
+    dt = 1.0 / study.rate_hz
+    edges = np.concatenate([[0.0], np.cumsum(durs)])
+    n = int(np.floor(edges[-1] / dt + 1e-9)) + 1
+    return substeps * (n - 1) + 1, dt / substeps
+
+
+def build_profile(study: Study, platform: str, run: str, substeps: int = 1, rows: tuple | None = None) -> Profile:
     """The commanded rate of a run on the data grid (``profile.rate_hz``, §3), or on a grid
     ``substeps`` times finer with the same span (the truth simulation's, :mod:`.insim`): its
-    sample ``substeps * k`` is the data grid's sample k."""
+    sample ``substeps * k`` is the data grid's sample k. ``rows`` (a, b): only the grid's samples
+    a .. b - 1, each with the whole grid's values (a long run built block by block)."""
     cen = study.centrifuge
     segs = segments(study, platform, run)
     durs = [_duration(s, cen) for s in segs]
@@ -126,7 +136,9 @@ def build_profile(study: Study, platform: str, run: str, substeps: int = 1) -> P
     n = int(np.floor(edges[-1] / dt + 1e-9)) + 1
     n = substeps * (n - 1) + 1
     dt = dt / substeps
-    t = np.arange(n) * dt
+    a, b = (0, n) if rows is None else rows
+    t = np.arange(a, b) * dt
+    n = t.size
     w = np.zeros(n)
     wd = np.zeros(n)
     sched = np.zeros(n, dtype=np.int8)
@@ -165,14 +177,20 @@ def kinematics(prof: Profile, cen: Centrifuge, lat_deg: float, theta0: float = 0
     through r' and r'' (w'' by central differences of the tabulated w')."""
     w = prof.omega_nom * (1.0 + cen.rate_error)
     wd = prof.omegadot_nom * (1.0 + cen.rate_error)
+    wdd = np.gradient(wd, prof.t)
+    theta = theta0 + np.concatenate([[0.0], np.cumsum(0.5 * prof.dt * (w[1:] + w[:-1]))])
+    return motion(w, wd, wdd, theta, cen, lat_deg)
+
+
+def motion(w, wd, wdd, theta, cen: Centrifuge, lat_deg: float) -> Kinematics:
+    """:func:`kinematics` from the true rate w (rad/s), its first and second derivatives wd
+    (rad/s^2), wdd (rad/s^3) and the arm angle theta (rad), sample by sample (a block of the grid
+    gives the whole grid's values)."""
     r0 = cen.arm_m + cen.arm_error_mm * 1e-3
     ks = cen.stretch_mm_per_g * 1e-3 * r0 / G0          # r = r0 + ks w^2
     r = r0 + ks * w**2
-    wdd = np.gradient(wd, prof.t)
     rd = 2 * ks * w * wd
     rdd = 2 * ks * (wd**2 + w * wdd)
-    dt = prof.dt
-    theta = theta0 + np.concatenate([[0.0], np.cumsum(0.5 * dt * (w[1:] + w[:-1]))])
     c, s = np.cos(theta), np.sin(theta)
     lat0 = np.radians(lat_deg)
     lat = lat0 + r * s / R_EARTH
@@ -191,3 +209,21 @@ def kinematics(prof: Profile, cen: Centrifuge, lat_deg: float, theta0: float = 0
     f_up = G0 + wx * vn - wy * ve
     return Kinematics(theta=theta, omega=w, r=r, f=f, f_up=f_up, v=np.stack([ve, vn], axis=-1),
                       p=np.stack([r * c, r * s], axis=-1), lat=lat)
+
+
+def grid_gradient(f: np.ndarray, t: np.ndarray, dx: float | None) -> np.ndarray:
+    """``np.gradient(f, t)`` (first-order edges) with its spacing chosen for the whole grid, not
+    for ``t``: ``dx`` the whole grid's constant step (s) when its steps are all equal (numpy then
+    uses the uniform formula), None when they are not (the non-uniform formula, numpy's operations
+    in numpy's order). A block of the grid with one sample of context each side (none at the
+    grid's ends) thus gets the whole grid's values at its own samples."""
+    if dx is not None:
+        return np.gradient(f, dx)
+    d = np.diff(t)
+    dx1, dx2 = d[:-1], d[1:]
+    out = np.empty_like(f)
+    out[1:-1] = (-(dx2) / (dx1 * (dx1 + dx2)) * f[:-2] + (dx2 - dx1) / (dx1 * dx2) * f[1:-1]
+                 + dx1 / (dx2 * (dx1 + dx2)) * f[2:])
+    out[0] = (f[1] - f[0]) / d[0]
+    out[-1] = (f[-1] - f[-2]) / d[-1]
+    return out

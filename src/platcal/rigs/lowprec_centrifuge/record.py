@@ -68,31 +68,47 @@ def check_out_path(path, field: str = "--out") -> Path:
 
 def record_frame(rb: RunBatch, i: int = 0) -> pd.DataFrame:
     """The record of seed ``rb.seeds[i]`` (§10)."""
+    return block_frame(rb.prof.t, rb.prof.schedule, rb.kin.theta, rb.err[i], None if rb.phi is None else rb.phi[i],
+                       rb.v_ind[i], rb.f_meas[i], rb.p_ind[i], rb.psi[i])
+
+
+def block_frame(t, schedule, theta, err, phi, v_ind, f_meas, p_ind, psi) -> pd.DataFrame:
+    """Record rows (§10) from one replicate's arrays (:class:`.truth.RunBatch` for one seed, or a
+    :class:`.truth.RecordBlock`): t s, schedule codes, true arm angle theta rad, errors err (n, 4),
+    attitude phi (n, 3) rad or None, v_ind m/s, f_meas m/s^2, p_ind m, heading psi rad."""
     df = pd.DataFrame({
-        "t": rb.prof.t, "VE": rb.v_ind[i, :, 0], "VN": rb.v_ind[i, :, 1], "pE": rb.p_ind[i, :, 0],
-        "pN": rb.p_ind[i, :, 1], "heading_deg": np.mod(np.degrees(rb.psi[i]), 360.0),
-        "fE": rb.f_meas[i, :, 0], "fN": rb.f_meas[i, :, 1],
-        "schedule": np.asarray(SCHEDULE_NAMES)[rb.prof.schedule],
-        "truth_dVE": rb.err[i, :, 0], "truth_dVN": rb.err[i, :, 1], "truth_dpE": rb.err[i, :, 2],
-        "truth_dpN": rb.err[i, :, 3], "truth_theta_deg": np.degrees(rb.kin.theta)})
-    if rb.phi is not None:
+        "t": t, "VE": v_ind[:, 0], "VN": v_ind[:, 1], "pE": p_ind[:, 0],
+        "pN": p_ind[:, 1], "heading_deg": np.mod(np.degrees(psi), 360.0),
+        "fE": f_meas[:, 0], "fN": f_meas[:, 1],
+        "schedule": np.asarray(SCHEDULE_NAMES)[schedule],
+        "truth_dVE": err[:, 0], "truth_dVN": err[:, 1], "truth_dpE": err[:, 2],
+        "truth_dpN": err[:, 3], "truth_theta_deg": np.degrees(theta)})
+    if phi is not None:
         for j, ax in enumerate("xyz"):
-            df[f"truth_phi_{ax}"] = rb.phi[i, :, j]
+            df[f"truth_phi_{ax}"] = phi[:, j]
     return df
 
 
 def truth_json(rb: RunBatch, study, i: int = 0) -> dict:
+    """The truth side file of seed ``rb.seeds[i]`` (:func:`truth_side`)."""
+    return truth_side(study, rb.platform, rb.run, int(rb.seeds[i]), rb.prof.levels, rb.coeffs, rb.draws, i,
+                      rb.err[i, -1])
+
+
+def truth_side(study, platform: str, run: str, seed: int, levels, coeffs, draws, i: int, final) -> dict:
+    """The truth side file (§10): the run, the true coefficients, replicate ``i`` of the ``draws``
+    (:class:`.truth.Draws`) and its ``final`` errors (dVE, dVN m/s, dpE, dpN m)."""
     cen = study.centrifuge
-    return {"rig": "lowprec_centrifuge", "platform": rb.platform, "run": rb.run, "seed": int(rb.seeds[i]),
-            "levels_g": list(rb.prof.levels),
-            "coefficients": dict(zip(COEFFS, map(float, rb.coeffs))),
+    return {"rig": "lowprec_centrifuge", "platform": platform, "run": run, "seed": seed,
+            "levels_g": list(levels),
+            "coefficients": dict(zip(COEFFS, map(float, coeffs))),
             "centrifuge": {"arm_m": cen.arm_m, "rate_error": cen.rate_error, "arm_error_mm": cen.arm_error_mm,
                            "stretch_mm_per_g": cen.stretch_mm_per_g},
-            "drawn": {"k0_ug": rb.draws.k0_ug[i].tolist(), "scale_ppm": rb.draws.scale_ppm[i].tolist(),
-                      "gyro_drift_deg_h": rb.draws.drift_deg_h[i].tolist(),
-                      "phi0_rad": rb.draws.phi0_rad[i].tolist(),
-                      "gyro_g_sensitive": rb.draws.gyro_coefficients(i)},
-            "final_errors": dict(zip(("dVE", "dVN", "dpE", "dpN"), map(float, rb.err[i, -1])))}
+            "drawn": {"k0_ug": draws.k0_ug[i].tolist(), "scale_ppm": draws.scale_ppm[i].tolist(),
+                      "gyro_drift_deg_h": draws.drift_deg_h[i].tolist(),
+                      "phi0_rad": draws.phi0_rad[i].tolist(),
+                      "gyro_g_sensitive": draws.gyro_coefficients(i)},
+            "final_errors": dict(zip(("dVE", "dVN", "dpE", "dpN"), map(float, final)))}
 
 
 def write_record(df: pd.DataFrame, meta: dict, path) -> None:

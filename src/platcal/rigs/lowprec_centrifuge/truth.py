@@ -26,14 +26,16 @@ for the proposed runs in config order and 0 for the traditional run.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
 
 from ...model.instruments import INDEX, N_FULL
+from ...records import CHUNK_ROWS
 from .config import G0, Study
-from .insim import W, FineTruth
-from .profile import Kinematics, Profile, build_profile, kinematics
+from .insim import W, FineTruth, _lanes_init, _navigate_block, quaternion_of, truth_table
+from .profile import Kinematics, Profile, build_profile, grid_gradient, kinematics, motion, profile_grid
 
 ARCSEC = np.pi / 180 / 3600
 DEG_H = np.pi / 180 / 3600
@@ -228,3 +230,130 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
     return RunBatch(platform=platform, run=run, seeds=seeds, coeffs=coeffs, prof=prof, kin=kin, draws=draws,
                     err=err, phi=phi, sens=sens_out, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi,
                     final_floor=final_floor)
+
+
+@dataclass
+class RecordBlock:
+    """Data samples k0 .. k0 + n - 1 of one replicate's run (:func:`simulate_record`), the arrays
+    of :class:`RunBatch` for one seed: t (n,) s, schedule (n,) codes, theta (n,) true arm angle
+    rad, err (n, 4), phi (n, 3) or None, v_ind (n, 2), f_meas (n, 2), p_ind (n, 2), psi (n,)."""
+
+    t: np.ndarray
+    schedule: np.ndarray
+    theta: np.ndarray
+    err: np.ndarray
+    phi: np.ndarray | None
+    v_ind: np.ndarray
+    f_meas: np.ndarray
+    p_ind: np.ndarray
+    psi: np.ndarray
+
+
+class RecordRun:
+    """One replicate's run simulated block by block (:meth:`blocks`): the numbers of
+    :func:`simulate_batch` for that replicate alone (``sens=False``, no floor), bit for bit, in
+    memory of one block of ``rows`` data samples, not the run's (docs/lowprec-centrifuge.md §12;
+    issue 22 item 3). Holds the run's draws and, once :meth:`blocks` is exhausted, its final
+    errors (``final``: dVE, dVN m/s, dpE, dpN m)."""
+
+    def __init__(self, study: Study, platform: str, run: str, seed: np.random.SeedSequence,
+                 noise_free: bool = False, keep_phi: bool = True, rows: int = CHUNK_ROWS):
+        self.study, self.platform, self.run = study, platform, run
+        self.noise_free, self.keep_phi, self.rows = bool(noise_free), bool(keep_phi), max(int(rows), 1)
+        self.param_seed, self.noise_seed = run_streams(seed, study.platform_index(platform),
+                                                       study.run_index(platform, run))
+        self.coeffs = coeff_vector(study, platform)
+        self.levels = build_profile(study, platform, run, rows=(0, 2)).levels
+        self.n, self.dt = profile_grid(study, platform, run)
+        zeros = (np.zeros(2), np.zeros(2), np.zeros(3), np.zeros(3), np.zeros(18))
+        k0, sk, eps, phi0, gg = zeros if noise_free else draw_params(study, np.random.default_rng(self.param_seed))
+        self.draws = Draws(k0_ug=k0[None], scale_ppm=sk[None], drift_deg_h=eps[None], phi0_rad=phi0[None],
+                           gyro_g=gg[None])
+        self.lane = (np.concatenate([k0, sk, self.coeffs]) * 1e-6, gyro_vector(gg), eps * DEG_H, phi0)
+        self.final = None
+
+    def _noise_generators(self) -> list:
+        """Five generators on the replicate's noise stream, each at the start of one of its
+        full-length blocks (accelerometer (n, 2), gyro (n, 3), velocity (n, 2), position (n, 2),
+        heading (n,): :func:`simulate_batch`'s order), reached by drawing the blocks before it
+        ``rows`` at a time (the normals do not depend on how a draw is split)."""
+        rng = np.random.default_rng(self.noise_seed)
+        out = []
+        for width in (2, 3, 2, 2, 1):
+            out.append(copy.deepcopy(rng))
+            for a in range(0, self.n, self.rows):
+                rng.standard_normal((min(a + self.rows, self.n) - a) * width)
+        return out
+
+    def _uniform_step(self, substeps: int) -> float | None:
+        """The fine grid's constant step (s) if all its steps are equal, else None (the spacing
+        np.gradient chooses for the whole grid, :func:`.profile.grid_gradient`); checked
+        ``rows`` x substeps samples at a time."""
+        n, dt = profile_grid(self.study, self.platform, self.run, substeps)
+        step, first = self.rows * substeps, None
+        for a in range(0, n - 1, step):
+            d = np.diff(np.arange(a, min(a + step + 1, n)) * dt)
+            first = d[0] if first is None else first
+            if not (d == first).all():
+                return None
+        return first
+
+    def blocks(self):
+        """Yield the run's :class:`RecordBlock` s in order, ``rows`` data samples each."""
+        study, n, rows = self.study, self.n, self.rows
+        steps = int(study.profile["truth_steps"])
+        sub = 2 * steps
+        nf, _ = profile_grid(study, self.platform, self.run, sub)
+        cen, lat = study.centrifuge, study.latitude_deg
+        dx = self._uniform_step(sub)
+        res = study.residuals
+        s_acc = res["accel_noise_ug_rthz"] * 1e-6 * G0 / np.sqrt(self.dt)
+        s_gyro = res["arw_deg_rth"] * np.pi / 180 / 60 / np.sqrt(self.dt)
+        gens = None if self.noise_free else self._noise_generators()
+        coef, gcoef, eps, phi0 = self.lane
+        L, y = _lanes_init(coef[:, None], gcoef[:, None], eps[:, None], quaternion_of(phi0)[:, None])
+        h = self.dt / steps
+        cos_lat0 = float(np.cos(np.radians(lat)))
+        theta_carry, p0 = 0.0, None
+        for k0 in range(0, n, rows):
+            k1 = min(k0 + rows, n)
+            last = k1 == n
+            fa, fb = sub * k0, (sub * (k1 - 1) + 1 if last else sub * k1 + 1)
+            # the fine rows fa .. fb - 1 (through the next block's first sample), with one row of
+            # context each side for w'' (central differences)
+            ca, cb = max(fa - 1, 0), min(fb + 1, nf)
+            prof = build_profile(study, self.platform, self.run, sub, rows=(ca, cb))
+            w = prof.omega_nom * (1.0 + cen.rate_error)
+            wd = prof.omegadot_nom * (1.0 + cen.rate_error)
+            wdd = grid_gradient(wd, prof.t, dx)[fa - ca:fb - ca]
+            w, wd = w[fa - ca:fb - ca], wd[fa - ca:fb - ca]
+            # theta: the whole run's cumulative trapezoid continued from the block's first row
+            inc = 0.5 * (self.dt / sub) * (w[1:] + w[:-1])
+            theta = np.cumsum(np.concatenate([[theta_carry], inc]))
+            theta_carry = theta[-1] if not last else theta_carry
+            kin = motion(w, wd, wdd, theta, cen, lat)
+            m = k1 - k0
+            err, fm = np.empty((1, m, 4)), np.empty((1, m, 2))
+            phi = np.empty((1, m, 3)) if self.keep_phi else np.empty((0, m, 3))
+            if gens is None:
+                acc_w, gyro_w, noise_of = np.zeros((0, m, 2)), np.zeros((0, m, 3)), np.array([-1])
+            else:
+                acc_w = (gens[0].standard_normal((m, 2)) * s_acc)[None]
+                gyro_w = (gens[1].standard_normal((m, 3)) * s_gyro)[None]
+                noise_of = np.array([0])
+            _navigate_block(h, steps, truth_table(kin), cos_lat0, L, y, acc_w, gyro_w, noise_of, err, phi, fm, last)
+            data = Kinematics(**{f: getattr(kin, f)[:sub * (m - 1) + 1:sub] for f in Kinematics.__dataclass_fields__})
+            if p0 is None:
+                p0 = data.p[0].copy()
+            v_ind = data.v + err[0, :, :2]
+            p_ind = data.p - p0 + err[0, :, 2:]
+            psi = data.theta.copy()
+            if gens is not None:
+                v_ind += gens[2].standard_normal((m, 2)) * res["velocity_noise_m_s"]
+                p_ind += gens[3].standard_normal((m, 2)) * res["position_noise_m"]
+                psi += gens[4].standard_normal(m) * res["heading_noise_arcsec"] * ARCSEC
+            grid = build_profile(study, self.platform, self.run, rows=(k0, k1))
+            if last:
+                self.final = err[0, -1].copy()
+            yield RecordBlock(t=grid.t, schedule=grid.schedule, theta=data.theta, err=err[0],
+                              phi=phi[0] if self.keep_phi else None, v_ind=v_ind, f_meas=fm[0], p_ind=p_ind, psi=psi)

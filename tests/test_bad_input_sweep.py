@@ -6,6 +6,7 @@ named in stderr, no traceback, and the folder unchanged (nothing written in ``--
 cases are inside the schema's bounds and refused by the size check before any allocation.
 """
 
+import csv
 import errno
 import json
 import os
@@ -145,6 +146,14 @@ def _fail_with(monkeypatch, code: int, method: str = "to_csv"):
     monkeypatch.setattr(pd.DataFrame, method, fail)
 
 
+def _fail_tables_with(monkeypatch, code: int):
+    """The tables an identify writes without pandas (``platcal.io.write_csv``, through the csv
+    module's writer) fail with ``code``."""
+    def fail(*a, **k):
+        raise OSError(code, os.strerror(code))
+    monkeypatch.setattr(csv, "writer", fail)
+
+
 @pytest.mark.parametrize("rig", sorted(TINY))
 @pytest.mark.parametrize("code", [errno.ENOSPC, errno.EACCES])
 def test_simulate_fault_names_the_path_and_leaves_nothing(rig, code, tmp_path, capsys, monkeypatch):
@@ -185,7 +194,7 @@ def test_identify_fault_writes_nothing(rig, tmp_path, capsys, monkeypatch):
     rec = tmp_path / "rec.csv"
     assert main(["simulate", "--config", str(cfg), *opts, "--out", str(rec)]) == 0
     capsys.readouterr()
-    _fail_with(monkeypatch, errno.ENOSPC)
+    _fail_tables_with(monkeypatch, errno.ENOSPC)
     out = tmp_path / "id"
     code = main(["identify", "--config", str(cfg), *scheme, "--data", str(rec), "--out", str(out)])
     err = capsys.readouterr().err

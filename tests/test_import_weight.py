@@ -33,10 +33,10 @@ print(json.dumps(sorted(m for m in {heavy} if m in sys.modules)))
 """
 
 
-def loaded_after(rig: str, commands) -> list[str]:
-    """The heavy modules loaded by a fresh interpreter that parses the rig's command line and
+def loaded_after(rig: str, commands, heavy=HEAVY) -> list[str]:
+    """The ``heavy`` modules loaded by a fresh interpreter that parses the rig's command line and
     resolves ``commands``."""
-    out = subprocess.run([sys.executable, "-c", PROBE.format(heavy=HEAVY), rig, *commands], check=True,
+    out = subprocess.run([sys.executable, "-c", PROBE.format(heavy=heavy), rig, *commands], check=True,
                          capture_output=True, text=True)
     return json.loads(out.stdout)
 
@@ -51,6 +51,67 @@ def test_a_command_on_a_log_loads_no_figure_design_or_stats_library(rig):
 def test_a_study_command_loads_its_own_libraries_when_chosen():
     # the probe would see them: the centrifuge's report draws with matplotlib
     assert "matplotlib" in loaded_after("centrifuge", ["report"])
+
+
+PANDAS_STILL = {"lowprec_centrifuge": "its record and commands modules (streamed by another session) import pandas"}
+"""Rigs whose identify still loads pandas, and why (README, Long records in bounded memory)."""
+
+
+def no_pandas(rig: str):
+    """The rig as a parameter, expected to fail (strictly) where its identify still loads pandas."""
+    if rig in PANDAS_STILL:
+        return pytest.param(rig, marks=pytest.mark.xfail(strict=True, reason=PANDAS_STILL[rig]))
+    return rig
+
+
+@pytest.mark.parametrize("rig", [no_pandas(r) for r in RIGS])
+def test_choosing_identify_loads_no_pandas(rig):
+    """pandas is some 40 MB of a streamed identify's floor (issue 22 item 3): the modules an
+    identify imports write its tables without it and name the ones that need it by module path."""
+    assert "pandas" not in loaded_after(rig, ["identify"], heavy=("pandas",))
+
+
+IDENTIFY_PROBE = """
+import sys
+from platcal.cli import main
+code = main(sys.argv[1:])
+print("pandas" in sys.modules)
+sys.exit(code)
+"""
+
+SMALL = {
+    "centrifuge": ("site: {latitude_deg: 28.2}\ncentrifuge: {rate_deg_s: 180, g_level: 10}\n"
+                   "noise: {sigma_a_ug: 10, arw_deg_rth: 0.001, sigma_set_arcsec: 10}\n"
+                   "schemes:\n  short: {dwell_s: 6, positions: [[45, 0, 167], [350, 0, 325], [209, 0, 182]]}\n",
+                   ["--scheme", "short"]),
+    "multiposition": ("rig: multiposition\nschemes: {small: {dwell_s: 6, positions: [[0, 0, 0], [90, 30, 0], "
+                      "[180, -30, 90], [270, 20, 180], [45, 0, 270]]}}\n", ["--scheme", "small"]),
+    "sled": ("rig: sled\ntrajectory: {static_after_s: 10}\n", []),
+}
+"""Small records of the rigs whose identify loads no pandas (as tests/test_fit_rigs.py's)."""
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+@pytest.mark.parametrize("rig", sorted(SMALL))
+def test_an_identify_whole_and_streamed_loads_no_pandas(rig, suffix, tmp_path):
+    """A whole identify of each rig and a streamed one (chunks of 500 rows) run in a fresh
+    interpreter, CSV and Parquet, and leave pandas unloaded; both give the same estimates.csv."""
+    text, opts = SMALL[rig]
+    cfg = tmp_path / "config.yaml"
+    cfg.write_text(text)
+    rec = tmp_path / f"rec{suffix}"
+    subprocess.run([sys.executable, "-m", "platcal.cli", "simulate", "--config", str(cfg), *opts, "--seed", "1",
+                    "--out", str(rec)], check=True, capture_output=True)
+    outs = []
+    for chunks in ("0", "500"):
+        out = tmp_path / f"id{chunks}"
+        res = subprocess.run([sys.executable, "-c", IDENTIFY_PROBE, "identify", "--config", str(cfg), *opts,
+                              "--data", str(rec), "--chunk-rows", chunks, "--out", str(out)],
+                             capture_output=True, text=True)
+        assert res.returncode == 0, res.stderr
+        assert res.stdout.split() == ["False"], (chunks, res.stdout)
+        outs.append((out / "estimates.csv").read_text())
+    assert outs[0] == outs[1]
 
 
 @pytest.mark.parametrize("rig", RIGS)
@@ -89,8 +150,7 @@ print(json.dumps([rows, "pandas" in sys.modules]))
 
 def test_reading_a_record_does_not_load_pandas(tmp_path):
     """The streamed reader (platcal.records.iter_table, CSV and Parquet) in a fresh interpreter:
-    pandas, some 80 MB of a command's floor, stays out (the rest of an identify still loads it:
-    README, Long records in bounded memory)."""
+    pandas, some 40 MB of a command's floor, stays out."""
     n = 5000
     path = tmp_path / "log.csv"
     pd.DataFrame({"t": np.arange(n) * 0.005, "a": np.sin(np.arange(n)), "k": np.arange(n) // 700 + 1,

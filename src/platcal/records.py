@@ -304,7 +304,8 @@ def iter_frames(path: str | os.PathLike, field: str = "--data", what: str = "a t
     try:
         if parquet:
             if chunk_rows is None:
-                yield Table(_numpy_columns(pq.read_table(path)))
+                # ParquetFile.read, not pq.read_table: the latter loads pyarrow.dataset, which loads pandas
+                yield Table(_numpy_columns(pq.ParquetFile(path).read()))
             else:
                 for batch in pq.ParquetFile(path).iter_batches(batch_size=chunk_rows):
                     yield Table(_numpy_columns(batch))

@@ -64,7 +64,7 @@ by giving ``montecarlo``, an object with (see :class:`MonteCarloHooks`):
   depend on (a Snakemake param: change it and only that cell reruns);
 - ``run_batch(cfg, case, noise, estimator, seeds) -> ReplicateBatch``: simulate and identify
   one replicate per ``numpy.random.SeedSequence`` (the runner derives the seeds:
-  ``platcal.study.montecarlo.replicate_seed``), bit-identical whatever the batch size.
+  ``platcal.study.sweep.replicate_seed``), bit-identical whatever the batch size.
 - optional ``requires(cfg) -> list[str]``: files under ``results/<rig>/``, made by the rig's own
   rules, that every cell waits for (e.g. a job compiling the rig's kernels once).
 

@@ -16,12 +16,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import yaml
 
 from .. import __version__
 from ..errors import InputError
-from ..io import json_safe, read_config
+from ..io import json_safe, read_config, write_csv
 
 KEYS = ("rig", "model_version", "names", "units", "values", "covariance", "log_sha256", "config")
 
@@ -72,9 +71,12 @@ def sha256_file(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def covariance_frame(names, P) -> pd.DataFrame:
-    """The covariance with the names as row and column labels."""
-    return pd.DataFrame(np.asarray(P), index=list(names), columns=list(names)).rename_axis("state")
+def write_covariance(path, names, P) -> None:
+    """``covariance.csv`` at ``path``: the covariance (units squared) with the names as row
+    (``state``) and column labels, the text pandas' ``to_csv`` wrote (written without it by
+    :func:`platcal.io.write_csv`: an identify loads no pandas)."""
+    P = np.asarray(P)
+    write_csv(path, {n: P[:, i] for i, n in enumerate(names)}, index=("state", list(names)))
 
 
 def read_calibration(path: str | os.PathLike, field: str = "--calibration") -> Calibration:
@@ -117,7 +119,7 @@ def write_calibration_files(tmp, cal: Calibration, covariance: bool = True) -> N
     :func:`platcal.io.atomic_files` block (``tmp(name) -> Path``)."""
     tmp("calibration.yaml").write_text(cal.text())
     if covariance:
-        covariance_frame(cal.names, cal.covariance).to_csv(tmp("covariance.csv"), index=True)
+        write_covariance(tmp("covariance.csv"), cal.names, cal.covariance)
 
 
 def calibration_values(cal: Calibration, names, rig: str) -> np.ndarray:

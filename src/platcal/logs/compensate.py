@@ -10,14 +10,15 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Callable
-
-import pandas as pd
+from typing import TYPE_CHECKING, Callable
 
 from ..errors import InputError
 from ..io import check_writable
 from ..records import read_table, write_record
 from ..mapping import RecordMapping
+
+if TYPE_CHECKING:  # annotations only: a command that imports this module does not load pandas
+    import pandas as pd
 
 OUT_SUFFIXES = (".csv", ".parquet")
 

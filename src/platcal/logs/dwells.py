@@ -21,11 +21,14 @@ on numpy arrays and tables; nothing here names a rig.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ..errors import InputError
+
+if TYPE_CHECKING:  # annotations only: an identify that imports this module does not load pandas
+    import pandas as pd
 
 
 @dataclass(frozen=True)
@@ -174,16 +177,17 @@ def labelled_frame(df: pd.DataFrame, dwells: list[Dwell], commanded_deg: np.ndar
                              f"{scheme_name!r} (dwells found at positions {found}); a continuous log holds each "
                              "position once")
     t = df["t"].to_numpy(float)
-    parts = []
-    for d in dwells:
-        part = df.iloc[d.start:d.stop].copy()
-        part["t"] = t[d.start:d.stop] - t[d.start]
-        part.insert(0, "position", float(d.position))
-        for i, c in enumerate(commanded_columns):
-            if c not in df.columns:
-                part[c] = commanded_deg[d.position - 1, i]
-        parts.append(part)
-    return pd.concat(parts, ignore_index=True)
+    # one row selection with the frame's own methods (the same rows and columns as concatenating
+    # the dwells' slices): the module needs no pandas of its own, so an identify loads none
+    rows = np.concatenate([np.arange(d.start, d.stop) for d in dwells])
+    pos = np.concatenate([np.full(d.stop - d.start, d.position) for d in dwells])
+    out = df.iloc[rows].reset_index(drop=True)
+    out["t"] = np.concatenate([t[d.start:d.stop] - t[d.start] for d in dwells])
+    out.insert(0, "position", pos.astype(float))
+    for i, c in enumerate(commanded_columns):
+        if c not in df.columns:
+            out[c] = np.asarray(commanded_deg, float)[pos - 1, i]
+    return out
 
 
 def dwells_found(t: np.ndarray, dwells: list[Dwell]) -> list[dict]:

@@ -9,11 +9,14 @@ columns and their units after the mapping, the sample rate, the duration, the ga
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ..records import read_table
+
+if TYPE_CHECKING:  # annotations only: a command that imports this module does not load pandas
+    import pandas as pd
 
 GAP_FACTOR = 1.5
 """A step longer than this many median steps is reported as a gap."""

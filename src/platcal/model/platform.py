@@ -19,8 +19,9 @@ from dataclasses import dataclass
 from importlib import resources
 
 import numpy as np
-import pandas as pd
 
+from ..lighttable import Table
+from ..records import read_frame
 from .instruments import INDEX, NAMES, N_FULL, N_IDENTIFIED, group_of
 
 
@@ -47,9 +48,12 @@ class PlatformModel:
         return PlatformModel(tuple(self.names[i] for i in idx), tuple(self.units[i] for i in idx),
                              tuple(self.groups[i] for i in idx), self.truth[idx].copy())
 
-    def frame(self) -> pd.DataFrame:
-        """One row per coefficient: ``name``, ``unit``, ``group``, ``truth``."""
-        return pd.DataFrame({"name": self.names, "unit": self.units, "group": self.groups, "truth": self.truth})
+    def frame(self):
+        """One row per coefficient: ``name``, ``unit``, ``group``, ``truth`` (a pandas DataFrame,
+        for the tables and reports; through :meth:`platcal.lighttable.Table.to_pandas`, so this
+        module loads no pandas for the identify that uses the model)."""
+        return Table({"name": list(self.names), "unit": list(self.units), "group": list(self.groups),
+                      "truth": self.truth}).to_pandas()
 
     def full_truth(self, overrides: dict[str, float] | None = None) -> np.ndarray:
         """The instrument model's 48-vector (the 45 and DOO_x/y/z = 0), then ``overrides``
@@ -65,9 +69,9 @@ class PlatformModel:
 
 def default_platform() -> PlatformModel:
     """The seeds' platform: the 45 coefficients with their default truths (``data/platform_truth.csv``)."""
-    with resources.files(__package__).joinpath("data/platform_truth.csv").open() as fh:
-        df = pd.read_csv(fh)
+    with resources.as_file(resources.files(__package__).joinpath("data/platform_truth.csv")) as path:
+        df = read_frame(path, "platcal/model/data/platform_truth.csv", "the platform's truth table")
     if tuple(df["name"]) != NAMES:
         raise RuntimeError("platcal/model/data/platform_truth.csv is not in the instrument model's order")
-    return PlatformModel(names=NAMES, units=tuple(df["unit"]), groups=tuple(group_of(n) for n in NAMES),
+    return PlatformModel(names=NAMES, units=tuple(str(u) for u in df["unit"]), groups=tuple(group_of(n) for n in NAMES),
                          truth=df["truth"].to_numpy(float))

@@ -38,33 +38,18 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed, parallel_config
 
+from ..estimation.consistency import rel_err_pct
 from ..io import atomic_files, json_safe
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
-from ..rig import Rig, RunSettings, get_rig
-from ..seeding import seed_sequence
-from .stats import rel_err_pct
+from ..rig import Rig, get_rig
+from .sweep import StudySectionHooks, noise_key, noise_label, replicate_seed  # noqa: F401 (the sweep's keys, used here and by callers of the runner)
 
 CELL = ["scheme", "noise", "estimator"]
 """Columns that name a cell of the sweep."""
 COEF_COLUMNS = CELL + ["replicate", "name", "group", "unit", "truth", "estimate", "sigma", "error",
                        "rel_err_pct"]
 RUN_COLUMNS = CELL + ["replicate", "passes", "nees", "nees_dof", "mean_nis", "failed_updates", "failed"]
-
-
-def noise_key(level: float) -> int:
-    """Key of a noise level: the level in thousandths of its unit, rounded (5 -> 5000)."""
-    return int(round(float(level) * 1000.0))
-
-
-def noise_label(level: float) -> str:
-    """File-name label of a noise level (``10`` -> ``'10'``, ``2.5`` -> ``'2.5'``)."""
-    return f"{float(level):g}"
-
-
-def replicate_seed(seed: int, case: str, level: float, replicate: int) -> np.random.SeedSequence:
-    """The SeedSequence of one replicate of one (case, noise level) cell."""
-    return seed_sequence(seed, case, noise_key(level), int(replicate))
 
 
 def chunks(n: int, size: int) -> list[list[int]]:
@@ -117,27 +102,6 @@ def failed_runs(batch) -> np.ndarray:
         finite &= (np.isfinite(sig).all(axis=1) & np.isfinite(np.asarray(batch.nees, float))
                    & np.isfinite(np.asarray(batch.mean_nis, float)))
     return (np.asarray(batch.failed_updates) > 0) | ~finite
-
-
-class StudySectionHooks:
-    """Defaults of :class:`~platcal.rig.MonteCarloHooks` for a rig whose config's ``study``
-    section holds the sweep: the noise levels in ``study.<noise.name>`` (the rig's
-    :class:`~platcal.rig.NoiseAxis`), the estimators in ``study.estimators``, the replicates per
-    cell in ``study.<replicates_key>`` and the speed knobs ``study.batch``, ``backend``,
-    ``threads``; the root seed is the config's ``seed``. A rig subclasses it and adds the rest."""
-
-    replicates_key = "replicates"
-
-    def noise_levels(self, cfg: dict) -> list[float]:
-        return [float(v) for v in cfg["study"][self.noise.name]]
-
-    def estimators(self, cfg: dict) -> list[str]:
-        return list(cfg["study"]["estimators"])
-
-    def settings(self, cfg: dict) -> RunSettings:
-        st = cfg["study"]
-        return RunSettings(seed=int(cfg["seed"]), replicates=int(st[self.replicates_key]), batch=int(st["batch"]),
-                           backend=st["backend"], threads=int(st["threads"]))
 
 
 def _run_chunk(rig_name: str, cfg: dict, case, level: float, estimator: str, replicates, numba_threads: int):

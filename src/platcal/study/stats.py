@@ -16,14 +16,6 @@ from ..estimation.consistency import nees_band
 CELL = ["scheme", "noise", "estimator"]
 
 
-def rel_err_pct(estimate, truth):
-    """Relative error (estimate - truth) / truth in percent (NaN where the truth is zero)."""
-    estimate = np.asarray(estimate, float)
-    truth = np.asarray(truth, float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(truth != 0, (estimate - truth) / truth * 100.0, np.nan)
-
-
 def rms(x) -> float:
     x = np.asarray(x, float)
     return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")

@@ -11,9 +11,10 @@ from dataclasses import dataclass
 from importlib import resources
 
 import numpy as np
-import pandas as pd
 
+from ...lighttable import Table
 from ...model.platform import default_platform
+from ...records import read_frame
 
 
 @dataclass(frozen=True)
@@ -32,27 +33,29 @@ class Catalogue:
     paper_error: np.ndarray
     paper_rel_err_pct: np.ndarray
 
-    def frame(self) -> pd.DataFrame:
-        """The catalogue as a table, one row per coefficient."""
-        return pd.DataFrame(
+    def frame(self):
+        """The catalogue as a pandas DataFrame, one row per coefficient (for the tables and
+        reports; through :meth:`platcal.lighttable.Table.to_pandas`, so an identify that loads the
+        catalogue loads no pandas)."""
+        return Table(
             {
-                "name": self.names,
-                "unit": self.units,
-                "group": self.groups,
+                "name": list(self.names),
+                "unit": list(self.units),
+                "group": list(self.groups),
                 "truth": self.truth,
                 "paper_estimate": self.paper_estimate,
                 "paper_error": self.paper_error,
                 "paper_rel_err_pct": self.paper_rel_err_pct,
             }
-        )
+        ).to_pandas()
 
 
 def load_catalogue() -> Catalogue:
     """The platform model (:func:`platcal.model.platform.default_platform`: names, units, groups,
     truth) with the paper's Table 2 results (``platcal/rigs/centrifuge/data/table2.csv``)."""
     platform = default_platform()
-    with resources.files(__package__).joinpath("data/table2.csv").open() as fh:
-        df = pd.read_csv(fh)
+    with resources.as_file(resources.files(__package__).joinpath("data/table2.csv")) as path:
+        df = read_frame(path, "platcal/rigs/centrifuge/data/table2.csv", "Table 2 of the paper")
     if tuple(df["name"]) != platform.names:
         raise RuntimeError("platcal/rigs/centrifuge/data/table2.csv is not in Table 2's order")
     return Catalogue(

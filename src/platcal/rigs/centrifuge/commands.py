@@ -25,7 +25,7 @@ from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...scheme import resolve_scheme
 from ...sizes import Costs, Size, one_at_a_time, samples_in
-from ...study.montecarlo import replicate_seed
+from ...study.sweep import replicate_seed
 from .catalogue import load_catalogue
 from .config import Study, check_filter, study_from_config
 from .estimators import KINDS

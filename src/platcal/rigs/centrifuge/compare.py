@@ -43,7 +43,8 @@ from ...estimation.consistency import nees_band
 from ...io import atomic_files
 from ...log import job_logger
 from ...rig import get_rig
-from ...study.montecarlo import collect, noise_label, run_cell, write_cell
+from ...study.montecarlo import collect, run_cell, write_cell
+from ...study.sweep import noise_label
 from ...study.plots import plt, save, styled
 from ...study.stats import per_coefficient
 from ...study.tables import write_table

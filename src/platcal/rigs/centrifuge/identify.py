@@ -5,14 +5,14 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
-from ...io import atomic_files, json_text
-from ...logs.calibration import Calibration, calibration_of, write_calibration_files
+from ...io import atomic_files, json_text, write_csv
+from ...logs.calibration import Calibration, calibration_of, write_calibration_files, write_covariance
 from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...model.instruments import unit_of
 from ...plausibility import (ClockRate, clock_rate, clock_rate_tolerance, refuse_clock_rate, refuse_recognised,
@@ -30,7 +30,10 @@ from ...mapping import RecordMapping
 from ...records import position_blocks, read_table
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
-from .tables import covariance_frame, estimates_frame, table2_markdown
+from .tables import estimates_columns, table2_markdown
+
+if TYPE_CHECKING:  # annotations only: an identify loads no pandas (issue 22 item 3)
+    import pandas as pd
 
 
 def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSettings | None = None,
@@ -414,7 +417,7 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
-    df = estimates_frame(est.names[:nc], est.coef[0], est.coef_sigma[0], truth)
+    table = estimates_columns(est.names[:nc], est.coef[0], est.coef_sigma[0], truth)
     summary = {"n_states": len(est.names), "estimator": study.filter.estimator,
                "estimator_options": dict(study.filter.estimator_options), "passes": study.filter.passes,
                "mean_nis": float(est.mean_nis[0]), "failed_updates": int(est.failed_updates[0])}
@@ -432,15 +435,16 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
         idx = study.filter.coef_index
         summary["nees"] = float(nees(est.coef, est.P[:, :nc, :nc], truth[idx][None])[0])
         summary["nees_dof"] = nc
-        rel = df["rel_err_pct"].abs()
-        gyro = df["name"].str.startswith("D")
-        summary["max_abs_rel_err_pct_gyro"] = float(rel[gyro].max())
-        summary["max_abs_rel_err_pct_accel"] = float(rel[~gyro].max())
+        rel = np.abs(table["rel_err_pct"])
+        gyro = np.array([n.startswith("D") for n in table["name"]])
+        # NaN-skipping maxima (a zero truth), as the pandas table's max() was
+        summary["max_abs_rel_err_pct_gyro"] = float(np.nanmax(rel[gyro]))
+        summary["max_abs_rel_err_pct_accel"] = float(np.nanmax(rel[~gyro]))
     with atomic_files(out_dir) as tmp:
-        df.to_csv(tmp("estimates.csv"), index=False)
-        covariance_frame(est.names, est.P[0]).to_csv(tmp("covariance.csv"), index=True)
-        history_frame(est).to_csv(tmp("history.csv"), index=False)
-        tmp("table2.md").write_text(table2_markdown(df))
+        write_csv(tmp("estimates.csv"), table)
+        write_covariance(tmp("covariance.csv"), est.names, est.P[0])
+        write_csv(tmp("history.csv"), history_columns(est))
+        tmp("table2.md").write_text(table2_markdown(table))
         if calibration is not None:
             write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state
         if segmentation is not None:
@@ -449,14 +453,15 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     return summary
 
 
-def history_frame(est: Estimate, replicate: int = 0) -> pd.DataFrame:
-    """The decimated estimate and 1-sigma history of one run as a wide table."""
+def history_columns(est: Estimate, replicate: int = 0) -> dict:
+    """The decimated estimate and 1-sigma history of one run as a wide table's columns: ``t``
+    (s), each state's estimate and ``<name>_sigma`` (the state's unit; angles in rad)."""
     cols = {"t": est.history_t}
     for i, name in enumerate(est.names):
         cols[name] = est.history_x[replicate, :, i]
     for i, name in enumerate(est.names):
         cols[f"{name}_sigma"] = est.history_sigma[replicate, :, i]
-    return pd.DataFrame(cols)
+    return cols
 
 
 def truth_known(df: pd.DataFrame) -> bool:
@@ -477,6 +482,8 @@ def calibration(est: Estimate, study: Study, log_path) -> Calibration:
     units), their covariance, the log's hash and the config (docs/centrifuge-model.md §13)."""
     nc = est.n_coef
     names = list(est.names[:nc])
-    units = load_catalogue().frame().set_index("name")["unit"].reindex(names).fillna("deg/h/g^2")
+    cat = load_catalogue()
+    unit = dict(zip(cat.names, cat.units))
+    units = [unit.get(n, "deg/h/g^2") for n in names]  # the DOO terms are not in Table 2
     return calibration_of("centrifuge", "centrifuge-model.md", names, units, est.coef[0], est.P[0, :nc, :nc],
                           log_path, study.config)

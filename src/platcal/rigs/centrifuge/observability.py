@@ -41,14 +41,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 from numba import njit, prange
 
 from ...errors import InputError
 from ...estimation import information
 from ...estimation.information import (CRITERIA, correlation, crb_sigma, criteria, gram_singular_values,
                                        j_objective, numerical_rank, posterior_covariance, relative_scale)
-from ...io import atomic_files, json_text
+from ...io import atomic_files, json_text, write_csv
 from .attitude import make_rk4_scratch, make_work, measure_into, rk4_step_jac
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, N_FULL, N_IDENTIFIED, group_of, unit_of
@@ -472,7 +471,9 @@ def write_observability(out_dir, study, scheme, replicates: int = 0, **kw) -> di
     result, P, names = evaluate_scheme(study, scheme, **kw)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    coef = pd.DataFrame(result["coefficients"])
+    # coefficients.csv's columns (write_csv: pandas' to_csv text; this module is loaded by identify)
+    coef = {k: [c[k] for c in result["coefficients"]] for k in result["coefficients"][0]}
+    coef["crb_sigma"] = np.array([np.nan if v is None else v for v in coef["crb_sigma"]], float)
     if replicates > 0:
         fs = replace(study.filter, history_every_s=None)
         if "estimate_doo" in kw and kw["estimate_doo"] is not None and kw["estimate_doo"] != fs.estimate_doo:
@@ -491,7 +492,7 @@ def write_observability(out_dir, study, scheme, replicates: int = 0, **kw) -> di
             "replicates": replicates, "seed": study.seed, "passes": fs.passes,
             "rms_rel_err_pct_45": rms_relative_error(err[:, :n45], truth[:n45]),
             "median_mc_std_over_crb": float(np.nanmedian(coef["mc_std_over_crb"])),
-            "median_mc_std_over_filter_sigma": float(np.median(coef["mc_std"] / coef["posterior_sigma"])),
+            "median_mc_std_over_filter_sigma": float(np.median(coef["mc_std"] / np.asarray(coef["posterior_sigma"]))),
         }
         for row, s, r in zip(result["coefficients"], coef["mc_std"], coef["mc_rms"]):
             row["mc_std"] = float(s)
@@ -499,8 +500,8 @@ def write_observability(out_dir, study, scheme, replicates: int = 0, **kw) -> di
     rho = correlation(P)
     # the three files land together, observability.json (strict JSON: null for NaN) last
     with atomic_files(out) as tmp:
-        pd.DataFrame(rho, index=names, columns=names).to_csv(tmp("correlation.csv"), index=True)
-        coef.to_csv(tmp("coefficients.csv"), index=False)
+        write_csv(tmp("correlation.csv"), {n: rho[:, i] for i, n in enumerate(names)}, index=("", list(names)))
+        write_csv(tmp("coefficients.csv"), coef)
         tmp("observability.json").write_text(json_text(result))
     return result
 

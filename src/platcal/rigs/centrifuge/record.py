@@ -10,20 +10,24 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ...errors import InputError
+from ...lighttable import Table
 from ...mapping import RecordMapping
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
-                        nearest_samples, read_table, whole_group, write_record)  # noqa: F401 (write_record re-exported)
+                        iter_table, nearest_samples, whole_group, write_record)  # noqa: F401 (write_record re-exported)
 from ...records import num as _num
 from ...logs.calibration import Calibration
 from ...logs.dwells import DwellRule, find_dwells, labelled_frame
 from ...model.frames import DEG
 from ...model.instruments import FULL_NAMES, INDEX, N_FULL, compensate_accelerometers, gyro_drifts
 from ...scheme import Scheme
+
+if TYPE_CHECKING:  # annotations only: an identify that imports this module does not load pandas
+    import pandas as pd
 
 GYRO_COLUMNS = ("wx", "wy", "wz")
 """The platform gyros' outputs, deg/h (the rate each measures about its input axis), optional in a
@@ -52,11 +56,12 @@ class FilterInput:
 
 
 def sim_to_frame(sim, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
-    """One replicate of a :class:`~platcal.simulate.SimResult` as a test-record table."""
+    """One replicate of a :class:`~platcal.simulate.SimResult` as a test-record table (a pandas
+    DataFrame for the record writer, :meth:`platcal.lighttable.Table.to_pandas`)."""
     K = scheme.n_positions
     n = sim.t.size
     cmd = scheme.angles_deg
-    return pd.DataFrame({
+    return Table({
         "position": np.repeat(np.arange(1, K + 1), n),
         "t": np.tile(sim.t, K),
         "alpha_cmd": np.repeat(cmd[:, 0], n),
@@ -68,7 +73,7 @@ def sim_to_frame(sim, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
         "alpha": sim.angles[replicate, :, :, 0].ravel() / DEG,
         "beta": sim.angles[replicate, :, :, 1].ravel() / DEG,
         "gamma": sim.angles[replicate, :, :, 2].ravel() / DEG,
-    })
+    }).to_pandas()
 
 
 def chunk_to_frame(chunk, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
@@ -76,7 +81,7 @@ def chunk_to_frame(chunk, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
     record: the rows :func:`sim_to_frame` gives for those samples."""
     m = chunk.t.size
     cmd = scheme.angles_deg[chunk.position]
-    return pd.DataFrame({
+    return Table({
         "position": np.full(m, chunk.position + 1),
         "t": chunk.t,
         "alpha_cmd": np.full(m, cmd[0]),
@@ -88,17 +93,19 @@ def chunk_to_frame(chunk, scheme: Scheme, replicate: int = 0) -> pd.DataFrame:
         "alpha": chunk.angles[replicate, :, 0] / DEG,
         "beta": chunk.angles[replicate, :, 1] / DEG,
         "gamma": chunk.angles[replicate, :, 2] / DEG,
-    })
+    }).to_pandas()
 
 
-def read_record(path: str | os.PathLike, mapping: RecordMapping | None = None) -> pd.DataFrame:
+def read_record(path: str | os.PathLike, mapping: RecordMapping | None = None) -> Table:
     """Read a test record (CSV or Parquet) and check its columns and values; a log in other
-    columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`).
+    columns or units is read through the config's ``record:`` ``mapping`` (:data:`UNITS`). The
+    whole file as one :class:`platcal.lighttable.Table` (:func:`platcal.records.iter_table`'s one
+    chunk, the checks of ``read_table`` without its DataFrame: identify loads no pandas).
 
     Raises InputError naming the column (and row) on missing or extra columns, non-numeric,
     NaN or infinite values.
     """
-    df = read_table(path, LOG_COLUMNS, OPTIONAL_COLUMNS, mapping=mapping, units=UNITS)
+    df = next(iter_table(path, LOG_COLUMNS, OPTIONAL_COLUMNS, mapping=mapping, units=UNITS))
     has_truth_columns(df.columns)
     return df
 

@@ -11,7 +11,7 @@ and ``ga_*`` / any name listed in ``study.generated_schemes``, which resolve to 
 
 The swept noise is the accelerometer's ``sigma_a_ug`` (ug per 5 ms sample); replicate r of
 scheme S at level sigma_a draws from ``SeedSequence(seed, spawn_key=(stable_key(S),
-round(1000 sigma_a), r))`` (:func:`platcal.study.montecarlo.replicate_seed`).
+round(1000 sigma_a), r))`` (:func:`platcal.study.sweep.replicate_seed`).
 """
 
 from __future__ import annotations
@@ -24,22 +24,23 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ...errors import InputError
 from ...estimation.consistency import nees
-from ...io import atomic_to_csv, atomic_to_parquet, atomic_write_text, normalise_numbers
+from ...io import atomic_path, atomic_to_parquet, atomic_write_csv, atomic_write_text, normalise_numbers
+from ...lighttable import Table
+from ...logs.calibration import write_covariance
 from ...log import job_logger
 from ...model.instruments import group_of, unit_of
 from ...parallel import set_threads
 from ...rig import NoiseAxis, ReplicateBatch
 from ...seeding import stable_key
-from ...study.montecarlo import StudySectionHooks, noise_key, noise_label, replicate_seed
+from ...study.sweep import StudySectionHooks, noise_key, noise_label, replicate_seed
 from .config import check_filter, study_from_config, validate_config
 from .estimators import check_kind
 from .identify import simulate_identify
 from ...scheme import check_scheme, load_scheme_file, whole_periods
-from .tables import covariance_frame, estimates_frame
+from .tables import estimates_columns
 
 CLASSICAL_POSITIONS = ((0, 0, 0), (180, 0, 0), (90, 0, 90), (90, 0, 270), (90, 0, 0), (90, 0, 180))
 """Orthogonal 6-position scheme, deg: z_p up, z_p down, x_p up, x_p down, y_p up, y_p down
@@ -229,8 +230,9 @@ def replicate_batch(study, est) -> ReplicateBatch:
     nc = est.n_coef
     names = tuple(est.names[:nc])
     truth = study.truth[study.filter.coef_index]
-    quantities = pd.DataFrame({"name": names, "group": [group_of(n) for n in names],
-                               "unit": [unit_of(n) for n in names], "truth": truth})
+    # the runner's tables are pandas; through Table.to_pandas this module loads none for identify
+    quantities = Table({"name": list(names), "group": [group_of(n) for n in names],
+                        "unit": [unit_of(n) for n in names], "truth": truth}).to_pandas()
     return ReplicateBatch(
         quantities=quantities, estimate=est.coef, sigma=est.coef_sigma,
         nees=nees(est.coef, est.P[:, :nc, :nc], truth[None]), nees_dof=nc, mean_nis=est.mean_nis,
@@ -336,29 +338,29 @@ def run_single(cfg: dict, scheme, sigma_a_ug: float, estimator: str, replicate: 
     return study, est, time.perf_counter() - t0
 
 
-def history_frame(est, scheme, b: int = 0) -> pd.DataFrame:
-    """Long table of the filter's history of run ``b``: t (s), state, estimate, sigma, pass, position."""
+def history_frame(est, scheme, b: int = 0):
+    """Long table of the filter's history of run ``b`` (a pandas DataFrame for the Parquet file):
+    t_s (s), state, estimate, sigma (the state's unit), pass, position."""
     H = est.history_t.size
     n = len(est.names)
     dwell = scheme.dwell_s
     total = dwell * scheme.n_positions
-    t = est.history_t
-    df = pd.DataFrame({
-        "t_s": np.repeat(t, n), "state": list(est.names) * H,
+    t_s = np.repeat(est.history_t, n)
+    return Table({
+        "t_s": t_s, "state": list(est.names) * H,
         "estimate": est.history_x[b].ravel(), "sigma": est.history_sigma[b].ravel(),
-    })
-    df["pass"] = (np.floor(df["t_s"] / total + 1e-9) + 1).astype(int)
-    df["position"] = (np.floor((df["t_s"] % total) / dwell + 1e-9) + 1).astype(int).clip(upper=scheme.n_positions)
-    return df
+        "pass": (np.floor(t_s / total + 1e-9) + 1).astype(int),
+        "position": np.minimum((np.floor((t_s % total) / dwell + 1e-9) + 1).astype(int), scheme.n_positions),
+    }).to_pandas()
 
 
 def write_single(out_dir: str | os.PathLike, study, est, scheme, sigma_a_ug, estimator, replicate, seconds):
     """``estimates.csv``, ``covariance.csv``, ``history.parquet``, ``run.json`` of the single run."""
     out = Path(out_dir)
     nc = est.n_coef
-    df = estimates_frame(est.names[:nc], est.coef[0], est.coef_sigma[0], study.truth)
-    atomic_to_csv(df, out / "estimates.csv")
-    atomic_to_csv(covariance_frame(est.names, est.P[0]), out / "covariance.csv", index=True)
+    atomic_write_csv(out / "estimates.csv", estimates_columns(est.names[:nc], est.coef[0], est.coef_sigma[0], study.truth))
+    with atomic_path(out / "covariance.csv") as tmp:
+        write_covariance(tmp, est.names, est.P[0])
     atomic_to_parquet(history_frame(est, scheme), out / "history.parquet")
     info = {"scheme": scheme.name, "sigma_a_ug": float(sigma_a_ug), "estimator": estimator,
             "replicate": int(replicate), "passes": int(study.filter.passes), "dwell_s": scheme.dwell_s,

@@ -1,71 +1,83 @@
-"""Result tables: per-coefficient estimates, the covariance, and the paper's Table 2 layout.
+"""Result tables: per-coefficient estimates and the paper's Table 2 layout (docs/centrifuge-model.md §7).
 
-Relative error is eq. 28: ``e = (estimate - truth) / truth * 100 %``.
+Relative error is eq. 28: ``e = (estimate - truth) / truth * 100 %``. The tables are columns by
+name (a dict of arrays, or a DataFrame read back by the report): ``identify`` writes them
+without pandas (:func:`platcal.io.write_csv`), so it does not load pandas (issue 22 item 3).
 """
 
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
+from ...estimation.consistency import rel_err_pct
+from ...lighttable import Table
 from ...model.instruments import FULL_NAMES, unit_of
-from ...study.stats import rel_err_pct
 from .catalogue import load_catalogue
 
 
-def estimates_frame(names, estimate, sigma, truth_full=None) -> pd.DataFrame:
-    """One row per coefficient: name, unit, estimate, sigma (and truth, error, rel_err_pct)."""
-    df = pd.DataFrame({"name": list(names), "unit": [unit_of(n) for n in names],
-                       "estimate": np.asarray(estimate, float), "sigma": np.asarray(sigma, float)})
+def estimates_columns(names, estimate, sigma, truth_full=None) -> dict:
+    """One row per coefficient: name, unit, estimate, sigma in the coefficient's unit (and
+    truth, error, rel_err_pct %), as columns; ``truth_full`` is the 48-vector in FULL_NAMES order."""
+    cols = {"name": list(names), "unit": [unit_of(n) for n in names],
+            "estimate": np.asarray(estimate, float), "sigma": np.asarray(sigma, float)}
     if truth_full is not None:
         idx = [FULL_NAMES.index(n) for n in names]
         truth = np.asarray(truth_full, float)[idx]
-        df["truth"] = truth
-        df["error"] = df["estimate"] - truth
-        df["rel_err_pct"] = rel_err_pct(df["estimate"], truth)
-    return df
+        cols["truth"] = truth
+        cols["error"] = cols["estimate"] - truth
+        cols["rel_err_pct"] = rel_err_pct(cols["estimate"], truth)
+    return cols
 
 
-def covariance_frame(names, P) -> pd.DataFrame:
-    """The covariance with the state names as row and column labels."""
-    return pd.DataFrame(np.asarray(P), index=list(names), columns=list(names)).rename_axis("state")
-
-
-def table2_frame(est: pd.DataFrame) -> pd.DataFrame:
-    """Table 2 with the paper's estimate and relative error beside ours (45 identified rows)."""
-    cat = load_catalogue().frame().set_index("name")
+def table2_rows(est) -> list[dict]:
+    """Table 2 with the paper's estimate and relative error beside ours (the 45 identified rows
+    of ``est``, columns by name as :func:`estimates_columns` gives them; error and rel_err_pct
+    NaN when ``est`` has no truth)."""
+    cat = load_catalogue()
+    where = {n: i for i, n in enumerate(cat.names)}
+    names = list(est["name"])
+    missing = np.full(len(names), np.nan)
+    error = est["error"] if "error" in est else missing
+    rel = est["rel_err_pct"] if "rel_err_pct" in est else missing
     rows = []
-    for _, r in est.iterrows():
-        if r["name"] not in cat.index:
+    for name, unit, e, s, err, r in zip(names, est["unit"], est["estimate"], est["sigma"], error, rel):
+        if name not in where:
             continue
-        c = cat.loc[r["name"]]
+        i = where[name]
         rows.append({
-            "coefficient": r["name"], "unit": r["unit"], "truth": c["truth"],
-            "paper_estimate": c["paper_estimate"], "paper_rel_err_pct": c["paper_rel_err_pct"],
-            "estimate": r["estimate"], "sigma": r["sigma"],
-            "error": r.get("error", np.nan), "rel_err_pct": r.get("rel_err_pct", np.nan),
+            "coefficient": name, "unit": unit, "truth": cat.truth[i],
+            "paper_estimate": cat.paper_estimate[i], "paper_rel_err_pct": cat.paper_rel_err_pct[i],
+            "estimate": e, "sigma": s, "error": err, "rel_err_pct": r,
         })
-    return pd.DataFrame(rows)
+    return rows
 
 
-def table2_markdown(est: pd.DataFrame, title: str = "Table 2: identification results") -> str:
+def table2_frame(est):
+    """:func:`table2_rows` as a pandas DataFrame, for the report (:meth:`platcal.lighttable.Table.to_pandas`)."""
+    rows = table2_rows(est)
+    return Table({k: [r[k] for r in rows] for k in rows[0]}).to_pandas()
+
+
+def table2_markdown(est, title: str = "Table 2: identification results") -> str:
     """The paper's Table 2 in Markdown, our estimate and relative error beside the paper's."""
-    t2 = table2_frame(est)
+    t2 = table2_rows(est)
     lines = [f"# {title}", "",
              "Relative error is eq. 28, (estimate - truth) / truth x 100 %. "
              "Paper: Xu & Zhang (2017), Table 2.", "",
              "| coefficient | unit | truth | paper estimate | paper rel. err. % | our estimate "
              "| 1-sigma | our error | our rel. err. % |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
-    for _, r in t2.iterrows():
+    for r in t2:
         lines.append(
             f"| {r['coefficient']} | {r['unit']} | {r['truth']:g} | {r['paper_estimate']:g} | "
             f"{r['paper_rel_err_pct']:.2f} | {r['estimate']:.6g} | {r['sigma']:.3g} | "
             f"{r['error']:.4g} | {r['rel_err_pct']:.2f} |")
-    gyro = t2[t2["coefficient"].str.startswith("D")]
-    acc = t2[~t2["coefficient"].str.startswith("D")]
-    if t2["rel_err_pct"].notna().any():
-        lines += ["", f"Largest |relative error|: gyro {gyro['rel_err_pct'].abs().max():.2f} % "
-                      f"(paper {gyro['paper_rel_err_pct'].abs().max():.2f} %), accelerometer "
-                      f"{acc['rel_err_pct'].abs().max():.2f} % (paper {acc['paper_rel_err_pct'].abs().max():.2f} %)."]
+    gyro = np.array([r["coefficient"].startswith("D") for r in t2])
+    rel = np.abs(np.array([r["rel_err_pct"] for r in t2], float))
+    paper = np.abs(np.array([r["paper_rel_err_pct"] for r in t2], float))
+    if (~np.isnan(rel)).any():
+        # NaN-skipping maxima, as the pandas table's max() was
+        lines += ["", f"Largest |relative error|: gyro {np.nanmax(rel[gyro]):.2f} % "
+                      f"(paper {np.nanmax(paper[gyro]):.2f} %), accelerometer "
+                      f"{np.nanmax(rel[~gyro]):.2f} % (paper {np.nanmax(paper[~gyro]):.2f} %)."]
     return "\n".join(lines) + "\n"

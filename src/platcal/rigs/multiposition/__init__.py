@@ -5,8 +5,7 @@ to K positions at 1 g; a 27-state EKF on the three accelerometers and the three 
 sensors; a Lie-derivative rank test and a covariance check that accept or refuse a scheme.
 """
 
-import pandas as pd
-
+from ...lighttable import Table
 from ...rig import Rig
 from .campaign import CAMPAIGN
 from .commands import COMMANDS, OPTIONS, sizes
@@ -17,11 +16,13 @@ from .model import coef_names, group_of, truth_vector, unit_of
 from .montecarlo import MultipositionMonteCarlo
 
 
-def catalogue() -> pd.DataFrame:
-    """The 24 identified coefficients (§15 names, state order), units, groups and default truth."""
+def catalogue():
+    """The 24 identified coefficients (§15 names, state order), units, groups and default truth:
+    a pandas DataFrame for the study's tables (:meth:`platcal.lighttable.Table.to_pandas`, so
+    registering the rig loads no pandas)."""
     names = coef_names()
-    return pd.DataFrame({"name": names, "group": [group_of(n) for n in names],
-                         "unit": [unit_of(n) for n in names], "truth": truth_vector()})
+    return Table({"name": names, "group": [group_of(n) for n in names],
+                  "unit": [unit_of(n) for n in names], "truth": truth_vector()}).to_pandas()
 
 
 RIG = Rig(name="multiposition", title="1 g multi-position self-test, 27-state EKF with gimbal angle sensors",

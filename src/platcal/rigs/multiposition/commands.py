@@ -16,13 +16,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, fit_exit_status, gross_errors_moments
 from ...errors import InputError
 from ...rig import option, resolve
-from ...io import atomic_files, check_writable, json_text
+from ...io import atomic_files, check_writable, json_text, write_csv
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log, gyro_note, read_mapped
 from ...logs.dwells import DWELL_FIGURE, dwells_found, lacks_position
@@ -251,8 +250,10 @@ def cmd_identify(cfg, args) -> int:
     used = rec.samples_used()
     names = coef_names()
     sig = np.sqrt(np.diag(P))
-    df = pd.DataFrame({"name": names, "unit": [unit_of(n) for n in names], "group": [group_of(n) for n in names],
-                       "estimate": est, "sigma": sig})
+    units = [unit_of(n) for n in names]
+    groups = [group_of(n) for n in names]
+    # estimates.csv's columns, written by platcal.io.write_csv (pandas' to_csv text, without pandas)
+    table = {"name": names, "unit": units, "group": groups, "estimate": est, "sigma": sig}
     summary = {"rig": "multiposition", "scheme": scheme.name, "n_states": len(names) + 3,
                "estimator": choice.estimator, "passes": choice.passes, "estimator_options": choice.options,
                "positions": int(len(rec.t)), "samples": int(sum(used.values())),
@@ -267,17 +268,16 @@ def cmd_identify(cfg, args) -> int:
     use_truth = rec.has_truth and not args.no_truth
     if use_truth:
         tr = cfg.truth()
-        df["truth"] = tr
-        df["error"] = est - tr
-        df["rel_err_pct"] = (est - tr) / np.abs(tr) * 100.0
-        g = df["group"] == "gyro"
+        rel = (est - tr) / np.abs(tr) * 100.0
+        table.update({"truth": tr, "error": est - tr, "rel_err_pct": rel})
+        g = np.array(groups) == "gyro"  # the largest errors skip a NaN (a zero truth) as pandas' max did
         summary.update({"nees": float(nees(est[None], P[None], tr)[0]), "nees_dof": len(names),
-                        "max_abs_rel_err_pct_gyro": float(df.loc[g, "rel_err_pct"].abs().max()),
-                        "max_abs_rel_err_pct_accel": float(df.loc[~g, "rel_err_pct"].abs().max())})
+                        "max_abs_rel_err_pct_gyro": float(np.nanmax(np.abs(rel[g]))),
+                        "max_abs_rel_err_pct_accel": float(np.nanmax(np.abs(rel[~g])))})
     out = Path(args.out)
-    cal = calibration_of("multiposition", "multiposition-1g.md", names, df["unit"], est, P, args.data, cfg.raw)
+    cal = calibration_of("multiposition", "multiposition-1g.md", names, units, est, P, args.data, cfg.raw)
     with atomic_files(out) as tmp:  # the files land together, summary.json last
-        df.to_csv(tmp("estimates.csv"), index=False)
+        write_csv(tmp("estimates.csv"), table)
         write_calibration_files(tmp, cal)
         if segmentation is not None:
             resolve(DWELL_FIGURE)(*segmentation, tmp("dwells.png"))

@@ -9,7 +9,7 @@
 sensor noise, from one ``default_rng`` of that sequence. Replicate r of scheme S at
 accelerometer noise sigma_a is ``SeedSequence(seed, spawn_key=(stable_key(S), round(1000 sigma_a),
 r))`` (:func:`replicate_seeds`, the generic runner's
-:func:`platcal.study.montecarlo.replicate_seed`; ``seed`` is the config's root ``seed``), so a
+:func:`platcal.study.sweep.replicate_seed`; ``seed`` is the config's root ``seed``), so a
 replicate's numbers do not depend on the batch it runs in, the thread count or the job order,
 and ``platcal simulate --seed r`` draws replicate r of the study's cell of that scheme and noise.
 
@@ -49,7 +49,7 @@ from ...estimation.kalman import joseph_update_sparse, propagate_sparse, update_
 from ...estimation.lanes import (LANES, NoAliasCompiler, cholesky_inverse_lanes, innovation_covariance_lanes,
                                  joseph_correct_lanes, packed_index, propagate_rows_lanes, slp_vectorize)
 from ...model.frames import ARCSEC, DEG
-from ...study.montecarlo import replicate_seed
+from ...study.sweep import replicate_seed
 from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
 
 
@@ -105,7 +105,7 @@ def _threaded(fn, n: int, threads: int | None, *args) -> None:
 def replicate_seeds(cfg, scheme_name: str, replicates) -> list[np.random.SeedSequence]:
     """The SeedSequences of replicates ``replicates`` (ints >= 0) of the Monte Carlo cell of
     scheme ``scheme_name`` at the config's accelerometer noise ``cfg.sigma_a_ug``, under the
-    config's root ``seed`` (:func:`platcal.study.montecarlo.replicate_seed`)."""
+    config's root ``seed`` (:func:`platcal.study.sweep.replicate_seed`)."""
     return [replicate_seed(cfg.seed, scheme_name, cfg.sigma_a_ug, int(r)) for r in replicates]
 
 

@@ -12,7 +12,7 @@ replicates, run by :mod:`platcal.study.montecarlo` (one Snakemake job per cell, 
 - Estimators: the keys of ``study.estimators`` (overrides of ``filter``: ``ekf1``, ``ekf2``,
   ``iekf`` by default); every estimator of a cell sees the same simulated records.
 - Seeds: replicate r of scheme S at sigma_a draws from ``SeedSequence(seed, spawn_key=
-  (stable_key(S), round(1000 sigma_a), r))`` (:func:`platcal.study.montecarlo.replicate_seed`;
+  (stable_key(S), round(1000 sigma_a), r))`` (:func:`platcal.study.sweep.replicate_seed`;
   ``seed`` is the config's root ``seed``) in §14's order of use (:func:`.filter.draw_noise`), so
   its numbers are the same whatever the batch, thread count or job order, and
   ``platcal simulate --seed r`` writes the same record.
@@ -27,14 +27,14 @@ import re
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ...errors import InputError
 from ...io import read_yaml
+from ...lighttable import Table
 from ...parallel import get_threads
 from ...rig import NoiseAxis, ReplicateBatch
 from ...scheme import Scheme
-from ...study.montecarlo import StudySectionHooks, noise_key, noise_label
+from ...study.sweep import StudySectionHooks, noise_key, noise_label
 from .config import load_config, make_scheme, scheme_table
 from .estimators import estimate, raw_variant_choice, variant_choice
 from .filter import nees, simulate
@@ -89,11 +89,13 @@ def check_study(raw) -> dict:
     return cfg.raw
 
 
-def quantities(cfg) -> pd.DataFrame:
-    """The 24 identified coefficients of a config: name, group (gyro / accel), unit, truth."""
+def quantities(cfg):
+    """The 24 identified coefficients of a config: name, group (gyro / accel), unit, truth (a
+    pandas DataFrame for the runner's tables, :meth:`platcal.lighttable.Table.to_pandas`: the
+    rig's identify, which imports this module for its hooks, loads no pandas)."""
     names = coef_names()
-    return pd.DataFrame({"name": names, "group": [group_of(n) for n in names],
-                         "unit": [unit_of(n) for n in names], "truth": cfg.truth()})
+    return Table({"name": names, "group": [group_of(n) for n in names],
+                  "unit": [unit_of(n) for n in names], "truth": cfg.truth()}).to_pandas()
 
 
 def run_cell_batch(cfg, scheme: Scheme, sigma_a_ug: float, estimator: str, seeds, threads: int = 1) -> ReplicateBatch:

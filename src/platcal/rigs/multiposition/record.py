@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ...errors import InputError
+from ...lighttable import Table
 from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_position
 from ...mapping import RecordMapping
 from ...model.frames import DEG
@@ -25,6 +26,9 @@ from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, ne
                          iter_table, position_blocks, read_table, whole_group)
 from ...scheme import Scheme
 from .model import drift, measure
+
+if TYPE_CHECKING:  # annotations only: an identify that imports this module does not load pandas
+    import pandas as pd
 
 ANGLE_COLUMNS = ("alpha_m", "beta_m", "gamma_m")
 GYRO_COLUMNS = ("wx", "wy", "wz")
@@ -75,9 +79,9 @@ class Record:
         return tk, Z, nk
 
 
-def position_frame(scheme: Scheme, k: int, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> pd.DataFrame:
+def position_table(scheme: Scheme, k: int, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> Table:
     """Position ``k`` (0-based) of one replicate (``t`` (n,) s, phi (n, 3) rad, z (n, 6) ug / arcsec)
-    as the rows of a record table (§12)."""
+    as the rows of a record table (§12), numpy columns."""
     n = t.size
     cmd = scheme.angles_deg[k]
     true = cmd[None, :] + phi / DEG
@@ -91,13 +95,19 @@ def position_frame(scheme: Scheme, k: int, t: np.ndarray, phi: np.ndarray, z: np
         df[c] = meas[:, i]
     for i, c in enumerate(TRUTH_COLUMNS):
         df[c] = true[:, i]
-    return pd.DataFrame(df)
+    return Table(df)
+
+
+def position_frame(scheme: Scheme, k: int, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> pd.DataFrame:
+    """:func:`position_table` as the pandas DataFrame the record writer takes
+    (:meth:`platcal.lighttable.Table.to_pandas`: pandas loads for ``simulate``, not ``identify``)."""
+    return position_table(scheme, k, t, phi, z).to_pandas()
 
 
 def to_frame(scheme: Scheme, t: np.ndarray, phi: np.ndarray, z: np.ndarray) -> pd.DataFrame:
-    """One replicate (phi (K, n, 3) rad, z (K, n, 6) ug / arcsec) as a record table: every
-    position's :func:`position_frame`."""
-    return pd.concat([position_frame(scheme, k, t, phi[k], z[k]) for k in range(phi.shape[0])], ignore_index=True)
+    """One replicate (phi (K, n, 3) rad, z (K, n, 6) ug / arcsec) as a record table (a pandas
+    DataFrame): every position's :func:`position_table`, one after another."""
+    return Table.concat([position_table(scheme, k, t, phi[k], z[k]) for k in range(phi.shape[0])]).to_pandas()
 
 
 def read_record(path: str | os.PathLike, scheme: Scheme | None = None, ts: float = 0.02,

@@ -9,19 +9,22 @@ estimate it and the along-track (X) error is compensated open loop. Modules: :mo
 §12), :mod:`.study` (the study's tables, figures and report).
 """
 
-import pandas as pd
+import numpy as np
 
+from ...lighttable import Table
 from ...rig import Rig
 from .commands import COMMANDS, OPTIONS, sizes
 from .config import load_config
 from .montecarlo import SledMonteCarlo
 
 
-def catalogue() -> pd.DataFrame:
-    """The identified quantities (no default truth: it is drawn per seed)."""
+def catalogue():
+    """The identified quantities (no default truth: it is drawn per seed), a pandas DataFrame
+    (:meth:`platcal.lighttable.Table.to_pandas`: registering the rig loads no pandas)."""
     rows = [("phi_x", "attitude", "arcsec"), ("phi_y", "attitude", "arcsec"), ("phi_z", "attitude", "arcsec"),
             ("nabla_x", "accel", "ug")]
-    return pd.DataFrame([{"name": n, "group": g, "unit": u, "truth": float("nan")} for n, g, u in rows])
+    return Table({"name": [r[0] for r in rows], "group": [r[1] for r in rows], "unit": [r[2] for r in rows],
+                  "truth": np.full(len(rows), np.nan)}).to_pandas()
 
 
 RIG = Rig(name="sled", title="rocket-sled one-dimensional motion constraint, 6/7-state run + ZUPT filters",

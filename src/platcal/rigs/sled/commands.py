@@ -11,7 +11,7 @@ import numpy as np
 from ...errors import InputError
 from ...estimation.consistency import EXIT_RUN_FAILED, failed_run_status
 from ...estimation.fit import fit_exit_status
-from ...io import atomic_files, check_writable, json_text
+from ...io import atomic_files, check_writable, json_text, write_csv
 from ...logs.calibration import read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log
 from ...logs.increments import increment_units
@@ -19,12 +19,10 @@ from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one, iter_table
 from ...sizes import Costs, Size, samples_in
-from ...study.tables import write_table
 from .config import G, SledConfig
-from .identify import (calibration, compensated_track, estimates, gyro_rate_block, gyro_rate_error, identify,
-                       metrics, phi_from_calibration, record_fit, run_problems)
+from .identify import (calibration, compensated_track, estimate_columns, gyro_rate_block, gyro_rate_error, identify,
+                       metric_columns, phi_from_calibration, record_fit, run_problems)
 from .montecarlo import replicate_seeds
-from .observability import rank_table
 from .record import (IMU_COLUMNS, TRUTH_COLUMNS, UNITS, check_out_path, check_plausible, read_record, record_arrays,
                      record_truth, samples_per_phase, static_rate_tolerance, table_options, write_record)
 from .simulate import simulate
@@ -80,8 +78,8 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     if failed_run_status(run_problems(idn), "the sled filters", args.data, args.out,
                          "the record's units (f in m/s^2, w in rad/s) and the config's filter settings"):
         return EXIT_RUN_FAILED
-    met = metrics(one, truth, tail).iloc[0]
-    est = estimates(idn, truth)
+    met = {k: v[0] for k, v in metric_columns(one, truth, tail).items()}  # the first seed slot: the record
+    est = estimate_columns(idn, truth)
     seconds = time.perf_counter() - t0[0]
     out = Path(args.out)
     summary = {k: (None if not np.isfinite(v) else float(v)) for k, v in met.items()}
@@ -95,7 +93,7 @@ def cmd_identify(cfg: SledConfig, args) -> int:
     # the check at rest: what it does to the estimates, and the sigma with it
     summary["gyro_rate_error"] = gyro(est)
     with atomic_files(out) as tmp:  # the files land together, metrics.json last
-        est.to_csv(tmp("estimates.csv"), index=False, float_format="%.6g")
+        write_csv(tmp("estimates.csv"), est, float_format="%.6g")
         write_calibration_files(tmp, calibration(idn, args.data, cfg.raw))
         tmp("metrics.json").write_text(json_text(summary))
     msg = (f"platcal identify: sled {cfg.states}-state run filter, {cfg.compensation} X compensation, "
@@ -114,16 +112,6 @@ def cmd_identify(cfg: SledConfig, args) -> int:
                 "gyro_rate_error)")
     print(msg, file=sys.stderr)
     return fit_exit_status(fit, args.data, out, "metrics.json")
-
-
-def cmd_observability(cfg: SledConfig, args) -> int:
-    """The rank table of §8/§11 -> OUT/rank_table.{csv,md,html}."""
-    check_writable(args.out, "--out", folder=True)
-    tab = rank_table(cfg)
-    write_table(tab, Path(args.out) / "rank_table", "Sled observability ranks (docs/rocket-sled.md §8)",
-                note="states scaled 1 m/s, 1 m, 1 mrad; rank = #(sigma_i/sigma_1 > 1e-9); f = [a_x, 0, g] per phase")
-    print(tab.to_string(index=False), file=sys.stderr)
-    return 0
 
 
 def cmd_inspect(cfg: SledConfig, args) -> int:
@@ -191,4 +179,6 @@ OPTIONS = {"simulate": (CHUNK_OPTION,), "identify": (CHUNK_OPTION,)}
 """The sled's own options: ``--chunk-rows`` (a record longer than one chunk is simulated and
 identified block by block, :mod:`.stream`)."""
 
-COMMANDS = {"compensate": cmd_compensate, "inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify, "observability": cmd_observability}
+COMMANDS = {"compensate": cmd_compensate, "inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify,
+            # by module path: the rank table's pandas loads only for this command (issue 22 item 3)
+            "observability": "platcal.rigs.sled.observability:cmd_observability"}

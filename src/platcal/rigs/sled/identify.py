@@ -13,12 +13,13 @@ time, and the X compensation and metric B use the same intervals; a clean record
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check
+from ...lighttable import Table
 from ...logs.calibration import Calibration, calibration_of
 from ...logs.increments import sample_intervals
 from .config import ARCSEC, DEG_H, G, SledConfig
@@ -28,6 +29,9 @@ from .filters import Epochs, FilterOut, run_filter, stop_filter
 from .ins import mechanise
 from .simulate import Truth
 from .trajectory import Trajectory
+
+if TYPE_CHECKING:  # annotations only: an identify that imports this module does not load pandas
+    import pandas as pd
 
 
 @dataclass(frozen=True)
@@ -117,13 +121,14 @@ def compensated_track(cfg: SledConfig, f: np.ndarray, w: np.ndarray, t: np.ndarr
     """The along-track position X(t) (m) and velocity V(t) (m/s) of one record, navigated (§4)
     and compensated open loop with the constant attitude errors ``phi`` (3,) rad [φ_x, φ_y, φ_z]
     (§7, the ``post`` mode): columns ``t, x_nav_m, v_nav_m_s, x_m, v_m_s``. ``f``, ``w`` (N,3)
-    m/s^2, rad/s; ``t`` (N,) s from the record's start, its samples' own intervals."""
+    m/s^2, rad/s; ``t`` (N,) s from the record's start, its samples' own intervals. A pandas
+    DataFrame for the record writer (:meth:`platcal.lighttable.Table.to_pandas`)."""
     dts = sample_intervals(t)
     v, r, fl = mechanise(f[None], w[None], np.zeros((1, 3)), cfg.omega_ie, dts)
     n = t.size
     dv, dr = x_corrections(fl, np.broadcast_to(np.asarray(phi, float), (1, n, 3)), dts)
-    return pd.DataFrame({"t": t, "x_nav_m": r[0, :n, 0], "v_nav_m_s": v[0, :n, 0],
-                         "x_m": r[0, :n, 0] - dr[0, :n], "v_m_s": v[0, :n, 0] - dv[0, :n]})
+    return Table({"t": t, "x_nav_m": r[0, :n, 0], "v_nav_m_s": v[0, :n, 0],
+                  "x_m": r[0, :n, 0] - dr[0, :n], "v_m_s": v[0, :n, 0] - dv[0, :n]}).to_pandas()
 
 
 def phi_per_sample(run: FilterOut, states: int, epochs: np.ndarray, j_stop: int, n: int, mode: str) -> np.ndarray:
@@ -272,10 +277,10 @@ def after_b(idn: Identification) -> np.ndarray:
     return rr - idn.r_model
 
 
-def metrics(idn: Identification, truth: Truth | None, tail: Tail | None = None) -> pd.DataFrame:
-    """Per-seed metrics of §8 with the keys of §10 (cm, arcsec, µg; absolute values). ``tail``:
-    the values beyond the stop of a streamed record, whose ``idn`` and ``truth`` hold the run up
-    to the stop only (default: from ``idn``'s whole record)."""
+def metric_columns(idn: Identification, truth: Truth | None, tail: Tail | None = None) -> dict:
+    """Per-seed metrics of §8 with the keys of §10 (cm, arcsec, µg; absolute values), one array
+    of seeds per key. ``tail``: the values beyond the stop of a streamed record, whose ``idn`` and
+    ``truth`` hold the run up to the stop only (default: from ``idn``'s whole record)."""
     tr, ns = idn.traj, idn.n_stop
     S = idn.r.shape[0]
     tail = Tail.of(idn, truth) if tail is None else tail
@@ -317,12 +322,18 @@ def metrics(idn: Identification, truth: Truth | None, tail: Tail | None = None) 
             out[f"phi_{ax}_sigma_arcsec"] = idn.sig_run[:, i] / ARCSEC
             out[f"phi0_{ax}_arcsec"] = truth.params.phi0[:, i] / ARCSEC          # signed: the drawn value
         out["nabla_x_err_ug"] = np.abs(idn.nabla_x_hat - truth.nabla_static[:, 0]) / G * 1e6
-    return pd.DataFrame(out)
+    return out
 
 
-def estimates(idn: Identification, truth: Truth | None, s: int = 0) -> pd.DataFrame:
-    """estimates.csv of one seed slot: run-filter attitude (arcsec) with sigma, truth, effective;
-    the stop filter's φ_x, φ_y and the by-product ∇̂_x (µg)."""
+def metrics(idn: Identification, truth: Truth | None, tail: Tail | None = None) -> pd.DataFrame:
+    """:func:`metric_columns` as a pandas DataFrame, one row per seed (the Monte Carlo's tables;
+    :meth:`platcal.lighttable.Table.to_pandas`)."""
+    return Table(metric_columns(idn, truth, tail)).to_pandas()
+
+
+def estimate_columns(idn: Identification, truth: Truth | None, s: int = 0) -> dict:
+    """estimates.csv of one seed slot, as columns: run-filter attitude (arcsec) with sigma, truth,
+    effective; the stop filter's φ_x, φ_y and the by-product ∇̂_x (µg)."""
     eff = effective_phi(truth)[s] if truth is not None else np.full(3, np.nan)
     tru = truth.params.phi0[s] if truth is not None else np.full(3, np.nan)
     rows = []
@@ -336,7 +347,12 @@ def estimates(idn: Identification, truth: Truth | None, s: int = 0) -> pd.DataFr
     nab = truth.nabla_static[s, 0] / G * 1e6 if truth is not None else np.nan
     rows.append({"name": "nabla_x", "filter": "stop", "unit": "ug", "estimate": idn.nabla_x_hat[s] / G * 1e6,
                  "sigma": np.nan, "truth": nab, "effective": np.nan})
-    return pd.DataFrame(rows)
+    return {k: [r[k] for r in rows] for k in rows[0]}
+
+
+def estimates(idn: Identification, truth: Truth | None, s: int = 0) -> pd.DataFrame:
+    """:func:`estimate_columns` as a pandas DataFrame (:meth:`platcal.lighttable.Table.to_pandas`)."""
+    return Table(estimate_columns(idn, truth, s)).to_pandas()
 
 
 def calibration(idn: Identification, log_path, config: dict, s: int = 0) -> Calibration:
@@ -381,7 +397,7 @@ def record_fit(idn: Identification, s: int = 0) -> FitCheck:
 
 
 def gyro_rate_error(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray, t: np.ndarray,
-                    est: pd.DataFrame, tolerance: np.ndarray) -> dict:
+                    est: dict, tolerance: np.ndarray) -> dict:
     """What a constant gyro rate error the record cannot see does to the estimates (the
     ``gyro_rate_error`` block of metrics.json; docs/rocket-sled.md §3, §6, §10).
 
@@ -391,7 +407,7 @@ def gyro_rate_error(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndar
     same as a rate error e omega_i in every sample: the record tells them apart only at rest,
     beyond ``tolerance`` (3,) rad/s (:func:`.record.static_rate_tolerance`). Each gyro of the
     record ``f``, ``w`` (N,3), ``t`` (N,) is offset by ``sigma_deg_h`` in turn and identified
-    again (one batch of three), ``est`` the record's own :func:`estimates`; per estimate the
+    again (one batch of three), ``est`` the record's own :func:`estimate_columns`; per estimate the
     shift per sigma of each gyro (arcsec), the sigma with the three added in quadrature
     (``sigma_with_gyro_arcsec``: the honest 1 sigma with the config's gyros) and the shift, in
     the filter's sigma, of the largest rate error the check at rest lets pass
@@ -413,7 +429,7 @@ def gyro_offsets(cfg: SledConfig, w: np.ndarray) -> np.ndarray:
     return np.repeat(w, 3, axis=0) + gyro_rate_sigma(cfg) * np.eye(3)[:, None, :]
 
 
-def gyro_rate_block(cfg: SledConfig, est: pd.DataFrame, tolerance: np.ndarray,
+def gyro_rate_block(cfg: SledConfig, est: dict, tolerance: np.ndarray,
                     shifted: Identification | None, first: int = 0) -> dict:
     """:func:`gyro_rate_error`'s block from the identification ``shifted`` whose seed slots
     ``first`` … ``first + 2`` hold the record with each gyro offset (None: the config's gyros
@@ -423,9 +439,10 @@ def gyro_rate_block(cfg: SledConfig, est: pd.DataFrame, tolerance: np.ndarray,
            "scale_tolerance": (np.abs(np.asarray(tolerance) / cfg.omega_ie)).tolist(), "estimates": {}}
     if shifted is None:
         return out
-    shifts = np.stack([estimates(shifted, None, first + s)["estimate"].to_numpy() for s in range(3)], axis=1) \
-        - est["estimate"].to_numpy()[:, None]                     # (rows, 3 gyros), per sigma_deg_h
-    for i, row in est.iterrows():
+    shifts = np.stack([np.array(estimate_columns(shifted, None, first + s)["estimate"]) for s in range(3)], axis=1) \
+        - np.array(est["estimate"])[:, None]                     # (rows, 3 gyros), per sigma_deg_h
+    rows = [dict(zip(est, values)) for values in zip(*est.values())]
+    for i, row in enumerate(rows):
         if row["unit"] != "arcsec" or not np.isfinite(row["estimate"]):
             continue
         sh = shifts[i]

@@ -26,12 +26,12 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
 from ...errors import InputError
 from ...io import sorted_mapping
+from ...lighttable import Table
 from ...rig import NoiseAxis, ReplicateBatch, RunSettings
-from ...study.montecarlo import replicate_seed
+from ...study.sweep import replicate_seed
 from .config import ARCSEC, SledConfig, load_config
 from .identify import Identification, effective_phi, identify, metrics, phi_columns, run_problems
 from .simulate import SimBatch, simulate
@@ -120,10 +120,14 @@ def run_replicates(cfg: SledConfig, seeds) -> tuple[SimBatch, Identification]:
     return sb, identify(cfg, sb.traj, sb.f, sb.w)
 
 
-def quantities(states: int) -> pd.DataFrame:
-    """The run filter's attitude estimates (φ_x only with 7 states), arcsec; truth drawn per seed."""
+def quantities(states: int):
+    """The run filter's attitude estimates (φ_x only with 7 states), arcsec; truth drawn per seed
+    (a pandas DataFrame for the runner's tables, :meth:`platcal.lighttable.Table.to_pandas`: the
+    rig's identify imports this module and loads no pandas)."""
     names = ["phi_x", "phi_y", "phi_z"] if states == 7 else ["phi_y", "phi_z"]
-    return pd.DataFrame({"name": names, "group": "attitude", "unit": "arcsec", "truth": np.nan})
+    n = len(names)
+    return Table({"name": names, "group": ["attitude"] * n, "unit": ["arcsec"] * n,
+                  "truth": np.full(n, np.nan)}).to_pandas()
 
 
 def failed_updates(idn: Identification) -> np.ndarray:

@@ -10,9 +10,14 @@ The whole run is the stripped (piecewise-constant, PWCS) stack ``[Q_static; Q_bo
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 
+from ...io import check_writable
+from ...study.tables import write_table
 from .config import G, SledConfig
 from .errmodel import run_F, stop_F
 
@@ -93,3 +98,13 @@ def rank_table(cfg: SledConfig, rtol: float = RTOL) -> pd.DataFrame:
         Q = scaled_q(stop_F(np.array([0.0, 0.0, G]), w, wc))
         rows.append({"model": "stop 6-state", "omega": label, "static": f"{rank(Q, rtol)}/6"})
     return pd.DataFrame(rows).fillna("")
+
+
+def cmd_observability(cfg: SledConfig, args) -> int:
+    """The rank table of §8/§11 -> OUT/rank_table.{csv,md,html}."""
+    check_writable(args.out, "--out", folder=True)
+    tab = rank_table(cfg)
+    write_table(tab, Path(args.out) / "rank_table", "Sled observability ranks (docs/rocket-sled.md §8)",
+                note="states scaled 1 m/s, 1 m, 1 mrad; rank = #(sigma_i/sigma_1 > 1e-9); f = [a_x, 0, g] per phase")
+    print(tab.to_string(index=False), file=sys.stderr)
+    return 0

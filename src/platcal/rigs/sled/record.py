@@ -13,21 +13,25 @@ phi0, accelerometer and gyro errors in engineering units). CSV (``.csv``) or Par
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ...errors import InputError
+from ...lighttable import Table
 from ...estimation.consistency import normal_quantile
 from ...logs.increments import increment_units, rates_from_increments, sample_intervals
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised
 from ... import records
-from ...records import check_times, grid_origin, num, read_table
+from ...records import check_times, grid_origin, iter_table, num
 from .config import ARCSEC, DEG_H, G, OMEGA_E, SledConfig
 from .sensors import ErrorParams
 from .simulate import SimBatch, Truth
 from .trajectory import Trajectory, build_trajectory
+
+if TYPE_CHECKING:  # annotations only: an identify that imports this module does not load pandas
+    import pandas as pd
 
 IMU_COLUMNS = ("t", "fx", "fy", "fz", "wx", "wy", "wz")
 TRUTH_COLUMNS = ("x_true", "vx_true", "x_inst")
@@ -51,8 +55,9 @@ def sim_frame(sb: SimBatch, s: int = 0) -> pd.DataFrame:
 
 def record_frame(t, f, w, x_true, vx_true, x_inst) -> pd.DataFrame:
     """A record frame (§10) of samples at ``t`` (N,) s: f (N,3) m/s^2, w (N,3) rad/s and the
-    truth columns (N,) m, m/s."""
-    df = pd.DataFrame({"t": t})
+    truth columns (N,) m, m/s; a pandas DataFrame for the record writer
+    (:meth:`platcal.lighttable.Table.to_pandas`)."""
+    df = Table({"t": t})
     for i, ax in enumerate("xyz"):
         df[f"f{ax}"] = f[:, i]
     for i, ax in enumerate("xyz"):
@@ -60,7 +65,7 @@ def record_frame(t, f, w, x_true, vx_true, x_inst) -> pd.DataFrame:
     df["x_true"] = x_true
     df["vx_true"] = vx_true
     df["x_inst"] = x_inst
-    return df
+    return df.to_pandas()
 
 
 def truth_side(ss: np.random.SeedSequence, params: ErrorParams, nabla_static: np.ndarray, s: int = 0) -> dict:
@@ -87,10 +92,11 @@ PHASE_TOL_G = 0.1
 the phase's level) from the config's acceleration is refused: the record is another run."""
 
 
-def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataFrame, np.ndarray]:
+def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, Table, np.ndarray]:
     """Read and check a record against the config's trajectory; InputError naming the field.
 
-    Returns the trajectory, the frame and ``t`` (N,), the samples' times from the record's start
+    Returns the trajectory, the record (a :class:`platcal.lighttable.Table`: the checks of
+    ``read_table`` without its DataFrame, so identify loads no pandas) and ``t`` (N,), the samples' times from the record's start
     (s), used as recorded (docs/rocket-sled.md §12, "Recorded times"). Refused, before any work:
     a file that is not UTF-8 CSV or Parquet, a missing or unknown column, non-finite values;
     time that does not increase, a median step more than 10x off the IMU period (``t`` not in
@@ -103,11 +109,13 @@ def read_record(path: str | Path, cfg: SledConfig) -> tuple[Trajectory, pd.DataF
     with ``record.kind: increments`` the f and w columns are delta-v (m/s) and delta-theta (rad)
     per sample, converted over each sample's interval (:mod:`platcal.logs.increments`).
     """
-    df = read_table(path, **table_options(cfg))
+    df = next(iter_table(path, **table_options(cfg)))
     traj = build_trajectory(cfg)
     t, med, _ = record_times(cfg, traj.n, df["t"].to_numpy(dtype=float))
     if incremental(cfg):  # delta-v, delta-theta over each sample's interval (platcal.logs.increments)
-        df[list(IMU_COLUMNS[1:])] = rates_from_increments(df[list(IMU_COLUMNS[1:])].to_numpy(float), t)
+        rates = rates_from_increments(df[list(IMU_COLUMNS[1:])].to_numpy(float), t)
+        for i, c in enumerate(IMU_COLUMNS[1:]):
+            df[c] = rates[:, i]
     fz = float(np.median(df["fz"].to_numpy(float)))
     if not 0.9 * G <= fz <= 1.1 * G:
         refuse_fz(fz)
@@ -316,7 +324,7 @@ def samples_per_phase(traj: Trajectory, t: np.ndarray, dt: float) -> dict[str, i
     return {name: int(c) for name, c in zip(traj.phase_names, counts)}
 
 
-def record_arrays(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+def record_arrays(df: Table) -> tuple[np.ndarray, np.ndarray]:
     """(1,N,3) specific force and rate of a record frame."""
     f = df[["fx", "fy", "fz"]].to_numpy(dtype=float)[None]
     w = df[["wx", "wy", "wz"]].to_numpy(dtype=float)[None]
@@ -337,7 +345,7 @@ def truth_params(path: str | Path, columns) -> tuple[ErrorParams, np.ndarray] | 
         raise InputError(str(records.truth_path(path)), f"not a sled truth file ({exc.__class__.__name__}: {exc})") from None
 
 
-def record_truth(path: str | Path, df: pd.DataFrame) -> Truth | None:
+def record_truth(path: str | Path, df: Table) -> Truth | None:
     """The truth of a simulated record (columns + side file), or None when either is absent."""
     drawn = truth_params(path, df.columns)
     if drawn is None:

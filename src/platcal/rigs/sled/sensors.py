@@ -4,7 +4,7 @@ Accelerometers ``f̃ = (I + M) f + diag(s) f + b_a + k2 ∘ f² + w_a``; gyros
 ``ω̃ = ω + b_g + G_s f + w_g``; initial attitude error φ0 (rad, rotation vector in l).
 
 Seeding (docs/rocket-sled.md §3, §12): replicate r draws from one ``numpy.random.Generator`` on
-the Monte Carlo runner's ``SeedSequence`` (:func:`platcal.study.montecarlo.replicate_seed`, keyed
+the Monte Carlo runner's ``SeedSequence`` (:func:`platcal.study.sweep.replicate_seed`, keyed
 by the root seed, the case, the noise level and r), so a replicate's numbers never depend on the
 batch it runs in. Draw order: errors b_a(3), s(3), k2(3), M off-diagonal (6: xy, xz, yx, yz, zx,
 zy), b_g(3), G_s(3×3 row-major), φ0(3); then noise: accelerometer (N×3), then gyro (N×3).

@@ -47,7 +47,7 @@ def record_rotation(phi0: np.ndarray) -> np.ndarray:
 
 def simulate(cfg: SledConfig, seeds, noise_free: bool = False) -> SimBatch:
     """Draw errors and noise, one replicate per ``numpy.random.SeedSequence`` of ``seeds`` (the
-    Monte Carlo runner's, :func:`platcal.study.montecarlo.replicate_seed`), make the IMU samples
+    Monte Carlo runner's, :func:`platcal.study.sweep.replicate_seed`), make the IMU samples
     and the truths of §4.
 
     ``noise_free``: no sensor errors, no noise and no initial attitude error.

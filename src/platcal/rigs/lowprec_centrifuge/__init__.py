@@ -13,18 +13,19 @@ hooks of the generic Monte Carlo runner), ``report`` (tables, figures, report),
 """
 
 import numpy as np
-import pandas as pd
 
+from ...lighttable import Table
 from ...rig import Rig
-from .commands import OPTIONS, compensate, identify, inspect, simulate, sizes
+from .commands import COEFF_UNITS, OPTIONS, compensate, identify, inspect, simulate, sizes
 from .config import COEFFS, load_config
 from .montecarlo import LowprecMonteCarlo
 
 
-def catalogue() -> pd.DataFrame:
-    """The identified coefficients; truth is per platform (config ``platforms``), hence NaN here."""
-    return pd.DataFrame({"name": list(COEFFS), "group": ["accel"] * 4,
-                         "unit": list(COEFF_UNITS), "truth": [np.nan] * 4})
+def catalogue():
+    """The identified coefficients; truth is per platform (config ``platforms``), hence NaN here. A
+    pandas DataFrame (:meth:`platcal.lighttable.Table.to_pandas`: registering the rig loads no pandas)."""
+    return Table({"name": list(COEFFS), "group": ["accel"] * 4,
+                  "unit": list(COEFF_UNITS), "truth": [np.nan] * 4}).to_pandas()
 
 
 RIG = Rig(name="lowprec_centrifuge",

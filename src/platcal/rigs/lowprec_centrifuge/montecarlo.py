@@ -315,9 +315,9 @@ def study_frames(study, names, coef: pd.DataFrame, runs: pd.DataFrame) -> tuple[
                     failed = (r[failed_column(p, cal)].to_numpy(bool) if cal != "truth" else np.zeros(S, bool))
                     n = S * len(ERRORS)
                     cross.append(Table({
-                        "scenario": [sc] * n, "seed": np.repeat(r["replicate"].to_numpy(np.int64), len(ERRORS)),
-                        "platform": [p] * n, "method": ["truth" if cal == "truth" else est] * n,
-                        "cal_run": [cal] * n, "eval_run": [j] * n,
+                        "scenario": np.full(n, sc), "seed": np.repeat(r["replicate"].to_numpy(np.int64), len(ERRORS)),
+                        "platform": np.full(n, p), "method": np.full(n, "truth" if cal == "truth" else est),
+                        "cal_run": np.full(n, cal), "eval_run": np.full(n, j),
                         "channel": [CHANNEL[e] for e in ERRORS] * S, "error": list(ERRORS) * S,
                         **{m: v.ravel() for m, v in vals.items()}, "failed": np.repeat(failed, len(ERRORS))}))
             for run in study.run_names(p):
@@ -328,9 +328,9 @@ def study_frames(study, names, coef: pd.DataFrame, runs: pd.DataFrame) -> tuple[
                 bad = _cell_runs(runs, sc, est).set_index("replicate")[failed_column(p, run)].astype(bool)
                 n = len(c)
                 coeffs.append(Table({
-                    "scenario": [sc] * n, "seed": c["replicate"].to_numpy(np.int64), "platform": [p] * n,
-                    "method": [est] * n, "run": [run] * n,
-                    "coefficient": [name.split(".")[-1] for name in c["name"]],
+                    "scenario": np.full(n, sc), "seed": c["replicate"].to_numpy(np.int64), "platform": np.full(n, p),
+                    "method": np.full(n, est), "run": np.full(n, run),
+                    "coefficient": np.array([name.split(".")[-1] for name in c["name"]], dtype=str),
                     "estimate": c["estimate"].to_numpy(float), "sigma": c["sigma"].to_numpy(float),
                     "truth": c["truth"].to_numpy(float), "failed": bad.loc[c["replicate"]].to_numpy(bool)}))
     # built as tables and handed over as pandas DataFrames (:meth:`platcal.lighttable.Table.to_pandas`):

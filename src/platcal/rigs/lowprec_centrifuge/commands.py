@@ -21,7 +21,7 @@ from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option, whole
 from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, record_writer
 from ...io import atomic_files, check_writable, json_text, write_csv
-from ...study.montecarlo import replicate_seed
+from ...study.sweep import replicate_seed
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log

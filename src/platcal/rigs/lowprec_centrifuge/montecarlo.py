@@ -42,7 +42,7 @@ import numpy as np
 from ...errors import InputError
 from ...lighttable import Table
 from ...rig import NoiseAxis, ReplicateBatch, RunSettings
-from ...study.montecarlo import replicate_seed
+from ...study.sweep import replicate_seed
 from .config import COEFFS, Centrifuge, load_config
 from .metrics import CHANNEL, ERRORS, compensate, effect, nonlinear_effect
 from .proposed import K_SLICE, identify_proposed

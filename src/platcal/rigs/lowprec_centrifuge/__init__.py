@@ -7,7 +7,8 @@ Modules: ``config`` (schema, :class:`Study`), ``profile`` (run profiles, kinemat
 platform INS navigated through the table's motion), ``errormodel`` (the §5 error model along a
 specific force: a log's compensation), ``record`` (the test record),
 ``proposed`` (windows, observations, 14-state filter), ``traditional`` (eq. 2), ``metrics``
-(compensation, effect), ``study`` (scenarios, tables from the tidy Monte Carlo tables), ``montecarlo`` (the
+(compensation, effect), ``scenario`` (the §2 scenarios, failed fits, traces; no pandas), ``study`` (tables
+from the tidy Monte Carlo tables), ``montecarlo`` (the
 hooks of the generic Monte Carlo runner), ``report`` (tables, figures, report),
 ``commands`` (the CLI).
 """

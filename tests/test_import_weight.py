@@ -53,18 +53,7 @@ def test_a_study_command_loads_its_own_libraries_when_chosen():
     assert "matplotlib" in loaded_after("centrifuge", ["report"])
 
 
-PANDAS_STILL = {"lowprec_centrifuge": "its record, commands, montecarlo and study modules import pandas at module top (issue 22, not moved yet)"}
-"""Rigs whose identify still loads pandas, and why (README, Long records in bounded memory)."""
-
-
-def no_pandas(rig: str):
-    """The rig as a parameter, expected to fail (strictly) where its identify still loads pandas."""
-    if rig in PANDAS_STILL:
-        return pytest.param(rig, marks=pytest.mark.xfail(strict=True, reason=PANDAS_STILL[rig]))
-    return rig
-
-
-@pytest.mark.parametrize("rig", [no_pandas(r) for r in RIGS])
+@pytest.mark.parametrize("rig", RIGS)
 def test_choosing_identify_loads_no_pandas(rig):
     """pandas is some 40 MB of a streamed identify's floor (issue 22 item 3): the modules an
     identify imports write its tables without it and name the ones that need it by module path."""
@@ -87,8 +76,13 @@ SMALL = {
     "multiposition": ("rig: multiposition\nschemes: {small: {dwell_s: 6, positions: [[0, 0, 0], [90, 30, 0], "
                       "[180, -30, 90], [270, 20, 180], [45, 0, 270]]}}\n", ["--scheme", "small"]),
     "sled": ("rig: sled\ntrajectory: {static_after_s: 10}\n", []),
+    "lowprec_centrifuge": ("rig: lowprec_centrifuge\nseed: 3\nplatforms: {P1: {kA_x: -40, k2_x: -8, kA_y: 25, k2_y: -5}}\n"
+                           "runs: {P1: {run1: [4, 6]}}\nprofile: {rest_first_s: 10, rest_between_s: 20}\n"
+                           "traditional: {levels_g: [4, 6], hold_s: 30, rest_last_s: 10}\n", []),
 }
-"""Small records of the rigs whose identify loads no pandas (as tests/test_fit_rigs.py's)."""
+"""Small records of the rigs (as tests/test_fit_rigs.py's)."""
+SIMULATE_ONLY = {"lowprec_centrifuge": ["--platform", "P1", "--run", "run1"]}
+"""Options of a rig's simulate that its identify does not take (which run to write)."""
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".parquet"])
@@ -100,8 +94,8 @@ def test_an_identify_whole_and_streamed_loads_no_pandas(rig, suffix, tmp_path):
     cfg = tmp_path / "config.yaml"
     cfg.write_text(text)
     rec = tmp_path / f"rec{suffix}"
-    subprocess.run([sys.executable, "-m", "platcal.cli", "simulate", "--config", str(cfg), *opts, "--seed", "1",
-                    "--out", str(rec)], check=True, capture_output=True)
+    subprocess.run([sys.executable, "-m", "platcal.cli", "simulate", "--config", str(cfg), *opts,
+                    *SIMULATE_ONLY.get(rig, []), "--seed", "1", "--out", str(rec)], check=True, capture_output=True)
     outs = []
     for chunks in ("0", "500"):
         out = tmp_path / f"id{chunks}"

@@ -7,24 +7,26 @@ Modules: ``config`` (schema, :class:`Study`), ``profile`` (run profiles, kinemat
 platform INS navigated through the table's motion), ``errormodel`` (the §5 error model along a
 specific force: a log's compensation), ``record`` (the test record),
 ``proposed`` (windows, observations, 14-state filter), ``traditional`` (eq. 2), ``metrics``
-(compensation, effect), ``study`` (scenarios, tables from the tidy Monte Carlo tables), ``montecarlo`` (the
+(compensation, effect), ``scenario`` (the §2 scenarios, failed fits, traces; no pandas), ``study`` (tables
+from the tidy Monte Carlo tables), ``montecarlo`` (the
 hooks of the generic Monte Carlo runner), ``report`` (tables, figures, report),
 ``commands`` (the CLI).
 """
 
 import numpy as np
-import pandas as pd
 
+from ...lighttable import Table
 from ...rig import Rig
-from .commands import OPTIONS, compensate, identify, inspect, simulate, sizes
+from .commands import COEFF_UNITS, OPTIONS, compensate, identify, inspect, simulate, sizes
 from .config import COEFFS, load_config
 from .montecarlo import LowprecMonteCarlo
 
 
-def catalogue() -> pd.DataFrame:
-    """The identified coefficients; truth is per platform (config ``platforms``), hence NaN here."""
-    return pd.DataFrame({"name": list(COEFFS), "group": ["accel"] * 4,
-                         "unit": list(COEFF_UNITS), "truth": [np.nan] * 4})
+def catalogue():
+    """The identified coefficients; truth is per platform (config ``platforms``), hence NaN here. A
+    pandas DataFrame (:meth:`platcal.lighttable.Table.to_pandas`: registering the rig loads no pandas)."""
+    return Table({"name": list(COEFFS), "group": ["accel"] * 4,
+                  "unit": list(COEFF_UNITS), "truth": [np.nan] * 4}).to_pandas()
 
 
 RIG = Rig(name="lowprec_centrifuge",

@@ -20,8 +20,8 @@ from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option, whole
 from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, record_writer
-from ...io import atomic_files, check_writable, json_text
-from ...study.montecarlo import replicate_seed
+from ...io import atomic_files, check_writable, json_text, write_csv
+from ...study.sweep import replicate_seed
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
 from ...logs.compensate import compensate_log
 from ...logs.summary import inspect_log
@@ -32,7 +32,7 @@ from .montecarlo import SEED_KEY
 from .profile import profile_grid, run_duration
 from .proposed import K_SLICE, run_filter
 from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, block_frame, check_against_config, check_out_path,
-                     check_plausible, compensated_frame, estimates_frame, read_record, truth_side)
+                     check_plausible, compensated_frame, estimate_columns, read_record, truth_side)
 from .stream import scan_record
 from .traditional import plateau_estimates
 from .truth import RecordRun
@@ -123,7 +123,7 @@ def identify(study: Study, args) -> int:
         return EXIT_RUN_FAILED
     seconds = time.perf_counter() - t0
     truth = scan.truth["coefficients"] if scan.truth and "coefficients" in scan.truth else None
-    df = estimates_frame(COEFFS, est, sig, truth)
+    cols = estimate_columns(COEFFS, est, sig, truth)
     summary = {"rig": "lowprec_centrifuge", "method": method, "samples": int(scan.samples), **found,
                "coefficients": dict(zip(COEFFS, map(float, est))), "truth_known": truth is not None,
                "seconds": round(seconds, 3),
@@ -132,7 +132,7 @@ def identify(study: Study, args) -> int:
     cov = res.P[0][K_SLICE, K_SLICE] if method == "proposed" else np.diag(sig ** 2)
     cal = calibration_of("lowprec_centrifuge", "lowprec-centrifuge.md", COEFFS, COEFF_UNITS, est, cov, args.data, study.raw)
     with atomic_files(args.out) as tmp:   # the files land together, summary.json last
-        df.to_csv(tmp("estimates.csv"), index=False)
+        write_csv(tmp("estimates.csv"), cols)   # pandas' to_csv text, without pandas (issue 22 item 3)
         write_calibration_files(tmp, cal)
         tmp("summary.json").write_text(json_text(summary))
     print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {seconds:.2f} s -> {args.out}; "

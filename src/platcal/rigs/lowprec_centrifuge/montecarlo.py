@@ -35,18 +35,23 @@ import dataclasses
 import re
 from dataclasses import dataclass
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import pandas as pd
 
 from ...errors import InputError
+from ...lighttable import Table
 from ...rig import NoiseAxis, ReplicateBatch, RunSettings
-from ...study.montecarlo import replicate_seed
+from ...study.sweep import replicate_seed
 from .config import COEFFS, Centrifuge, load_config
 from .metrics import CHANNEL, ERRORS, compensate, effect, nonlinear_effect
 from .proposed import K_SLICE, identify_proposed
-from .study import failed_fits, scenarios, trace_of
+from .scenario import failed_fits, scenarios, trace_of
 from .traditional import identify_traditional
 from .truth import coeff_vector, simulate_batch
+
+if TYPE_CHECKING:  # annotations only: the rig's identify imports this module and loads no pandas
+    import pandas as pd
 
 SEED_KEY = "lowprec_centrifuge"
 """The name every scenario keys its seeds by: common random numbers across scenarios (§9)."""
@@ -120,7 +125,8 @@ def quantities(study, estimator: str) -> pd.DataFrame:
     """The identified coefficients of a cell, ``<platform>.<run>.<coefficient>``, with their truths."""
     rows = [(f"{p}.{r}.{c}", "accel", UNITS[c[:2]], float(study.platforms[p][c]))
             for p in study.platform_names() for r in calibration_runs(study, p, estimator) for c in COEFFS]
-    return pd.DataFrame(rows, columns=["name", "group", "unit", "truth"])
+    # a pandas DataFrame for the runner's tables (:meth:`platcal.lighttable.Table.to_pandas`)
+    return Table({k: [r[j] for r in rows] for j, k in enumerate(("name", "group", "unit", "truth"))}).to_pandas()
 
 
 def cross_metrics(platform: str, cal: str, ev: str, before, after, after_truth) -> dict:
@@ -307,9 +313,11 @@ def study_frames(study, names, coef: pd.DataFrame, runs: pd.DataFrame) -> tuple[
                     vals = {m: np.stack([np.asarray(cols[metric_column(p, cal, j, e, m)], float) for e in ERRORS],
                                         axis=1) for m in METRICS}
                     failed = (r[failed_column(p, cal)].to_numpy(bool) if cal != "truth" else np.zeros(S, bool))
-                    cross.append(pd.DataFrame({
-                        "scenario": sc, "seed": np.repeat(r["replicate"].to_numpy(np.int64), len(ERRORS)),
-                        "platform": p, "method": "truth" if cal == "truth" else est, "cal_run": cal, "eval_run": j,
+                    n = S * len(ERRORS)
+                    cross.append(Table({
+                        "scenario": np.full(n, sc), "seed": np.repeat(r["replicate"].to_numpy(np.int64), len(ERRORS)),
+                        "platform": np.full(n, p), "method": np.full(n, "truth" if cal == "truth" else est),
+                        "cal_run": np.full(n, cal), "eval_run": np.full(n, j),
                         "channel": [CHANNEL[e] for e in ERRORS] * S, "error": list(ERRORS) * S,
                         **{m: v.ravel() for m, v in vals.items()}, "failed": np.repeat(failed, len(ERRORS))}))
             for run in study.run_names(p):
@@ -318,13 +326,16 @@ def study_frames(study, names, coef: pd.DataFrame, runs: pd.DataFrame) -> tuple[
                          & coef["name"].str.startswith(f"{p}.{run}.")]
                 c = c.sort_values("replicate", kind="stable")
                 bad = _cell_runs(runs, sc, est).set_index("replicate")[failed_column(p, run)].astype(bool)
-                coeffs.append(pd.DataFrame({
-                    "scenario": sc, "seed": c["replicate"].to_numpy(np.int64), "platform": p, "method": est,
-                    "run": run, "coefficient": c["name"].str.split(".").str[-1].to_numpy(),
+                n = len(c)
+                coeffs.append(Table({
+                    "scenario": np.full(n, sc), "seed": c["replicate"].to_numpy(np.int64), "platform": np.full(n, p),
+                    "method": np.full(n, est), "run": np.full(n, run),
+                    "coefficient": np.array([name.split(".")[-1] for name in c["name"]], dtype=str),
                     "estimate": c["estimate"].to_numpy(float), "sigma": c["sigma"].to_numpy(float),
                     "truth": c["truth"].to_numpy(float), "failed": bad.loc[c["replicate"]].to_numpy(bool)}))
-    return (pd.concat(cross, ignore_index=True)[CROSS_COLUMNS],
-            pd.concat(coeffs, ignore_index=True)[COEFF_COLUMNS])
+    # built as tables and handed over as pandas DataFrames (:meth:`platcal.lighttable.Table.to_pandas`):
+    # this module is imported by the rig's identify, which loads no pandas
+    return (Table.concat(cross)[CROSS_COLUMNS].to_pandas(), Table.concat(coeffs)[COEFF_COLUMNS].to_pandas())
 
 
 def study_trace(cfg: dict) -> dict:

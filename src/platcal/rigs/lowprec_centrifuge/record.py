@@ -15,12 +15,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 from scipy.interpolate import CubicSpline
 
 from ...errors import InputError
+from ...lighttable import Table
 from ...mapping import RecordMapping
 from ...plausibility import refuse_recognised_moments
 from ... import records
@@ -29,6 +30,9 @@ from .config import COEFFS, G0
 from .profile import SCHEDULE_NAMES, STATIC
 from .errormodel import integrate_error_model
 from .truth import RunBatch
+
+if TYPE_CHECKING:  # annotations only: an identify that imports this module does not load pandas
+    import pandas as pd
 
 REQUIRED = ("t", "VE", "VN", "pE", "pN", "heading_deg", "schedule")
 NUMERIC = ("t", "VE", "VN", "pE", "pN", "heading_deg", "fE", "fN")
@@ -75,18 +79,20 @@ def record_frame(rb: RunBatch, i: int = 0) -> pd.DataFrame:
 def block_frame(t, schedule, theta, err, phi, v_ind, f_meas, p_ind, psi) -> pd.DataFrame:
     """Record rows (§10) from one replicate's arrays (:class:`.truth.RunBatch` for one seed, or a
     :class:`.truth.RecordBlock`): t s, schedule codes, true arm angle theta rad, errors err (n, 4),
-    attitude phi (n, 3) rad or None, v_ind m/s, f_meas m/s^2, p_ind m, heading psi rad."""
-    df = pd.DataFrame({
+    attitude phi (n, 3) rad or None, v_ind m/s, f_meas m/s^2, p_ind m, heading psi rad. A pandas
+    DataFrame for the record writer (:meth:`platcal.lighttable.Table.to_pandas`: pandas is loaded
+    by simulate, not by an identify that imports this module)."""
+    cols = {
         "t": t, "VE": v_ind[:, 0], "VN": v_ind[:, 1], "pE": p_ind[:, 0],
         "pN": p_ind[:, 1], "heading_deg": np.mod(np.degrees(psi), 360.0),
         "fE": f_meas[:, 0], "fN": f_meas[:, 1],
         "schedule": np.asarray(SCHEDULE_NAMES)[schedule],
         "truth_dVE": err[:, 0], "truth_dVN": err[:, 1], "truth_dpE": err[:, 2],
-        "truth_dpN": err[:, 3], "truth_theta_deg": np.degrees(theta)})
+        "truth_dpN": err[:, 3], "truth_theta_deg": np.degrees(theta)}
     if phi is not None:
         for j, ax in enumerate("xyz"):
-            df[f"truth_phi_{ax}"] = phi[:, j]
-    return df
+            cols[f"truth_phi_{ax}"] = phi[:, j]
+    return Table(cols).to_pandas()
 
 
 def truth_json(rb: RunBatch, study, i: int = 0) -> dict:
@@ -360,16 +366,17 @@ def compensated_frame(rec: Record, coeffs: np.ndarray, lat_deg: float) -> pd.Dat
     velocity and position errors the coefficients ``coeffs`` (kA_x, k2_x, kA_y, k2_y; ug/g,
     ug/g^2) cause taken out (§8: e_after = e - sum_k c_k S_k(t), :func:`coefficient_responses`)."""
     err = np.einsum("k,kni->ni", np.asarray(coeffs, float), coefficient_responses(rec, lat_deg))
-    return pd.DataFrame({"t": rec.t, "VE": rec.v[:, 0] - err[:, 0], "VN": rec.v[:, 1] - err[:, 1],
-                         "pE": rec.p[:, 0] - err[:, 2], "pN": rec.p[:, 1] - err[:, 3],
-                         "heading_deg": np.mod(np.degrees(rec.psi), 360.0), "fE": rec.f[:, 0], "fN": rec.f[:, 1],
-                         "schedule": np.asarray(SCHEDULE_NAMES)[rec.schedule]})
+    return Table({"t": rec.t, "VE": rec.v[:, 0] - err[:, 0], "VN": rec.v[:, 1] - err[:, 1],
+                  "pE": rec.p[:, 0] - err[:, 2], "pN": rec.p[:, 1] - err[:, 3],
+                  "heading_deg": np.mod(np.degrees(rec.psi), 360.0), "fE": rec.f[:, 0], "fN": rec.f[:, 1],
+                  "schedule": np.asarray(SCHEDULE_NAMES)[rec.schedule]}).to_pandas()
 
 
-def estimates_frame(names, est, sigma, truth: dict | None) -> pd.DataFrame:
-    """``estimates.csv``'s table: name, estimate, sigma (and truth, error where known)."""
-    df = pd.DataFrame({"name": list(names), "estimate": est, "sigma": sigma})
+def estimate_columns(names, est, sigma, truth: dict | None) -> dict:
+    """``estimates.csv``'s columns (name -> values, for :func:`platcal.io.write_csv`): name,
+    estimate, sigma (ug/g, ug/g^2; and truth, error where known), docs/lowprec-centrifuge.md §10."""
+    cols = {"name": list(names), "estimate": np.asarray(est, float), "sigma": np.asarray(sigma, float)}
     if truth is not None:
-        df["truth"] = [truth[n] for n in names]
-        df["error"] = df["estimate"] - df["truth"]
-    return df
+        cols["truth"] = np.array([truth[n] for n in names], float)
+        cols["error"] = cols["estimate"] - cols["truth"]
+    return cols

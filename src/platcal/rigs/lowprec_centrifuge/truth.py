@@ -14,7 +14,7 @@ c_hat is compensated about that floor, e_after = e_floor + sum_k (c - c_hat)_k S
 second order in the estimate's error (measured in the tests against re-navigation).
 
 Seeding (§9, [D] §12): a replicate is one ``numpy.random.SeedSequence``, the generic runner's
-(:func:`platcal.study.montecarlo.replicate_seed`); :func:`run_streams` derives from it, per
+(:func:`platcal.study.sweep.replicate_seed`); :func:`run_streams` derives from it, per
 (platform, run), one stream for the error parameters (in this order: k0 x,y; scale x,y; gyro
 drift x,y,z; tilt x,y; azimuth; then the gyros' g-sensitive terms DI, DO, DS and DIO, DIS, DOS,
 each x,y,z) and one for the noise (accelerometer x,y; gyro x,y,z; velocity E,N; position E,N;

@@ -295,7 +295,8 @@ def test_failed_run_exits_1_and_writes_nothing(rig, records, tmp_path, capsys):
 
 def test_studies_flag_and_count_failed_runs():
     """Sled and lowprec studies: failed runs are flagged, counted and left out of the tables."""
-    from platcal.rigs.lowprec_centrifuge.study import drop_failed, failed_fits
+    from platcal.rigs.lowprec_centrifuge.scenario import failed_fits
+    from platcal.rigs.lowprec_centrifuge.study import drop_failed
     from platcal.rigs.sled.study import split_failed, table1
 
     x = np.array([[1.0, 2.0], [np.nan, 1.0], [1.0, 1.0]])

@@ -9,7 +9,8 @@ from snakemake.utils import validate
 from platcal.errors import InputError
 from platcal.rig import get_rig, rig_config
 from platcal.study.campaign import campaign_content, load_campaign
-from platcal.study.montecarlo import code_hash, compute_code_hash, noise_label
+from platcal.study.montecarlo import code_hash, compute_code_hash
+from platcal.study.sweep import noise_label
 
 # config/config.yaml is the index: rigs: {name: config path or inline mapping}
 validate(config, "../schemas/config.schema.yaml")

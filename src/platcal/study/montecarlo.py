@@ -43,7 +43,7 @@ from ..io import atomic_files, json_safe
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
 from ..rig import Rig, get_rig
-from .sweep import StudySectionHooks, noise_key, noise_label, replicate_seed  # noqa: F401 (the sweep's keys, used here and by callers of the runner)
+from .sweep import replicate_seed
 
 CELL = ["scheme", "noise", "estimator"]
 """Columns that name a cell of the sweep."""

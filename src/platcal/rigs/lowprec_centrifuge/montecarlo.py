@@ -5,7 +5,7 @@ The study is scenarios x estimators x ``study.seeds`` replicates, run by
 :mod:`platcal.study.montecarlo` (one Snakemake job per cell, rule ``montecarlo_cell``) and
 collected into the tidy tables ``results/lowprec_centrifuge/montecarlo/``.
 
-- Cases: the centrifuge scenarios of §2 (:func:`.study.scenarios`: default, the rate and arm
+- Cases: the centrifuge scenarios of §2 (:func:`.scenario.scenarios`: default, the rate and arm
   sweeps, perfect, worst, gross, gross-neg), each a :class:`Scenario`.
 - Noise axis: the accelerometer white noise ``residuals.accel_noise_ug_rthz`` (ug/rtHz), one
   level, the config's (the study sweeps the centrifuge, not the noise).
@@ -339,7 +339,7 @@ def study_frames(study, names, coef: pd.DataFrame, runs: pd.DataFrame) -> tuple[
 
 
 def study_trace(cfg: dict) -> dict:
-    """The figures' traces (:func:`.study.trace_of`): replicate 0 of the default scenario, the
+    """The figures' traces (:func:`.scenario.trace_of`): replicate 0 of the default scenario, the
     first platform's first proposed run and its traditional run, with the same seeds as the
     study's cells (so the same numbers)."""
     study = load_config(cfg)

@@ -22,8 +22,9 @@ from ...study.plots import save  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
 from .config import load_config  # noqa: E402
 from .montecarlo import study_frames  # noqa: E402
+from .scenario import scenarios  # noqa: E402
 from .study import (PAPER_TRADITIONAL_RESIDUAL_PCT, acceptance, coefficient_table, degradation_table,  # noqa: E402
-                    drop_failed, pooled, scenarios, table1, y_table)
+                    drop_failed, pooled, table1, y_table)
 
 FMT = {"before": ".3f", "after": ".3f", "VE_before": ".2f", "VE_after": ".3f", "pE_before": ".0f", "pE_after": ".1f",
        "truth": "g", "mean": ".3f", "sd": ".3f", "mean_error": "+.3f", "mean_sigma": ".3f", "rms_z": ".2f"}

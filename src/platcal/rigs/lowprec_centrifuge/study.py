@@ -15,7 +15,6 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .scenario import failed_fits, scenarios, trace_of  # noqa: F401 (the study's names, kept here too)
 
 PAPER_TABLE1 = pd.DataFrame(
     [("P1", "run1", "run1", -3.96, 84.1, -1428, 93.4), ("P1", "run1", "run2", -13.26, 96.3, -6517, 94.5),

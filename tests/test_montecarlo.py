@@ -14,7 +14,7 @@ from platcal.rigs.centrifuge import report
 from platcal.rigs.centrifuge import study as mc
 from platcal.seeding import stable_key
 from platcal.study import montecarlo as smc
-from platcal.study import plots, stats
+from platcal.study import plots, stats, sweep
 from platcal.study.tables import frame_markdown
 from platcal.model.frames import DEG, c_rp
 from platcal.io import normalise_numbers, read_yaml
@@ -36,7 +36,7 @@ def cfg(**study):
 
 def test_stable_key_is_sha256_not_python_hash():
     assert stable_key("table1") == int.from_bytes(hashlib.sha256(b"table1").digest()[:4], "big")
-    assert smc.noise_key(10) == 10000 and smc.noise_key(2.5) == 2500
+    assert sweep.noise_key(10) == 10000 and sweep.noise_key(2.5) == 2500
 
 
 def test_replicate_seeds_distinct_and_keyed_by_level_not_index():

@@ -1,0 +1,148 @@
+"""What numba compiles in the centrifuge's default-study jobs, per dispatcher and signature
+(issue 22 item 4).
+
+Runs a default-study-like sequence of the centrifuge's jobs, each in a fresh process, one after
+the other on one empty ``NUMBA_CACHE_DIR`` (as Snakemake's jobs share a clone's cache): the
+sweep's ``ekf1`` and ``ekfw`` cells (batch 8, chunks 8, 8, 4), the comparison's ``ekf2``,
+``iekf``, ``ukf`` and ``ml`` cells (each with its 2-period warm-up run), the single run and the
+GA design's covariance-only runs. The jobs are the study's own job functions on
+``config/centrifuge.yaml`` with short dwells (the schemes' and study's ``dwell_s`` set to
+``--dwell`` s, the GA at 2 generations of 6): numba's types do not depend on the record's length
+or the batch size, so the same specialisations compile. Every compile is recorded with numba's
+event API (``numba.core.event``, event ``numba:compile``, fired on cache misses only); a
+compile's own seconds are its wall time less the compiles nested in it (callees typed while the
+caller compiles).
+
+Prints per job its wall / CPU s and compile s, then per dispatcher its specialisations (argument
+types) with their own compile s, and the total. ``--json`` writes the raw records.
+
+    NUMBA_NUM_THREADS=1 python benchmarks/compile_events.py [--dwell 1] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# (job name, estimator or None): the sweep's estimators first (they start the study), then the
+# comparison's other kinds, then the single run and the GA design
+JOBS = ("sweep:ekf1", "sweep:ekfw", "compare:ekf2", "compare:iekf", "compare:ukf", "compare:ml", "single",
+        "design:ga_J")
+
+
+def short_config(dwell: float) -> dict:
+    """``config/centrifuge.yaml`` with every dwell ``dwell`` s and a 2-generation GA."""
+    from platcal.rig import rig_config
+
+    cfg = copy.deepcopy(rig_config({"rigs": {"centrifuge": str(ROOT / "config" / "centrifuge.yaml")}},
+                                   "centrifuge"))
+    for s in cfg["schemes"].values():
+        s["dwell_s"] = dwell
+    cfg["study"]["dwell_s"] = dwell
+    cfg["study"]["compare"]["replicates"] = 10  # chunks 8, 2: a batch above one, as the study's
+    cfg["design"].update(dwell_s=dwell, population=6, generations=2)
+    return cfg
+
+
+def run_job(job: str, dwell: float, out: Path) -> None:
+    """One job of :data:`JOBS` as the study's rule runs it, files under ``out``."""
+    cfg = short_config(dwell)
+    kind, _, arg = job.partition(":")
+    if kind == "sweep":
+        from platcal.study.montecarlo import cell_job
+        cell_job("centrifuge", cfg, "table1", 10.0, arg, out)
+    elif kind == "compare":
+        from platcal.rigs.centrifuge.compare import compare_cell_job
+        compare_cell_job(cfg, 10.0, arg, out)
+    elif kind == "single":
+        from platcal.rigs.centrifuge.study import single_job
+        single_job(cfg, out)
+    elif kind == "design":
+        from platcal.rigs.centrifuge.design_study import design_scheme_job
+        design_scheme_job(cfg, arg, out / f"{arg}.yaml")
+    else:
+        raise ValueError(job)
+
+
+def child(job: str, dwell: float) -> None:
+    """Run ``job`` recording numba's compile events; print one JSON line of records."""
+    from numba.core import event
+
+    rec = event.RecordingListener()
+    event.register("numba:compile", rec)
+    t0, c0 = time.perf_counter(), time.process_time()
+    with tempfile.TemporaryDirectory() as out:
+        run_job(job, dwell, Path(out))
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    # pair start/end events; a compile's own time excludes the compiles nested in it
+    stack, rows = [], []
+    for ts, ev in rec.buffer:
+        if ev.is_start:
+            stack.append([ts, 0.0])
+        else:
+            start, nested = stack.pop()
+            dur = ts - start
+            if stack:
+                stack[-1][1] += dur
+            d = ev.data["dispatcher"]
+            rows.append({"fn": f"{d.py_func.__module__}.{d.py_func.__qualname__}",
+                         "sig": ", ".join(str(a) for a in ev.data["args"]), "incl": dur, "own": dur - nested,
+                         "depth": len(stack)})
+    print(json.dumps({"job": job, "wall": wall, "cpu": cpu, "compiles": rows}))
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--dwell", type=float, default=1.0, help="s per position of every scheme (default 1)")
+    ap.add_argument("--jobs", nargs="+", default=list(JOBS), choices=list(JOBS))
+    ap.add_argument("--json", help="write the raw records here")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.child:
+        child(a.child, a.dwell)
+        return
+    load0 = os.getloadavg()[0]
+    results = []
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        for job in a.jobs:
+            out = subprocess.run([sys.executable, __file__, "--child", job, "--dwell", str(a.dwell)], env=env,
+                                 check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
+            r = json.loads(out)
+            results.append(r)
+            top = sum(c["incl"] for c in r["compiles"] if c["depth"] == 0)
+            print(f"{job}: {r['wall']:.1f} s wall, {r['cpu']:.1f} s CPU, {top:.1f} s compiling, "
+                  f"{len(r['compiles'])} specialisations", flush=True)
+    per = defaultdict(list)
+    for r in results:
+        for c in r["compiles"]:
+            per[c["fn"]].append((r["job"], c))
+    print()
+    print(f"numba compiles per dispatcher (own s: less nested compiles), cold cache shared by the jobs in "
+          f"order; load {load0:.2f} at start, {os.getloadavg()[0]:.2f} at end; "
+          f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS', 'default')}")
+    print("| dispatcher | job | own s | argument types |")
+    print("|---|---|---:|---|")
+    for fn, cs in sorted(per.items(), key=lambda kv: -sum(c["own"] for _, c in kv[1])):
+        for job, c in cs:
+            print(f"| {fn} | {job} | {c['own']:.2f} | {c['sig'][:300]} |")
+    total = sum(c["own"] for cs in per.values() for _, c in cs)
+    print(f"\ntotal: {total:.1f} s compiling, {sum(len(cs) for cs in per.values())} specialisations of "
+          f"{len(per)} dispatchers; jobs {sum(r['cpu'] for r in results):.1f} s CPU, "
+          f"{sum(r['wall'] for r in results):.1f} s wall")
+    if a.json:
+        Path(a.json).write_text(json.dumps(results, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -13,7 +13,7 @@ event API (``numba.core.event``, event ``numba:compile``, fired on cache misses 
 compile's own seconds are its wall time less the compiles nested in it (callees typed while the
 caller compiles).
 
-Prints per job its wall / CPU s and compile s, then per dispatcher its specialisations (argument
+Prints per job its wall / CPU s and compile CPU s, then per dispatcher its specialisations (argument
 types) with their own compile s, and the total. ``--json`` writes the raw records.
 
     NUMBA_NUM_THREADS=1 python benchmarks/compile_events.py [--dwell 1] [--json out.json]
@@ -32,12 +32,28 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+from numba.core import event
+
 ROOT = Path(__file__).resolve().parents[1]
 
 # (job name, estimator or None): the sweep's estimators first (they start the study), then the
 # comparison's other kinds, then the single run and the GA design
 JOBS = ("sweep:ekf1", "sweep:ekfw", "compare:ekf2", "compare:iekf", "compare:ukf", "compare:ml", "single",
         "design:ga_J")
+
+
+class Recorder(event.Listener):
+    """(wall s, CPU s, event) of every start and end: CPU s is the compile's own work when
+    numba runs one thread (NUMBA_NUM_THREADS=1), wall s includes the machine's load."""
+
+    def __init__(self):
+        self.buffer = []
+
+    def on_start(self, ev):
+        self.buffer.append((time.perf_counter(), time.process_time(), ev))
+
+    def on_end(self, ev):
+        self.buffer.append((time.perf_counter(), time.process_time(), ev))
 
 
 def short_config(dwell: float) -> dict:
@@ -76,9 +92,7 @@ def run_job(job: str, dwell: float, out: Path) -> None:
 
 def child(job: str, dwell: float) -> None:
     """Run ``job`` recording numba's compile events; print one JSON line of records."""
-    from numba.core import event
-
-    rec = event.RecordingListener()
+    rec = Recorder()
     event.register("numba:compile", rec)
     t0, c0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory() as out:
@@ -86,18 +100,19 @@ def child(job: str, dwell: float) -> None:
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     # pair start/end events; a compile's own time excludes the compiles nested in it
     stack, rows = [], []
-    for ts, ev in rec.buffer:
+    for ts, cs, ev in rec.buffer:
         if ev.is_start:
-            stack.append([ts, 0.0])
+            stack.append([ts, cs, 0.0, 0.0])
         else:
-            start, nested = stack.pop()
-            dur = ts - start
+            start, cstart, nested, cnested = stack.pop()
+            dur, cdur = ts - start, cs - cstart
             if stack:
-                stack[-1][1] += dur
+                stack[-1][2] += dur
+                stack[-1][3] += cdur
             d = ev.data["dispatcher"]
             rows.append({"fn": f"{d.py_func.__module__}.{d.py_func.__qualname__}",
                          "sig": ", ".join(str(a) for a in ev.data["args"]), "incl": dur, "own": dur - nested,
-                         "depth": len(stack)})
+                         "cpu_incl": cdur, "cpu_own": cdur - cnested, "depth": len(stack)})
     print(json.dumps({"job": job, "wall": wall, "cpu": cpu, "compiles": rows}))
 
 
@@ -106,6 +121,7 @@ def main(argv=None) -> None:
     ap.add_argument("--dwell", type=float, default=1.0, help="s per position of every scheme (default 1)")
     ap.add_argument("--jobs", nargs="+", default=list(JOBS), choices=list(JOBS))
     ap.add_argument("--json", help="write the raw records here")
+    ap.add_argument("--width", type=int, default=120, help="characters of argument types shown (default 120)")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
@@ -120,24 +136,24 @@ def main(argv=None) -> None:
                                  check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
             r = json.loads(out)
             results.append(r)
-            top = sum(c["incl"] for c in r["compiles"] if c["depth"] == 0)
-            print(f"{job}: {r['wall']:.1f} s wall, {r['cpu']:.1f} s CPU, {top:.1f} s compiling, "
+            top = sum(c["cpu_incl"] for c in r["compiles"] if c["depth"] == 0)
+            print(f"{job}: {r['wall']:.1f} s wall, {r['cpu']:.1f} s CPU, {top:.1f} s CPU compiling, "
                   f"{len(r['compiles'])} specialisations", flush=True)
     per = defaultdict(list)
     for r in results:
         for c in r["compiles"]:
             per[c["fn"]].append((r["job"], c))
     print()
-    print(f"numba compiles per dispatcher (own s: less nested compiles), cold cache shared by the jobs in "
+    print(f"numba compiles per dispatcher (own CPU s and wall s: less nested compiles), cold cache shared by the jobs in "
           f"order; load {load0:.2f} at start, {os.getloadavg()[0]:.2f} at end; "
           f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS', 'default')}")
-    print("| dispatcher | job | own s | argument types |")
-    print("|---|---|---:|---|")
-    for fn, cs in sorted(per.items(), key=lambda kv: -sum(c["own"] for _, c in kv[1])):
+    print("| dispatcher | job | own CPU s | own wall s | argument types |")
+    print("|---|---|---:|---:|---|")
+    for fn, cs in sorted(per.items(), key=lambda kv: -sum(c["cpu_own"] for _, c in kv[1])):
         for job, c in cs:
-            print(f"| {fn} | {job} | {c['own']:.2f} | {c['sig'][:300]} |")
-    total = sum(c["own"] for cs in per.values() for _, c in cs)
-    print(f"\ntotal: {total:.1f} s compiling, {sum(len(cs) for cs in per.values())} specialisations of "
+            print(f"| {fn} | {job} | {c['cpu_own']:.2f} | {c['own']:.2f} | {c['sig'][:a.width]} |")
+    total = sum(c["cpu_own"] for cs in per.values() for _, c in cs)
+    print(f"\ntotal: {total:.1f} s CPU compiling, {sum(len(cs) for cs in per.values())} specialisations of "
           f"{len(per)} dispatchers; jobs {sum(r['cpu'] for r in results):.1f} s CPU, "
           f"{sum(r['wall'] for r in results):.1f} s wall")
     if a.json:

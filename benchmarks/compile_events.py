@@ -6,7 +6,7 @@ the other on one empty ``NUMBA_CACHE_DIR`` (as Snakemake's jobs share a clone's 
 sweep's ``ekf1`` and ``ekfw`` cells (batch 8, chunks 8, 8, 4), the comparison's ``ekf2``,
 ``iekf``, ``ukf`` and ``ml`` cells (each with its 2-period warm-up run), the single run and the
 GA design's covariance-only runs. The jobs are the study's own job functions on
-``config/centrifuge.yaml`` with short dwells (the schemes' and study's ``dwell_s`` set to
+``config/centrifuge.yaml`` with short dwells (``bench_compile.study_config``: every ``dwell_s``
 ``--dwell`` s, the GA at 2 generations of 6): numba's types do not depend on the record's length
 or the batch size, so the same specialisations compile. Every compile is recorded with numba's
 event API (``numba.core.event``, event ``numba:compile``, fired on cache misses only); a
@@ -22,7 +22,6 @@ types) with their own compile s, and the total. ``--json`` writes the raw record
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import os
 import subprocess
@@ -32,9 +31,8 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+from bench_compile import study_config
 from numba.core import event
-
-ROOT = Path(__file__).resolve().parents[1]
 
 # (job name, estimator or None): the sweep's estimators first (they start the study), then the
 # comparison's other kinds, then the single run and the GA design
@@ -56,23 +54,9 @@ class Recorder(event.Listener):
         self.buffer.append((time.perf_counter(), time.process_time(), ev))
 
 
-def short_config(dwell: float) -> dict:
-    """``config/centrifuge.yaml`` with every dwell ``dwell`` s and a 2-generation GA."""
-    from platcal.rig import rig_config
-
-    cfg = copy.deepcopy(rig_config({"rigs": {"centrifuge": str(ROOT / "config" / "centrifuge.yaml")}},
-                                   "centrifuge"))
-    for s in cfg["schemes"].values():
-        s["dwell_s"] = dwell
-    cfg["study"]["dwell_s"] = dwell
-    cfg["study"]["compare"]["replicates"] = 10  # chunks 8, 2: a batch above one, as the study's
-    cfg["design"].update(dwell_s=dwell, population=6, generations=2)
-    return cfg
-
-
 def run_job(job: str, dwell: float, out: Path) -> None:
     """One job of :data:`JOBS` as the study's rule runs it, files under ``out``."""
-    cfg = short_config(dwell)
+    cfg = study_config(dwell)
     kind, _, arg = job.partition(":")
     if kind == "sweep":
         from platcal.study.montecarlo import cell_job

@@ -34,6 +34,8 @@ from pathlib import Path
 from bench_compile import study_config
 from numba.core import event
 
+from platcal.io import atomic_write_text
+
 # (job name, estimator or None): the sweep's estimators first (they start the study), then the
 # comparison's other kinds, then the single run and the GA design
 JOBS = ("sweep:ekf1", "sweep:ekfw", "compare:ekf2", "compare:iekf", "compare:ukf", "compare:ml", "single",
@@ -141,7 +143,7 @@ def main(argv=None) -> None:
           f"{len(per)} dispatchers; jobs {sum(r['cpu'] for r in results):.1f} s CPU, "
           f"{sum(r['wall'] for r in results):.1f} s wall")
     if a.json:
-        Path(a.json).write_text(json.dumps(results, indent=1))
+        atomic_write_text(a.json, json.dumps(results, indent=1))
 
 
 if __name__ == "__main__":

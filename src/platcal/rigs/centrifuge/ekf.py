@@ -393,8 +393,30 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
         if it_max > 1 and update_x and t[m] < it_until and _coef_ratio(Pb, it_ctl, nc) > it_ratio:
             # iterated EKF, Gauss-Newton form: relinearise h about x_i, then the final update
             # below uses the last linearisation; xb still holds x_pred
-            _relinearise(xb, Pb, zb, m, fr_now, g, it_max, it_tol, est_idx, hcols, hsrc, hnnz, hval, innov, r_var,
-                         U, S, Sinv, nu, w3, xi, xnew, coef_i, out, hm, ha)
+            for i in range(n):
+                xi[i] = xb[i]
+            for it in range(it_max - 1):
+                if not _gain_step(Pb, hcols, hnnz, hval, innov, r_var, U, S, Sinv, nu, w3, xb, xnew):
+                    break
+                dmax = 0.0
+                for i in range(n):
+                    d = abs(xnew[i] - xi[i]) / np.sqrt(Pb[i, i])
+                    if d > dmax:
+                        dmax = d
+                    xi[i] = xnew[i]
+                for k in range(nc):
+                    coef_i[est_idx[k]] = xi[k]
+                measure_jac_sc(xi[nc:], coef_i, fr_now[0], fr_now[1], fr_now[2], g, out, hm, ha)
+                for r in range(3):
+                    v = zb[m, r] - out[r]
+                    for k in range(hnnz[r]):
+                        src = hsrc[r, k]
+                        hval[r, k] = hm[r, src] if src >= 0 else ha[r, -1 - src]
+                        c = hcols[r, k]
+                        v -= hval[r, k] * (xb[c] - xi[c])
+                    innov[r] = v
+                if dmax < it_tol:
+                    break
         if joseph_update_sparse(xb, Pb, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu,
                                 update_x):
             nis += nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
@@ -410,45 +432,6 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
                     rec[m, 3 + r] = np.nan
         store_history(hist_idx[m], xb, Pb, hist_x, hist_s)
     return nis, bad
-
-
-@njit(cache=True)
-def _relinearise(xb, Pb, zb, m, fr_now, g, it_max, it_tol, est_idx, hcols, hsrc, hnnz, hval, innov, r_var, U, S,
-                 Sinv, nu, w3, xi, xnew, coef_i, out, hm, ha):
-    """The iterated EKF's inner iterations at instant ``m`` (docs/centrifuge-model.md §9, Gauss-Newton
-    form; see :func:`_filter_one`): up to ``it_max - 1`` relinearisations of h about ``x_i``
-    (``hval``, ``innov`` then hold the last one's H and innovation); ``xb`` keeps x_pred; stops
-    when the largest state change is below ``it_tol`` sigmas or S is not positive definite.
-
-    Its own compiled function, not inlined, so the kernel holds one copy of the measurement
-    Jacobian's code (``measure_jac_sc`` is inlined where it is called); the EKF never calls it.
-    """
-    n = xb.shape[0]
-    nc = n - 3
-    for i in range(n):
-        xi[i] = xb[i]
-    for it in range(it_max - 1):
-        if not _gain_step(Pb, hcols, hnnz, hval, innov, r_var, U, S, Sinv, nu, w3, xb, xnew):
-            break
-        dmax = 0.0
-        for i in range(n):
-            d = abs(xnew[i] - xi[i]) / np.sqrt(Pb[i, i])
-            if d > dmax:
-                dmax = d
-            xi[i] = xnew[i]
-        for k in range(nc):
-            coef_i[est_idx[k]] = xi[k]
-        measure_jac_sc(xi[nc:], coef_i, fr_now[0], fr_now[1], fr_now[2], g, out, hm, ha)
-        for r in range(3):
-            v = zb[m, r] - out[r]
-            for k in range(hnnz[r]):
-                src = hsrc[r, k]
-                hval[r, k] = hm[r, src] if src >= 0 else ha[r, -1 - src]
-                c = hcols[r, k]
-                v -= hval[r, k] * (xb[c] - xi[c])
-            innov[r] = v
-        if dmax < it_tol:
-            break
 
 
 @njit(cache=True)

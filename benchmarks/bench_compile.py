@@ -56,7 +56,7 @@ def warm_centrifuge() -> None:
     from platcal.rig import get_rig
     from platcal.rigs.centrifuge.base import Centrifuge
     from platcal.rigs.centrifuge.catalogue import full_truth
-    from platcal.rigs.centrifuge.compare import with_compare_estimators
+    from platcal.rigs.centrifuge.compare_cells import with_compare_estimators
     from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, run_ekf
     from platcal.rigs.centrifuge.study import builtin_scheme, check_study
 

@@ -64,7 +64,7 @@ def run_job(job: str, dwell: float, out: Path) -> None:
         from platcal.study.montecarlo import cell_job
         cell_job("centrifuge", cfg, "table1", 10.0, arg, out)
     elif kind == "compare":
-        from platcal.rigs.centrifuge.compare import compare_cell_job
+        from platcal.rigs.centrifuge.compare_cells import compare_cell_job
         compare_cell_job(cfg, 10.0, arg, out)
     elif kind == "single":
         from platcal.rigs.centrifuge.study import single_job

@@ -85,7 +85,10 @@ def _simulate_position_serial(theta0, coef, n, dt, params, fr_tab, tab_of, acc_n
                       keep, out_a[b], out_ang[b], i0, n_total)
 
 
-@njit(cache=True)
+# error_model="numpy": no zero-divisor test (and exception exit) at each division of the inlined
+# model (g, cos beta: never zero here); without those exits numba prunes the reference counts of
+# the arrays the model reads, which cost a third of the kernel (issue 22). Same IEEE arithmetic.
+@njit(cache=True, error_model="numpy")
 def _simulate_one(theta0, coef, n, dt, params, fr_tab, acc_noise, arw, b, keep, out_a, out_ang, i0, n_total):
     """One replicate: RK4 of eq. 18 over the ``n`` samples ``i0 .. i0 + n - 1`` (of ``n_total``
     in the position) of ``dt`` s from ``theta0`` (rad, the angles at sample ``i0``; left holding
@@ -97,23 +100,28 @@ def _simulate_one(theta0, coef, n, dt, params, fr_tab, acc_noise, arw, b, keep, 
     new = np.empty(3)
     noisy_a = acc_noise.shape[1] > 0
     noisy_g = arw.shape[1] > 0
+    fr3 = np.empty((3, 3))
     j0 = (i0 + keep - 1) // keep  # the first kept sample's slot in the position
     for i in range(n):
         # one set of sin/cos per sample serves the measurement and the RK4 step
         sa, ca = np.sin(ang[0]), np.cos(ang[0])
         sb, cb = np.sin(ang[1]), np.cos(ang[1])
         sg, cg = np.sin(ang[2]), np.cos(ang[2])
+        # the sample's forces copied, not viewed: a view per sample costs two atomic
+        # reference-count updates, more than the copy (issue 22)
+        for s in range(3):
+            for c in range(3):
+                fr3[s, c] = fr_tab[i, s, c]
         if (i0 + i) % keep == 0:
             j = (i0 + i) // keep - j0
-            fr = fr_tab[i, 0]
-            m0, m1, m2 = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
+            m0, m1, m2 = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr3[0, 0], fr3[0, 1], fr3[0, 2], g)
             out_a[j, 0] = m0 + (acc_noise[b, i, 0] if noisy_a else 0.0)
             out_a[j, 1] = m1 + (acc_noise[b, i, 1] if noisy_a else 0.0)
             out_a[j, 2] = m2 + (acc_noise[b, i, 2] if noisy_a else 0.0)
             for r in range(3):
                 out_ang[j, r] = ang[r]
         if i0 + i < n_total - 1:
-            rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr_tab[i], dt, params, new)
+            rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr3, dt, params, new)
             for r in range(3):
                 ang[r] = new[r] + (arw[b, i, r] if noisy_g else 0.0)
     for r in range(3):

@@ -50,7 +50,7 @@ from ...estimation.lanes import (LANES, NoAliasCompiler, cholesky_inverse_lanes,
                                  joseph_correct_lanes, packed_index, propagate_rows_lanes, slp_vectorize)
 from ...model.frames import ARCSEC, DEG
 from ...study.sweep import replicate_seed
-from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
+from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k, rk4_s
 
 
 # ------------------------------------------------------------------ simulator
@@ -73,8 +73,7 @@ def _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, phi_init, wnoise, out_phi,
         for s in range(ns):
             if s > 0:
                 for _ in range(n_sub):
-                    rk4_k(phi0s[k], x, lay, wn, wu, wnoise[k, s - 1], h / n_sub, nxt, k4, xs,
-                          C, dC, T, dT, f, eps, deps, greg, Fd)
+                    rk4_k(phi0s[k], x, lay, wn, wu, wnoise[k, s - 1], h / n_sub, nxt)
                     x[:3] = nxt
             out_phi[k, s] = x[:3]
             meas_k(phi0s[k], x, lay, z, Hs, hc, nn, C, dC)
@@ -349,10 +348,8 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
                 rate_k(phi0s[k], x, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
                 transition_rows(F, T, cols, dt, arw2, phi, q)
                 propagate_sparse(P, dyn, cols, phi, q, W, blk)
-                for r in range(3):  # the rate at x, RK4's first stage
-                    k4[0, r] = nxt[r]
-                rk4_k(phi0s[k], x, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, True)
-                x[:3] = nxt
+                # RK4 from the rate at x (its first stage), without noise
+                x[0], x[1], x[2] = rk4_s(phi0s[k], x, lay, wn, wu, 0.0, 0.0, 0.0, dt, nxt[0], nxt[1], nxt[2])
             gained = False
             if iters > 0:
                 # the Gauss-Newton linearisation point of the 6-D update; the update itself is
@@ -495,12 +492,10 @@ def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, 
                         xm[i] = xl[i, l]
                     rate_k(a0, xm, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
                     transition_rows(F, T, cols, dt, arw2, phi1, q1)
-                    for r in range(3):  # the rate at x, RK4's first stage
-                        k4[0, r] = nxt[r]
-                    rk4_k(a0, xm, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd,
-                          True)
+                    # RK4 from the rate at x (its first stage), without noise
+                    xl[0, l], xl[1, l], xl[2, l] = rk4_s(a0, xm, lay, wn, wu, 0.0, 0.0, 0.0, dt, nxt[0], nxt[1],
+                                                         nxt[2])
                     for r in range(3):
-                        xl[r, l] = nxt[r]
                         for c in range(m):
                             phiL[r, c, l] = phi1[r, c]
                         for c in range(3):

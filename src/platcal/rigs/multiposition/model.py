@@ -345,24 +345,93 @@ def meas_k(phi0, x, lay, z, H, hcols, hnnz, C, dC):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def rk4_k(phi0, x, lay, wn, wu, w, h, out, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, have_k1=False):
-    """One RK4 step of §4 over ``h`` s with the white rate ``w`` held constant (§12); angles
-    only (coefficients are constant). ``out`` (3,) the new phi. With ``have_k1`` the caller has
-    put the rate at ``x`` in ``k4[0]`` (the filter has it from its Jacobian call). Others are
-    scratch."""
-    n = x.shape[0]
-    for i in range(n):
-        xs[i] = x[i]
-    for s in range(4):
-        if s == 0 and have_k1:
-            continue
-        if s > 0:
-            step = 0.5 * h if s < 3 else h
-            for r in range(3):
-                xs[r] = x[r] + step * k4[s - 1, r]
-        rate_k(phi0, xs, lay, wn, wu, w, k4[s], Fd, False, C, dC, T, dT, f, eps, deps, greg)
-    for r in range(3):
-        out[r] = x[r] + h / 6.0 * (k4[0, r] + 2.0 * k4[1, r] + 2.0 * k4[2, r] + k4[3, r])
+def _drift_s(x, lay, j, f0, f1, f2):
+    """Drift of gyro ``j`` (deg/h) at ``f`` (g, in p) from the state ``x``'s coefficients (§5, §13):
+    :func:`gyro_drift_k`'s ``eps[j]``, the same products summed in the same order (slot order of
+    :func:`layout_index`), in registers: no regressor array, no slopes."""
+    aI, aO, aS = gyro_axis_components(j, f0, f1, f2)
+    e = 0.0
+    if lay[0] >= 0:
+        e += x[3 + lay[0] + j] * 1.0
+    if lay[1] >= 0:
+        e += x[3 + lay[1] + j] * aI
+    if lay[2] >= 0:
+        e += x[3 + lay[2] + j] * aS
+    if lay[3] >= 0:
+        e += x[3 + lay[3] + j] * aO
+    if lay[4] >= 0:
+        e += x[3 + lay[4] + j] * (aI * aI)
+    if lay[5] >= 0:
+        e += x[3 + lay[5] + j] * (aS * aS)
+    if lay[6] >= 0:
+        e += x[3 + lay[6] + j] * (aI * aO)
+    if lay[7] >= 0:
+        e += x[3 + lay[7] + j] * (aI * aS)
+    if lay[8] >= 0:
+        e += x[3 + lay[8] + j] * (aO * aS)
+    if lay[9] >= 0:
+        e += x[3 + lay[9] + j] * (aO * aO)
+    return e
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def rate_s(a0, a1, a2, x, lay, wn, wu, w0, w1, w2):
+    """Error-angle rate of §4 (rad/s) at the gimbal angles ``a0, a1, a2`` (rad: commanded plus
+    phi) with the coefficients of the state ``x`` and the white rate ``w0, w1, w2`` (rad/s):
+    ``phi' = -T [eps DPH + C_n^p w_ie^n + w]`` as a tuple, without the Jacobian.
+
+    The numbers of :func:`rate_k` bit for bit (the same products and sums in the same order, the
+    entries of C and T written as :func:`platcal.model.frames.c_rp_sc_into` and
+    :func:`~platcal.model.frames.euler_t_sc_into` write them, T's zeros and ones included) but in
+    registers: RK4's three further stages (and the simulator's four) need neither F nor the
+    scratch arrays, whose calls and stores were most of a stage (issue 22 item 2,
+    ``benchmarks/profile_multiposition.py``).
+    """
+    sa, ca = np.sin(a0), np.cos(a0)
+    sb, cb = np.sin(a1), np.cos(a1)
+    sg, cg = np.sin(a2), np.cos(a2)
+    c01 = cg * sb * sa + sg * ca
+    c02 = -cg * sb * ca + sg * sa
+    c11 = -sg * sb * sa + cg * ca
+    c12 = sg * sb * ca + cg * sa
+    c21 = -cb * sa
+    c22 = cb * ca
+    u0 = _drift_s(x, lay, 0, c02, c12, c22) * DEG_PER_HOUR + c01 * wn + c02 * wu + w0
+    u1 = _drift_s(x, lay, 1, c02, c12, c22) * DEG_PER_HOUR + c11 * wn + c12 * wu + w1
+    u2 = _drift_s(x, lay, 2, c02, c12, c22) * DEG_PER_HOUR + c21 * wn + c22 * wu + w2
+    ib = 1.0 / cb
+    tb = sb * ib
+    # T's constant entries (0 and 1) stay in the products: 0 * u is -0 or NaN for some u
+    r0 = -(cg * ib * u0 + -sg * ib * u1 + 0.0 * u2)
+    r1 = -(sg * u0 + cg * u1 + 0.0 * u2)
+    r2 = -(-tb * cg * u0 + tb * sg * u1 + 1.0 * u2)
+    return r0, r1, r2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def rk4_s(phi0, x, lay, wn, wu, w0, w1, w2, h, k10, k11, k12):
+    """One RK4 step of §4 over ``h`` s from the state ``x`` (phi, rad, and the constant
+    coefficients) with the white rate ``w`` (rad/s) held constant (§12), given the first stage's
+    rate ``k1`` (rad/s); ``phi0`` (3,) commanded angles (rad). Returns the new phi (tuple)."""
+    x0, x1, x2 = x[0], x[1], x[2]
+    hh = 0.5 * h
+    k20, k21, k22 = rate_s(phi0[0] + (x0 + hh * k10), phi0[1] + (x1 + hh * k11), phi0[2] + (x2 + hh * k12),
+                           x, lay, wn, wu, w0, w1, w2)
+    k30, k31, k32 = rate_s(phi0[0] + (x0 + hh * k20), phi0[1] + (x1 + hh * k21), phi0[2] + (x2 + hh * k22),
+                           x, lay, wn, wu, w0, w1, w2)
+    k40, k41, k42 = rate_s(phi0[0] + (x0 + h * k30), phi0[1] + (x1 + h * k31), phi0[2] + (x2 + h * k32),
+                           x, lay, wn, wu, w0, w1, w2)
+    h6 = h / 6.0
+    return (x0 + h6 * (k10 + 2.0 * k20 + 2.0 * k30 + k40), x1 + h6 * (k11 + 2.0 * k21 + 2.0 * k31 + k41),
+            x2 + h6 * (k12 + 2.0 * k22 + 2.0 * k32 + k42))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def rk4_k(phi0, x, lay, wn, wu, w, h, out):
+    """One RK4 step of §4 over ``h`` s with the white rate ``w`` (3,) rad/s held constant (§12);
+    angles only (coefficients are constant): ``out`` (3,) the new phi (rad)."""
+    k10, k11, k12 = rate_s(phi0[0] + x[0], phi0[1] + x[1], phi0[2] + x[2], x, lay, wn, wu, w[0], w[1], w[2])
+    out[0], out[1], out[2] = rk4_s(phi0, x, lay, wn, wu, w[0], w[1], w[2], h, k10, k11, k12)
 
 
 @njit(cache=True)

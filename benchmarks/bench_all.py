@@ -128,7 +128,7 @@ def multiposition(B: int, repeat: int) -> dict:
     n = p0.size + 3
     lay = layout_index(0)
     wn, wu = cfg.site.params()
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    C, dC, T, dT, f, eps, deps, greg = make_scratch(n)
     F = np.zeros((3, n))
     nxt = np.empty(3)
     zp = np.empty(6)
@@ -166,8 +166,7 @@ def multiposition(B: int, repeat: int) -> dict:
                 Q = np.zeros((n, n))
                 Q[:3, :3] = arw2 * dt * (T @ T.T)
                 ekf.Q = Q
-                k4[0] = nxt
-                rk4_k(phi0s[k], xv, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, True)
+                rk4_k(phi0s[k], xv, lay, wn, wu, zero3, dt, nxt)
                 ekf.x_next = xv.copy()
                 ekf.x_next[:3] = nxt
                 ekf.P = Phi @ ekf.P @ Phi.T + Q

@@ -345,46 +345,69 @@ def meas_k(phi0, x, lay, z, H, hcols, hnnz, C, dC):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _drift_s(x, lay, j, f0, f1, f2):
-    """Drift of gyro ``j`` (deg/h) at ``f`` (g, in p) from the state ``x``'s coefficients (§5, §13):
-    :func:`gyro_drift_k`'s ``eps[j]``, the same products summed in the same order (slot order of
-    :func:`layout_index`), in registers: no regressor array, no slopes."""
+def gyro_coefs(x, lay):
+    """The gyro coefficients of the state ``x`` (deg/h, deg/h/g, deg/h/g^2) as tuples: per gyro j
+    its 10 slots (:func:`layout_index`), and which slots the layout has (``on[m]``; an absent
+    slot's value is another coefficient's and is never used). Read once per filter or simulator
+    step, since RK4's stages change only phi, and handed to :func:`rate_s` in registers: an array
+    handed to an inlined kernel past a branch costs atomic reference counts at every call."""
+    on = (lay[0] >= 0, lay[1] >= 0, lay[2] >= 0, lay[3] >= 0, lay[4] >= 0, lay[5] >= 0, lay[6] >= 0, lay[7] >= 0,
+          lay[8] >= 0, lay[9] >= 0)
+    # column of slot m, gyro x (3 + lay[m]); an absent slot (-1) reads column 3 instead (in range, unused)
+    i0, i1, i2, i3, i4 = 3 + max(lay[0], 0), 3 + max(lay[1], 0), 3 + max(lay[2], 0), 3 + max(lay[3], 0), \
+        3 + max(lay[4], 0)
+    i5, i6, i7, i8, i9 = 3 + max(lay[5], 0), 3 + max(lay[6], 0), 3 + max(lay[7], 0), 3 + max(lay[8], 0), \
+        3 + max(lay[9], 0)
+    g0 = (x[i0], x[i1], x[i2], x[i3], x[i4], x[i5], x[i6], x[i7], x[i8], x[i9])
+    g1 = (x[i0 + 1], x[i1 + 1], x[i2 + 1], x[i3 + 1], x[i4 + 1], x[i5 + 1], x[i6 + 1], x[i7 + 1], x[i8 + 1],
+          x[i9 + 1])
+    g2 = (x[i0 + 2], x[i1 + 2], x[i2 + 2], x[i3 + 2], x[i4 + 2], x[i5 + 2], x[i6 + 2], x[i7 + 2], x[i8 + 2],
+          x[i9 + 2])
+    return g0, g1, g2, on
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _drift_s(g, on, j, f0, f1, f2):
+    """Drift of gyro ``j`` (deg/h) at ``f`` (g, in p), its slot coefficients ``g`` and the
+    layout's slots ``on`` (:func:`gyro_coefs`; §5, §13): :func:`gyro_drift_k`'s ``eps[j]``, the
+    same products summed in the same order (the slot order), absent slots skipped as there."""
     aI, aO, aS = gyro_axis_components(j, f0, f1, f2)
     e = 0.0
-    if lay[0] >= 0:
-        e += x[3 + lay[0] + j] * 1.0
-    if lay[1] >= 0:
-        e += x[3 + lay[1] + j] * aI
-    if lay[2] >= 0:
-        e += x[3 + lay[2] + j] * aS
-    if lay[3] >= 0:
-        e += x[3 + lay[3] + j] * aO
-    if lay[4] >= 0:
-        e += x[3 + lay[4] + j] * (aI * aI)
-    if lay[5] >= 0:
-        e += x[3 + lay[5] + j] * (aS * aS)
-    if lay[6] >= 0:
-        e += x[3 + lay[6] + j] * (aI * aO)
-    if lay[7] >= 0:
-        e += x[3 + lay[7] + j] * (aI * aS)
-    if lay[8] >= 0:
-        e += x[3 + lay[8] + j] * (aO * aS)
-    if lay[9] >= 0:
-        e += x[3 + lay[9] + j] * (aO * aO)
+    if on[0]:
+        e += g[0] * 1.0
+    if on[1]:
+        e += g[1] * aI
+    if on[2]:
+        e += g[2] * aS
+    if on[3]:
+        e += g[3] * aO
+    if on[4]:
+        e += g[4] * (aI * aI)
+    if on[5]:
+        e += g[5] * (aS * aS)
+    if on[6]:
+        e += g[6] * (aI * aO)
+    if on[7]:
+        e += g[7] * (aI * aS)
+    if on[8]:
+        e += g[8] * (aO * aS)
+    if on[9]:
+        e += g[9] * (aO * aO)
     return e
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def rate_s(a0, a1, a2, x, lay, wn, wu, w0, w1, w2):
+def rate_s(a0, a1, a2, g0, g1, g2, on, wn, wu, w0, w1, w2):
     """Error-angle rate of §4 (rad/s) at the gimbal angles ``a0, a1, a2`` (rad: commanded plus
-    phi) with the coefficients of the state ``x`` and the white rate ``w0, w1, w2`` (rad/s):
-    ``phi' = -T [eps DPH + C_n^p w_ie^n + w]`` as a tuple, without the Jacobian.
+    phi), gyro coefficients ``g0, g1, g2``, ``on`` (:func:`gyro_coefs`), Earth rate ``wn``, ``wu`` (rad/s)
+    and white rate ``w0, w1, w2`` (rad/s): ``phi' = -T [eps DPH + C_n^p w_ie^n + w]`` as a tuple,
+    without the Jacobian.
 
     The numbers of :func:`rate_k` bit for bit (the same products and sums in the same order, the
     entries of C and T written as :func:`platcal.model.frames.c_rp_sc_into` and
-    :func:`~platcal.model.frames.euler_t_sc_into` write them, T's zeros and ones included) but in
-    registers: RK4's three further stages (and the simulator's four) need neither F nor the
-    scratch arrays, whose calls and stores were most of a stage (issue 22 item 2,
+    :func:`~platcal.model.frames.euler_t_sc_into` write them, T's zeros and ones included) but on
+    scalars only: RK4's three further stages (and the simulator's four) need neither F nor the
+    scratch arrays, whose stores and reference counts were most of a stage (issue 22 item 2,
     ``benchmarks/profile_multiposition.py``).
     """
     sa, ca = np.sin(a0), np.cos(a0)
@@ -396,9 +419,9 @@ def rate_s(a0, a1, a2, x, lay, wn, wu, w0, w1, w2):
     c12 = sg * sb * ca + cg * sa
     c21 = -cb * sa
     c22 = cb * ca
-    u0 = _drift_s(x, lay, 0, c02, c12, c22) * DEG_PER_HOUR + c01 * wn + c02 * wu + w0
-    u1 = _drift_s(x, lay, 1, c02, c12, c22) * DEG_PER_HOUR + c11 * wn + c12 * wu + w1
-    u2 = _drift_s(x, lay, 2, c02, c12, c22) * DEG_PER_HOUR + c21 * wn + c22 * wu + w2
+    u0 = _drift_s(g0, on, 0, c02, c12, c22) * DEG_PER_HOUR + c01 * wn + c02 * wu + w0
+    u1 = _drift_s(g1, on, 1, c02, c12, c22) * DEG_PER_HOUR + c11 * wn + c12 * wu + w1
+    u2 = _drift_s(g2, on, 2, c02, c12, c22) * DEG_PER_HOUR + c21 * wn + c22 * wu + w2
     ib = 1.0 / cb
     tb = sb * ib
     # T's constant entries (0 and 1) stay in the products: 0 * u is -0 or NaN for some u
@@ -409,18 +432,18 @@ def rate_s(a0, a1, a2, x, lay, wn, wu, w0, w1, w2):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def rk4_s(phi0, x, lay, wn, wu, w0, w1, w2, h, k10, k11, k12):
-    """One RK4 step of §4 over ``h`` s from the state ``x`` (phi, rad, and the constant
-    coefficients) with the white rate ``w`` (rad/s) held constant (§12), given the first stage's
-    rate ``k1`` (rad/s); ``phi0`` (3,) commanded angles (rad). Returns the new phi (tuple)."""
-    x0, x1, x2 = x[0], x[1], x[2]
+def rk4_s(p0, p1, p2, x0, x1, x2, g0, g1, g2, on, wn, wu, w0, w1, w2, h, k10, k11, k12):
+    """One RK4 step of §4 over ``h`` s from phi ``x0, x1, x2`` (rad) at the commanded angles
+    ``p0, p1, p2`` (rad), the gyro coefficients ``g0, g1, g2``, ``on`` (:func:`gyro_coefs`, constant over
+    the step) and the white rate ``w`` (rad/s) held constant (§12), given the first stage's rate
+    ``k1`` (rad/s). Returns the new phi (tuple, rad)."""
     hh = 0.5 * h
-    k20, k21, k22 = rate_s(phi0[0] + (x0 + hh * k10), phi0[1] + (x1 + hh * k11), phi0[2] + (x2 + hh * k12),
-                           x, lay, wn, wu, w0, w1, w2)
-    k30, k31, k32 = rate_s(phi0[0] + (x0 + hh * k20), phi0[1] + (x1 + hh * k21), phi0[2] + (x2 + hh * k22),
-                           x, lay, wn, wu, w0, w1, w2)
-    k40, k41, k42 = rate_s(phi0[0] + (x0 + h * k30), phi0[1] + (x1 + h * k31), phi0[2] + (x2 + h * k32),
-                           x, lay, wn, wu, w0, w1, w2)
+    k20, k21, k22 = rate_s(p0 + (x0 + hh * k10), p1 + (x1 + hh * k11), p2 + (x2 + hh * k12), g0, g1, g2, on, wn, wu,
+                           w0, w1, w2)
+    k30, k31, k32 = rate_s(p0 + (x0 + hh * k20), p1 + (x1 + hh * k21), p2 + (x2 + hh * k22), g0, g1, g2, on, wn, wu,
+                           w0, w1, w2)
+    k40, k41, k42 = rate_s(p0 + (x0 + h * k30), p1 + (x1 + h * k31), p2 + (x2 + h * k32), g0, g1, g2, on, wn, wu,
+                           w0, w1, w2)
     h6 = h / 6.0
     return (x0 + h6 * (k10 + 2.0 * k20 + 2.0 * k30 + k40), x1 + h6 * (k11 + 2.0 * k21 + 2.0 * k31 + k41),
             x2 + h6 * (k12 + 2.0 * k22 + 2.0 * k32 + k42))
@@ -430,16 +453,19 @@ def rk4_s(phi0, x, lay, wn, wu, w0, w1, w2, h, k10, k11, k12):
 def rk4_k(phi0, x, lay, wn, wu, w, h, out):
     """One RK4 step of §4 over ``h`` s with the white rate ``w`` (3,) rad/s held constant (§12);
     angles only (coefficients are constant): ``out`` (3,) the new phi (rad)."""
-    k10, k11, k12 = rate_s(phi0[0] + x[0], phi0[1] + x[1], phi0[2] + x[2], x, lay, wn, wu, w[0], w[1], w[2])
-    out[0], out[1], out[2] = rk4_s(phi0, x, lay, wn, wu, w[0], w[1], w[2], h, k10, k11, k12)
+    g0, g1, g2, on = gyro_coefs(x, lay)
+    p0, p1, p2 = phi0[0], phi0[1], phi0[2]
+    x0, x1, x2 = x[0], x[1], x[2]
+    w0, w1, w2 = w[0], w[1], w[2]
+    k10, k11, k12 = rate_s(p0 + x0, p1 + x1, p2 + x2, g0, g1, g2, on, wn, wu, w0, w1, w2)
+    out[0], out[1], out[2] = rk4_s(p0, p1, p2, x0, x1, x2, g0, g1, g2, on, wn, wu, w0, w1, w2, h, k10, k11, k12)
 
 
 @njit(cache=True)
 def make_scratch(n):
-    """Scratch tuple for the kernels: (C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd)."""
+    """Scratch tuple of :func:`rate_k` for a state of ``n``: (C, dC, T, dT, f, eps, deps, greg)."""
     return (np.empty((3, 3)), np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3, 3)),
-            np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 10)), np.empty((4, 3)),
-            np.empty(n), np.zeros((3, n)))
+            np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 10)))
 
 
 # ------------------------------------------------------------------ Python helpers
@@ -449,7 +475,7 @@ def rate(phi0_rad, x, site: Site = Site(), ext: int = 0, omega_on: bool = True):
     x = np.asarray(x, float)
     lay = layout_index(ext)
     wn, wu = site.params(omega_on)
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(x.size)
+    C, dC, T, dT, f, eps, deps, greg = make_scratch(x.size)
     out = np.empty(3)
     F = np.zeros((3, x.size))
     rate_k(np.asarray(phi0_rad, float), x, lay, wn, wu, np.zeros(3), out, F, True,

@@ -192,8 +192,9 @@ def multiposition(B: int, repeat: int) -> dict:
                 platcal_s=tp[0] / B, filterpy_s=tf[0], platcal_cpu_s=tp[1] / B, filterpy_cpu_s=tf[1],
                 max_diff_sigma=d, note="the covariance algebra runs 4 replicates per vector (SIMD lanes, no fused "
                                        "multiply-adds: the numbers stay bit-identical); the scalar model chain per "
-                                       "replicate (4 rates and the measurement, 15 sin/cos pairs) is then about "
-                                       "half of a step; benchmarks/profile_multiposition.py")
+                                       "replicate (4 rates and the measurement, 15 sin/cos pairs; RK4's stages on "
+                                       "scalars) is then about a third of a step; "
+                                       "benchmarks/profile_multiposition.py")
 
 
 def sled(B: int, repeat: int) -> dict:

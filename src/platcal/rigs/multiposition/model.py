@@ -161,7 +161,10 @@ class Site:
 # function with array arguments pays an atomic reference-count increment and decrement per array
 # (about 15 of each per rate evaluation, four evaluations per filter step), and the raise paths
 # keep numba from pruning them; the arithmetic is unchanged, so are the numbers (issue 22 item 2:
-# about 10 % of a multiposition filter step, benchmarks/profile_multiposition.py).
+# about 10 % of a multiposition filter step, benchmarks/profile_multiposition.py). Inlining alone
+# does not remove the counts of an array handed on past a branch, so RK4's stages, which need no
+# Jacobian, run on scalars only (rate_s, rk4_s: the same operations in the same order as rate_k,
+# 3.2x faster per step's three stages).
 
 @njit(cache=True, error_model="numpy", inline="always")
 def gyro_drift_k(c, lay, f, eps, deps, greg):
@@ -217,8 +220,8 @@ def rot_t_into(a0, a1, a2, C, dC, T, dT, want_d):
 
     The kernels of :func:`platcal.model.frames.c_rp_into` and
     :func:`~platcal.model.frames.euler_t_into` (docs/centrifuge-model.md §3, eq. 15) on one set
-    of sines and cosines, because the rate of §4 is evaluated five times per filter step and
-    the shared trigonometry is a fifth of its cost.
+    of sines and cosines, because the shared trigonometry is a fifth of the cost of the rate of
+    §4 with its Jacobian (once per filter step).
     """
     sa, ca = np.sin(a0), np.cos(a0)
     sb, cb = np.sin(a1), np.cos(a1)
@@ -372,27 +375,12 @@ def _drift_s(g, on, j, f0, f1, f2):
     layout's slots ``on`` (:func:`gyro_coefs`; §5, §13): :func:`gyro_drift_k`'s ``eps[j]``, the
     same products summed in the same order (the slot order), absent slots skipped as there."""
     aI, aO, aS = gyro_axis_components(j, f0, f1, f2)
+    # the regressors in slot order (this rig's order: spin before output, layout_index)
+    reg = (1.0, aI, aS, aO, aI * aI, aS * aS, aI * aO, aI * aS, aO * aS, aO * aO)
     e = 0.0
-    if on[0]:
-        e += g[0] * 1.0
-    if on[1]:
-        e += g[1] * aI
-    if on[2]:
-        e += g[2] * aS
-    if on[3]:
-        e += g[3] * aO
-    if on[4]:
-        e += g[4] * (aI * aI)
-    if on[5]:
-        e += g[5] * (aS * aS)
-    if on[6]:
-        e += g[6] * (aI * aO)
-    if on[7]:
-        e += g[7] * (aI * aS)
-    if on[8]:
-        e += g[8] * (aO * aS)
-    if on[9]:
-        e += g[9] * (aO * aO)
+    for m in range(10):
+        if on[m]:
+            e += g[m] * reg[m]
     return e
 
 

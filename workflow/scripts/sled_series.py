@@ -1,4 +1,4 @@
-"""Snakemake wrapper: one sled case's replicate 0 as time series (platcal.rigs.sled.study.write_series)."""
+"""Snakemake wrapper: one sled case's replicate 0 as time series (platcal.rigs.sled.series.write_series)."""
 import os
 
 for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -6,7 +6,7 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 from platcal.rig import rig_config  # noqa: E402
 from platcal.rigs.sled.montecarlo import check  # noqa: E402
-from platcal.rigs.sled.study import write_series  # noqa: E402
+from platcal.rigs.sled.series import write_series  # noqa: E402
 
 sm = snakemake  # noqa: F821
 write_series(check(rig_config(sm.config, "sled")), sm.wildcards.case, sm.output[0], log_path=sm.log[0])

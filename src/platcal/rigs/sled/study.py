@@ -3,7 +3,7 @@
 The cases' replicates run as generic Monte Carlo cells (:mod:`.montecarlo`); their §8 metrics
 are the extra columns of the tidy runs table, from which the summary makes the Table-1
 analogue, the §11 check table and report.md. The figures show each case's replicate 0, whose
-time series one small job per case writes (:func:`write_series`).
+time series one small job per case writes (:func:`.series.write_series`).
 """
 
 from __future__ import annotations
@@ -18,52 +18,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ...io import atomic_to_csv, atomic_write_text  # noqa: E402
+from ...io import atomic_write_text  # noqa: E402
 from ...study.plots import save as save_figure  # noqa: E402
-from ...log import job_logger  # noqa: E402
 from ...study.claims import ledger_section  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
-from .config import ARCSEC, load_config  # noqa: E402
-from .identify import after_a, after_b, effective_phi, phi_columns  # noqa: E402
-from .montecarlo import CASES, case_config, replicate_seeds, run_replicates  # noqa: E402
-
-def series(idn, truth, s: int = 0) -> pd.DataFrame:
-    """Time series of seed slot ``s`` at the filter epochs (m, arcsec) for the figures."""
-    cfg = idn.cfg
-    J = idn.j_end
-    k = idn.epochs.k
-    t = idn.t[k]
-    a = after_a(idn)
-    b = after_b(idn)
-    df = pd.DataFrame({"t": t, "r_y": idn.r[s, k, 1], "r_z": idn.r[s, k, 2]})
-    js = idn.j_stop
-    ay = np.r_[a["y_run"][s], a["y_static"][s, 1:]]
-    az = np.r_[a["z_run"][s], np.full(J - js, np.nan)]
-    df["a_y"], df["a_z"] = ay, az
-    kb = k[k <= idn.n_stop]
-    df["b_y"] = np.r_[b[s, kb, 0], np.full(J + 1 - len(kb), np.nan)]
-    df["b_z"] = np.r_[b[s, kb, 1], np.full(J + 1 - len(kb), np.nan)]
-    df["e_naive"] = idn.r[s, k, 0] - truth.x_true[s, k]
-    df["e_con"] = idn.x_con[s, k] - truth.x_true[s, k]
-    df["e_inst"] = truth.x_inst[s, k] - truth.x_true[s, k]
-    eff = effective_phi(truth)[s] / ARCSEC
-    for name, i in phi_columns(cfg.states).items():
-        ax = name[-1]
-        df[f"{name}_hat"] = np.r_[idn.run.x[s, :, i], np.full(J - js, np.nan)] / ARCSEC
-        df[f"{name}_sigma"] = np.r_[idn.run.sigma[s, :, i], np.full(J - js, np.nan)] / ARCSEC
-        df[f"{name}_eff"] = eff["xyz".index(ax)]
-        df[f"{name}_true"] = truth.params.phi0[s, "xyz".index(ax)] / ARCSEC
-    return df
-
-
-def write_series(raw: dict, case: str, out, log_path=None) -> None:
-    """series.csv of a case's replicate 0 (the figures' representative run): the same
-    SeedSequence, config and code as replicate 0 of its Monte Carlo cell."""
-    log = job_logger(log_path, "platcal.sled")
-    sb, idn = run_replicates(case_config(raw, case), replicate_seeds(raw, case, [0]))
-    atomic_to_csv(series(idn, sb.truth), out, float_format="%.10g")
-    log.info(f"sled case {case}: series of replicate 0 -> {out}")
-
+from .config import load_config  # noqa: E402
+from .montecarlo import CASES  # noqa: E402
 
 def case_metrics(runs: pd.DataFrame, cases) -> dict[str, pd.DataFrame]:
     """Per case (in ``cases`` order), its replicates' §8 metrics and ``failed`` flag from the

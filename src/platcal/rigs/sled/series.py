@@ -1,0 +1,55 @@
+"""Each sled case's replicate 0 as time series for the study's figures (docs/rocket-sled.md §8, §11).
+
+Its own module, apart from :mod:`.study`, because the rule ``sled_series`` runs it once per
+case: without the study's figures and tables it imports neither matplotlib nor scipy.stats
+(0.7 s of CPU less per job, issue 22 item 4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ...io import atomic_to_csv
+from ...log import job_logger
+from .config import ARCSEC
+from .identify import after_a, after_b, effective_phi, phi_columns
+from .montecarlo import case_config, replicate_seeds, run_replicates
+
+
+def series(idn, truth, s: int = 0) -> pd.DataFrame:
+    """Time series of seed slot ``s`` at the filter epochs (m, arcsec) for the figures."""
+    cfg = idn.cfg
+    J = idn.j_end
+    k = idn.epochs.k
+    t = idn.t[k]
+    a = after_a(idn)
+    b = after_b(idn)
+    df = pd.DataFrame({"t": t, "r_y": idn.r[s, k, 1], "r_z": idn.r[s, k, 2]})
+    js = idn.j_stop
+    ay = np.r_[a["y_run"][s], a["y_static"][s, 1:]]
+    az = np.r_[a["z_run"][s], np.full(J - js, np.nan)]
+    df["a_y"], df["a_z"] = ay, az
+    kb = k[k <= idn.n_stop]
+    df["b_y"] = np.r_[b[s, kb, 0], np.full(J + 1 - len(kb), np.nan)]
+    df["b_z"] = np.r_[b[s, kb, 1], np.full(J + 1 - len(kb), np.nan)]
+    df["e_naive"] = idn.r[s, k, 0] - truth.x_true[s, k]
+    df["e_con"] = idn.x_con[s, k] - truth.x_true[s, k]
+    df["e_inst"] = truth.x_inst[s, k] - truth.x_true[s, k]
+    eff = effective_phi(truth)[s] / ARCSEC
+    for name, i in phi_columns(cfg.states).items():
+        ax = name[-1]
+        df[f"{name}_hat"] = np.r_[idn.run.x[s, :, i], np.full(J - js, np.nan)] / ARCSEC
+        df[f"{name}_sigma"] = np.r_[idn.run.sigma[s, :, i], np.full(J - js, np.nan)] / ARCSEC
+        df[f"{name}_eff"] = eff["xyz".index(ax)]
+        df[f"{name}_true"] = truth.params.phi0[s, "xyz".index(ax)] / ARCSEC
+    return df
+
+
+def write_series(raw: dict, case: str, out, log_path=None) -> None:
+    """series.csv of a case's replicate 0 (the figures' representative run): the same
+    SeedSequence, config and code as replicate 0 of its Monte Carlo cell."""
+    log = job_logger(log_path, "platcal.sled")
+    sb, idn = run_replicates(case_config(raw, case), replicate_seeds(raw, case, [0]))
+    atomic_to_csv(series(idn, sb.truth), out, float_format="%.10g")
+    log.info(f"sled case {case}: series of replicate 0 -> {out}")

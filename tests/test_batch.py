@@ -63,6 +63,25 @@ def test_simulation_batch_equals_runs_of_one(batch):
         _close(one.set_error[0], sim.set_error[i])
 
 
+def test_simulated_noise_is_the_replicate_stream_scaled():
+    """The accelerometer noise is the replicate's second stream drawn position by position,
+    3 per 5 ms sample (kept or not), times sigma_a then 1e-6 (ug -> g), added to the noise-free
+    output (the kernel scales each draw as it uses it)."""
+    scheme = _scheme(0.5)
+    params = CEN.scheme_params(scheme)
+    # fresh SeedSequences for every use: spawning advances a SeedSequence's children
+    noisy = simulate(full_truth(), scheme, params, Noise(sigma_a_ug=7.0, arw_deg_rth=0.0), _seeds(range(3)),
+                     keep_every=4)
+    clean = simulate(full_truth(), scheme, params, Noise(sigma_a_ug=0.0, arw_deg_rth=0.0), _seeds(range(3)),
+                     keep_every=4)
+    n = int(round(0.5 / 0.005))
+    for b, ss in enumerate(_seeds(range(3))):
+        draws = np.random.default_rng(ss.spawn(3)[1]).standard_normal((scheme.n_positions, n, 3))
+        expected = clean.A[b] + draws[:, ::4] * 7.0 * 1e-6
+        assert np.array_equal(noisy.A[b], expected)
+        assert np.array_equal(noisy.angles[b], clean.angles[b])
+
+
 def test_ekf_batch_equals_runs_of_one(batch):
     scheme, settings, sim, est = batch
     for i in range(4):

@@ -5,8 +5,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from platcal.rigs.centrifuge.config import load_config, study_from_config, validate_config
+from platcal.rigs.centrifuge.config import SCHEMA_RESOURCE, load_config, schema, study_from_config, validate_config
 from platcal.errors import InputError
+from platcal.io import read_yaml
+from platcal.schema import load_schema
 from platcal.model.instruments import INDEX
 from platcal.rigs.centrifuge.catalogue import load_catalogue
 from platcal.scheme import TABLE1_POSITIONS
@@ -56,3 +58,21 @@ def test_errors_name_the_field(cfg, field):
     with pytest.raises(InputError) as err:
         study_from_config({**ONE, **cfg})
     assert err.value.field == field
+
+
+def test_schema_parsed_once_and_every_caller_gets_its_own_copy():
+    # the parse is cached per process (a study's check validates once per cell), but a caller
+    # that extends its schema (with_mapping_schema adds the record keys) must not change the next
+    pkg = "platcal.rigs.centrifuge"
+    text = (ROOT / "src" / "platcal" / "rigs" / "centrifuge" / SCHEMA_RESOURCE).read_text(encoding="utf-8")
+    first = load_schema(pkg, SCHEMA_RESOURCE)
+    assert repr(first) == repr(read_yaml(text))  # the one YAML reader's parse, types included
+    first["properties"]["noise"]["properties"]["sigma_a_ug"]["default"] = -1.0
+    first["properties"].pop("filter")
+    again = load_schema(pkg, SCHEMA_RESOURCE)
+    assert again is not first and repr(again) == repr(read_yaml(text))
+    with_record = schema()
+    with_record["properties"]["record"]["properties"]["extra"] = {"type": "string"}
+    assert "extra" not in schema()["properties"]["record"]["properties"]
+    assert validate_config(ONE)["noise"]["sigma_a_ug"] == read_yaml(text)["properties"]["noise"]["properties"][
+        "sigma_a_ug"]["default"]

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from platcal.errors import InputError
-from platcal.rigs.centrifuge import RIG, compare
+from platcal.rigs.centrifuge import RIG, compare, compare_cells
 from platcal.rigs.centrifuge import study as mc
 from platcal.rigs.centrifuge.config import study_from_config
 from platcal.rigs.centrifuge.estimators import KINDS, run_estimator
@@ -78,12 +78,12 @@ def compared(tmp_path_factory):
     c = cfg()
     root = tmp_path_factory.mktemp("compare")
     dirs = []
-    for label, est in compare.compare_cells(c):
+    for label, est in compare_cells.compare_cells(c):
         d = root / f"noise{label}" / est
-        compare.compare_cell_job(c, compare.compare_levels(c)[label], est, d)
+        compare_cells.compare_cell_job(c, compare_cells.compare_levels(c)[label], est, d)
         dirs.append(d)
     out = {"coef": root / "coef.parquet", "runs": root / "runs.parquet", "timing": root / "timing.csv"}
-    compare.collect_job([d / "coef.parquet" for d in dirs], [d / "runs.parquet" for d in dirs],
+    compare_cells.collect_job([d / "coef.parquet" for d in dirs], [d / "runs.parquet" for d in dirs],
                         [d / "timing.json" for d in dirs], out)
     figs = {"tables": root, "cost": root / "cost.png", "nees": root / "nees.png"}
     compare.compare_job(c, out["coef"], out["runs"], figs)
@@ -92,7 +92,7 @@ def compared(tmp_path_factory):
 
 def test_comparison_cells_tables_and_figures(compared):
     c, root = compared
-    assert compare.compare_cells(c) == [("10", "ekf1"), ("10", "ekf2"), ("10", "iekf"),
+    assert compare_cells.compare_cells(c) == [("10", "ekf1"), ("10", "ekf2"), ("10", "iekf"),
                                         ("50", "ekf1"), ("50", "ekf2"), ("50", "iekf")]
     runs = pd.read_parquet(root / "runs.parquet")
     assert len(runs) == 6 * 3 and (runs["cpu_s"] > 0).all() and (runs["wall_s"] > 0).all()
@@ -149,9 +149,9 @@ def test_comparison_may_define_its_own_estimators():
     run them); a name of study.estimators must keep its definition."""
     c = cfg(estimators={"ekf1": {"passes": 1}, "w1": {"estimator": "ekf", "warmup_s": 0.2}})
     assert list(c["study"]["estimators"]) == ["ekf1", "ekf2", "ekfw", "iekf"]  # the sweep's, unchanged
-    assert compare.compare_cells(c) == [("10", "ekf1"), ("10", "w1"), ("50", "ekf1"), ("50", "w1")]
-    assert compare.kind_of(c, "w1") == "ekf" and compare.passes_of(c, "w1") == 1
-    p = compare.cell_params(c, 10.0, "w1")
+    assert compare_cells.compare_cells(c) == [("10", "ekf1"), ("10", "w1"), ("50", "ekf1"), ("50", "w1")]
+    assert compare_cells.kind_of(c, "w1") == "ekf" and compare_cells.passes_of(c, "w1") == 1
+    p = compare_cells.cell_params(c, 10.0, "w1")
     assert p["estimator"] == {"estimator": "ekf", "warmup_s": 0.2} and p["replicates"] == 3
     with pytest.raises(InputError) as e:
         cfg(estimators={"ekf1": {"passes": 3}})
@@ -165,13 +165,13 @@ def test_levels_of_limits_an_estimator_to_some_levels():
     """study.compare.levels_of runs a costly estimator at some levels only; bad names or levels
     are refused naming the field (before any job: the workflow builds its cells from this)."""
     raw = yaml.safe_load(open("config/centrifuge.yaml"))
-    cells = compare.compare_cells(mc.check_study(raw))
+    cells = compare_cells.compare_cells(mc.check_study(raw))
     assert ("10", "ukf") in cells and ("5", "ukf") not in cells and ("5", "ekf1") in cells
     raw["study"]["compare"]["levels_of"] = {"nope": [10]}
     with pytest.raises(InputError) as exc:
-        compare.compare_cells(mc.check_study(raw))
+        compare_cells.compare_cells(mc.check_study(raw))
     assert exc.value.field == "study.compare.levels_of.nope"
     raw["study"]["compare"]["levels_of"] = {"ukf": [20]}
     with pytest.raises(InputError) as exc:
-        compare.compare_cells(mc.check_study(raw))
+        compare_cells.compare_cells(mc.check_study(raw))
     assert exc.value.field == "study.compare.levels_of.ukf[0]"

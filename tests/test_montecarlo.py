@@ -99,6 +99,21 @@ def test_code_hash_covers_the_compute_closure_only():
     assert smc.code_hash(["platcal.study.plots"]) != smc.code_hash()
 
 
+def test_import_reading_is_cached_but_an_edited_file_is_read_again(tmp_path):
+    # the master reads each module's imports once for all closures; an edit (new mtime or size)
+    # within the same process must not be hidden by that cache
+    f = tmp_path / "mod.py"
+    f.write_text("from .io import read_yaml\n")
+    st = f.stat()
+    first = smc._platcal_imports(f, "platcal.study", (st.st_mtime_ns, st.st_size))
+    assert first == ("platcal.study.io", "platcal.study.io.read_yaml")
+    assert smc._platcal_imports(f, "platcal.study", (st.st_mtime_ns, st.st_size)) is first
+    f.write_text("import platcal.rig\nfrom ..plausibility import clock_rate\n")
+    st = f.stat()
+    assert smc._platcal_imports(f, "platcal.study", (st.st_mtime_ns, st.st_size)) == (
+        "platcal.rig", "platcal.plausibility", "platcal.plausibility.clock_rate")
+
+
 @pytest.fixture(scope="module")
 def small_cell():
     c = cfg(replicates=4, batch=4)

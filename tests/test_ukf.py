@@ -45,6 +45,49 @@ def test_cholesky_upper_factor():
     assert not cholesky_upper_into(np.diag([1.0, -1.0, 2.0]), np.zeros((3, 3)))
 
 
+def _cholesky_right_looking(A):
+    """The outer-product (right-looking) upper Cholesky factor, written out loop by loop: the
+    form the compiled kernel had before issue 22, to compare bits with. None if not PD."""
+    n = A.shape[0]
+    R = np.triu(A.T).astype(float)  # R[j, i] = A[i, j]: the lower triangle read
+    for j in range(n):
+        v = R[j, j]
+        if not v > 0.0:
+            return None
+        d = np.sqrt(v)
+        R[j, j] = d
+        inv = 1.0 / d
+        for k in range(j + 1, n):
+            R[j, k] *= inv
+        for k in range(j + 1, n):
+            c = R[j, k]
+            for i in range(k, n):
+                R[k, i] -= c * R[j, i]
+    return R
+
+
+def test_cholesky_same_bits_as_the_right_looking_form():
+    """The up-looking kernel (four rows per pass) applies each entry's operations in the same
+    order as the outer-product form: the same factor to the last bit, in place or not, and the
+    same refusal of a matrix that is not positive definite."""
+    rng = np.random.default_rng(22)
+    for n in (1, 3, 4, 5, 9, 48):
+        for _ in range(4):
+            A = rng.standard_normal((n, n)) * np.exp(rng.uniform(-8.0, 3.0, n))
+            P = A @ A.T + np.diag(np.exp(rng.uniform(-20.0, 0.0, n)))
+            ref = _cholesky_right_looking(P)
+            R = np.full((n, n), 7.0)
+            assert cholesky_upper_into(P, R)
+            assert np.array_equal(R, ref)
+            Q = P.copy()
+            assert cholesky_upper_into(Q, Q)
+            assert np.array_equal(Q, ref)
+    bad = np.diag([4.0, 1.0, 1.0, 1.0, 1.0, 2.0])
+    bad[4, 3] = bad[3, 4] = 1.5  # the fifth pivot is 1 - 1.5^2 < 0
+    assert _cholesky_right_looking(bad) is None
+    assert not cholesky_upper_into(bad, np.zeros((6, 6)))
+
+
 def _gaussian(n, seed):
     rng = np.random.default_rng(seed)
     A = rng.standard_normal((n, n))

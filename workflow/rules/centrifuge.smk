@@ -5,8 +5,8 @@
 #   design/      GA schemes (ga_*.yaml, read by the sweep) and the design studies
 # `snakemake --cores 2 design_all` builds the full design report (design/report.md).
 from platcal.rigs.centrifuge.design import design_config
-from platcal.rigs.centrifuge.compare import cell_params as compare_cell_params
-from platcal.rigs.centrifuge.compare import compare_cells, compare_levels
+from platcal.rigs.centrifuge.compare_cells import cell_params as compare_cell_params
+from platcal.rigs.centrifuge.compare_cells import compare_cells, compare_levels
 from platcal.rigs.centrifuge.report import COMPARE_FIGURES, COMPARE_TABLES, FIGURES, TABLES
 from platcal.rigs.centrifuge.study import (
     DESIGN_KEYS,

@@ -8,7 +8,7 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 from pathlib import Path  # noqa: E402
 
 from platcal.rig import rig_config  # noqa: E402
-from platcal.rigs.centrifuge.compare import compare_cell_job  # noqa: E402
+from platcal.rigs.centrifuge.compare_cells import compare_cell_job  # noqa: E402
 
 sm = snakemake  # noqa: F821
 compare_cell_job(rig_config(sm.config, "centrifuge"), sm.params.level, sm.wildcards.estimator,

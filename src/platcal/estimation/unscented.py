@@ -85,29 +85,41 @@ def cholesky_upper_into(A, R):
     read; ``R`` may be ``A`` itself, strict lower triangle zeroed). Returns False if ``A`` is not
     positive definite.
 
-    Row-oriented outer-product form: the innermost loop updates independent, contiguous entries
-    (vectorisable), not a dependent dot-product chain; rows of ``R`` are the sigma directions.
+    Up-looking (row by row) form: row k of ``R`` is ``A[k:, k]`` less ``R[j, k] R[j, k:]`` for
+    j = 0, 1, ..., k - 1 in that order, then divided by its pivot's square root; rows of ``R``
+    are the sigma directions. Every entry gets the same operations in the same order as in the
+    right-looking (outer-product) form, so the factor is the same to the last bit; the row being
+    built stays in a small accumulator and takes four rows above it per pass, which the compiler
+    vectorises (about 3x faster at n = 48, issue 22).
     """
     n = A.shape[0]
-    for i in range(n):
-        for j in range(i):
-            R[j, i] = A[i, j]
-        R[i, i] = A[i, i]
-    for j in range(n):
-        rj = R[j]
-        v = rj[j]
+    # the row under construction, apart from R: R may be A itself, whose lower triangle is read
+    acc = np.empty(n)
+    for k in range(n):
+        m = n - k
+        for i in range(m):
+            acc[i] = A[k + i, k]
+        j = 0
+        while j + 4 <= k:
+            c0, c1, c2, c3 = R[j, k], R[j + 1, k], R[j + 2, k], R[j + 3, k]
+            for i in range(m):
+                # the parentheses keep the order j, j + 1, j + 2, j + 3 of each entry's updates
+                acc[i] = (((acc[i] - c0 * R[j, k + i]) - c1 * R[j + 1, k + i]) - c2 * R[j + 2, k + i]) \
+                    - c3 * R[j + 3, k + i]
+            j += 4
+        while j < k:
+            c = R[j, k]
+            for i in range(m):
+                acc[i] -= c * R[j, k + i]
+            j += 1
+        v = acc[0]
         if not v > 0.0:
             return False
         d = np.sqrt(v)
-        rj[j] = d
+        R[k, k] = d
         inv = 1.0 / d
-        for k in range(j + 1, n):
-            rj[k] *= inv
-        for k in range(j + 1, n):
-            c = rj[k]
-            rk = R[k]
-            for i in range(k, n):
-                rk[i] -= c * rj[i]
+        for i in range(1, m):
+            R[k, k + i] = acc[i] * inv
     for i in range(n):
         for j in range(i):
             R[i, j] = 0.0

@@ -264,7 +264,10 @@ def _shift(s, c, d):
     return s * np.cos(d) + c * np.sin(d), c * np.cos(d) - s * np.sin(d)
 
 
-@njit(cache=True)
+# rate_scalar, _stage, rk4_scalar_sc and measure_scalar are inlined into their callers (the
+# simulator, the UKF): a call between compiled functions takes two atomic reference counts per
+# array argument, 45 % of the simulator's time before (issue 22); the arithmetic is unchanged.
+@njit(cache=True, inline="always")
 def rate_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu):
     """Eq. 18 without Jacobians on scalars: (alpha', beta', gamma') in rad/s from the sines and
     cosines of the angles and the base specific force (m/s^2). Same model as :func:`attitude_rate_into`."""
@@ -281,13 +284,14 @@ def rate_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu):
     return r0, r1, r2
 
 
-@njit(cache=True)
-def _stage(sa, ca, sb, cb, sg, cg, d0, d1, d2, coef, fr, g, wn, wu):
-    """Attitude rate at the angles moved by (d0, d1, d2) rad from those whose sin/cos are given."""
+@njit(cache=True, inline="always")
+def _stage(sa, ca, sb, cb, sg, cg, d0, d1, d2, coef, fr0, fr1, fr2, g, wn, wu):
+    """Attitude rate at the angles moved by (d0, d1, d2) rad from those whose sin/cos are given;
+    ``fr*`` the base specific force (m/s^2) at the stage's time."""
     s0, c0 = _shift(sa, ca, d0)
     s1, c1 = _shift(sb, cb, d1)
     s2, c2 = _shift(sg, cg, d2)
-    return rate_scalar(s0, c0, s1, c1, s2, c2, coef, fr[0], fr[1], fr[2], g, wn, wu)
+    return rate_scalar(s0, c0, s1, c1, s2, c2, coef, fr0, fr1, fr2, g, wn, wu)
 
 
 @njit(cache=True)
@@ -483,7 +487,7 @@ def make_step_scratch():
     return make_sc_rk4_scratch(), np.empty(3), np.empty((3, 3)), np.empty((3, N_GYRO))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g):
     """Accelerometer outputs x, y, z (g), no Jacobians, from the sines and cosines of the
     angles and the base specific force (m/s^2): the simulator's measurement (eq. 13)."""
@@ -495,7 +499,7 @@ def measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g):
     return accel_one(coef, 0, aI0, aP0), accel_one(coef, 1, aI1, aP1), accel_one(coef, 2, aI2, aP2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr3, h, params, out):
     """:func:`rk4_scalar` with the sines and cosines of ``ang`` already at hand."""
     g = params[P_G]
@@ -505,12 +509,13 @@ def rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr3, h, params, out):
     k10, k11, k12 = rate_scalar(sa, ca, sb, cb, sg, cg, coef, fr3[0, 0], fr3[0, 1], fr3[0, 2],
                                 g, wn, wu)
     hh = 0.5 * h
-    k20, k21, k22 = _stage(sa, ca, sb, cb, sg, cg, hh * k10, hh * k11, hh * k12, coef, fr3[1],
-                           g, wn, wu)
-    k30, k31, k32 = _stage(sa, ca, sb, cb, sg, cg, hh * k20, hh * k21, hh * k22, coef, fr3[1],
-                           g, wn, wu)
-    k40, k41, k42 = _stage(sa, ca, sb, cb, sg, cg, h * k30, h * k31, h * k32, coef, fr3[2],
-                           g, wn, wu)
+    # the stage forces as scalars: a row view per stage costs atomic reference counts (issue 22)
+    k20, k21, k22 = _stage(sa, ca, sb, cb, sg, cg, hh * k10, hh * k11, hh * k12, coef, fr3[1, 0],
+                           fr3[1, 1], fr3[1, 2], g, wn, wu)
+    k30, k31, k32 = _stage(sa, ca, sb, cb, sg, cg, hh * k20, hh * k21, hh * k22, coef, fr3[1, 0],
+                           fr3[1, 1], fr3[1, 2], g, wn, wu)
+    k40, k41, k42 = _stage(sa, ca, sb, cb, sg, cg, h * k30, h * k31, h * k32, coef, fr3[2, 0],
+                           fr3[2, 1], fr3[2, 2], g, wn, wu)
     h6 = h / 6.0
     out[0] = a0 + h6 * (k10 + 2.0 * k20 + 2.0 * k30 + k40)
     out[1] = a1 + h6 * (k11 + 2.0 * k21 + 2.0 * k31 + k41)

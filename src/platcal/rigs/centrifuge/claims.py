@@ -26,7 +26,7 @@ import pandas as pd
 
 from ...study.claims import Evidence, load_claims
 from ...study.stats import select_cell
-from .compare import kind_of, passes_of, with_compare_estimators
+from .compare_cells import kind_of, passes_of, with_compare_estimators
 from .config import check_filter, study_from_config
 from .design import SchemeEvaluator
 from .report import resolve_cell
@@ -34,7 +34,7 @@ from .report import resolve_cell
 
 def _same_estimator(cfg: dict, name: str) -> bool:
     """Whether the comparison's estimator ``name`` is the sweep's ``name`` (the comparison's own
-    definitions override the sweep's on a shared name, :func:`.compare.with_compare_estimators`)."""
+    definitions override the sweep's on a shared name, :func:`.compare_cells.with_compare_estimators`)."""
     own = cfg["study"]["compare"]["estimators"]
     return not isinstance(own, dict) or name not in own or own[name] == cfg["study"]["estimators"].get(name)
 

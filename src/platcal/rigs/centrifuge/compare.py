@@ -29,8 +29,6 @@ The report section "Which estimator" (:func:`which_estimator`) reads the summary
 from __future__ import annotations
 
 import os
-import time
-from dataclasses import replace
 from pathlib import Path
 
 import matplotlib.ticker
@@ -38,17 +36,13 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
-from ...errors import InputError
 from ...estimation.consistency import nees_band
-from ...io import atomic_files
 from ...log import job_logger
-from ...rig import get_rig
-from ...study.montecarlo import collect, run_cell, write_cell
-from ...study.sweep import noise_label
 from ...study.plots import plt, save, styled
 from ...study.stats import per_coefficient
 from ...study.tables import write_table
-from .study import builtin_scheme, check_study
+from .compare_cells import compare_settings, kind_of, passes_of, with_compare_estimators
+from .study import check_study
 
 NEES_LEVEL = 0.999
 """The tail bound of the issue: chi-square(45) 99.9 % point, 80.1."""
@@ -64,107 +58,6 @@ SUMMARY_FMT = {"sigma_a_ug": "g", "runs": "d", "kind": "s", "passes": "d",
                "median_nees": ".1f", "inside_95_pct": ".1f", "beyond_999_pct": ".1f", "wall_s_per_run": ".3f",
                "cpu_s_per_run": ".3f", "cost_vs_ekf1": ".2f", "gyro_vs_ekf2": ".3f", "failed_runs": "d",
                **{k: "" for k in ("nees_ok", "tail_ok", "gyro_ok", "meets", "cheap")}}
-
-
-def compare_settings(cfg: dict) -> dict:
-    """``study.compare`` of a checked config with its estimator list filled in (names, in order)."""
-    c = dict(cfg["study"]["compare"])
-    c["estimators"] = list(c["estimators"]) or list(cfg["study"]["estimators"])
-    return c
-
-
-def with_compare_estimators(cfg: dict) -> dict:
-    """The config whose ``study.estimators`` also holds the comparison's own definitions
-    (``study.compare.estimators`` given as a mapping), so the generic cell runs them."""
-    own = cfg["study"]["compare"]["estimators"]
-    if not isinstance(own, dict) or not own:
-        return cfg
-    out = {**cfg, "study": {**cfg["study"], "estimators": {**cfg["study"]["estimators"], **own}}}
-    return out
-
-
-def compare_levels(cfg: dict) -> dict[str, float]:
-    """File label -> noise level of the comparison's cells."""
-    return {noise_label(v): float(v) for v in compare_settings(cfg)["sigma_a_ug"]}
-
-
-def compare_cells(cfg: dict) -> list[tuple[str, str]]:
-    """(noise label, estimator) of every comparison cell, in order: every estimator at every level
-    of ``study.compare.sigma_a_ug``, except those that ``study.compare.levels_of`` limits to some
-    levels (a costly estimator run only at the paper's setting). InputError naming the field for a
-    name that is not a comparison estimator or a level that is not compared."""
-    c = compare_settings(cfg)
-    only = c.get("levels_of") or {}
-    levels = [float(v) for v in c["sigma_a_ug"]]
-    for name, lv in only.items():
-        if name not in c["estimators"]:
-            raise InputError(f"study.compare.levels_of.{name}", f"{name!r} is not an estimator of the comparison "
-                             f"({c['estimators']})")
-        for i, v in enumerate(lv):
-            if float(v) not in levels:
-                raise InputError(f"study.compare.levels_of.{name}[{i}]", f"{v:g} ug is not a level of "
-                                 f"study.compare.sigma_a_ug ({levels})")
-    return [(noise_label(v), e) for v in c["sigma_a_ug"] for e in c["estimators"]
-            if e not in only or float(v) in [float(u) for u in only[e]]]
-
-
-def cell_params(cfg: dict, level: float, estimator: str) -> dict:
-    """What a comparison cell's numbers depend on (a Snakemake param)."""
-    hooks = get_rig("centrifuge").montecarlo
-    cfg = with_compare_estimators(cfg)
-    c = compare_settings(cfg)
-    p = hooks.cell_params(cfg, c["scheme"], level, estimator)
-    p["replicates"] = int(c["replicates"])
-    return p
-
-
-def kind_of(cfg: dict, name: str) -> str:
-    """The estimator kind of a comparison estimator's name."""
-    entry = with_compare_estimators(cfg)["study"]["estimators"][name]
-    return str(entry.get("estimator", cfg["filter"]["estimator"]))
-
-
-def passes_of(cfg: dict, name: str) -> int:
-    entry = with_compare_estimators(cfg)["study"]["estimators"][name]
-    return int(entry.get("passes", cfg["filter"]["passes"]))
-
-
-def compare_cell_job(cfg: dict, level: float, estimator: str, out_dir, threads: int = 1, log_path=None) -> None:
-    """Rule body: one (noise level, estimator) cell of the comparison."""
-    lg = job_logger(log_path)
-    cfg = with_compare_estimators(check_study(cfg))
-    c = compare_settings(cfg)
-    rig = get_rig("centrifuge")
-    scheme = builtin_scheme(cfg, c["scheme"])
-    lg.info("comparison cell %s, sigma_a = %g ug, estimator %s: %d replicates", scheme.name, level, estimator,
-            c["replicates"])
-    # load the compiled kernels before the clock starts (a 2-period run of this estimator), so the
-    # cost per run is the runs', not the process's start-up
-    short = replace(scheme, dwell_s=2 * float(cfg["filter"]["period_ms"]) / 1000.0)
-    rig.montecarlo.run_batch(cfg, short, level, estimator, [np.random.SeedSequence(0)])
-    t0, c0 = time.perf_counter(), time.process_time()
-    coef, runs, timing = run_cell(rig, cfg, scheme, level, estimator, replicates=int(c["replicates"]),
-                                  threads=threads)
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    # the cost per run (cell mean, simulation and filter, every thread of the process): the
-    # comparison's runs table is machine-dependent in these two columns only
-    R = max(len(runs), 1)
-    runs["wall_s"] = wall / R
-    runs["cpu_s"] = cpu / R
-    timing["cpu_s"] = cpu
-    write_cell(out_dir, coef, runs, timing)
-    lg.info("done: mean NEES %.1f, %.3f s CPU per run -> %s", runs["nees"].mean(), runs["cpu_s"].mean(), out_dir)
-
-
-def collect_job(coef_files, runs_files, timing_files, out: dict, log_path=None) -> None:
-    """Rule body: the comparison's cells into ``compare/{coef,runs}.parquet, timing.csv``."""
-    lg = job_logger(log_path)
-    coef, runs, timing = collect(coef_files, runs_files, timing_files)
-    with atomic_files(Path(out["coef"]).parent) as tmp:
-        coef.to_parquet(tmp(Path(out["coef"]).name), index=False)
-        runs.to_parquet(tmp(Path(out["runs"]).name), index=False)
-        timing.to_csv(tmp(Path(out["timing"]).name), index=False)
-    lg.info("collected %d runs -> %s", len(runs), Path(out["coef"]).parent)
 
 
 # ---------------------------------------------------------------------------------------------

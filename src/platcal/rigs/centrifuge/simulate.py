@@ -60,8 +60,8 @@ class SimResult:
 
 
 @njit(parallel=True, cache=True)
-def _simulate_position(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, arw, keep, out_a,
-                       out_ang, i0, n_total):
+def _simulate_position(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, acc_sd, arw, arw_sd, keep,
+                       out_a, out_ang, i0, n_total):
     """Integrate every replicate of the batch through one position (see :func:`_simulate_one`).
 
     ``fr_tab`` (U, n, 3, 3) tabulates the base specific force per distinct parameter row;
@@ -71,51 +71,63 @@ def _simulate_position(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, a
     """
     B = theta0.shape[0]
     for b in prange(B):
-        _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, arw, b,
-                      keep, out_a[b], out_ang[b], i0, n_total)
+        _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, acc_sd, arw,
+                      arw_sd, b, keep, out_a[b], out_ang[b], i0, n_total)
 
 
 @njit(cache=True)
-def _simulate_position_serial(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, arw, keep,
-                              out_a, out_ang, i0, n_total):
+def _simulate_position_serial(theta0, coef, n, dt, params, fr_tab, tab_of, acc_noise, acc_sd, arw, arw_sd,
+                              keep, out_a, out_ang, i0, n_total):
     """:func:`_simulate_position` without threads (a batch of one, or one thread): same kernel,
     no parallel region to start and join."""
     for b in range(theta0.shape[0]):
-        _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, arw, b,
-                      keep, out_a[b], out_ang[b], i0, n_total)
+        _simulate_one(theta0[b], coef[b], n, dt, params[b], fr_tab[tab_of[b]], acc_noise, acc_sd, arw,
+                      arw_sd, b, keep, out_a[b], out_ang[b], i0, n_total)
 
 
-@njit(cache=True)
-def _simulate_one(theta0, coef, n, dt, params, fr_tab, acc_noise, arw, b, keep, out_a, out_ang, i0, n_total):
+# error_model="numpy": no zero-divisor test (and exception exit) at each division of the inlined
+# model (g, cos beta: never zero here); without those exits numba prunes the reference counts of
+# the arrays the model reads, which cost a third of the kernel (issue 22). Same IEEE arithmetic.
+@njit(cache=True, error_model="numpy")
+def _simulate_one(theta0, coef, n, dt, params, fr_tab, acc_noise, acc_sd, arw, arw_sd, b, keep, out_a, out_ang,
+                  i0, n_total):
     """One replicate: RK4 of eq. 18 over the ``n`` samples ``i0 .. i0 + n - 1`` (of ``n_total``
     in the position) of ``dt`` s from ``theta0`` (rad, the angles at sample ``i0``; left holding
     those at sample ``i0 + n``), keeping the outputs of the samples that are multiples of
     ``keep``. ``fr_tab[i, s]`` is the base specific force (m/s^2) at the chunk's sample i's
-    start, middle and end (s = 0, 1, 2). Noise arrays are (B, n, 3) or (B, 0, 3) for none."""
+    start, middle and end (s = 0, 1, 2). Noise arrays are (B, n, 3) standard normal draws, or
+    (B, 0, 3) for none, scaled here by ``acc_sd`` (ug, then to g) and ``arw_sd`` (rad per step)."""
     g = params[P_G]
     ang = theta0.copy()
     new = np.empty(3)
     noisy_a = acc_noise.shape[1] > 0
     noisy_g = arw.shape[1] > 0
+    fr3 = np.empty((3, 3))
     j0 = (i0 + keep - 1) // keep  # the first kept sample's slot in the position
     for i in range(n):
         # one set of sin/cos per sample serves the measurement and the RK4 step
         sa, ca = np.sin(ang[0]), np.cos(ang[0])
         sb, cb = np.sin(ang[1]), np.cos(ang[1])
         sg, cg = np.sin(ang[2]), np.cos(ang[2])
+        # the sample's forces copied, not viewed: a view per sample costs two atomic
+        # reference-count updates, more than the copy (issue 22)
+        for s in range(3):
+            for c in range(3):
+                fr3[s, c] = fr_tab[i, s, c]
         if (i0 + i) % keep == 0:
             j = (i0 + i) // keep - j0
-            fr = fr_tab[i, 0]
-            m0, m1, m2 = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
-            out_a[j, 0] = m0 + (acc_noise[b, i, 0] if noisy_a else 0.0)
-            out_a[j, 1] = m1 + (acc_noise[b, i, 1] if noisy_a else 0.0)
-            out_a[j, 2] = m2 + (acc_noise[b, i, 2] if noisy_a else 0.0)
+            m0, m1, m2 = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr3[0, 0], fr3[0, 1], fr3[0, 2], g)
+            # scaled as the draws are used (x sigma, then ug -> g), not in passes over the
+            # buffers, most of whose accelerometer draws are not kept
+            out_a[j, 0] = m0 + (acc_noise[b, i, 0] * acc_sd * 1e-6 if noisy_a else 0.0)
+            out_a[j, 1] = m1 + (acc_noise[b, i, 1] * acc_sd * 1e-6 if noisy_a else 0.0)
+            out_a[j, 2] = m2 + (acc_noise[b, i, 2] * acc_sd * 1e-6 if noisy_a else 0.0)
             for r in range(3):
                 out_ang[j, r] = ang[r]
         if i0 + i < n_total - 1:
-            rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr_tab[i], dt, params, new)
+            rk4_scalar_sc(sa, ca, sb, cb, sg, cg, ang, coef, fr3, dt, params, new)
             for r in range(3):
-                ang[r] = new[r] + (arw[b, i, r] if noisy_g else 0.0)
+                ang[r] = new[r] + (arw[b, i, r] * arw_sd if noisy_g else 0.0)
     for r in range(3):
         theta0[r] = ang[r]
 
@@ -237,15 +249,19 @@ def simulate_chunks(truth: np.ndarray, scheme: Scheme, centrifuge_params: np.nda
     use_arw = streams is not None and arw_step > 0
     n_workers = min(B, numba.get_num_threads())
     pool = ThreadPoolExecutor(n_workers) if n_workers > 1 and (use_acc or use_arw) else None
+    # noise buffers for the largest chunk, reused by every chunk (no fresh pages per chunk)
+    acc_buf = np.empty(B * min(step, n) * 3 if use_acc else 0)
+    arw_buf = np.empty(B * min(step, n) * 3 if use_arw else 0)
     try:
         for k in range(K) if positions is None else positions:
             theta0 = np.ascontiguousarray(cmd[k][None, :] + set_err[:, k])
             pk = np.ascontiguousarray(params[:, k])
             for i0 in range(0, n, step):
                 m = min(step, n - i0)
-                # noise buffers of the chunk, filled in place by each replicate's stream
-                acc = np.empty((B, m if use_acc else 0, 3))
-                arw = np.empty((B, m if use_arw else 0, 3))
+                # the chunk's noise buffers (C-contiguous views of the reused ones), filled in place
+                # by each replicate's stream
+                acc = acc_buf[:B * m * 3].reshape(B, m if use_acc else 0, 3)
+                arw = arw_buf[:B * m * 3].reshape(B, m if use_arw else 0, 3)
 
                 def draw(b: int) -> None:
                     # numpy releases the GIL while filling, so replicates draw in parallel threads; each
@@ -262,18 +278,14 @@ def simulate_chunks(truth: np.ndarray, scheme: Scheme, centrifuge_params: np.nda
                             draw(b)
                     else:
                         list(pool.map(draw, range(B)))
-                if use_acc:
-                    acc *= noise.sigma_a_ug
-                    acc *= 1e-6
-                if use_arw:
-                    arw *= arw_step
                 j0 = (i0 + keep_every - 1) // keep_every
                 kept = np.arange(j0 * keep_every, i0 + m, keep_every)
                 A = np.empty((B, kept.size, 3))
                 ang = np.empty((B, kept.size, 3))
                 fr_tab, tab_of = _force_tables(pk, m, sample_s, i0)
                 with numba.parallel_chunksize(1):  # dynamic: balances threads slowed by other load
-                    kernel(theta0, truth, m, sample_s, pk, fr_tab, tab_of, acc, arw, keep_every, A, ang, i0, n)
+                    kernel(theta0, truth, m, sample_s, pk, fr_tab, tab_of, acc, float(noise.sigma_a_ug), arw,
+                           float(arw_step), keep_every, A, ang, i0, n)
                 yield SimChunk(position=k, j0=j0, A=A, angles=ang, t=kept * sample_s, set_error=set_err)
     finally:
         if pool is not None:

@@ -244,34 +244,52 @@ def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, mstates, est_idx, 
     sb, cb = np.sin(xb[nc + 1]), np.cos(xb[nc + 1])
     sg, cg = np.sin(xb[nc + 2]), np.cos(xb[nc + 2])
     y0[0], y0[1], y0[2] = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
+    # Sf indexed in 2-D and Dp / Dm written by name, not through row views or a selected array:
+    # each of those costs atomic reference counts at every sigma point (issue 22)
+    nm = mstates.shape[0]
     for j in range(n):
         for sgn in (1.0, -1.0):
             step = sgn * h
-            sj = Sf[j]
-            for k in mstates:
-                cs[est_idx[k]] = coef[est_idx[k]] + step * sj[k]
+            for q in range(nm):
+                k = mstates[q]
+                cs[est_idx[k]] = coef[est_idx[k]] + step * Sf[j, k]
             # the sigma point's angles: sin/cos by exact-to-rounding shifts from the mean's
-            s0, c0 = _shift(sa, ca, step * sj[nc])
-            s1, c1 = _shift(sb, cb, step * sj[nc + 1])
-            s2, c2 = _shift(sg, cg, step * sj[nc + 2])
+            s0, c0 = _shift(sa, ca, step * Sf[j, nc])
+            s1, c1 = _shift(sb, cb, step * Sf[j, nc + 1])
+            s2, c2 = _shift(sg, cg, step * Sf[j, nc + 2])
             y[0], y[1], y[2] = measure_scalar(s0, c0, s1, c1, s2, c2, cs, fr[0], fr[1], fr[2], g)
-            dst = Dp if sgn > 0.0 else Dm
             for r in range(3):
-                dst[j, r] = y[r] - y0[r]
-    for k in mstates:
+                if sgn > 0.0:
+                    Dp[j, r] = y[r] - y0[r]
+                else:
+                    Dm[j, r] = y[r] - y0[r]
+    for q in range(nm):
+        k = mstates[q]
         cs[est_idx[k]] = coef[est_idx[k]]
     ut_moments_into(Dp, Dm, h, w2, mz, Pzz)
-    # cross-covariance (1/2h) sum_j Sf[j]^T (Dp[j] - Dm[j]), one contiguous row per output
+    # cross-covariance U[r] = (1/2h) sum_j (Dp[j, r] - Dm[j, r]) Sf[j], the three outputs in one
+    # pass over Sf, each entry summed in the order j = 0, 1, ... as ever
     i2h = 0.5 / h
+    upper = True
+    for i in range(n):
+        upper = upper and perm[i] == i
     for r in range(3):
-        ur = U[r]
         for i in range(n):
-            ur[i] = 0.0
-        for j in range(n):
-            gj = i2h * (Dp[j, r] - Dm[j, r])
-            sj = Sf[j]
-            for i in range(n):
-                ur[i] += gj * sj[i]
+            U[r, i] = 0.0
+    for j in range(n):
+        g0 = i2h * (Dp[j, 0] - Dm[j, 0])
+        g1 = i2h * (Dp[j, 1] - Dm[j, 1])
+        g2 = i2h * (Dp[j, 2] - Dm[j, 2])
+        # in the state order Sf is the upper factor: Sf[j, i] = +0 for i < j, and a finite g
+        # times it adds +-0 to a sum that is never -0, i.e. nothing: those terms are skipped
+        # (all of them taken when a g is not finite, so that NaN and inf spread as before)
+        finite = abs(g0) < np.inf and abs(g1) < np.inf and abs(g2) < np.inf
+        i0 = j if upper and finite else 0
+        for i in range(i0, n):
+            sji = Sf[j, i]
+            U[0, i] += g0 * sji
+            U[1, i] += g1 * sji
+            U[2, i] += g2 * sji
     for r in range(3):
         for c in range(3):
             S[r, c] = Pzz[r, c]

@@ -1,8 +1,8 @@
-"""Each sled case's replicate 0 as time series for the study's figures (docs/rocket-sled.md §8, §11).
+"""Replicate 0 of a sled case as time series, the figures' representative run (one small
+workflow job per case; docs/rocket-sled.md §8, §11).
 
-Its own module, apart from :mod:`.study`, because the rule ``sled_series`` runs it once per
-case: without the study's figures and tables it imports neither matplotlib nor scipy.stats
-(0.7 s of CPU less per job, issue 22 item 4).
+Apart from :mod:`platcal.rigs.sled.study` (the tables, figures and report) so that the series
+jobs import neither matplotlib nor the plotting helpers (about 0.4 s of CPU in each).
 """
 
 from __future__ import annotations

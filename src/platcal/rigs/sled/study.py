@@ -3,7 +3,7 @@
 The cases' replicates run as generic Monte Carlo cells (:mod:`.montecarlo`); their §8 metrics
 are the extra columns of the tidy runs table, from which the summary makes the Table-1
 analogue, the §11 check table and report.md. The figures show each case's replicate 0, whose
-time series one small job per case writes (:func:`.series.write_series`).
+time series one small job per case writes (:func:`platcal.rigs.sled.series.write_series`).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from ...study.claims import ledger_section  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
 from .config import load_config  # noqa: E402
 from .montecarlo import CASES  # noqa: E402
+
 
 def case_metrics(runs: pd.DataFrame, cases) -> dict[str, pd.DataFrame]:
     """Per case (in ``cases`` order), its replicates' §8 metrics and ``failed`` flag from the

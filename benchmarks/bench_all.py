@@ -128,7 +128,7 @@ def multiposition(B: int, repeat: int) -> dict:
     n = p0.size + 3
     lay = layout_index(0)
     wn, wu = cfg.site.params()
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    C, dC, T, dT, f, eps, deps, greg = make_scratch(n)
     F = np.zeros((3, n))
     nxt = np.empty(3)
     zp = np.empty(6)
@@ -166,8 +166,7 @@ def multiposition(B: int, repeat: int) -> dict:
                 Q = np.zeros((n, n))
                 Q[:3, :3] = arw2 * dt * (T @ T.T)
                 ekf.Q = Q
-                k4[0] = nxt
-                rk4_k(phi0s[k], xv, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, True)
+                rk4_k(phi0s[k], xv, lay, wn, wu, zero3, dt, nxt)
                 ekf.x_next = xv.copy()
                 ekf.x_next[:3] = nxt
                 ekf.P = Phi @ ekf.P @ Phi.T + Q
@@ -193,8 +192,9 @@ def multiposition(B: int, repeat: int) -> dict:
                 platcal_s=tp[0] / B, filterpy_s=tf[0], platcal_cpu_s=tp[1] / B, filterpy_cpu_s=tf[1],
                 max_diff_sigma=d, note="the covariance algebra runs 4 replicates per vector (SIMD lanes, no fused "
                                        "multiply-adds: the numbers stay bit-identical); the scalar model chain per "
-                                       "replicate (4 rates and the measurement, 15 sin/cos pairs) is then about "
-                                       "half of a step; benchmarks/profile_multiposition.py")
+                                       "replicate (4 rates and the measurement, 15 sin/cos pairs; RK4's stages on "
+                                       "scalars) is then about a third of a step; "
+                                       "benchmarks/profile_multiposition.py")
 
 
 def sled(B: int, repeat: int) -> dict:

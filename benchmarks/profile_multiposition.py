@@ -30,7 +30,7 @@ from platcal.estimation.lanes import LANES
 from platcal.model.frames import ARCSEC, DEG
 from platcal.rigs.multiposition.config import load_config
 from platcal.rigs.multiposition.filter import _ekf_range, dynamic_cols, run_filter, simulate, transition_rows
-from platcal.rigs.multiposition.model import (layout_index, make_scratch, meas_k, rate, rate_k, rk4_k,
+from platcal.rigs.multiposition.model import (gyro_coefs, layout_index, make_scratch, meas_k, rate, rate_k, rk4_s,
                                               rot_t_into)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -41,7 +41,7 @@ from profile_ekf import _loop_copy, _loop_propagate, _loop_update, per_call  # n
 @njit(cache=True)
 def _loop_rate_jac(steps, phi0, x, lay, wn, wu):
     n = x.shape[0]
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    C, dC, T, dT, f, eps, deps, greg = make_scratch(n)
     F = np.zeros((3, n))
     nxt = np.empty(3)
     zero3 = np.zeros(3)
@@ -68,20 +68,15 @@ def _loop_phi_q(steps, F, T, cols, dt, arw2):
 
 @njit(cache=True)
 def _loop_rk4(steps, phi0, x, lay, wn, wu, dt):
-    n = x.shape[0]
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
-    nxt = np.empty(3)
-    zero3 = np.zeros(3)
     acc = 0.0
     x0 = x[:3].copy()
     for s in range(steps):
         for i in range(3):
             x[i] = x0[i] + 1e-12 * (s % 7)
-        k4[0, 0] = 1e-6
-        k4[0, 1] = 2e-6
-        k4[0, 2] = 3e-6
-        rk4_k(phi0, x, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, True)
-        acc += nxt[0]
+        g0, g1, g2, on = gyro_coefs(x, lay)
+        p0, p1, p2 = rk4_s(phi0[0], phi0[1], phi0[2], x[0], x[1], x[2], g0, g1, g2, on, wn, wu, 0.0, 0.0, 0.0, dt,
+                           1e-6, 2e-6, 3e-6)
+        acc += p0 + p1 + p2
     return acc
 
 

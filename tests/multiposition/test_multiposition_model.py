@@ -96,3 +96,36 @@ def test_fused_rotation_equals_the_frames_functions():
         euler_t_into(a[1], a[2], T2, dT2)
         for u, v in ((C, C2), (dC, dC2), (T, T2), (dT, dT2)):
             assert np.array_equal(u, v)
+
+
+def _rate_arrays(phi0, x, lay, wn, wu, w):
+    """The §4 rate through rate_k, the array kernel that also gives F (the reference)."""
+    C, dC, T, dT, f, eps, deps, greg = m.make_scratch(x.size)
+    out = np.empty(3)
+    m.rate_k(phi0, x, lay, wn, wu, w, out, np.zeros((3, x.size)), False, C, dC, T, dT, f, eps, deps, greg)
+    return out
+
+
+@pytest.mark.parametrize("ext", [0, 1, 2])
+def test_rk4_in_registers_equals_the_array_rate_kernel(ext):
+    """rk4_k (the register-only rate_s, the coefficients read once by gyro_coefs) gives exactly
+    the numbers of RK4 composed of rate_k's rates (issue 22 item 2: the filter's and the
+    simulator's numbers unchanged), with white rate noise, at angles across the gimbal range."""
+    rng = np.random.default_rng(40 + ext)
+    lay = m.layout_index(ext)
+    wn, wu = m.Site().params()
+    h = 0.02
+    for _ in range(25):
+        x = _random_state(rng, ext)
+        phi0 = np.radians([rng.uniform(0, 360), rng.uniform(-80, 80), rng.uniform(0, 360)])
+        w = rng.normal(0, 1e-5, 3)
+        k = [_rate_arrays(phi0, x, lay, wn, wu, w)]
+        for step in (0.5 * h, 0.5 * h, h):
+            xs = x.copy()
+            xs[:3] = x[:3] + step * k[-1]
+            k.append(_rate_arrays(phi0, xs, lay, wn, wu, w))
+        ref = x[:3] + h / 6.0 * (k[0] + 2.0 * k[1] + 2.0 * k[2] + k[3])
+        out = np.empty(3)
+        m.rk4_k(phi0, x, lay, wn, wu, w, h, out)
+        assert np.array_equal(out, ref)
+        assert np.all(np.abs(out - x[:3]) > 0)  # not trivially equal: the step moved every angle

@@ -50,7 +50,7 @@ from ...estimation.lanes import (LANES, NoAliasCompiler, cholesky_inverse_lanes,
                                  joseph_correct_lanes, packed_index, propagate_rows_lanes, slp_vectorize)
 from ...model.frames import ARCSEC, DEG
 from ...study.sweep import replicate_seed
-from .model import layout_index, make_scratch, meas_k, rate_k, rk4_k
+from .model import gyro_coefs, layout_index, make_scratch, meas_k, rate_k, rk4_k, rk4_s
 
 
 # ------------------------------------------------------------------ simulator
@@ -60,7 +60,7 @@ def _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, phi_init, wnoise, out_phi,
     K = phi0s.shape[0]
     ns = out_phi.shape[1]
     n = 3 + coef.shape[0]
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    C, dC, T, dT, f, eps, deps, greg = make_scratch(n)
     x = np.empty(n)
     x[3:] = coef
     nxt = np.empty(3)
@@ -73,8 +73,7 @@ def _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, phi_init, wnoise, out_phi,
         for s in range(ns):
             if s > 0:
                 for _ in range(n_sub):
-                    rk4_k(phi0s[k], x, lay, wn, wu, wnoise[k, s - 1], h / n_sub, nxt, k4, xs,
-                          C, dC, T, dT, f, eps, deps, greg, Fd)
+                    rk4_k(phi0s[k], x, lay, wn, wu, wnoise[k, s - 1], h / n_sub, nxt)
                     x[:3] = nxt
             out_phi[k, s] = x[:3]
             meas_k(phi0s[k], x, lay, z, Hs, hc, nn, C, dC)
@@ -304,7 +303,7 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     """
     n = x.shape[0]
     K = phi0s.shape[0]
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    C, dC, T, dT, f, eps, deps, greg = make_scratch(n)
     F = np.zeros((3, n))
     nxt = np.empty(3)
     dyn = np.arange(3)
@@ -349,10 +348,10 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
                 rate_k(phi0s[k], x, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
                 transition_rows(F, T, cols, dt, arw2, phi, q)
                 propagate_sparse(P, dyn, cols, phi, q, W, blk)
-                for r in range(3):  # the rate at x, RK4's first stage
-                    k4[0, r] = nxt[r]
-                rk4_k(phi0s[k], x, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, True)
-                x[:3] = nxt
+                # RK4 from the rate at x (its first stage), without noise
+                g0, g1, g2, on = gyro_coefs(x, lay)
+                x[0], x[1], x[2] = rk4_s(phi0s[k, 0], phi0s[k, 1], phi0s[k, 2], x[0], x[1], x[2], g0, g1, g2, on,
+                                         wn, wu, 0.0, 0.0, 0.0, dt, nxt[0], nxt[1], nxt[2])
             gained = False
             if iters > 0:
                 # the Gauss-Newton linearisation point of the 6-D update; the update itself is
@@ -440,7 +439,7 @@ def _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var, U, Kg, D, S, Sinv, n
 @njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler)
 def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
                rec, pidx, xl, Pl, xm, Pm, W, U, Kg, D, phiL, qL, hval, hvala, innov, S, Sinv, nu, ok, acc, cnt, gn,
-               nu6L, F, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, phi1, q1, zp, Hs, hc, nn, hca, nna, zero3,
+               nu6L, F, nxt, C, dC, T, dT, f, eps, deps, greg, phi1, q1, zp, Hs, hc, nn, hca, nna, zero3,
                scr, nu6):
     """:func:`_ekf_one` for the replicates ``blk * LANES ..`` of the batch, replicates in SIMD
     lanes (:mod:`platcal.estimation.lanes`; docs/multiposition-1g.md §9): the covariance work
@@ -495,12 +494,11 @@ def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, 
                         xm[i] = xl[i, l]
                     rate_k(a0, xm, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
                     transition_rows(F, T, cols, dt, arw2, phi1, q1)
-                    for r in range(3):  # the rate at x, RK4's first stage
-                        k4[0, r] = nxt[r]
-                    rk4_k(a0, xm, lay, wn, wu, zero3, dt, nxt, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd,
-                          True)
+                    # RK4 from the rate at x (its first stage), without noise
+                    g0, g1, g2, on = gyro_coefs(xm, lay)
+                    xl[0, l], xl[1, l], xl[2, l] = rk4_s(a0[0], a0[1], a0[2], xm[0], xm[1], xm[2], g0, g1, g2, on,
+                                                         wn, wu, 0.0, 0.0, 0.0, dt, nxt[0], nxt[1], nxt[2])
                     for r in range(3):
-                        xl[r, l] = nxt[r]
                         for c in range(m):
                             phiL[r, c, l] = phi1[r, c]
                         for c in range(3):
@@ -616,7 +614,7 @@ def _ekf_blocks(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_v
     n = X.shape[1]
     L = LANES
     m = cols.shape[0]
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(n)
+    C, dC, T, dT, f, eps, deps, greg = make_scratch(n)
     hvala = np.full((3, 1, L), 1.0 / ARCSEC)
     hca = np.empty((3, 1), dtype=np.int64)
     for i in range(3):
@@ -627,7 +625,7 @@ def _ekf_blocks(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_v
                    rec, pidx, e((n, L)), e((n * (n + 1) // 2, L)), e(n), e((n, n)), e((3, n, L)), e((3, n, L)),
                    e((3, n, L)), e((3, n, L)), e((3, m, L)), e((3, 3, L)), np.zeros((3, 10, L)), hvala, e((3, L)),
                    e((3, 3, L)), e((3, 3, L)), e((3, L)), e(L), e((6, L)), e((4, L)), e((2, L)), e((6, L)),
-                   np.zeros((3, n)), e(3), k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, e((3, m)), e((3, 3)), e(6),
+                   np.zeros((3, n)), e(3), C, dC, T, dT, f, eps, deps, greg, e((3, m)), e((3, 3)), e(6),
                    e((3, 10)), np.empty((3, 10), dtype=np.int64), np.empty(3, dtype=np.int64), hca,
                    np.ones(3, dtype=np.int64), np.zeros(3), make_iterated_scratch(n, 6, 10), e(6))
 

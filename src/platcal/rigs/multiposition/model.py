@@ -161,7 +161,10 @@ class Site:
 # function with array arguments pays an atomic reference-count increment and decrement per array
 # (about 15 of each per rate evaluation, four evaluations per filter step), and the raise paths
 # keep numba from pruning them; the arithmetic is unchanged, so are the numbers (issue 22 item 2:
-# about 10 % of a multiposition filter step, benchmarks/profile_multiposition.py).
+# about 10 % of a multiposition filter step, benchmarks/profile_multiposition.py). Inlining alone
+# does not remove the counts of an array handed on past a branch, so RK4's stages, which need no
+# Jacobian, run on scalars only (rate_s, rk4_s: the same operations in the same order as rate_k,
+# 3.2x faster per step's three stages).
 
 @njit(cache=True, error_model="numpy", inline="always")
 def gyro_drift_k(c, lay, f, eps, deps, greg):
@@ -217,8 +220,8 @@ def rot_t_into(a0, a1, a2, C, dC, T, dT, want_d):
 
     The kernels of :func:`platcal.model.frames.c_rp_into` and
     :func:`~platcal.model.frames.euler_t_into` (docs/centrifuge-model.md §3, eq. 15) on one set
-    of sines and cosines, because the rate of §4 is evaluated five times per filter step and
-    the shared trigonometry is a fifth of its cost.
+    of sines and cosines, because the shared trigonometry is a fifth of the cost of the rate of
+    §4 with its Jacobian (once per filter step).
     """
     sa, ca = np.sin(a0), np.cos(a0)
     sb, cb = np.sin(a1), np.cos(a1)
@@ -345,32 +348,112 @@ def meas_k(phi0, x, lay, z, H, hcols, hnnz, C, dC):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def rk4_k(phi0, x, lay, wn, wu, w, h, out, k4, xs, C, dC, T, dT, f, eps, deps, greg, Fd, have_k1=False):
-    """One RK4 step of §4 over ``h`` s with the white rate ``w`` held constant (§12); angles
-    only (coefficients are constant). ``out`` (3,) the new phi. With ``have_k1`` the caller has
-    put the rate at ``x`` in ``k4[0]`` (the filter has it from its Jacobian call). Others are
-    scratch."""
-    n = x.shape[0]
-    for i in range(n):
-        xs[i] = x[i]
-    for s in range(4):
-        if s == 0 and have_k1:
-            continue
-        if s > 0:
-            step = 0.5 * h if s < 3 else h
-            for r in range(3):
-                xs[r] = x[r] + step * k4[s - 1, r]
-        rate_k(phi0, xs, lay, wn, wu, w, k4[s], Fd, False, C, dC, T, dT, f, eps, deps, greg)
-    for r in range(3):
-        out[r] = x[r] + h / 6.0 * (k4[0, r] + 2.0 * k4[1, r] + 2.0 * k4[2, r] + k4[3, r])
+def gyro_coefs(x, lay):
+    """The gyro coefficients of the state ``x`` (deg/h, deg/h/g, deg/h/g^2) as tuples: per gyro j
+    its 10 slots (:func:`layout_index`), and which slots the layout has (``on[m]``; an absent
+    slot's value is another coefficient's and is never used). Read once per filter or simulator
+    step, since RK4's stages change only phi, and handed to :func:`rate_s` in registers: an array
+    handed to an inlined kernel past a branch costs atomic reference counts at every call."""
+    on = (lay[0] >= 0, lay[1] >= 0, lay[2] >= 0, lay[3] >= 0, lay[4] >= 0, lay[5] >= 0, lay[6] >= 0, lay[7] >= 0,
+          lay[8] >= 0, lay[9] >= 0)
+    # column of slot m, gyro x (3 + lay[m]); an absent slot (-1) reads column 3 instead (in range, unused)
+    i0, i1, i2, i3, i4 = 3 + max(lay[0], 0), 3 + max(lay[1], 0), 3 + max(lay[2], 0), 3 + max(lay[3], 0), \
+        3 + max(lay[4], 0)
+    i5, i6, i7, i8, i9 = 3 + max(lay[5], 0), 3 + max(lay[6], 0), 3 + max(lay[7], 0), 3 + max(lay[8], 0), \
+        3 + max(lay[9], 0)
+    g0 = (x[i0], x[i1], x[i2], x[i3], x[i4], x[i5], x[i6], x[i7], x[i8], x[i9])
+    g1 = (x[i0 + 1], x[i1 + 1], x[i2 + 1], x[i3 + 1], x[i4 + 1], x[i5 + 1], x[i6 + 1], x[i7 + 1], x[i8 + 1],
+          x[i9 + 1])
+    g2 = (x[i0 + 2], x[i1 + 2], x[i2 + 2], x[i3 + 2], x[i4 + 2], x[i5 + 2], x[i6 + 2], x[i7 + 2], x[i8 + 2],
+          x[i9 + 2])
+    return g0, g1, g2, on
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _drift_s(g, on, j, f0, f1, f2):
+    """Drift of gyro ``j`` (deg/h) at ``f`` (g, in p), its slot coefficients ``g`` and the
+    layout's slots ``on`` (:func:`gyro_coefs`; §5, §13): :func:`gyro_drift_k`'s ``eps[j]``, the
+    same products summed in the same order (the slot order), absent slots skipped as there."""
+    aI, aO, aS = gyro_axis_components(j, f0, f1, f2)
+    # the regressors in slot order (this rig's order: spin before output, layout_index)
+    reg = (1.0, aI, aS, aO, aI * aI, aS * aS, aI * aO, aI * aS, aO * aS, aO * aO)
+    e = 0.0
+    for m in range(10):
+        if on[m]:
+            e += g[m] * reg[m]
+    return e
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def rate_s(a0, a1, a2, g0, g1, g2, on, wn, wu, w0, w1, w2):
+    """Error-angle rate of §4 (rad/s) at the gimbal angles ``a0, a1, a2`` (rad: commanded plus
+    phi), gyro coefficients ``g0, g1, g2``, ``on`` (:func:`gyro_coefs`), Earth rate ``wn``, ``wu`` (rad/s)
+    and white rate ``w0, w1, w2`` (rad/s): ``phi' = -T [eps DPH + C_n^p w_ie^n + w]`` as a tuple,
+    without the Jacobian.
+
+    The numbers of :func:`rate_k` bit for bit (the same products and sums in the same order, the
+    entries of C and T written as :func:`platcal.model.frames.c_rp_sc_into` and
+    :func:`~platcal.model.frames.euler_t_sc_into` write them, T's zeros and ones included) but on
+    scalars only: RK4's three further stages (and the simulator's four) need neither F nor the
+    scratch arrays, whose stores and reference counts were most of a stage (issue 22 item 2,
+    ``benchmarks/profile_multiposition.py``).
+    """
+    sa, ca = np.sin(a0), np.cos(a0)
+    sb, cb = np.sin(a1), np.cos(a1)
+    sg, cg = np.sin(a2), np.cos(a2)
+    c01 = cg * sb * sa + sg * ca
+    c02 = -cg * sb * ca + sg * sa
+    c11 = -sg * sb * sa + cg * ca
+    c12 = sg * sb * ca + cg * sa
+    c21 = -cb * sa
+    c22 = cb * ca
+    u0 = _drift_s(g0, on, 0, c02, c12, c22) * DEG_PER_HOUR + c01 * wn + c02 * wu + w0
+    u1 = _drift_s(g1, on, 1, c02, c12, c22) * DEG_PER_HOUR + c11 * wn + c12 * wu + w1
+    u2 = _drift_s(g2, on, 2, c02, c12, c22) * DEG_PER_HOUR + c21 * wn + c22 * wu + w2
+    ib = 1.0 / cb
+    tb = sb * ib
+    # T's constant entries (0 and 1) stay in the products: 0 * u is -0 or NaN for some u
+    r0 = -(cg * ib * u0 + -sg * ib * u1 + 0.0 * u2)
+    r1 = -(sg * u0 + cg * u1 + 0.0 * u2)
+    r2 = -(-tb * cg * u0 + tb * sg * u1 + 1.0 * u2)
+    return r0, r1, r2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def rk4_s(p0, p1, p2, x0, x1, x2, g0, g1, g2, on, wn, wu, w0, w1, w2, h, k10, k11, k12):
+    """One RK4 step of §4 over ``h`` s from phi ``x0, x1, x2`` (rad) at the commanded angles
+    ``p0, p1, p2`` (rad), the gyro coefficients ``g0, g1, g2``, ``on`` (:func:`gyro_coefs`, constant over
+    the step) and the white rate ``w`` (rad/s) held constant (§12), given the first stage's rate
+    ``k1`` (rad/s). Returns the new phi (tuple, rad)."""
+    hh = 0.5 * h
+    k20, k21, k22 = rate_s(p0 + (x0 + hh * k10), p1 + (x1 + hh * k11), p2 + (x2 + hh * k12), g0, g1, g2, on, wn, wu,
+                           w0, w1, w2)
+    k30, k31, k32 = rate_s(p0 + (x0 + hh * k20), p1 + (x1 + hh * k21), p2 + (x2 + hh * k22), g0, g1, g2, on, wn, wu,
+                           w0, w1, w2)
+    k40, k41, k42 = rate_s(p0 + (x0 + h * k30), p1 + (x1 + h * k31), p2 + (x2 + h * k32), g0, g1, g2, on, wn, wu,
+                           w0, w1, w2)
+    h6 = h / 6.0
+    return (x0 + h6 * (k10 + 2.0 * k20 + 2.0 * k30 + k40), x1 + h6 * (k11 + 2.0 * k21 + 2.0 * k31 + k41),
+            x2 + h6 * (k12 + 2.0 * k22 + 2.0 * k32 + k42))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def rk4_k(phi0, x, lay, wn, wu, w, h, out):
+    """One RK4 step of §4 over ``h`` s with the white rate ``w`` (3,) rad/s held constant (§12);
+    angles only (coefficients are constant): ``out`` (3,) the new phi (rad)."""
+    g0, g1, g2, on = gyro_coefs(x, lay)
+    p0, p1, p2 = phi0[0], phi0[1], phi0[2]
+    x0, x1, x2 = x[0], x[1], x[2]
+    w0, w1, w2 = w[0], w[1], w[2]
+    k10, k11, k12 = rate_s(p0 + x0, p1 + x1, p2 + x2, g0, g1, g2, on, wn, wu, w0, w1, w2)
+    out[0], out[1], out[2] = rk4_s(p0, p1, p2, x0, x1, x2, g0, g1, g2, on, wn, wu, w0, w1, w2, h, k10, k11, k12)
 
 
 @njit(cache=True)
 def make_scratch(n):
-    """Scratch tuple for the kernels: (C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd)."""
+    """Scratch tuple of :func:`rate_k` for a state of ``n``: (C, dC, T, dT, f, eps, deps, greg)."""
     return (np.empty((3, 3)), np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3, 3)),
-            np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 10)), np.empty((4, 3)),
-            np.empty(n), np.zeros((3, n)))
+            np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 10)))
 
 
 # ------------------------------------------------------------------ Python helpers
@@ -380,7 +463,7 @@ def rate(phi0_rad, x, site: Site = Site(), ext: int = 0, omega_on: bool = True):
     x = np.asarray(x, float)
     lay = layout_index(ext)
     wn, wu = site.params(omega_on)
-    C, dC, T, dT, f, eps, deps, greg, k4, xs, Fd = make_scratch(x.size)
+    C, dC, T, dT, f, eps, deps, greg = make_scratch(x.size)
     out = np.empty(3)
     F = np.zeros((3, x.size))
     rate_k(np.asarray(phi0_rad, float), x, lay, wn, wu, np.zeros(3), out, F, True,

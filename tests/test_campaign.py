@@ -22,6 +22,8 @@ from platcal.scheme import check_scheme
 from platcal.rigs.multiposition.filter import run_filter, simulate
 from platcal.study import campaign as cp
 from file_snapshot import snapshot
+from workflow_copy import copy_workflow, needs_snakemake
+from workflow_copy import snakemake as smk
 
 MP = {"rig": "multiposition", "schemes": {"TET4": {"dwell_s": 10, "positions": [[0, 0, 0], [109.47, 0, 0],
                                                                               [109.47, 0, 120], [109.47, 0, 240]]}}}
@@ -243,3 +245,16 @@ def test_plan_command_writes_every_output(tmp_path, capsys):
     for f in ("front.png", "progress.png", "report.md", "front.csv", "progress.csv"):
         assert (out / f).stat().st_size > 0
     assert "Monte Carlo of plan" in capsys.readouterr().out
+
+
+@needs_snakemake
+def test_campaign_plan_waits_for_the_rigs_kernels(tmp_path):
+    """The default study's campaign_plan waits for what the Monte Carlo cells of its rigs wait
+    for (the multi-position kernels job), so that its check loads their numba kernels rather
+    than compiling them beside that job."""
+    d = copy_workflow(tmp_path / "wf")
+    r = smk(d, "-n", "--cores", "1", "results/campaign/plan.csv", timeout=240)
+    assert r.returncode == 0, r.stderr[-3000:]
+    block = r.stdout.split("rule campaign_plan:")[1].split("\n\n")[0]
+    inputs = next(ln for ln in block.splitlines() if ln.strip().startswith("input:"))
+    assert "results/multiposition/kernels.json" in inputs

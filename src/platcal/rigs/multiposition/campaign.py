@@ -16,6 +16,7 @@ from dataclasses import replace
 import numpy as np
 
 from ...errors import InputError
+from ...parallel import get_threads
 from ...rig import TestInformation
 from .config import make_scheme
 from .filter import position_information, run_filter, simulate
@@ -58,12 +59,16 @@ class MultipositionCampaign:
                  prior_P: np.ndarray, seeds) -> tuple[np.ndarray, np.ndarray]:
         """Simulate the test once per seed and identify it with the EKF of §9 (one pass, so the
         handed-on prior is kept) started from ``prior_x`` (B, 24) and ``prior_P`` (B, 24, 24);
-        returns the 24 coefficients' estimate and covariance (engineering units)."""
+        returns the 24 coefficients' estimate and covariance (engineering units). At the
+        caller's numba threads (:func:`platcal.parallel.get_threads`; the numbers do not depend on
+        them): the filter's default, a thread per core, made a one-thread job wait on a thread
+        pool for a core another job held."""
         cfg = self.with_truth(cfg, truth)
         base = self.scheme(cfg, scheme)
         sch = make_scheme(base.name, base.positions, float(dwell_s), cfg.beta_max_deg)
-        t, _, z = simulate(cfg, sch, list(seeds))
-        x, P = run_filter(cfg, sch.angles_deg, t, z, passes=1, prior_x=prior_x, prior_P=prior_P)[:2]
+        n = get_threads()
+        t, _, z = simulate(cfg, sch, list(seeds), threads=n)
+        x, P = run_filter(cfg, sch.angles_deg, t, z, passes=1, prior_x=prior_x, prior_P=prior_P, threads=n)[:2]
         return x, P
 
 

@@ -2,18 +2,23 @@
 (issue 22 item 4).
 
 Per rig, a fresh process runs the rig's smallest simulate + identify (every kernel its default
-test calls, on a few samples; the centrifuge's for a batch of two and a batch of one) with ``NUMBA_CACHE_DIR`` set to an empty directory (cold: every
-kernel compiled), then a second fresh process repeats it on the cache the first one wrote (warm:
+test calls, on a few samples; the centrifuge's every estimator of its study with the study's
+options, for a batch of two and a batch of one: :func:`warm_centrifuge`) with ``NUMBA_CACHE_DIR``
+set to an empty directory (cold: every kernel compiled), then a second fresh process repeats it on the cache the first one wrote (warm:
 kernels loaded from disk). Prints the wall and CPU seconds of both, the number of compiled
 specialisations the cold run wrote (``*.nbi`` index files and ``*.nbc`` entries) and the load
 average.
 
-    python benchmarks/bench_compile.py [--rigs centrifuge sled ...]
+    NUMBA_NUM_THREADS=1 python benchmarks/bench_compile.py [--rigs centrifuge sled ...]
+
+``NUMBA_NUM_THREADS=1`` compiles what the study's jobs compile (one thread each: the serial
+kernels); without it a batch above one also compiles the parallel ones.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
 import subprocess
@@ -24,29 +29,48 @@ from pathlib import Path
 
 import numpy as np
 
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def study_config(dwell: float) -> dict:
+    """The centrifuge's default-study config (``config/centrifuge.yaml``) with every dwell ``dwell`` s,
+    10 comparison replicates (batches of 8 and 2) and a 2-generation GA of 6: numba's types do not
+    depend on the record's length or the batch size, so the study's specialisations compile."""
+    from platcal.rig import rig_config
+
+    cfg = copy.deepcopy(rig_config({"rigs": {"centrifuge": str(ROOT / "config" / "centrifuge.yaml")}},
+                                   "centrifuge"))
+    for s in cfg["schemes"].values():
+        s["dwell_s"] = dwell
+    cfg["study"]["dwell_s"] = dwell
+    cfg["study"]["compare"]["replicates"] = 10
+    cfg["design"].update(dwell_s=dwell, population=6, generations=2)
+    return cfg
+
 
 def warm_centrifuge() -> None:
+    """Every estimator of the study's comparison (ekf1, ekf2, ekfw, iekf, ukf, ml with the study's
+    options) through the rig's ``run_batch`` as the study's cells run them, for a batch of two (the
+    Monte Carlo cells) and a batch of one (the comparison cells' warm-up run, the single run,
+    ``platcal identify``), then a covariance-only run (the GA design)."""
+    from platcal.rig import get_rig
     from platcal.rigs.centrifuge.base import Centrifuge
     from platcal.rigs.centrifuge.catalogue import full_truth
+    from platcal.rigs.centrifuge.compare_cells import with_compare_estimators
     from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, run_ekf
-    from platcal.rigs.centrifuge.estimators import KINDS
-    from platcal.scheme import TABLE1_POSITIONS
-    from platcal.rigs.centrifuge.simulate import Noise, simulate
-    from platcal.scheme import check_scheme
+    from platcal.rigs.centrifuge.study import builtin_scheme, check_study
 
-    settings = FilterSettings()
-    sch = check_scheme("w", {"dwell_s": 0.2, "positions": [list(p) for p in TABLE1_POSITIONS[:2]]})
-    params = Centrifuge().scheme_params(sch)
-    truth = full_truth()
-    # a batch of two (the Monte Carlo cells) and a batch of one (the single run, `platcal identify`):
+    cfg = with_compare_estimators(check_study(study_config(0.2)))
+    rig = get_rig("centrifuge")
+    sch = builtin_scheme(cfg, "table1")
     # a kernel compiled once per argument type shows here as it does in the study
     for B in (2, 1):
-        d = simulate(truth, sch, params, Noise(), [np.random.SeedSequence([1, i]) for i in range(B)], keep_every=4)
-        z, t = [d.A[:, k, 1:] for k in range(2)], [d.t[1:]] * 2
-        for kind in KINDS:  # the registry's estimators (ekf, iekf, ukf, ml), as the study runs them
-            KINDS[kind].run(EstimatorInput(z, t, sch.angles_deg, params), settings)
-    run_ekf(EstimatorInput([None] * 2, t, sch.angles_deg, params), settings,
-            linearise_about=np.repeat(truth[None], 2, axis=0))
+        for est in cfg["study"]["compare"]["estimators"]:
+            rig.montecarlo.run_batch(cfg, sch, 10.0, est, [np.random.SeedSequence([1, i]) for i in range(B)])
+    params = Centrifuge().scheme_params(sch)
+    t = [np.arange(1, 11) * 0.02] * len(sch.angles_deg)
+    run_ekf(EstimatorInput([None] * 2, t, sch.angles_deg, params), FilterSettings(),
+            linearise_about=np.repeat(full_truth()[None], 2, axis=0))
 
 
 def warm_multiposition() -> None:

@@ -429,14 +429,15 @@ def rk4_jac_sc(ang, coef, fr3, h, params, out, phi_a, phi_g, scratch):
         fs = 0 if s == 0 else (1 if s < 3 else 2)
         if s == 0:
             step = 0.0
-            rate_jac_sc(sa, ca, sb, cb, sg, cg, coef, fr3[0, 0], fr3[0, 1], fr3[0, 2], g, wn, wu, v)
+            s0, c0, s1, c1, s2, c2 = sa, ca, sb, cb, sg, cg
         else:
             step = 0.5 * h if s < 3 else h
             s0, c0 = _shift(sa, ca, step * k[s - 1, 0])
             s1, c1 = _shift(sb, cb, step * k[s - 1, 1])
             s2, c2 = _shift(sg, cg, step * k[s - 1, 2])
-            rate_jac_sc(s0, c0, s1, c1, s2, c2, coef, fr3[fs, 0], fr3[fs, 1], fr3[fs, 2], g, wn,
-                        wu, v)
+        # one call site: rate_jac_sc is inlined, and each site is a copy of its code that numba
+        # types and lowers and LLVM optimises in every kernel that inlines this step
+        rate_jac_sc(s0, c0, s1, c1, s2, c2, coef, fr3[fs, 0], fr3[fs, 1], fr3[fs, 2], g, wn, wu, v)
         for r in range(3):
             k[s, r] = v[V_RATE + r]
         for r in range(3):

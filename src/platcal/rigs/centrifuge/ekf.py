@@ -239,7 +239,9 @@ def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, para
                           hcols, hsrc, hnnz, it_ctl, rec, seg)
 
 
-@njit(cache=True)
+# inlined into the two pass kernels (a few lines of numba IR): otherwise a third compiled
+# function whose own LLVM module links, optimises and emits _filter_one's whole code once more
+@njit(cache=True, inline="always")
 def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                       q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols,
                       hsrc, hnnz, it_ctl, rec, seg):

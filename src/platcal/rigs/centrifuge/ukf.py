@@ -359,13 +359,15 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
                 fr3[0, r] = fr_prev[r]
                 fr3[2, r] = fr_now[r]
             specific_force_into(t_prev + 0.5 * dt, pb, fr3[1])
+            linear = True
             if full_prop:
-                if not propagate_all(xb, Pb, coef, fr3, dt, pb, q_rate * dt, h, w2, perm, est_idx,
-                                     Rp, Sf, Dp, Dm, cs, a, a0, y, mz, blk):
+                linear = not propagate_all(xb, Pb, coef, fr3, dt, pb, q_rate * dt, h, w2, perm, est_idx,
+                                           Rp, Sf, Dp, Dm, cs, a, a0, y, mz, blk)
+                if linear:  # P's block not PD: the linear propagation instead
                     bad += 1
-                    propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg,
-                                       ang_new, pa, pgyro, phi, qm, Wd, blk, scratch)
-            else:
+            # one call site: propagate_attitude is inlined (with the RK4 Jacobian's four rate
+            # evaluations), and every site is a copy numba types, lowers and LLVM optimises
+            if linear:
                 propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new,
                                    pa, pgyro, phi, qm, Wd, blk, scratch)
         zrow = zb[m]
@@ -388,7 +390,9 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     return nis, bad
 
 
-@njit(cache=True)
+# inlined into the two pass kernels (a few lines of numba IR): otherwise a third compiled
+# function whose own LLVM module links, optimises and emits _filter_one's whole code once more
+@njit(cache=True, inline="always")
 def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                       q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl,
                       nl_full, lin, mstates, h, w2, mode, perm):

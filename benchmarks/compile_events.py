@@ -1,0 +1,150 @@
+"""What numba compiles in the centrifuge's default-study jobs, per dispatcher and signature
+(issue 22 item 4).
+
+Runs a default-study-like sequence of the centrifuge's jobs, each in a fresh process, one after
+the other on one empty ``NUMBA_CACHE_DIR`` (as Snakemake's jobs share a clone's cache): the
+sweep's ``ekf1`` and ``ekfw`` cells (batch 8, chunks 8, 8, 4), the comparison's ``ekf2``,
+``iekf``, ``ukf`` and ``ml`` cells (each with its 2-period warm-up run), the single run and the
+GA design's covariance-only runs. The jobs are the study's own job functions on
+``config/centrifuge.yaml`` with short dwells (``bench_compile.study_config``: every ``dwell_s``
+``--dwell`` s, the GA at 2 generations of 6): numba's types do not depend on the record's length
+or the batch size, so the same specialisations compile. Every compile is recorded with numba's
+event API (``numba.core.event``, event ``numba:compile``, fired on cache misses only); a
+compile's own seconds are its wall time less the compiles nested in it (callees typed while the
+caller compiles).
+
+Prints per job its wall / CPU s and compile CPU s, then per dispatcher its specialisations (argument
+types) with their own compile s, and the total. ``--json`` writes the raw records.
+
+    NUMBA_NUM_THREADS=1 python benchmarks/compile_events.py [--dwell 1] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+from bench_compile import study_config
+from numba.core import event
+
+from platcal.io import atomic_write_text
+
+# (job name, estimator or None): the sweep's estimators first (they start the study), then the
+# comparison's other kinds, then the single run and the GA design
+JOBS = ("sweep:ekf1", "sweep:ekfw", "compare:ekf2", "compare:iekf", "compare:ukf", "compare:ml", "single",
+        "design:ga_J")
+
+
+class Recorder(event.Listener):
+    """(wall s, CPU s, event) of every start and end: CPU s is the compile's own work when
+    numba runs one thread (NUMBA_NUM_THREADS=1), wall s includes the machine's load."""
+
+    def __init__(self):
+        self.buffer = []
+
+    def on_start(self, ev):
+        self.buffer.append((time.perf_counter(), time.process_time(), ev))
+
+    def on_end(self, ev):
+        self.buffer.append((time.perf_counter(), time.process_time(), ev))
+
+
+def run_job(job: str, dwell: float, out: Path) -> None:
+    """One job of :data:`JOBS` as the study's rule runs it, files under ``out``."""
+    cfg = study_config(dwell)
+    kind, _, arg = job.partition(":")
+    if kind == "sweep":
+        from platcal.study.montecarlo import cell_job
+        cell_job("centrifuge", cfg, "table1", 10.0, arg, out)
+    elif kind == "compare":
+        from platcal.rigs.centrifuge.compare_cells import compare_cell_job
+        compare_cell_job(cfg, 10.0, arg, out)
+    elif kind == "single":
+        from platcal.rigs.centrifuge.study import single_job
+        single_job(cfg, out)
+    elif kind == "design":
+        from platcal.rigs.centrifuge.design_study import design_scheme_job
+        design_scheme_job(cfg, arg, out / f"{arg}.yaml")
+    else:
+        raise ValueError(job)
+
+
+def child(job: str, dwell: float) -> None:
+    """Run ``job`` recording numba's compile events; print one JSON line of records."""
+    rec = Recorder()
+    event.register("numba:compile", rec)
+    t0, c0 = time.perf_counter(), time.process_time()
+    with tempfile.TemporaryDirectory() as out:
+        run_job(job, dwell, Path(out))
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    # pair start/end events; a compile's own time excludes the compiles nested in it
+    stack, rows = [], []
+    for ts, cs, ev in rec.buffer:
+        if ev.is_start:
+            stack.append([ts, cs, 0.0, 0.0])
+        else:
+            start, cstart, nested, cnested = stack.pop()
+            dur, cdur = ts - start, cs - cstart
+            if stack:
+                stack[-1][2] += dur
+                stack[-1][3] += cdur
+            d = ev.data["dispatcher"]
+            rows.append({"fn": f"{d.py_func.__module__}.{d.py_func.__qualname__}",
+                         "sig": ", ".join(str(a) for a in ev.data["args"]), "incl": dur, "own": dur - nested,
+                         "cpu_incl": cdur, "cpu_own": cdur - cnested, "depth": len(stack)})
+    print(json.dumps({"job": job, "wall": wall, "cpu": cpu, "compiles": rows}))
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--dwell", type=float, default=1.0, help="s per position of every scheme (default 1)")
+    ap.add_argument("--jobs", nargs="+", default=list(JOBS), choices=list(JOBS))
+    ap.add_argument("--json", help="write the raw records here")
+    ap.add_argument("--width", type=int, default=120, help="characters of argument types shown (default 120)")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.child:
+        child(a.child, a.dwell)
+        return
+    load0 = os.getloadavg()[0]
+    results = []
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        for job in a.jobs:
+            out = subprocess.run([sys.executable, __file__, "--child", job, "--dwell", str(a.dwell)], env=env,
+                                 check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
+            r = json.loads(out)
+            results.append(r)
+            top = sum(c["cpu_incl"] for c in r["compiles"] if c["depth"] == 0)
+            print(f"{job}: {r['wall']:.1f} s wall, {r['cpu']:.1f} s CPU, {top:.1f} s CPU compiling, "
+                  f"{len(r['compiles'])} specialisations", flush=True)
+    per = defaultdict(list)
+    for r in results:
+        for c in r["compiles"]:
+            per[c["fn"]].append((r["job"], c))
+    print()
+    print(f"numba compiles per dispatcher (own CPU s and wall s: less nested compiles), cold cache shared by the jobs in "
+          f"order; load {load0:.2f} at start, {os.getloadavg()[0]:.2f} at end; "
+          f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS', 'default')}")
+    print("| dispatcher | job | own CPU s | own wall s | argument types |")
+    print("|---|---|---:|---:|---|")
+    for fn, cs in sorted(per.items(), key=lambda kv: -sum(c["cpu_own"] for _, c in kv[1])):
+        for job, c in cs:
+            print(f"| {fn} | {job} | {c['cpu_own']:.2f} | {c['own']:.2f} | {c['sig'][:a.width]} |")
+    total = sum(c["cpu_own"] for cs in per.values() for _, c in cs)
+    print(f"\ntotal: {total:.1f} s CPU compiling, {sum(len(cs) for cs in per.values())} specialisations of "
+          f"{len(per)} dispatchers; jobs {sum(r['cpu'] for r in results):.1f} s CPU, "
+          f"{sum(r['wall'] for r in results):.1f} s wall")
+    if a.json:
+        atomic_write_text(a.json, json.dumps(results, indent=1))
+
+
+if __name__ == "__main__":
+    main()

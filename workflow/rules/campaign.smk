@@ -14,12 +14,7 @@ CAMPAIGN_TARGETS = (
 # `requires`: the multi-position rig's kernels job). The plan's Monte Carlo check runs those rigs'
 # filters: after that job they load from numba's cache, beside it they are compiled a second time
 # (29 s of CPU on a cold cache; issue 22 item 4).
-CAMPAIGN_REQUIRES = [
-    f"results/{r}/{f}"
-    for r in ((CAMPAIGN or {}).get("rigs") or {})
-    if r in MC_HOOKS and getattr(MC_HOOKS[r], "requires", None)
-    for f in MC_HOOKS[r].requires(MC_CONFIG[r])
-]
+CAMPAIGN_REQUIRES = [f for r in ((CAMPAIGN or {}).get("rigs") or {}) for f in rig_requires(r)]
 
 
 rule campaign_plan:

@@ -81,10 +81,16 @@ def mc_case_input(w):
     return f"results/{w.rig}/{f}" if f else []
 
 
+def rig_requires(rig):
+    """Files of the rig's own rules that its Monte Carlo runs wait for (optional hook
+    ``requires``; none for a rig without Monte Carlo hooks)."""
+    req = getattr(MC_HOOKS[rig], "requires", None) if rig in MC_HOOKS else None
+    return [f"results/{rig}/{f}" for f in req(MC_CONFIG[rig])] if req else []
+
+
 def mc_requires_input(w):
-    """Files of the rig's own rules that every cell waits for (optional hook ``requires``)."""
-    req = getattr(MC_HOOKS[w.rig], "requires", None)
-    return [f"results/{w.rig}/{f}" for f in req(MC_CONFIG[w.rig])] if req else []
+    """What every cell of the rig waits for (:func:`rig_requires`)."""
+    return rig_requires(w.rig)
 
 
 def mc_cell_params(w):

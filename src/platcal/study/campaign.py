@@ -266,7 +266,12 @@ def posterior_information(cands: Candidates, counts: np.ndarray) -> np.ndarray:
     counts = np.atleast_2d(np.asarray(counts, float))
     out = np.broadcast_to(np.eye(cands.n_coef), (counts.shape[0], cands.n_coef, cands.n_coef)).copy()
     for b in cands.rigs:
-        F = np.einsum("bj,jkl->bkl", counts[:, b.columns], b.info)
+        c = counts[:, b.columns]
+        if not c.any():
+            # no plan of the batch uses the rig (every plan of a single-rig search, for the other
+            # rigs): its marginal information is exactly +-0, and adding it changes no value
+            continue
+        F = np.einsum("bj,jkl->bkl", c, b.info)
         out[:, b.index[:, None], b.index[None, :]] += marginal_information(F, b.keep, np.ones(len(b.names)))
     return out
 

@@ -46,11 +46,14 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
     truth = study.truth if truth is None else truth
     fs = replace(study.filter, history_every_s=None) if settings is None else settings
     params = study.centrifuge.scheme_params(scheme)
-    sim = simulate(truth, scheme, params, study.noise, seeds, sample_s=study.sample_s, keep_every=study.keep_every)
-    K = scheme.n_positions
+    # each position's outputs as the simulation yields them (one chunk per position: the numbers
+    # of simulate()), not copied into simulate()'s (B, K, N, 3) outputs and true angles first:
+    # the filter reads only the outputs, and end to end (issue 22 item 4)
+    parts = list(simulate_chunks(truth, scheme, params, study.noise, seeds, sample_s=study.sample_s,
+                                 keep_every=study.keep_every))
     # the samples at the reset instant (t = 0) are not used unless filter.update_at_reset
     i0 = first_instant(fs.update_at_reset)
-    return run_estimator(EstimatorInput([sim.A[:, k, i0:] for k in range(K)], [sim.t[i0:]] * K, scheme.angles_deg,
+    return run_estimator(EstimatorInput([p.A[:, i0:] for p in parts], [p.t[i0:] for p in parts], scheme.angles_deg,
                                         params), fs)
 
 

@@ -118,6 +118,21 @@ def test_hand_on_equals_the_joint_posterior():
     assert np.allclose(x[0], xj, atol=1e-12) and np.allclose(P[0], Pj, atol=1e-12)
 
 
+def test_an_unused_rig_is_skipped_without_changing_a_bit(planned):
+    """posterior_information skips a rig no plan of the batch uses (a single-rig search): the
+    plans' information is bit-identical to the same plans beside one that uses the rig."""
+    camp, cands = planned
+    m = len(cands.tests)
+    mp_only = np.zeros(m, int)
+    mp_only[cands.index("multiposition", "TET4", 10)] = 2
+    both = mp_only.copy()
+    both[cands.rigs[[b.rig for b in cands.rigs].index("centrifuge")].columns[0]] = 1
+    alone = cp.posterior_information(cands, mp_only[None])
+    beside = cp.posterior_information(cands, np.stack([mp_only, both]))
+    assert np.array_equal(alone[0], beside[0])
+    assert not np.array_equal(beside[1], beside[0])
+
+
 def test_information_adds_and_the_plan_meets_its_targets(planned):
     camp, cands = planned
     m = len(cands.tests)

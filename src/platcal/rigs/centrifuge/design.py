@@ -37,9 +37,10 @@ from pymoo.optimize import minimize
 
 from ...errors import InputError
 from ...io import atomic_to_csv, atomic_write_text
+from ...log import job_logger
 from ...model.instruments import INDEX
 from ...schema import load_schema, validate
-from .config import schema
+from .config import check_filter, schema, study_from_config
 from .ekf import default_p0_sigma
 from .observability import CRITERIA, InfoCache, criteria, relative_scale, setup_from_study
 from ...scheme import Scheme, check_scheme, dump_schemes, whole_periods
@@ -250,3 +251,25 @@ def write_design(res: DesignResult, out: str | os.PathLike) -> dict[str, Path]:
                "position_runs": res.position_runs, "settings": res.settings}
     atomic_write_text(paths["summary"], json.dumps(summary, indent=2) + "\n")
     return paths
+
+
+def design_study_of(config: dict):
+    """The centrifuge study of a rig config for the design jobs (its ``study:`` sweep section
+    left out), its filter checked."""
+    cfg = {k: v for k, v in config.items() if k not in ("study",)}
+    study = study_from_config(cfg)
+    check_filter(study.filter)
+    return study
+
+
+def design_scheme_job(config: dict, name: str, out, log_path=None) -> None:
+    """One named GA design (``ga_<criterion>[_n<N>]`` or ``ga_doo``) -> ``out`` and its side files.
+
+    Here, not in :mod:`.design_study`, so that the GA job loads neither matplotlib nor
+    scipy.stats (about 1 s CPU of imports; issue 22 item 4)."""
+    study, dcfg = preset(design_study_of(config), name)
+    log = job_logger(log_path).info
+    res = run_design(study, dcfg, log=log)
+    write_design(res, out)
+    log(f"{name}: {dcfg['criterion']} = {res.value:.6g} in {res.seconds:.0f} s, "
+        f"{res.position_runs} position runs")

@@ -28,8 +28,9 @@ from ...study.plots import save as save_figure  # noqa: E402
 from ...log import job_logger  # noqa: E402
 from ...model.instruments import FULL_NAMES, INDEX, N_IDENTIFIED, NAMES  # noqa: E402
 from ...study.tables import write_table  # noqa: E402
-from .config import check_filter, study_from_config  # noqa: E402
-from .design import SchemeEvaluator, design_config, preset, run_design, write_design  # noqa: E402
+# design_scheme_job: the GA job's wrapper may import it from here or, lighter, from .design
+from .design import (SchemeEvaluator, design_config, design_scheme_job, design_study_of,  # noqa: E402,F401
+                     preset, run_design, write_design)
 from .ekf import default_p0_sigma  # noqa: E402
 from .identify import simulate_identify  # noqa: E402
 from .observability import (CRITERIA, InfoCache, correlation, monte_carlo_errors,  # noqa: E402
@@ -180,13 +181,6 @@ def doo_study(study, single: Scheme, two_level: Scheme, doo_truth: float = 0.05,
 
 # ------------------------------------------------------------------ workflow jobs (thin scripts call these)
 
-def _study(config: dict):
-    cfg = {k: v for k, v in config.items() if k not in ("study",)}
-    study = study_from_config(cfg)
-    check_filter(study.filter)
-    return study
-
-
 def _load(path) -> Scheme:
     return next(iter(load_scheme_file(path).values()))
 
@@ -231,7 +225,7 @@ def scatter_figure(summary: pd.DataFrame, spear: pd.DataFrame, path) -> None:
 def compare_job(config: dict, scheme_files: list, out_dir, log_path=None) -> None:
     """table1, classical, random and GA schemes: criteria, MC accuracy, Spearman, scatter."""
     st = design_config(config)["study"]
-    study = _study(config)
+    study = design_study_of(config)
     log = job_logger(log_path).info
     dwell = study.schemes["table1"].dwell_s if "table1" in study.schemes else 60.0
     schemes = ([study.schemes["table1"]] if "table1" in study.schemes else []) + [classical_scheme(dwell)]
@@ -265,7 +259,7 @@ def compare_job(config: dict, scheme_files: list, out_dir, log_path=None) -> Non
 def npos_job(config: dict, scheme_files: list, out_dir, log_path=None) -> None:
     """GA schemes for N = 3..8: criteria (covariance-only) and MC accuracy against N."""
     st = design_config(config)["study"]
-    study = _study(config)
+    study = design_study_of(config)
     schemes = [_load(f) for f in scheme_files]
     summary, _ = compare_schemes(study, schemes, st["replicates"], log=job_logger(log_path).info)
     summary["criterion"] = summary["scheme"].str.extract(r"ga_([A-Za-z]+)")[0]
@@ -291,7 +285,7 @@ def npos_job(config: dict, scheme_files: list, out_dir, log_path=None) -> None:
 
 def static_job(config: dict, scheme_files: list, out_dir, log_path=None) -> None:
     """Posterior/prior sigma with the centrifuge on and off (static 1 g), same positions."""
-    study = _study(config)
+    study = design_study_of(config)
     schemes = ([study.schemes["table1"]] if "table1" in study.schemes else []) + [_load(f) for f in scheme_files]
     dwell = schemes[0].dwell_s if schemes else 60.0
     schemes.append(check_scheme("rich24", {"dwell_s": dwell, "positions": [list(p) for p in RICH_1G_POSITIONS]}))
@@ -305,7 +299,7 @@ def static_job(config: dict, scheme_files: list, out_dir, log_path=None) -> None
 def doo_job(config: dict, two_level_file, out_dir, log_path=None) -> None:
     """D_OO: eq. 22 aliasing of the single-level table1 and the two-level 51-state filter."""
     st = design_config(config)["study"]
-    study = _study(config)
+    study = design_study_of(config)
     two = _load(two_level_file)
     single = study.schemes["table1"] if "table1" in study.schemes else classical_scheme(two.dwell_s)
     res = doo_study(study, single, two, st["doo_truth"], replicates=max(2, st["replicates"] // 3))
@@ -313,16 +307,6 @@ def doo_job(config: dict, two_level_file, out_dir, log_path=None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     for k, df in res.items():
         _write_table(df, out / f"doo_{k}", f"D_OO: {k}", ".4g")
-
-
-def design_scheme_job(config: dict, name: str, out, log_path=None) -> None:
-    """One named GA design (``ga_<criterion>[_n<N>]`` or ``ga_doo``) -> ``out`` and its side files."""
-    study, dcfg = preset(_study(config), name)
-    log = job_logger(log_path).info
-    res = run_design(study, dcfg, log=log)
-    write_design(res, out)
-    log(f"{name}: {dcfg['criterion']} = {res.value:.6g} in {res.seconds:.0f} s, "
-                   f"{res.position_runs} position runs")
 
 
 RICH_1G_POSITIONS = tuple((a, b, g) for a in (0, 90, 180, 270) for b in (-45, 0, 45) for g in (0, 135))
@@ -337,7 +321,7 @@ def report_job(config: dict, design_dir, out_md, log_path=None) -> None:
     """``results/design/report.md``: the design questions answered with the numbers on disk."""
 
     d = Path(design_dir)
-    study = _study(config)
+    study = design_study_of(config)
     dcfg = design_config(config)
     lines = ["# Scheme design: observability criteria, genetic algorithm, number of positions, 1 g, D_OO", ""]
     fs = study.filter

@@ -1,7 +1,7 @@
 """Snakemake wrapper: one GA scheme design (results/centrifuge/design/<name>.yaml)."""
 from platcal.parallel import set_threads
 from platcal.rig import rig_config
-from platcal.rigs.centrifuge.design_study import design_scheme_job
+from platcal.rigs.centrifuge.design import design_scheme_job  # not design_study: no matplotlib, scipy.stats
 
 sm = snakemake  # noqa: F821
 set_threads(sm.threads)

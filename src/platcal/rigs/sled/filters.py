@@ -671,13 +671,71 @@ def kalman(Fs, z: np.ndarray, x0: np.ndarray, tun: Tuning, T, T_nominal: float |
                      run.P, run.mean_nis(), run.failed, innov, s_var)
 
 
+@nb.njit(cache=True, nogil=True)
+def _pairwise(fl, s, c, dts, a, n):
+    """The sum of ``fl[s, a + i, c] * dts[a + i]`` for i < n in the order of numpy's pairwise
+    summation (``pairwise_sum`` of numpy/_core/src/umath/loops_utils.h: sequential below 8
+    terms, 8 accumulators up to 128, halves above), which ``np.add.reduceat`` uses after a
+    segment's first term: :func:`epoch_mean`'s numbers as numpy formed them."""
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += fl[s, a + i, c] * dts[a + i]
+        return res
+    if n <= 128:
+        r0 = fl[s, a, c] * dts[a]
+        r1 = fl[s, a + 1, c] * dts[a + 1]
+        r2 = fl[s, a + 2, c] * dts[a + 2]
+        r3 = fl[s, a + 3, c] * dts[a + 3]
+        r4 = fl[s, a + 4, c] * dts[a + 4]
+        r5 = fl[s, a + 5, c] * dts[a + 5]
+        r6 = fl[s, a + 6, c] * dts[a + 6]
+        r7 = fl[s, a + 7, c] * dts[a + 7]
+        i = 8
+        while i < n - n % 8:
+            r0 += fl[s, a + i, c] * dts[a + i]
+            r1 += fl[s, a + i + 1, c] * dts[a + i + 1]
+            r2 += fl[s, a + i + 2, c] * dts[a + i + 2]
+            r3 += fl[s, a + i + 3, c] * dts[a + i + 3]
+            r4 += fl[s, a + i + 4, c] * dts[a + i + 4]
+            r5 += fl[s, a + i + 5, c] * dts[a + i + 5]
+            r6 += fl[s, a + i + 6, c] * dts[a + i + 6]
+            r7 += fl[s, a + i + 7, c] * dts[a + i + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += fl[s, a + i, c] * dts[a + i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _pairwise(fl, s, c, dts, a, n2) + _pairwise(fl, s, c, dts, a + n2, n - n2)
+
+
+
+@nb.njit(cache=True, nogil=True)
+def _epoch_mean(lo, hi, fl, k, dts, den, out):
+    """:func:`epoch_mean` for seeds ``lo .. hi - 1``: each segment's first term, then the
+    pairwise sum of the rest (np.add.reduceat's order), over its summed intervals ``den``."""
+    for s in range(lo, hi):
+        for i in range(k.shape[0] - 1):
+            a, b = k[i], k[i + 1]
+            for c in range(3):
+                out[s, i, c] = (fl[s, a, c] * dts[a] + _pairwise(fl, s, c, dts, a + 1, b - a - 1)) / den[i]
+
+
 def epoch_mean(fl: np.ndarray, ep: Epochs, j0: int, j1: int) -> np.ndarray:
     """Mean computed specific force over the samples of predictions j0+1 … j1 (S, j1−j0, 3),
-    each sample weighted by the interval it covers (equal weights on a clean record)."""
-    k = ep.k[j0:j1 + 1]
-    seg = fl[:, k[0]:k[-1]] * ep.dts[None, k[0]:k[-1], None]
-    sums = np.add.reduceat(seg, k[:-1] - k[0], axis=1)
-    return sums / np.add.reduceat(ep.dts[k[0]:k[-1]], k[:-1] - k[0])[None, :, None]
+    each sample weighted by the interval it covers (equal weights on a clean record): the
+    interval-weighted sums of ``np.add.reduceat`` over the summed intervals, formed in one
+    compiled loop per seed (the seeds over the numba threads set) in numpy's order."""
+    k = np.ascontiguousarray(ep.k[j0:j1 + 1], dtype=np.int64)
+    dts = np.ascontiguousarray(ep.dts, dtype=np.float64)
+    den = np.add.reduceat(dts[k[0]:k[-1]], k[:-1] - k[0])
+    fl = np.ascontiguousarray(fl, dtype=np.float64)
+    out = np.empty((fl.shape[0], k.size - 1, 3))
+    run_threaded(_epoch_mean, fl.shape[0], get_threads(), fl, k, dts, den, out)
+    return out
 
 
 def run_filter(cfg: SledConfig, fl: np.ndarray, v: np.ndarray, r: np.ndarray, j_stop: int,

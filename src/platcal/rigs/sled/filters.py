@@ -253,7 +253,8 @@ def _structure(kind: int) -> tuple[np.ndarray, ...]:
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", pipeline_class=NoAliasCompiler)
 def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out, bad,
-                  fa, fb, pa, pb, pptr, pcs, rptr, rcols):
+                  fa, fb, pa, pb, pptr, pcs, rptr, rcols, src, Fl, FT, Phi, xl, xn, Pl, W, U, Kg, D, Sm, Fc, inn, nu,
+                  av, bv, okl, tot, made, nfail, x1, P1, i1, hcols, hnnz, hval, U1, K1, D1, S1, Si1, nu1):
     """:func:`_kalman` for the seeds ``blk * LANES ..`` with the seeds in SIMD lanes
     (:mod:`platcal.estimation.lanes`; docs/rocket-sled.md §6): state-major x (n, LANES) and P
     (n, n, LANES), every operation one vector over the lanes, each epoch's F formed from the mean
@@ -264,7 +265,10 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
     every lane with the reference's own update (:func:`joseph_update_sparse`, which skips it).
     Non-finite numbers are left to the reference: ``bad[blk] = 1`` (nothing written) when an
     input of the block is not finite, or when an output is (the caller then reruns the block
-    with :func:`_kalman` from its start). Lanes past the batch repeat its first seed."""
+    with :func:`_kalman` from its start). Lanes past the batch repeat its first seed. The
+    arguments from ``src`` on are the block's lane-layout state and scratch (:func:`_kalman_blocks`),
+    distinct arrays as the ``noalias`` compile requires (scratch allocated here could alias the
+    arguments for all LLVM knows, which keeps the lanes from merging into vectors)."""
     S, J, n = fm.shape[0], fm.shape[1], X.shape[1]
     m = z.shape[2]
     L = LANES
@@ -285,38 +289,15 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
         if not ok:
             bad[blk] = 1
             return
-    src = np.empty(L, dtype=np.int64)
     for l in range(L):
         src[l] = b0 + (l if l < nact else 0)
-    Fl = np.zeros((L, n, n))
-    FT = np.zeros((n, n, L))
-    Phi = np.zeros((n, n, L))
-    xl = np.empty((n, L))
-    xn = np.empty((n, L))
-    Pl = np.empty((n, n, L))
-    W = np.empty((n, n, L))
-    U = np.empty((m, n, L))
-    Kg = np.empty((m, n, L))
-    D = np.empty((m, n, L))
-    Sm = np.empty((m, m, L))
-    Fc = np.empty((m, m, L))
-    inn = np.empty((m, L))
-    nu = np.empty((m, L))
-    av = np.empty(L)
-    bv = np.empty(L)
-    okl = np.empty(L)
-    tot = np.empty(L)
-    made = np.empty(L)
-    nfail = np.zeros(L, dtype=np.int64)
-    # the reference's update, for an epoch where a lane's S is not positive definite
-    x1 = np.empty(n)
-    P1 = np.empty((n, n))
-    i1 = np.empty(m)
-    hcols = np.arange(m).reshape(m, 1)
-    hnnz = np.ones(m, dtype=np.int64)
-    hval = np.ones((m, 1))
-    U1, K1, D1, S1, Si1, nu1 = np.empty((m, n)), np.empty((m, n)), np.empty((m, n)), np.empty((m, m)), \
-        np.empty((m, m)), np.empty(m)
+        nfail[l] = 0
+    for l in range(L):
+        for a in range(n):
+            for b in range(n):
+                Fl[l, a, b] = 0.0
+                FT[a, b, l] = 0.0
+                Phi[a, b, l] = 0.0
     for l in range(L):
         s = src[l]
         tot[l] = acc[s, 0]
@@ -564,10 +545,17 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
 @nb.njit(cache=True, nogil=True)
 def _kalman_blocks(lo, hi, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out, bad,
                    fa, fb, pa, pb, pptr, pcs, rptr, rcols):
-    """Blocks ``lo .. hi - 1`` of :func:`_kalman_block` (one thread's share)."""
+    """Blocks ``lo .. hi - 1`` of :func:`_kalman_block` (one thread's share), with their scratch."""
+    n, m, L = X.shape[1], z.shape[2], LANES
+    e = np.empty
+    hcols = np.arange(m).reshape(m, 1)   # H = [I_m 0] as the reference's sparse rows
     for blk in range(lo, hi):
         _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out, bad,
-                      fa, fb, pa, pb, pptr, pcs, rptr, rcols)
+                      fa, fb, pa, pb, pptr, pcs, rptr, rcols, e(L, dtype=np.int64), e((L, n, n)), e((n, n, L)),
+                      e((n, n, L)), e((n, L)), e((n, L)), e((n, n, L)), e((n, n, L)), e((m, n, L)), e((m, n, L)),
+                      e((m, n, L)), e((m, m, L)), e((m, m, L)), e((m, L)), e((m, L)), e(L), e(L), e(L), e(L), e(L),
+                      e(L, dtype=np.int64), e(n), e((n, n)), e(m), hcols, np.ones(m, dtype=np.int64), np.ones((m, 1)),
+                      e((m, n)), e((m, n)), e((m, n)), e((m, m)), e((m, m)), e(m))
 
 
 def _kalman_lanes(dyn: Dynamics, Ts, z, X, PP, Qs, r_var, xs, sig, acc, failed, innov, s_var,

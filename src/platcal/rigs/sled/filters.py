@@ -272,6 +272,7 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
     S, J, n = fm.shape[0], fm.shape[1], X.shape[1]
     m = z.shape[2]
     L = LANES
+    off = xs.shape[1] - J   # 1: xs, sig hold the prior at epoch 0 (the caller's), the posteriors after it
     b0 = blk * L
     nact = min(L, S - b0)
     for l in range(nact):
@@ -521,8 +522,8 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
         for l in range(nact):
             s = b0 + l
             for i in range(n):
-                xs[s, j, i] = xl[i, l]
-                sig[s, j, i] = np.sqrt(max(Pl[i, i, l], 0.0))
+                xs[s, off + j, i] = xl[i, l]
+                sig[s, off + j, i] = np.sqrt(max(Pl[i, i, l], 0.0))
     fin = True
     for l in range(nact):
         s = b0 + l
@@ -534,7 +535,7 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
                 fin = fin and np.isfinite(Pl[i, k, l])
         for j in range(J):
             for i in range(n):
-                fin = fin and np.isfinite(xs[s, j, i]) and np.isfinite(sig[s, j, i])
+                fin = fin and np.isfinite(xs[s, off + j, i]) and np.isfinite(sig[s, off + j, i])
         acc[s, 0] = tot[l]
         acc[s, 1] = made[l]
         failed[s] += nfail[l]
@@ -583,11 +584,13 @@ def _kalman_lanes(dyn: Dynamics, Ts, z, X, PP, Qs, r_var, xs, sig, acc, failed, 
         sl = slice(blk * LANES, min(S, (blk + 1) * LANES))
         for cur, st in zip((X, PP, acc, failed), start):
             cur[sl] = st[sl]
+        off = xs.shape[1] - Ts.shape[0]
         Xb, Pb, ab, fb_ = X[sl].copy(), PP[sl].copy(), acc[sl].copy(), failed[sl].copy()
-        xb, sb, ib, vb = xs[sl].copy(), sig[sl].copy(), innov[sl].copy(), s_var[sl].copy()
+        xb, sb, ib, vb = xs[sl, off:].copy(), sig[sl, off:].copy(), innov[sl].copy(), s_var[sl].copy()
         Fd = system_matrices(dyn.kind, fm[sl], w, wc)
         _kalman(Fd, Ts, np.ascontiguousarray(z[sl]), Xb, Pb, Qs, r_var, xb, sb, ab, fb_, ib, vb)
-        X[sl], PP[sl], acc[sl], failed[sl], xs[sl], sig[sl], innov[sl], s_var[sl] = Xb, Pb, ab, fb_, xb, sb, ib, vb
+        X[sl], PP[sl], acc[sl], failed[sl], innov[sl], s_var[sl] = Xb, Pb, ab, fb_, ib, vb
+        xs[sl, off:], sig[sl, off:] = xb, sb
 
 
 class KalmanRun:
@@ -615,26 +618,34 @@ class KalmanRun:
         """The current state and its sigma, (S,n) each."""
         return self.x.copy(), np.sqrt(np.diagonal(self.P, axis1=1, axis2=2))
 
-    def step(self, Fs, z: np.ndarray, T) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def step(self, Fs, z: np.ndarray, T, with_prior: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                              np.ndarray]:
         """The next J epochs: ``Fs`` the system matrices per prediction, :class:`Dynamics` (the
         seeds in lanes, :func:`_kalman_block`) or an (S,J,n,n) array (the one-seed-at-a-time
         :func:`_kalman`; the same numbers), ``z`` (S,J,4) per update, ``T`` the step (s) or (J,)
-        the record's steps. Returns the posteriors x, sigma (S,J,n) and the innovations and their
-        predicted variances (S,J,4)."""
+        the record's steps. Returns the posteriors x, sigma (S,J,n) (``with_prior``: (S,J+1,n),
+        the state before the step first) and the innovations and their predicted variances (S,J,4)."""
         S, J, n = Fs.shape[0], Fs.shape[1], Fs.shape[-1]
         T = np.broadcast_to(np.asarray(T, dtype=float), (J,))
         scale = np.ones(J) if self.tun.per_step or self.T_nominal is None else T / self.T_nominal
         Qs = np.ascontiguousarray(np.asarray(self.tun.Qd, dtype=np.float64)[None] * scale[:, None, None])
         m = z.shape[2]
-        xs, sig = np.empty((S, J, n)), np.empty((S, J, n))
         innov, s_var = np.empty((S, J, m)), np.empty((S, J, m))
         z = np.ascontiguousarray(z, dtype=np.float64)
         if isinstance(Fs, Dynamics):   # the seeds in lanes: the reference's numbers, bit for bit
+            off = int(with_prior)      # the kernel writes the posteriors after the prior's slot
+            xs, sig = np.empty((S, J + off, n)), np.empty((S, J + off, n))
+            if with_prior:
+                xs[:, 0], sig[:, 0] = self.prior()
             _kalman_lanes(Fs, np.ascontiguousarray(T), z, self.x, self.P, Qs, self.r_var, xs, sig, self.acc,
                           self.failed, innov, s_var, self.threads)
-        else:
-            _kalman(np.ascontiguousarray(Fs, dtype=np.float64), np.ascontiguousarray(T), z,
-                    self.x, self.P, Qs, self.r_var, xs, sig, self.acc, self.failed, innov, s_var)
+            return xs, sig, innov, s_var
+        x_prior, sig_prior = self.prior()
+        xs, sig = np.empty((S, J, n)), np.empty((S, J, n))
+        _kalman(np.ascontiguousarray(Fs, dtype=np.float64), np.ascontiguousarray(T), z,
+                self.x, self.P, Qs, self.r_var, xs, sig, self.acc, self.failed, innov, s_var)
+        if with_prior:
+            xs, sig = np.concatenate([x_prior[:, None], xs], axis=1), np.concatenate([sig_prior[:, None], sig], axis=1)
         return xs, sig, innov, s_var
 
     def mean_nis(self) -> np.ndarray:
@@ -653,10 +664,8 @@ def kalman(Fs, z: np.ndarray, x0: np.ndarray, tun: Tuning, T, T_nominal: float |
     numba kernel looping over seeds and epochs: one :class:`KalmanRun` step).
     """
     run = KalmanRun(x0, tun, T_nominal)
-    x_prior, sig_prior = run.prior()
-    xs, sig, innov, s_var = run.step(Fs, z, T)
-    return FilterOut(np.concatenate([x_prior[:, None], xs], axis=1), np.concatenate([sig_prior[:, None], sig], axis=1),
-                     run.P, run.mean_nis(), run.failed, innov, s_var)
+    xs, sig, innov, s_var = run.step(Fs, z, T, with_prior=True)
+    return FilterOut(xs, sig, run.P, run.mean_nis(), run.failed, innov, s_var)
 
 
 @nb.njit(cache=True, nogil=True)

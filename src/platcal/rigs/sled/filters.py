@@ -251,9 +251,35 @@ def _structure(kind: int) -> tuple[np.ndarray, ...]:
     return tuple(np.ascontiguousarray(v, dtype=np.int64) for v in (fa, fb, pa, pb, pptr, pcs, rptr, rcols))
 
 
+@nb.njit(cache=True, inline="always")
+def _row_dot(A, a, B, b, cols, lo, hi, out):
+    """``out[l] = Σ A[a, k, l] B[b, k, l]`` over ``k = cols[lo:hi]`` in that order, from 0.0, per lane."""
+    for l in range(LANES):
+        out[l] = 0.0
+    for t in range(lo, hi):
+        k = cols[t]
+        for l in range(LANES):
+            out[l] += A[a, k, l] * B[b, k, l]
+
+
+@nb.njit(cache=True, inline="always")
+def _times_lanes(M, A, out):
+    """``out = M A`` per lane for (m, m, LANES) ``M`` and (m, n, LANES) ``A``: the sums of
+    :func:`platcal.estimation.kalman._small_times` in its order (the first term, then the rest)."""
+    m, n = M.shape[0], A.shape[1]
+    for c in range(m):
+        for k in range(n):
+            for l in range(LANES):
+                out[c, k, l] = M[c, 0, l] * A[0, k, l]
+        for i in range(1, m):
+            for k in range(n):
+                for l in range(LANES):
+                    out[c, k, l] += M[c, i, l] * A[i, k, l]
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy", pipeline_class=NoAliasCompiler)
 def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out, bad,
-                  fa, fb, pa, pb, pptr, pcs, rptr, rcols, src, Fl, FT, Phi, xl, xn, Pl, W, U, Kg, D, Sm, Fc, inn, nu,
+                  fa, fb, pa, pb, pptr, pcs, rptr, rcols, src, Fl, FT, FTt, Phi, xl, xn, Pl, W, U, Kg, D, Sm, Fc, inn, nu,
                   av, bv, okl, tot, made, nfail, x1, P1, i1, hcols, hnnz, hval, U1, K1, D1, S1, Si1, nu1):
     """:func:`_kalman` for the seeds ``blk * LANES ..`` with the seeds in SIMD lanes
     (:mod:`platcal.estimation.lanes`; docs/rocket-sled.md §6): state-major x (n, LANES) and P
@@ -298,6 +324,7 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
             for b in range(n):
                 Fl[l, a, b] = 0.0
                 FT[a, b, l] = 0.0
+                FTt[a, b, l] = 0.0
                 Phi[a, b, l] = 0.0
     for l in range(L):
         s = src[l]
@@ -317,16 +344,13 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
         for e in range(nF):
             a, b = fa[e], fb[e]
             for l in range(L):
-                FT[a, b, l] = Fl[l, a, b] * T
+                v = Fl[l, a, b] * T
+                FT[a, b, l] = v
+                FTt[b, a, l] = v
         # Φ = I + F T + (F T)²/2
         for p in range(nP):
             a, b = pa[p], pb[p]
-            for l in range(L):
-                av[l] = 0.0
-            for t in range(pptr[p], pptr[p + 1]):
-                c = pcs[t]
-                for l in range(L):
-                    av[l] += FT[a, c, l] * FT[c, b, l]
+            _row_dot(FT, a, FTt, b, pcs, pptr[p], pptr[p + 1], av)
             d = 1.0 if a == b else 0.0
             for l in range(L):
                 Phi[a, b, l] = (d + FT[a, b, l]) + av[l] / 2
@@ -354,12 +378,7 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
                         W[r, c, l] += Phi[r, k, l] * Pl[k, c, l]
         for r in range(n):
             for c in range(r + 1):
-                for l in range(L):
-                    av[l] = 0.0
-                for t in range(rptr[c], rptr[c + 1]):
-                    k = rcols[t]
-                    for l in range(L):
-                        av[l] += W[r, k, l] * Phi[c, k, l]
+                _row_dot(W, r, Phi, c, rcols, rptr[c], rptr[c + 1], av)
                 q = 0.5 * (Qd[j, r, c] + Qd[j, c, r])
                 for l in range(L):
                     v = av[l] + q
@@ -429,7 +448,9 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
                 for l in range(L):
                     Fc[i, i, l] = bv[l]
             for r in range(m):
-                for c in range(r + 1, m):
+                # row r of S⁻¹ (upper triangle) reads L⁻¹ only at rows below r and the diagonals
+                # after it: its diagonal first gives the reference's numbers (which has it last)
+                for c in range(r, m):
                     for l in range(L):
                         av[l] = Fc[c, r, l] * Fc[c, c, l]
                     for k in range(c + 1, m):
@@ -437,34 +458,13 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
                             av[l] += Fc[k, r, l] * Fc[k, c, l]
                     for l in range(L):
                         Fc[r, c, l] = av[l]
-                for l in range(L):
-                    av[l] = Fc[r, r, l] * Fc[r, r, l]
-                for k in range(r + 1, m):
-                    for l in range(L):
-                        av[l] += Fc[k, r, l] * Fc[k, r, l]
-                for l in range(L):
-                    Fc[r, r, l] = av[l]
             for r in range(m):
                 for c in range(r + 1, m):
                     for l in range(L):
                         Fc[c, r, l] = Fc[r, c, l]
             # _correct: K = S⁻¹ U, D = U − S K, x += K innov, P −= K Uᵀ + D Kᵀ (lower, mirrored)
-            for c in range(m):
-                for k in range(n):
-                    for l in range(L):
-                        Kg[c, k, l] = Fc[c, 0, l] * U[0, k, l]
-                for i in range(1, m):
-                    for k in range(n):
-                        for l in range(L):
-                            Kg[c, k, l] += Fc[c, i, l] * U[i, k, l]
-            for c in range(m):
-                for k in range(n):
-                    for l in range(L):
-                        D[c, k, l] = Sm[c, 0, l] * Kg[0, k, l]
-                for i in range(1, m):
-                    for k in range(n):
-                        for l in range(L):
-                            D[c, k, l] += Sm[c, i, l] * Kg[i, k, l]
+            _times_lanes(Fc, U, Kg)
+            _times_lanes(Sm, Kg, D)
             for c in range(m):
                 for k in range(n):
                     for l in range(L):
@@ -553,7 +553,7 @@ def _kalman_blocks(lo, hi, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, ac
     for blk in range(lo, hi):
         _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out, bad,
                       fa, fb, pa, pb, pptr, pcs, rptr, rcols, e(L, dtype=np.int64), e((L, n, n)), e((n, n, L)),
-                      e((n, n, L)), e((n, L)), e((n, L)), e((n, n, L)), e((n, n, L)), e((m, n, L)), e((m, n, L)),
+                      e((n, n, L)), e((n, n, L)), e((n, L)), e((n, L)), e((n, n, L)), e((n, n, L)), e((m, n, L)), e((m, n, L)),
                       e((m, n, L)), e((m, m, L)), e((m, m, L)), e((m, L)), e((m, L)), e(L), e(L), e(L), e(L), e(L),
                       e(L, dtype=np.int64), e(n), e((n, n)), e(m), hcols, np.ones(m, dtype=np.int64), np.ones((m, 1)),
                       e((m, n)), e((m, n)), e((m, n)), e((m, m)), e((m, m)), e(m))

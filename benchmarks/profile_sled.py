@@ -4,10 +4,11 @@
 
     python benchmarks/profile_sled.py [--batch 20] [--repeat 5] [--threads 1]
 
-Stages: the mechanisation (§4), the epoch means of the computed force, the run and stop filters
-(§6, their kernels with F formed from the means), metric B's model (§8) and the X compensation
-of both modes (§7); ``identify`` is the whole, the rest of it (Python glue, array slicing) being
-the difference. Per replicate, best of ``--repeat``; the load average is printed with them.
+Stages: the run filter's kernel alone, with the seeds in lanes (F formed from the mean force)
+and one seed at a time (the reference kernel, main's before issue 22, on the dense F: the
+before/after of the filter in one run); the mechanisation (§4), the epoch means of the computed
+force, the run and stop filters (§6), metric B's model (§8) and the X compensation of both modes
+(§7); ``identify`` is the whole, the rest of it (Python glue, array slicing) being the difference. Per replicate, best of ``--repeat``; the load average is printed with them.
 """
 
 from __future__ import annotations
@@ -56,7 +57,19 @@ def main(argv=None) -> None:
         out = filters.run_filter(cfg, fl, v, r, js, ep)
         filters.stop_filter(cfg, fl, v, r, js, je, out.x[:, -1, iy], out.P[:, iy, iy], ep)
 
+    k = ep.k[1:js + 1]
+    z = np.ascontiguousarray(np.stack([v[:, k, 1], r[:, k, 1], v[:, k, 2], r[:, k, 2]], axis=-1))
+    dyn = filters.Dynamics.run(filters.epoch_mean(fl, ep, 0, js), cfg.omega_ie, cfg.states)
+    dense = dyn.dense()
+    tun, x0 = filters.run_tuning(cfg, cfg.states), np.zeros((a.batch, cfg.states))
+
+    def kernel(Fs):
+        return lambda: filters.KalmanRun(x0, tun, cfg.period_ms / 1000.0).step(Fs, z, ep.T[:js])
+
+    kernel(dense)()
     stages = {
+        "run filter kernel alone, lanes": kernel(dyn),
+        "run filter kernel alone, one seed at a time": kernel(dense),
         "mechanisation": lambda: mechanise(sb.f, sb.w, np.zeros((a.batch, 3)), cfg.omega_ie, ep.dts),
         "epoch means": lambda: (filters.epoch_mean(fl, ep, 0, js), filters.epoch_mean(fl, ep, js, je)),
         "run + stop filters (incl. epoch means)": filt,
@@ -72,7 +85,8 @@ def main(argv=None) -> None:
     for name, fn in stages.items():
         wall, cpu = best(fn, a.repeat)
         print(f"  {name:42s} wall {wall / a.batch * 1e3:7.3f} ms  CPU {cpu / a.batch * 1e3:7.3f} ms per replicate"
-              + (f"  ({cpu / (a.batch * J) * 1e6:.3f} us CPU per epoch)" if "filters" in name else ""))
+              + (f"  ({cpu / (a.batch * J) * 1e6:.3f} us CPU per epoch)" if "filters" in name else "")
+              + (f"  ({cpu / (a.batch * js) * 1e6:.3f} us CPU per epoch)" if "kernel" in name else ""))
     print(f"  load average {load0[0]:.2f} at start, {os.getloadavg()[0]:.2f} at end")
 
 

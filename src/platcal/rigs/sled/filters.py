@@ -13,6 +13,11 @@ Recorded times (§12): the epochs are the samples nearest the multiples of the f
 (:class:`Epochs`, decimation by time); each prediction spans the actual interval T_j between its
 epochs (Φ and, with the default tuning, Q_d = diag(q)·T_j), F uses the interval-weighted mean
 force of the samples in between. On a clean record this is exactly the grid above.
+
+Speed (issue 22 item 2): the filters run with the seeds in SIMD lanes (:func:`_kalman_block`),
+each epoch's F formed in the kernel from the mean force (:class:`Dynamics`) and Φ's zero products
+left out; every sum in the order of the one-seed kernel :func:`_kalman`, whose numbers it gives
+bit for bit (``tests/sled/test_sled_lanes.py``; ``benchmarks/profile_sled.py``).
 """
 
 from __future__ import annotations

@@ -268,6 +268,18 @@ def _row_dot(A, a, B, b, cols, lo, hi, out):
 
 
 @nb.njit(cache=True, inline="always")
+def _tri_sum(Fc, i, c, hi, row, out):
+    """Per lane, the triangular sums of :func:`platcal.estimation.kalman.cholesky_inverse` in its
+    order: ``out = A[i, c] Fc[c, c] + Σ_{c<k<hi} A[i, k] Fc[k, c]`` with ``A = Fc`` (``row``: the
+    L⁻¹ step, along row i) or ``A = Fcᵀ`` (the S⁻¹ = L⁻ᵀ L⁻¹ step, down column i)."""
+    for l in range(LANES):
+        out[l] = (Fc[i, c, l] if row else Fc[c, i, l]) * Fc[c, c, l]
+    for k in range(c + 1, hi):
+        for l in range(LANES):
+            out[l] += (Fc[i, k, l] if row else Fc[k, i, l]) * Fc[k, c, l]
+
+
+@nb.njit(cache=True, inline="always")
 def _times_lanes(M, A, out):
     """``out = M A`` per lane for (m, m, LANES) ``M`` and (m, n, LANES) ``A``: the sums of
     :func:`platcal.estimation.kalman._small_times` in its order (the first term, then the rest)."""
@@ -443,11 +455,7 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
                 for l in range(L):
                     bv[l] = 1.0 / Fc[i, i, l]
                 for c in range(i):
-                    for l in range(L):
-                        av[l] = Fc[i, c, l] * Fc[c, c, l]
-                    for k in range(c + 1, i):
-                        for l in range(L):
-                            av[l] += Fc[i, k, l] * Fc[k, c, l]
+                    _tri_sum(Fc, i, c, i, True, av)
                     for l in range(L):
                         Fc[i, c, l] = -av[l] * bv[l]
                 for l in range(L):
@@ -456,11 +464,7 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
                 # row r of S⁻¹ (upper triangle) reads L⁻¹ only at rows below r and the diagonals
                 # after it: its diagonal first gives the reference's numbers (which has it last)
                 for c in range(r, m):
-                    for l in range(L):
-                        av[l] = Fc[c, r, l] * Fc[c, c, l]
-                    for k in range(c + 1, m):
-                        for l in range(L):
-                            av[l] += Fc[k, r, l] * Fc[k, c, l]
+                    _tri_sum(Fc, r, c, m, False, av)
                     for l in range(L):
                         Fc[r, c, l] = av[l]
             for r in range(m):

@@ -227,6 +227,11 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
         coef[4 + j] = 1e-6
         lanes.append((-1, j, coef, np.zeros(N_FULL), np.zeros(3), np.zeros(3)))
     sens_out = np.empty((VARIANTS, n, 4)) if sens else None
+    # one set of block buffers (noises, errors, force) reused by every block: tens of MB that
+    # fresh arrays would take as new zeroed pages for each block
+    nbuf = min(W, len(lanes))
+    bufs = {"acc": np.empty((nbuf, n, 2)), "gyro": np.empty((nbuf, n, 3)), "err": np.empty((nbuf, n, 4)),
+            "f": np.empty((nbuf, n, 2))}
     for a in range(0, len(lanes), W):
         block = lanes[a:a + W]
         reps = sorted({ln[0] for ln in block if ln[0] >= 0 and not noise_free})
@@ -234,11 +239,12 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
         # each replicate's white noises, drawn from its stream in the scalar order (accelerometer,
         # gyro) straight into the block's arrays and scaled in place (no per-replicate temporaries
         # stacked: the same draws and the same products)
-        acc_w = _draw_scaled([rngs[i] for i in reps], (n, 2), s_acc) if reps else None
-        gyro_w = _draw_scaled([rngs[i] for i in reps], (n, 3), s_gyro) if reps else None
+        acc_w = _draw_scaled([rngs[i] for i in reps], bufs["acc"][:len(reps)], s_acc) if reps else None
+        gyro_w = _draw_scaled([rngs[i] for i in reps], bufs["gyro"][:len(reps)], s_gyro) if reps else None
         e, ph, fm = ft.navigate_lanes(n, np.array([ln[2] for ln in block]), np.array([ln[3] for ln in block]),
                                       np.array([ln[4] for ln in block]), np.array([ln[5] for ln in block]),
-                                      acc_w, gyro_w, np.array([local.get(ln[0], -1) for ln in block]), keep_phi)
+                                      acc_w, gyro_w, np.array([local.get(ln[0], -1) for ln in block]), keep_phi,
+                                      out=(bufs["err"][:len(block)], bufs["f"][:len(block)]))
         for k, (i, what, *_) in enumerate(block):
             if what == "ins":
                 err[i], f_meas[i] = e[k], fm[k]
@@ -248,7 +254,7 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
                 final_floor[i] = e[k, -1]
             else:
                 sens_out[what] = e[k]
-        del e, ph, fm, acc_w, gyro_w
+    bufs = e = ph = fm = acc_w = gyro_w = None   # the block buffers (and views of them) freed
     # the outputs: truth + error (+ noise), every replicate at once; each replicate's noises drawn
     # in its stream's order (velocity, position, heading) into one reused buffer
     np.add(kin.v, err[:, :, :2], out=v_ind)
@@ -271,10 +277,9 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
                     final_floor=final_floor)
 
 
-def _draw_scaled(rngs: list, shape: tuple, sigma: float) -> np.ndarray:
-    """(len(rngs), *shape): one block of standard normals from each generator in turn, times
-    ``sigma`` (the noises of a block of lanes, :func:`simulate_batch`)."""
-    out = np.empty((len(rngs),) + shape)
+def _draw_scaled(rngs: list, out: np.ndarray, sigma: float) -> np.ndarray:
+    """``out`` (len(rngs), ...) C-contiguous: one block of standard normals from each generator in
+    turn, times ``sigma`` (the noises of a block of lanes, :func:`simulate_batch`)."""
     for k, rng in enumerate(rngs):
         rng.standard_normal(out=out[k])
     out *= sigma

@@ -92,3 +92,16 @@ def test_shared_truth_gives_the_numbers_of_one_built_per_run():
         b = simulate_batch(st, p, r, seeds, floor=True)
         for f in ("err", "v_ind", "p_ind", "f_meas", "psi", "sens", "final_floor"):
             assert np.array_equal(getattr(a, f), getattr(b, f)), (p, r, f)
+
+
+def test_block_buffers_reused_across_blocks_change_no_replicate():
+    """9 replicates with their floors and the 4 variants are 22 lanes: two blocks of lanes, the
+    second with fewer replicates than the first, through the same reused buffers."""
+    st = load_config(SHARED)
+    seeds = [replicate_seed(0, "cellspeed", 10, r) for r in range(9)]
+    many = simulate_batch(st, "P2", "run2", seeds, floor=True)
+    for r in (0, 7, 8):
+        one = simulate_batch(st, "P2", "run2", [seeds[r]], floor=True)
+        for f in ("err", "v_ind", "p_ind", "f_meas", "psi", "final_floor"):
+            assert np.array_equal(getattr(many, f)[r], getattr(one, f)[0]), (r, f)
+        assert np.array_equal(many.sens, one.sens)

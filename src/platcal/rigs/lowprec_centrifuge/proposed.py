@@ -123,7 +123,8 @@ def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray) -> Wind
 
 
 def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Cumulative trapezoid integral of y (N, m) from t[0] (:func:`_cumtrap`)."""
+    """Cumulative trapezoid integral of y (N, m) from t[0] (:func:`_cumtrap`; the window
+    integrals of docs/lowprec-centrifuge.md §7)."""
     c = np.empty((y.shape[0], y.shape[1]))
     _cumtrap(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float), c)
     return c
@@ -133,7 +134,8 @@ def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
 def _cumtrap(t, y, c):
     """c (N, m) = the cumulative trapezoid of y (N, m) over t (N,) s from 0, in one pass: the
     operations of numpy's ``cumsum(0.5 * diff(t)[:, None] * (y[1:] + y[:-1]))`` (the first
-    term alone, then each added to the sum before it), so the same numbers bit for bit."""
+    term alone, then each added to the sum before it), so the same numbers bit for bit
+    (docs/lowprec-centrifuge.md §7)."""
     for j in range(y.shape[1]):
         c[0, j] = 0.0
     for k in range(1, t.size):
@@ -149,7 +151,8 @@ def _window_integrands(t, v, p_rel, cos_psi, sin_psi, u0, arm_m, f, y, c, yf, cf
     has no rows, yf (N, 4) = :func:`force_integrand` of f (N, 2) m/s^2, with their cumulative
     trapezoids c, cf (:func:`_cumtrap`); v, p_rel (N, 2) m/s, m; cos_psi, sin_psi (N,) of the
     unwrapped heading (numpy's, as :func:`arm_offset`); u0 (2,) and arm_m (m) as
-    :func:`arm_offset`. Each value by numpy's operations in numpy's order (bit for bit)."""
+    :func:`arm_offset`. Each value by numpy's operations in numpy's order (bit for bit;
+    docs/lowprec-centrifuge.md §7)."""
     force = f.shape[0] > 0
     o0, o1 = arm_m * u0[0], arm_m * u0[1]
     for k in range(t.size):
@@ -446,7 +449,8 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
 def unwrap_heading(psi: np.ndarray) -> np.ndarray:
     """``numpy.unwrap`` of each record's heading psi (S, N) rad along its samples, bit for bit:
     a record whose steps are all below pi (every simulated one: the arm turns far less than pi in
-    a sample) in one compiled pass (:func:`_unwrap_small_steps`), any other by numpy."""
+    a sample) in one compiled pass (:func:`_unwrap_small_steps`), any other by numpy (the
+    windows' heading, docs/lowprec-centrifuge.md §7)."""
     psi = np.ascontiguousarray(psi, dtype=float)
     out = np.empty_like(psi)
     for s in range(psi.shape[0]):

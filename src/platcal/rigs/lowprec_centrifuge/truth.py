@@ -151,7 +151,7 @@ class TruthCache:
     (platform, run) pairs of ``study``), each distinct profile (its segments, §3: platforms with
     the same levels, every platform's traditional run) built once and dropped after the last run
     that uses it, so that no more than the runs still to come are held. The runs' batches share
-    its arrays (read only)."""
+    its arrays (read only). docs/lowprec-centrifuge.md §2, §12 (truth simulation)."""
 
     def __init__(self, study: Study, runs):
         self.study = study

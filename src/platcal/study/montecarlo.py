@@ -40,7 +40,7 @@ import numpy as np
 import pyarrow.parquet as pq
 from joblib import Parallel, delayed, parallel_config
 
-from ..estimation.consistency import rel_err_pct
+from ..estimation.relative import rel_err_pct
 from ..io import atomic_files, json_safe
 from ..lighttable import Table
 from ..log import eta_line, job_logger

@@ -189,11 +189,10 @@ print(json.dumps(sorted(m for m in HEAVY_NAMES if m in sys.modules)))
 """
 CELL_HEAVY = HEAVY + ("pandas", "pyarrow.compute", "scipy.special", "scipy.linalg", "scipy.interpolate", "scipy.optimize",
                       "pint", "pymap3d")
-SCIPY_IN_FILTER = {"centrifuge": {"scipy.special", "scipy.linalg", "pint", "pymap3d"},
-                   "sled": {"scipy.special", "scipy.linalg"}}
+SCIPY_IN_FILTER = {"centrifuge": {"scipy.special", "scipy.linalg"}, "sled": {"scipy.special", "scipy.linalg"}}
 """What a rig's own cell code loads at its modules' top (the centrifuge's identify: the fit check's
-chi-square quantiles, the ML's scipy.linalg, the record mapping; the sled's simulation and fit
-check): allowed there, and nowhere else."""
+chi-square quantiles and the ML's scipy.linalg; the sled's simulation and fit check): allowed
+there, and nowhere else."""
 
 
 @pytest.mark.parametrize("rig", RIGS)

@@ -7,6 +7,7 @@ interpreter (this one has imported everything already)."""
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -17,6 +18,7 @@ from platcal.estimation.consistency import chi2_quantile, normal_quantile
 from platcal.rig import get_rig, resolve, rig_modules, rig_names
 
 RIGS = sorted(rig_names())
+ROOT = Path(__file__).resolve().parents[1]
 HEAVY = ("matplotlib", "pymoo", "sympy", "scipy.stats", "platcal.study.campaign")
 """(scipy.optimize is not here: the low-precision centrifuge's record needs scipy.interpolate, which loads it.)"""
 LOG_COMMANDS = ("simulate", "identify", "inspect", "compensate")
@@ -163,3 +165,53 @@ def test_the_sled_series_job_loads_no_figure_or_stats_library():
              f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))")
     out = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True, text=True)
     assert json.loads(out.stdout) == []
+
+
+CELL_PROBE = """
+import json, os, sys, tempfile
+import numpy as np
+from platcal.lighttable import Table
+from platcal.rig import ReplicateBatch, get_rig, rig_config
+from platcal.study.montecarlo import cell_job, tidy_tables, write_cell  # the imports of montecarlo_cell.py
+from platcal.io import read_config
+
+name = sys.argv[1]
+hooks = get_rig(name).montecarlo
+cfg = hooks.check(rig_config(read_config("config/config.yaml", "config"), name))
+case = hooks.case(cfg, hooks.cases(cfg)[0], None)
+q = Table({"name": ["a", "b"], "group": ["g", "g"], "unit": ["m", "s"], "truth": [1.0, 2.0]})
+batch = ReplicateBatch(quantities=q, estimate=np.ones((2, 2)), sigma=np.ones((2, 2)), nees=np.ones(2), nees_dof=2,
+                       mean_nis=np.ones(2), failed_updates=np.zeros(2, int), passes=1, extra={"ok": np.ones(2, bool)})
+coef, runs = tidy_tables(batch, case.name, 1.0, "kf", [0, 1])
+with tempfile.TemporaryDirectory() as d:
+    write_cell(d, coef, runs, {"wall_s": 1.0})
+print(json.dumps(sorted(m for m in HEAVY_NAMES if m in sys.modules)))
+"""
+CELL_HEAVY = HEAVY + ("pandas", "pyarrow.compute", "scipy.special", "scipy.linalg", "scipy.interpolate", "scipy.optimize",
+                      "pint", "pymap3d")
+SCIPY_IN_FILTER = {"centrifuge": {"scipy.special", "scipy.linalg"}, "sled": {"scipy.special", "scipy.linalg"}}
+"""What a rig's own cell code loads at its modules' top (the centrifuge's identify: the fit check's
+chi-square quantiles and the ML's scipy.linalg; the sled's simulation and fit check): allowed
+there, and nowhere else."""
+
+
+@pytest.mark.parametrize("rig", RIGS)
+def test_a_monte_carlo_cell_job_loads_no_pandas_and_only_its_rigs_scipy(rig):
+    """A Monte Carlo cell job (workflow/scripts/montecarlo_cell.py: the rig registered, its config
+    checked, its case built, tidy tables written to Parquet) in a fresh interpreter: no pandas (some
+    0.3 s of CPU per job, issue 22 item 4), no figure, design or stats library, and scipy or pint only
+    where the rig's own filter code imports them."""
+    out = subprocess.run([sys.executable, "-c", CELL_PROBE.replace("HEAVY_NAMES", repr(CELL_HEAVY)), rig], check=True,
+                         capture_output=True, text=True, cwd=ROOT)
+    loaded = set(json.loads(out.stdout))
+    assert loaded <= SCIPY_IN_FILTER.get(rig, set()), sorted(loaded)
+    assert "pandas" not in loaded
+
+
+def test_registering_a_rig_imports_its_commands_only_when_read():
+    """``Rig.commands``/``options``/``sizes``/``campaign`` given by module path import nothing until read."""
+    probe = ("import json, sys; from platcal.rig import get_rig; r = get_rig('multiposition'); "
+             "m = 'platcal.rigs.multiposition.commands'; before = m in sys.modules; r.options; "
+             "print(json.dumps([before, m in sys.modules, 'platcal.rigs.multiposition.campaign' in sys.modules]))")
+    out = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True, text=True)
+    assert json.loads(out.stdout) == [False, True, False]

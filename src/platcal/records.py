@@ -17,6 +17,7 @@ import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
@@ -26,8 +27,11 @@ import pyarrow.parquet as pq
 from .errors import InputError
 from .io import atomic_files
 from .lighttable import Table, numeric
-from .mapping import ISO_TIME, RecordMapping
+from .mapping_keys import ISO_TIME
 from .rig import option, whole
+
+if TYPE_CHECKING:  # annotations only: the mapping's pint loads in the jobs that read a mapped log
+    from .mapping import RecordMapping
 
 PARQUET_MAGIC = b"PAR1"
 """The first (and last) four bytes of every Parquet file."""

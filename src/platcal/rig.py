@@ -311,32 +311,51 @@ class MonteCarloHooks(Protocol):
                   seeds: list[np.random.SeedSequence]) -> ReplicateBatch: ...
 
 
+LAZY_FIELDS = frozenset({"commands", "options", "campaign", "sizes", "montecarlo", "catalogue", "load_config"})
+"""Fields of :class:`Rig` that may be given as the ``"package.module:attribute"`` path of their
+value (:func:`resolve`), imported when first read."""
+
+
 @dataclass(frozen=True)
 class Rig:
-    """A test rig as the CLI, the study layer and the workflow see it (see the module docstring)."""
+    """A test rig as the CLI, the study layer and the workflow see it (see the module docstring).
+
+    The fields of :data:`LAZY_FIELDS` may be given as the path of their value,
+    ``"package.module:attribute"``: the module is imported when the field is first read (a Monte
+    Carlo cell reads ``montecarlo`` and never imports the rig's command-line or campaign code)."""
 
     name: str
     title: str
     spec: str
-    load_config: Callable[[dict], object]
-    commands: Mapping[str, Command | str]
-    catalogue: Callable[[], pd.DataFrame]
+    load_config: Callable[[dict], object] | str
+    commands: Mapping[str, Command | str] | str
+    catalogue: Callable[[], pd.DataFrame] | str
     estimators: tuple[str, ...] = ()
     extras: Mapping[str, object] = field(default_factory=dict)
     """Optional capabilities by name (e.g. ``information`` for covariance-only analysis), each
     the object or its ``"package.module:attribute"`` path (:meth:`extra`)."""
-    montecarlo: MonteCarloHooks | None = None
+    montecarlo: MonteCarloHooks | str | None = None
     """The Monte Carlo hooks (optional; see the module docstring)."""
-    options: Mapping[str, tuple[Option, ...]] = field(default_factory=dict)
+    options: Mapping[str, tuple[Option, ...]] | str = field(default_factory=dict)
     """The rig's own options per sub-command, beyond the common ones of :mod:`platcal.cli`."""
-    campaign: CampaignHooks | None = None
+    campaign: CampaignHooks | str | None = None
     """The campaign hooks (optional; see the module docstring)."""
-    sizes: Callable[[str, object, argparse.Namespace], list] | None = None
+    sizes: Callable[[str, object, argparse.Namespace], list] | str | None = None
     """``sizes(command, cfg, args) -> list[platcal.sizes.Size]``: the data each command's inputs
     imply, checked against ``--max-memory-gb`` before the command runs (:mod:`platcal.sizes`)."""
     rules: str | None = None
     """Path of the rig's own Snakemake rules file, when it ships one outside the project's
     ``workflow/rules/<name>.smk``; a rig with Monte Carlo hooks needs none."""
+
+    def __getattribute__(self, name: str):
+        # a lazy field given as a "package.module:attribute" path is imported when first read and
+        # kept: registering a rig (every job's get_rig) does not import its commands, campaign or
+        # sizes modules, which a Monte Carlo cell never uses (issue 22 item 4)
+        value = object.__getattribute__(self, name)
+        if name in LAZY_FIELDS and isinstance(value, str):
+            value = resolve(value)
+            object.__setattr__(self, name, value)
+        return value
 
     def command(self, name: str) -> Command:
         """The sub-command ``name`` (its module imported now, :func:`resolve`)."""

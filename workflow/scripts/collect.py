@@ -1,7 +1,7 @@
 """Snakemake wrapper: concatenate a rig's cells into its study-wide tidy tables."""
 from platcal.io import atomic_to_csv, atomic_to_parquet
 from platcal.log import job_logger
-from platcal.study.montecarlo import collect
+from platcal.study.collect import collect
 
 sm = snakemake  # noqa: F821
 log = job_logger(sm.log[0])

@@ -21,15 +21,6 @@ def nees(estimate: np.ndarray, cov: np.ndarray, truth: np.ndarray) -> np.ndarray
     return np.einsum("bi,bi->b", y, y)
 
 
-def rel_err_pct(estimate, truth):
-    """Relative error (estimate - truth) / truth in percent (NaN where the truth is zero;
-    docs/centrifuge-model.md eq. 28, every rig's tables)."""
-    estimate = np.asarray(estimate, float)
-    truth = np.asarray(truth, float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(truth != 0, (estimate - truth) / truth * 100.0, np.nan)
-
-
 def chi2_quantile(q: float, dof: float) -> float:
     """The ``q`` quantile of chi-square(``dof``): ``scipy.stats.chi2.ppf``'s own formula (its
     ``_ppf``, ``2 gammaincinv(dof / 2, q)``), bit for bit, from ``scipy.special``, so that an

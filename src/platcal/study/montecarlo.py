@@ -32,19 +32,24 @@ import json
 import os
 import time
 from functools import lru_cache
+from typing import TYPE_CHECKING
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
+import pyarrow.parquet as pq
 from joblib import Parallel, delayed, parallel_config
 
-from ..estimation.consistency import rel_err_pct
+from ..estimation.relative import rel_err_pct
 from ..io import atomic_files, json_safe
+from ..lighttable import Table
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
 from ..rig import Rig, get_rig
 from .sweep import replicate_seed
+
+if TYPE_CHECKING:  # annotations only: a cell job builds and writes its tables without pandas (issue 22 item 4)
+    import pandas as pd
 
 CELL = ["scheme", "noise", "estimator"]
 """Columns that name a cell of the sweep."""
@@ -58,29 +63,39 @@ def chunks(n: int, size: int) -> list[list[int]]:
     return [list(range(a, min(a + size, n))) for a in range(0, n, size)]
 
 
-def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """The tidy ``coef`` and ``runs`` rows of a :class:`~platcal.rig.ReplicateBatch`."""
+def tidy_tables(batch, case: str, level: float, estimator: str, replicates) -> tuple[Table, Table]:
+    """The tidy ``coef`` and ``runs`` rows of a :class:`~platcal.rig.ReplicateBatch` as numpy
+    columns (:class:`platcal.lighttable.Table`): a cell job never imports pandas."""
     q = batch.quantities
     n = len(q)
     B = len(replicates)
     reps = np.asarray(replicates, dtype=np.int64)
-    coef = pd.DataFrame({
-        "scheme": case, "noise": float(level), "estimator": estimator,
-        "replicate": np.repeat(reps, n), "name": list(q["name"]) * B, "group": list(q["group"]) * B,
-        "unit": list(q["unit"]) * B, "truth": batch_truth(batch).ravel(),
-        "estimate": np.asarray(batch.estimate).ravel(), "sigma": np.asarray(batch.sigma).ravel(),
+    truth = batch_truth(batch).ravel()
+    estimate = np.asarray(batch.estimate).ravel()
+    text = lambda v, size: np.full(size, v, dtype=object)  # noqa: E731  (one text value repeated)
+    coef = Table({
+        "scheme": text(case, B * n), "noise": np.full(B * n, float(level)), "estimator": text(estimator, B * n),
+        "replicate": np.repeat(reps, n), "name": np.array(list(q["name"]) * B, dtype=object),
+        "group": np.array(list(q["group"]) * B, dtype=object), "unit": np.array(list(q["unit"]) * B, dtype=object),
+        "truth": truth, "estimate": estimate, "sigma": np.asarray(batch.sigma).ravel(),
+        "error": estimate - truth, "rel_err_pct": rel_err_pct(estimate, truth),
     })
-    coef["error"] = coef["estimate"] - coef["truth"]
-    coef["rel_err_pct"] = rel_err_pct(coef["estimate"], coef["truth"])
-    runs = pd.DataFrame({
-        "scheme": case, "noise": float(level), "estimator": estimator, "replicate": reps,
-        "passes": int(batch.passes), "nees": batch.nees, "nees_dof": int(batch.nees_dof),
-        "mean_nis": batch.mean_nis, "failed_updates": np.asarray(batch.failed_updates).astype(np.int64),
+    runs = Table({
+        "scheme": text(case, B), "noise": np.full(B, float(level)), "estimator": text(estimator, B),
+        "replicate": reps, "passes": np.full(B, int(batch.passes), dtype=np.int64), "nees": np.asarray(batch.nees),
+        "nees_dof": np.full(B, int(batch.nees_dof), dtype=np.int64), "mean_nis": np.asarray(batch.mean_nis),
+        "failed_updates": np.asarray(batch.failed_updates).astype(np.int64), "failed": failed_runs(batch),
     })
-    runs["failed"] = failed_runs(batch)
-    if batch.extra:  # the rig's own per-run columns, after the standard ones (joined at once: there may be many)
-        runs = pd.concat([runs, pd.DataFrame({k: np.asarray(v) for k, v in batch.extra.items()})], axis=1)
+    for k, v in batch.extra.items():  # the rig's own per-run columns, after the standard ones
+        runs[k] = np.asarray(v)
     return coef, runs
+
+
+def tidy_frames(batch, case: str, level: float, estimator: str, replicates) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The tidy ``coef`` and ``runs`` rows of a :class:`~platcal.rig.ReplicateBatch` as pandas
+    DataFrames (:func:`tidy_tables`)."""
+    coef, runs = tidy_tables(batch, case, level, estimator, replicates)
+    return coef.to_pandas(), runs.to_pandas()
 
 
 def batch_truth(batch) -> np.ndarray:
@@ -114,13 +129,13 @@ def _run_chunk(rig_name: str, cfg: dict, case, level: float, estimator: str, rep
     t0 = time.perf_counter()
     key = getattr(case, "seed_key", case.name)
     batch = hooks.run_batch(cfg, case, level, estimator, [replicate_seed(seed, key, level, r) for r in replicates])
-    coef, runs = tidy_frames(batch, case.name, level, estimator, replicates)
+    coef, runs = tidy_tables(batch, case.name, level, estimator, replicates)
     return coef, runs, time.perf_counter() - t0
 
 
-def run_cell(rig: Rig, cfg: dict, case, level: float, estimator: str, *, replicates: int | None = None,
+def cell_tables(rig: Rig, cfg: dict, case, level: float, estimator: str, *, replicates: int | None = None,
              threads: int = 1, backend: str | None = None, batch: int | None = None,
-             progress=None) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+             progress=None) -> tuple[Table, Table, dict]:
     """Run every replicate of one (case, noise level, estimator) cell of ``rig``.
 
     ``cfg`` is the rig's checked config (``rig.montecarlo.check``); ``case`` its case object
@@ -129,8 +144,9 @@ def run_cell(rig: Rig, cfg: dict, case, level: float, estimator: str, *, replica
     ``backend``, ``batch`` default to the rig's settings; ``progress(done, total, seconds)`` is
     called after each chunk.
 
-    Returns ``(coef, runs, timing)``: the tidy tables and wall-time information (s), which is
-    the only output that depends on the machine.
+    Returns ``(coef, runs, timing)``: the tidy tables (:class:`platcal.lighttable.Table`, numpy
+    columns: a cell job loads no pandas) and wall-time information (s), which is the only output
+    that depends on the machine.
     """
     st = rig.montecarlo.settings(cfg)
     R = int(st.replicates if replicates is None else replicates)
@@ -148,14 +164,22 @@ def run_cell(rig: Rig, cfg: dict, case, level: float, estimator: str, *, replica
         results = _collect_progress((_run_chunk(rig.name, cfg, case, level, estimator, p, threads) for p in parts),
                                     R, t0, progress)
     wall = time.perf_counter() - t0
-    coef = pd.concat([r[0] for r in results], ignore_index=True).sort_values(
-        ["replicate"], kind="stable").reset_index(drop=True)
-    runs = pd.concat([r[1] for r in results], ignore_index=True).sort_values("replicate").reset_index(drop=True)
+    coef = Table.concat([r[0] for r in results])
+    coef = coef[np.argsort(coef["replicate"], kind="stable")]
+    runs = Table.concat([r[1] for r in results])
+    runs = runs[np.argsort(runs["replicate"], kind="stable")]
     timing = {"scheme": case.name, "noise": float(level), "estimator": estimator,
               "replicates": R, "threads": threads, "backend": backend, "batch": batch,
               "wall_s": wall, "wall_s_per_run": wall / max(R, 1),
               "compute_s": float(sum(r[2] for r in results))}
     return coef[COEF_COLUMNS], runs[RUN_COLUMNS + [c for c in runs.columns if c not in RUN_COLUMNS]], timing
+
+
+def run_cell(rig: Rig, cfg: dict, case, level: float, estimator: str, **kw) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
+    """:func:`cell_tables` with the tidy tables as pandas DataFrames (the comparison's cells and
+    the tests work on them); same keywords."""
+    coef, runs, timing = cell_tables(rig, cfg, case, level, estimator, **kw)
+    return coef.to_pandas(), runs.to_pandas(), timing
 
 
 def _collect_progress(gen, total: int, t0: float, progress) -> list:
@@ -168,29 +192,22 @@ def _collect_progress(gen, total: int, t0: float, progress) -> list:
     return results
 
 
-def write_cell(out_dir: str | os.PathLike, coef: pd.DataFrame, runs: pd.DataFrame, timing: dict) -> None:
-    """``coef.parquet``, ``runs.parquet`` and ``timing.json`` of a cell, each written atomically.
+def write_cell(out_dir: str | os.PathLike, coef: Table | pd.DataFrame, runs: Table | pd.DataFrame,
+               timing: dict) -> None:
+    """``coef.parquet``, ``runs.parquet`` and ``timing.json`` of a cell, each written atomically;
+    the tables :class:`platcal.lighttable.Table` (written through pyarrow, no pandas) or pandas
+    DataFrames (written as pandas writes them). Either reads back as the same DataFrame.
 
     ``timing.json`` is written last: the Snakemake rule lists all three, and a job killed before
     the end leaves no complete set.
     """
     with atomic_files(out_dir) as tmp:  # the three land together or not at all
-        coef.to_parquet(tmp("coef.parquet"), index=False)
-        runs.to_parquet(tmp("runs.parquet"), index=False)
+        for name, table in (("coef.parquet", coef), ("runs.parquet", runs)):
+            if isinstance(table, Table):
+                pq.write_table(table.to_arrow(), tmp(name))
+            else:
+                table.to_parquet(tmp(name), index=False)
         tmp("timing.json").write_text(json.dumps(json_safe(timing), indent=2, sort_keys=True, allow_nan=False) + "\n")
-
-
-def collect(coef_files, runs_files, timing_files):
-    """Concatenate the cells' files into sorted study-wide tables (order-independent)."""
-    keys = CELL + ["replicate"]
-    coef = pd.concat([pd.read_parquet(f) for f in coef_files], ignore_index=True)
-    coef["_i"] = coef.groupby(keys, sort=False).cumcount()  # keeps the rig's quantity order
-    coef = coef.sort_values(keys + ["_i"], kind="stable").drop(columns="_i").reset_index(drop=True)
-    runs = pd.concat([pd.read_parquet(f) for f in runs_files], ignore_index=True)
-    runs = runs.sort_values(keys, kind="stable").reset_index(drop=True)
-    timing = pd.DataFrame([json.loads(Path(f).read_text()) for f in timing_files])
-    timing = timing.sort_values(CELL, kind="stable").reset_index(drop=True)
-    return coef, runs, timing
 
 
 def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimator: str, out_dir,
@@ -209,7 +226,7 @@ def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimator: 
     def progress(done, total, seconds):
         lg.info("  replicates %s", eta_line(done, total, seconds))
 
-    coef, runs, timing = run_cell(rig, cfg, case, level, estimator, threads=threads, progress=progress)
+    coef, runs, timing = cell_tables(rig, cfg, case, level, estimator, threads=threads, progress=progress)
     write_cell(out_dir, coef, runs, timing)
     lg.info("done: mean NEES %.1f (dof %d), %.2f s per run -> %s", runs["nees"].mean(),
             int(runs["nees_dof"].iloc[0]), timing["wall_s_per_run"], out_dir)

@@ -10,14 +10,14 @@ Carlo hooks), :mod:`.tables` and :mod:`.report` (Table 2, figures, report sectio
 """
 
 from ...rig import Rig
-from .campaign import CAMPAIGN
 from .catalogue import load_catalogue
-from .commands import COMMANDS, OPTIONS, sizes
 from .config import study_from_config
 from .estimators import kind_names
 from .study import CentrifugeMonteCarlo
 
+# the command line's and the campaign's modules by path (imported when first read, platcal.rig.LAZY_FIELDS):
+# a Monte Carlo cell registers the rig and imports neither (issue 22 item 4)
 RIG = Rig(name="centrifuge", title="precision centrifuge, 48-state EKF", spec="centrifuge-model.md",
-          load_config=study_from_config, commands=COMMANDS, catalogue=lambda: load_catalogue().frame(),
-          extras={"claims": f"{__name__}.claims"}, estimators=kind_names(), montecarlo=CentrifugeMonteCarlo(), options=OPTIONS,
-          campaign=CAMPAIGN, sizes=sizes)
+          load_config=study_from_config, commands=f"{__name__}.commands:COMMANDS", catalogue=lambda: load_catalogue().frame(),
+          extras={"claims": f"{__name__}.claims"}, estimators=kind_names(), montecarlo=CentrifugeMonteCarlo(),
+          options=f"{__name__}.commands:OPTIONS", campaign=f"{__name__}.campaign:CAMPAIGN", sizes=f"{__name__}.commands:sizes")

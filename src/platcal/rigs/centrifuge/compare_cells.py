@@ -20,7 +20,8 @@ from ...errors import InputError
 from ...io import atomic_files
 from ...log import job_logger
 from ...rig import get_rig
-from ...study.montecarlo import collect, run_cell, write_cell
+from ...study.collect import collect
+from ...study.montecarlo import run_cell, write_cell
 from ...study.sweep import noise_label
 from .study import builtin_scheme, check_study
 

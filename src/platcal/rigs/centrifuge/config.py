@@ -17,7 +17,7 @@ import numpy as np
 from ...errors import InputError
 from ...io import read_config
 from ...model.instruments import INDEX, term_of
-from ...mapping import with_mapping_schema
+from ...mapping_keys import with_mapping_schema
 from ...schema import load_schema, validate
 from .base import Centrifuge
 from .catalogue import full_truth

@@ -26,7 +26,6 @@ from .estimators import check_kind, run_estimator
 from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
                      check_every_position, check_position, check_position_numbers, check_record, continuous_record,
                      filter_input, has_truth_columns, select_instants)
-from ...mapping import RecordMapping
 from ...records import position_blocks, read_table
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
@@ -34,6 +33,7 @@ from .tables import estimates_columns, table2_markdown
 
 if TYPE_CHECKING:  # annotations only: an identify loads no pandas (issue 22 item 3)
     import pandas as pd
+    from ...mapping import RecordMapping  # and a Monte Carlo cell no pint (issue 22 item 4)
 
 
 def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSettings | None = None,

@@ -16,7 +16,6 @@ import numpy as np
 
 from ...errors import InputError
 from ...lighttable import Table
-from ...mapping import RecordMapping
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
                         iter_table, nearest_samples, whole_group, write_record)  # noqa: F401 (write_record re-exported)
 from ...records import num as _num
@@ -28,6 +27,7 @@ from ...scheme import Scheme
 
 if TYPE_CHECKING:  # annotations only: an identify that imports this module does not load pandas
     import pandas as pd
+    from ...mapping import RecordMapping  # annotations only: a Monte Carlo cell loads no pint (issue 22 item 4)
 
 GYRO_COLUMNS = ("wx", "wy", "wz")
 """The platform gyros' outputs, deg/h (the rate each measures about its input axis), optional in a

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...estimation.consistency import rel_err_pct
+from ...estimation.relative import rel_err_pct
 from ...lighttable import Table
 from ...model.instruments import FULL_NAMES, unit_of
 from .catalogue import load_catalogue

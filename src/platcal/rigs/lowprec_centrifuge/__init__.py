@@ -17,21 +17,23 @@ import numpy as np
 
 from ...lighttable import Table
 from ...rig import Rig
-from .commands import COEFF_UNITS, OPTIONS, compensate, identify, inspect, simulate, sizes
 from .config import COEFFS, load_config
-from .montecarlo import LowprecMonteCarlo
+from .montecarlo import UNITS, LowprecMonteCarlo
 
 
 def catalogue():
     """The identified coefficients; truth is per platform (config ``platforms``), hence NaN here. A
     pandas DataFrame (:meth:`platcal.lighttable.Table.to_pandas`: registering the rig loads no pandas)."""
     return Table({"name": list(COEFFS), "group": ["accel"] * 4,
-                  "unit": list(COEFF_UNITS), "truth": [np.nan] * 4}).to_pandas()
+                  "unit": [UNITS[c[:2]] for c in COEFFS], "truth": [np.nan] * 4}).to_pandas()
 
+
+COMMANDS = {name: f"{__name__}.commands:{name}" for name in ("inspect", "simulate", "identify", "compensate")}
+"""The sub-commands by module path (:func:`platcal.rig.resolve`): a Monte Carlo cell registers the
+rig and does not import the command line's module (issue 22 item 4)."""
 
 RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",
-          spec="lowprec-centrifuge.md", load_config=load_config,
-          commands={"inspect": inspect, "simulate": simulate, "identify": identify, "compensate": compensate},
-          catalogue=catalogue, extras={"claims": f"{__name__}.claims"}, estimators=("proposed", "traditional"), options=OPTIONS,
-          montecarlo=LowprecMonteCarlo(), sizes=sizes)
+          spec="lowprec-centrifuge.md", load_config=load_config, commands=COMMANDS,
+          catalogue=catalogue, extras={"claims": f"{__name__}.claims"}, estimators=("proposed", "traditional"),
+          options=f"{__name__}.commands:OPTIONS", montecarlo=LowprecMonteCarlo(), sizes=f"{__name__}.commands:sizes")

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 from ...errors import InputError
-from ...mapping import with_mapping_schema
+from ...mapping_keys import with_mapping_schema
 from ...schema import load_schema, validate
 
 G0 = 9.80665

@@ -121,12 +121,12 @@ def calibration_runs(study, platform: str, estimator: str) -> list[str]:
     return list(study.runs[platform]) if estimator == "proposed" else ["traditional"]
 
 
-def quantities(study, estimator: str) -> pd.DataFrame:
+def quantities(study, estimator: str) -> Table:
     """The identified coefficients of a cell, ``<platform>.<run>.<coefficient>``, with their truths."""
     rows = [(f"{p}.{r}.{c}", "accel", UNITS[c[:2]], float(study.platforms[p][c]))
             for p in study.platform_names() for r in calibration_runs(study, p, estimator) for c in COEFFS]
-    # a pandas DataFrame for the runner's tables (:meth:`platcal.lighttable.Table.to_pandas`)
-    return Table({k: [r[j] for r in rows] for j, k in enumerate(("name", "group", "unit", "truth"))}).to_pandas()
+    # numpy columns: the runner builds the cell's tables without pandas (issue 22 item 4)
+    return Table({k: [r[j] for r in rows] for j, k in enumerate(("name", "group", "unit", "truth"))})
 
 
 def cross_metrics(platform: str, cal: str, ev: str, before, after, after_truth) -> dict:

@@ -7,8 +7,6 @@ sensors; a Lie-derivative rank test and a covariance check that accept or refuse
 
 from ...lighttable import Table
 from ...rig import Rig
-from .campaign import CAMPAIGN
-from .commands import COMMANDS, OPTIONS, sizes
 from .config import load_config
 from .estimators import ESTIMATORS
 from .filter import position_information
@@ -25,8 +23,10 @@ def catalogue():
                   "unit": [unit_of(n) for n in names], "truth": truth_vector()}).to_pandas()
 
 
+# the command line's and the campaign's modules by path (imported when first read, platcal.rig.LAZY_FIELDS):
+# a Monte Carlo cell registers the rig and imports neither (issue 22 item 4)
 RIG = Rig(name="multiposition", title="1 g multi-position self-test, 27-state EKF with gimbal angle sensors",
-          spec="multiposition-1g.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
+          spec="multiposition-1g.md", load_config=load_config, commands=f"{__name__}.commands:COMMANDS", catalogue=catalogue,
           estimators=tuple(ESTIMATORS), extras={"information": position_information, "claims": f"{__name__}.claims"},
-          montecarlo=MultipositionMonteCarlo(), options=OPTIONS, sizes=sizes,
-          campaign=CAMPAIGN)
+          montecarlo=MultipositionMonteCarlo(), options=f"{__name__}.commands:OPTIONS", sizes=f"{__name__}.commands:sizes",
+          campaign=f"{__name__}.campaign:CAMPAIGN")

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ...errors import InputError
-from ...mapping import with_mapping_schema
+from ...mapping_keys import with_mapping_schema
 from ...schema import load_schema, validate
 from ...scheme import TABLE1_POSITIONS, Scheme
 from .estimators import check_estimator, choice_from_filter

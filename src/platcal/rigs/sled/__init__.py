@@ -13,7 +13,6 @@ import numpy as np
 
 from ...lighttable import Table
 from ...rig import Rig
-from .commands import COMMANDS, OPTIONS, sizes
 from .config import load_config
 from .montecarlo import SledMonteCarlo
 
@@ -27,6 +26,9 @@ def catalogue():
                   "truth": np.full(len(rows), np.nan)}).to_pandas()
 
 
+# the command line's module by path (imported when first read, platcal.rig.LAZY_FIELDS): a Monte
+# Carlo cell registers the rig and does not import it (issue 22 item 4)
 RIG = Rig(name="sled", title="rocket-sled one-dimensional motion constraint, 6/7-state run + ZUPT filters",
-          spec="rocket-sled.md", load_config=load_config, commands=COMMANDS, catalogue=catalogue,
-          extras={"claims": f"{__name__}.claims"}, estimators=("run6", "run7"), montecarlo=SledMonteCarlo(), options=OPTIONS, sizes=sizes)
+          spec="rocket-sled.md", load_config=load_config, commands=f"{__name__}.commands:COMMANDS", catalogue=catalogue,
+          extras={"claims": f"{__name__}.claims"}, estimators=("run6", "run7"), montecarlo=SledMonteCarlo(),
+          options=f"{__name__}.commands:OPTIONS", sizes=f"{__name__}.commands:sizes")

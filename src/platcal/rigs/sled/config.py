@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import InputError
-from ...mapping import with_mapping_schema
+from ...mapping_keys import with_mapping_schema
 from ...schema import load_schema, validate
 
 G = 9.80665

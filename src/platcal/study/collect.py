@@ -1,0 +1,27 @@
+"""The collect step of the Monte Carlo sweep: a rig's cells into its study-wide tidy tables.
+
+Apart from :mod:`platcal.study.montecarlo` because it works on pandas DataFrames, and a cell job,
+which imports the runner, loads no pandas (issue 22 item 4: some 0.3 s of every cell's start).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from .montecarlo import CELL
+
+
+def collect(coef_files, runs_files, timing_files) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """Concatenate the cells' files into sorted study-wide tables (order-independent)."""
+    keys = CELL + ["replicate"]
+    coef = pd.concat([pd.read_parquet(f) for f in coef_files], ignore_index=True)
+    coef["_i"] = coef.groupby(keys, sort=False).cumcount()  # keeps the rig's quantity order
+    coef = coef.sort_values(keys + ["_i"], kind="stable").drop(columns="_i").reset_index(drop=True)
+    runs = pd.concat([pd.read_parquet(f) for f in runs_files], ignore_index=True)
+    runs = runs.sort_values(keys, kind="stable").reset_index(drop=True)
+    timing = pd.DataFrame([json.loads(Path(f).read_text()) for f in timing_files])
+    timing = timing.sort_values(CELL, kind="stable").reset_index(drop=True)
+    return coef, runs, timing

@@ -418,18 +418,13 @@ def rk4_jac_sc(ang, coef, fr3, h, params, out, phi_a, phi_g, scratch):
 
     Writes ``out`` (3,) rad, ``phi_a`` (3, 3) and ``phi_g`` (3, 30) over :data:`GYRO_COLS`.
     """
-    rk4_jac_sc_trig(np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]), np.sin(ang[2]),
-                    np.cos(ang[2]), ang, coef, fr3, h, params, out, phi_a, phi_g, scratch)
-
-
-@njit(cache=True, inline="always")
-def rk4_jac_sc_trig(sa, ca, sb, cb, sg, cg, ang, coef, fr3, h, params, out, phi_a, phi_g, scratch):
-    """:func:`rk4_jac_sc` with the sines and cosines of ``ang`` (rad) at hand (a covariance-only
-    EKF has them from the previous instant's outputs, docs/centrifuge-model.md §10)."""
     k, ka, kg, v = scratch
     g = params[P_G]
     wn = params[P_OMEGA_N]
     wu = params[P_OMEGA_U]
+    sa, ca = np.sin(ang[0]), np.cos(ang[0])
+    sb, cb = np.sin(ang[1]), np.cos(ang[1])
+    sg, cg = np.sin(ang[2]), np.cos(ang[2])
     for s in range(4):
         fs = 0 if s == 0 else (1 if s < 3 else 2)
         if s == 0:
@@ -537,14 +532,9 @@ def measure_jac_sc(ang, coef, fr0, fr1, fr2, g, out, hm, ha):
     Same model as :func:`measure_into` (eq. 13 with eq. 10); ``fr*`` is the base specific force,
     m/s^2, ``g`` m/s^2.
     """
-    measure_jac_sc_trig(np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]), np.sin(ang[2]),
-                        np.cos(ang[2]), coef, fr0, fr1, fr2, g, out, hm, ha)
-
-
-@njit(cache=True, inline="always")
-def measure_jac_sc_trig(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, out, hm, ha):
-    """:func:`measure_jac_sc` from the sines and cosines of the angles (shared with the next
-    RK4 step when the update leaves the angles alone: the covariance-only EKF)."""
+    sa, ca = np.sin(ang[0]), np.cos(ang[0])
+    sb, cb = np.sin(ang[1]), np.cos(ang[1])
+    sg, cg = np.sin(ang[2]), np.cos(ang[2])
     c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_rp_sc(sa, ca, sb, cb, sg, cg)
     f0, f1, f2 = _force_p(c00, c01, c02, c10, c11, c12, c20, c21, c22, fr0, fr1, fr2, g)
     # d f / d alpha, d f / d beta; d f / d gamma = (f1, -f0, 0)

@@ -41,8 +41,7 @@ from numba import njit, prange
 
 from ...estimation.kalman import (cholesky_inverse, innovation_covariance, joseph_update_sparse, propagate_sparse,
                                  update_scratch)
-from .attitude import (GYRO_COLS, MEAS_COLS, P_G, make_step_scratch, measure_jac_sc, measure_jac_sc_trig,
-                       rk4_jac_sc_trig)
+from .attitude import GYRO_COLS, MEAS_COLS, P_G, make_step_scratch, measure_jac_sc, rk4_jac_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of
 from .base import broadcast_params, specific_force_into
@@ -286,17 +285,8 @@ def propagate_attitude(Pb, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_n
     """The EKF's propagation over ``dt`` s (docs/centrifuge-model.md §9): the attitude (rad) through
     RK4, P through the RK4 map's exact Jacobian (rows of the 3 attitude states), plus the angle
     random walk ``q_rate * dt``. Shared by the EKF, the IEKF and the UKF's linear step."""
-    propagate_attitude_trig(Pb, np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]), np.sin(ang[2]),
-                            np.cos(ang[2]), ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new, pa, pgyro, phi,
-                            q, Wd, blk, scratch)
-
-
-@njit(cache=True, inline="always")
-def propagate_attitude_trig(Pb, sa, ca, sb, cb, sg, cg, ang, coef, fr3, dt, pb, q_rate, dyn, pcols, pg, ang_new, pa,
-                            pgyro, phi, q, Wd, blk, scratch):
-    """:func:`propagate_attitude` with the sines and cosines of the angles ``ang`` (rad) at hand."""
     npc = pcols.shape[0]
-    rk4_jac_sc_trig(sa, ca, sb, cb, sg, cg, ang, coef, fr3, dt, pb, ang_new, pa, pgyro, scratch)
+    rk4_jac_sc(ang, coef, fr3, dt, pb, ang_new, pa, pgyro, scratch)
     for r in range(3):
         for k in range(npc - 3):
             phi[r, k] = pgyro[r, pg[k]]
@@ -375,16 +365,9 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     # unless it is the reset instant itself (filter.update_at_reset)
     t_prev = t_start
     specific_force_into(t_prev, pb, fr_now)
-    # sines and cosines of the angles, recomputed only when the angles have moved since: a
-    # covariance-only run (update_x False) leaves them alone at the update, so the next RK4
-    # step starts from the outputs' ones (the same values, one set of sin/cos a step fewer)
-    sa = ca = sb = cb = sg = cg = 0.0
-    stale = True
     for m in range(M):
-        # the coefficients move only with x (fixed in a covariance-only run)
-        if update_x or m == 0:
-            for k in range(nc):
-                coef[est_idx[k]] = xb[k]
+        for k in range(nc):
+            coef[est_idx[k]] = xb[k]
         if t[m] > t_prev:
             h = t[m] - t_prev
             # the end-of-step force is the one measured at t[m]: computed once, used twice
@@ -397,18 +380,10 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
             for r in range(3):
                 fr3[1, r] = fr_mid[r]
                 fr3[2, r] = fr_now[r]
-            if stale:
-                sa, ca, sb, cb, sg, cg = np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]), \
-                    np.sin(ang[2]), np.cos(ang[2])
-            propagate_attitude_trig(Pb, sa, ca, sb, cb, sg, cg, ang, coef, fr3, h, pb, q_rate, dyn, pcols, pg,
-                                    ang_new, pa, pgyro, phi, q, Wd, blk, scratch)
+            propagate_attitude(Pb, ang, coef, fr3, h, pb, q_rate, dyn, pcols, pg, ang_new, pa, pgyro, phi, q, Wd,
+                               blk, scratch)
             t_prev = t[m]
-            stale = True
-        if stale:
-            sa, ca, sb, cb, sg, cg = np.sin(ang[0]), np.cos(ang[0]), np.sin(ang[1]), np.cos(ang[1]), \
-                np.sin(ang[2]), np.cos(ang[2])
-            stale = False
-        measure_jac_sc_trig(sa, ca, sb, cb, sg, cg, coef, fr_now[0], fr_now[1], fr_now[2], g, out, hm, ha)
+        measure_jac_sc(ang, coef, fr_now[0], fr_now[1], fr_now[2], g, out, hm, ha)
         for r in range(3):
             for k in range(hnnz[r]):
                 src = hsrc[r, k]
@@ -455,8 +430,6 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
                 for r in range(3):
                     rec[m, r] = innov[r]
                     rec[m, 3 + r] = np.nan
-        # the update moved the angles (the EKF): the next step's sin/cos are new
-        stale = update_x
         store_history(hist_idx[m], xb, Pb, hist_x, hist_s)
     return nis, bad
 

@@ -39,9 +39,21 @@ def add_row_combinations(coef, P, rows, count, out):
     # 2-D indexing rather than row views: a view per row costs two atomic reference-count
     # updates that numba does not always prune (issue 22)
     if d == 3:
-        for k in range(count):
-            rk = rows[k]
-            c0, c1, c2 = coef[0, k], coef[1, k], coef[2, k]
+        # two rows of P per pass over out: each entry still adds its terms one by one in k
+        # order (the same numbers), with out's rows loaded and stored half as often (issue 22)
+        for k in range(0, count - 1, 2):
+            ra, rb = rows[k], rows[k + 1]
+            a0, a1, a2 = coef[0, k], coef[1, k], coef[2, k]
+            b0, b1, b2 = coef[0, k + 1], coef[1, k + 1], coef[2, k + 1]
+            for j in range(n):
+                pa = P[ra, j]
+                pb = P[rb, j]
+                out[0, j] = (out[0, j] + a0 * pa) + b0 * pb
+                out[1, j] = (out[1, j] + a1 * pa) + b1 * pb
+                out[2, j] = (out[2, j] + a2 * pa) + b2 * pb
+        if count % 2 == 1:
+            rk = rows[count - 1]
+            c0, c1, c2 = coef[0, count - 1], coef[1, count - 1], coef[2, count - 1]
             for j in range(n):
                 p = P[rk, j]
                 out[0, j] += c0 * p
@@ -106,7 +118,11 @@ def propagate_sparse(P, dyn, cols, phi, q, W, blk):
     n = P.shape[0]
     d = dyn.shape[0]
     m = cols.shape[0]
-    W[:, :] = 0.0
+    # a loop, not the slice fill W[:, :] = 0.0 (numba's generic slice assignment is several times
+    # slower for so small an array; issue 22)
+    for r in range(d):
+        for j in range(n):
+            W[r, j] = 0.0
     add_row_combinations(phi, P, cols, m, W)
     # the dyn-dyn block, Phi P Phi^T restricted to dyn, before P's rows are overwritten
     if d == 3:
@@ -188,13 +204,33 @@ def innovation_covariance(P, hcols, hnnz, hval, r_var, U, S):
     ``hval``, ``hnnz``) and diagonal R (``r_var``); S is exactly symmetric."""
     n = P.shape[0]
     m = hnnz.shape[0]
-    U[:, :] = 0.0
+    # U[r, j] = ((0 + c_0 P[h_0, j]) + c_1 P[h_1, j]) + ..., the terms in t order as a sum
+    # kept in a register over four terms per pass, rather than U's row loaded and stored once
+    # per term (the same operations in the same order: the same numbers; issue 22)
     for r in range(m):
-        for t in range(hnnz[r]):
-            c = hval[r, t]
-            rt = hcols[r, t]
+        nn = hnnz[r]
+        if nn == 0:
             for j in range(n):
-                U[r, j] += c * P[rt, j]
+                U[r, j] = 0.0
+        for t0 in range(0, nn, 4):
+            k = min(4, nn - t0)
+            c0 = hval[r, t0]
+            r0 = hcols[r, t0]
+            if k == 4:
+                c1, c2, c3 = hval[r, t0 + 1], hval[r, t0 + 2], hval[r, t0 + 3]
+                r1, r2, r3 = hcols[r, t0 + 1], hcols[r, t0 + 2], hcols[r, t0 + 3]
+                for j in range(n):
+                    u = 0.0 if t0 == 0 else U[r, j]
+                    u += c0 * P[r0, j]
+                    u += c1 * P[r1, j]
+                    u += c2 * P[r2, j]
+                    U[r, j] = u + c3 * P[r3, j]
+            else:
+                for t in range(t0, nn):
+                    c = hval[r, t]
+                    rt = hcols[r, t]
+                    for j in range(n):
+                        U[r, j] = (0.0 if t == 0 else U[r, j]) + c * P[rt, j]
     for r in range(m):
         for c in range(r + 1):
             s = 0.0

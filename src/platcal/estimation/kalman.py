@@ -369,6 +369,29 @@ def _correct3(x, P, innov, U, K, D, S, Sinv, update_x):
         for j in range(min(n, (i // _LANES + 1) * _LANES)):
             P[i, j] -= ((a0 * U[0, j] + a1 * U[1, j] + a2 * U[2, j])
                         + (b0 * K[0, j] + b1 * K[1, j] + b2 * K[2, j]))
-    for i in range(n):
+    mirror_lower(P)
+
+
+@njit(cache=True, inline="always")
+def mirror_lower(P):
+    """Copy the lower triangle of the square ``P`` onto its upper triangle.
+
+    Four rows of the lower triangle at a time: their entries of column j are loaded, then
+    stored as four adjacent entries of row j, so the stores go to one cache line instead of
+    four (issue 22: 0.70x the CPU time of the entry-by-entry strided copy at n = 48,
+    ``benchmarks/profile_ekf_joseph.py``); copies only, so the same numbers.
+    """
+    n = P.shape[0]
+    for i0 in range(0, n - 3, 4):
+        for j in range(i0):
+            p0, p1, p2, p3 = P[i0, j], P[i0 + 1, j], P[i0 + 2, j], P[i0 + 3, j]
+            P[j, i0] = p0
+            P[j, i0 + 1] = p1
+            P[j, i0 + 2] = p2
+            P[j, i0 + 3] = p3
+        for i in range(i0 + 1, i0 + 4):  # the 4 x 4 block on the diagonal
+            for j in range(i0, i):
+                P[j, i] = P[i, j]
+    for i in range(n - n % 4, n):
         for j in range(i):
             P[j, i] = P[i, j]

@@ -194,6 +194,8 @@ rule centrifuge_compare_cell:
         level=lambda w: compare_levels(CEN)[w.noise],
         code=lambda w: CODE_COMPUTE["centrifuge"],
     threads: 1
+    # the longest cells first, so that none is left running alone at the end
+    priority: lambda w: 5 if w.estimator in ("ukf", "ml", "ekf2") else 0
     conda:
         "../envs/platcal.yaml"
     benchmark:
@@ -295,7 +297,11 @@ rule centrifuge_design_scheme:
     params:
         model=config_provider("centrifuge", *DESIGN_KEYS),
         code=lambda w: CODE_COMPUTE["centrifuge"],
-    threads: 2
+    # one thread, started first: the GA scheme's Monte Carlo cells and the report wait for it, and
+    # a two-thread job on two cores waits for both to be free at once (it had run last, alone);
+    # one thread also runs the cells' serial EKF kernel, so nothing is compiled twice (issue 22)
+    threads: 1
+    priority: 10
     conda:
         "../envs/platcal.yaml"
     benchmark:

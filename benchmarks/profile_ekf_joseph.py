@@ -17,12 +17,12 @@ import os
 import numpy as np
 from numba import njit
 
-from platcal.estimation.kalman import (_LANES, _correct3, cholesky_inverse, innovation_covariance,
-                                       joseph_update_sparse, update_scratch)
+from platcal.estimation.kalman import (_LANES, _correct3, cholesky_inverse, gain3, innovation_covariance,
+                                       joseph_lower3, mirror_lower, update_scratch)
 from platcal.rigs.centrifuge.ekf import EstimatorInput, _structure, run_ekf
 
 from bench_filter import table1_case
-from profile_ekf import per_call
+from profile_ekf import _loop_copy, _loop_update, per_call
 
 
 @njit(cache=True)
@@ -48,67 +48,24 @@ def _loop_chol(steps, S, innov):
 
 @njit(cache=True)
 def _loop_kd(steps, U, S, Sinv, K, D):
-    """K = U S^-1 and D = U - K S, as in ``_correct3``."""
-    n = U.shape[1]
     for _ in range(steps):
-        for c in range(3):
-            s0, s1, s2 = Sinv[c, 0], Sinv[c, 1], Sinv[c, 2]
-            for j in range(n):
-                K[c, j] = s0 * U[0, j] + s1 * U[1, j] + s2 * U[2, j]
-        for c in range(3):
-            s0, s1, s2 = S[c, 0], S[c, 1], S[c, 2]
-            for j in range(n):
-                D[c, j] = U[c, j] - (s0 * K[0, j] + s1 * K[1, j] + s2 * K[2, j])
+        gain3(U, S, Sinv, K, D)
     return K[0, 0]
 
 
 @njit(cache=True)
 def _loop_lower(steps, P, U, K, D):
-    """The lower-triangle correction of ``_correct3``; P drifts (no restore), which costs the
-    same per operation (no subnormals arise)."""
-    n = P.shape[0]
+    """P drifts (no restore), which costs the same per operation (no subnormals arise)."""
     for _ in range(steps):
-        for i in range(n):
-            a0, a1, a2 = K[0, i], K[1, i], K[2, i]
-            b0, b1, b2 = D[0, i], D[1, i], D[2, i]
-            for j in range(min(n, (i // _LANES + 1) * _LANES)):
-                P[i, j] -= ((a0 * U[0, j] + a1 * U[1, j] + a2 * U[2, j])
-                            + (b0 * K[0, j] + b1 * K[1, j] + b2 * K[2, j]))
+        joseph_lower3(P, U, K, D)
     return P[0, 0]
 
 
 @njit(cache=True)
 def _loop_mirror(steps, P):
-    n = P.shape[0]
     for _ in range(steps):
-        for i in range(n):
-            for j in range(i):
-                P[j, i] = P[i, j]
+        mirror_lower(P)
     return P[0, 1]
-
-
-@njit(cache=True)
-def _loop_whole(steps, x, P, hcols, hnnz, hval, innov, r_var):
-    n = P.shape[0]
-    U, K, D, S, Sinv, nu = update_scratch(3, n)
-    Q = P.copy()
-    for _ in range(steps):
-        for i in range(n):
-            for j in range(n):
-                P[i, j] = Q[i, j]
-        joseph_update_sparse(x, P, hcols, hnnz, hval, innov, r_var, U, K, D, S, Sinv, nu, True)
-    return P[0, 0]
-
-
-@njit(cache=True)
-def _loop_restore(steps, P):
-    n = P.shape[0]
-    Q = P.copy()
-    for _ in range(steps):
-        for i in range(n):
-            for j in range(n):
-                P[i, j] = Q[i, j]
-    return P[0, 0]
 
 
 def main(argv=None) -> None:
@@ -141,10 +98,10 @@ def main(argv=None) -> None:
         ("K = U S^-1, D = U - K S", per_call(lambda m: _loop_kd(m, U, S, Sinv, K, D), s), 3 * n * 5 + 3 * n * 6),
         (f"lower-triangle correction ({entries} entries x 12)",
          per_call(lambda m: _loop_lower(m, P.copy(), U, K, D), s), 12 * entries),
-        (f"mirror ({n * (n - 1) // 2} strided stores)", per_call(lambda m: _loop_mirror(m, P.copy()), s), 0),
+        (f"mirror ({n * (n - 1) // 2} entries, mirror_lower)", per_call(lambda m: _loop_mirror(m, P.copy()), s), 0),
     ]
-    restore = per_call(lambda m: _loop_restore(m, P.copy()), s)
-    whole = per_call(lambda m: _loop_whole(m, x.copy(), P.copy(), hcols, hnnz, hval, innov, r_var), s) - restore
+    restore = per_call(lambda m: _loop_copy(m, P.copy()), s)
+    whole = per_call(lambda m: _loop_update(m, x.copy(), P.copy(), hcols, hnnz, hval, innov, r_var), s) - restore
     print(f"the measurement update of one filter step, n = {n}, one thread, CPU time of the thread, load average "
           f"{os.getloadavg()[0]:.2f}; port limit = flops / (8 per cycle x {a.ghz:g} GHz)")
     print("| part | ns per step | flops | GFLOP/s | port limit ns |")

@@ -349,6 +349,19 @@ def _correct(x, P, innov, U, K, D, S, Sinv, update_x):
 def _correct3(x, P, innov, U, K, D, S, Sinv, update_x):
     """:func:`_correct` for m = 3, the loops over the measurement written out (same numbers)."""
     n = P.shape[0]
+    gain3(U, S, Sinv, K, D)
+    if update_x:
+        i0, i1, i2 = innov[0], innov[1], innov[2]
+        for j in range(n):
+            x[j] += K[0, j] * i0 + K[1, j] * i1 + K[2, j] * i2
+    joseph_lower3(P, U, K, D)
+    mirror_lower(P)
+
+
+@njit(cache=True, inline="always")
+def gain3(U, S, Sinv, K, D):
+    """``K = U S^-1`` and ``D = U - K S`` (3, n) for m = 3 (:func:`_correct3`)."""
+    n = U.shape[1]
     for c in range(3):
         s0, s1, s2 = Sinv[c, 0], Sinv[c, 1], Sinv[c, 2]
         for j in range(n):
@@ -357,10 +370,13 @@ def _correct3(x, P, innov, U, K, D, S, Sinv, update_x):
         s0, s1, s2 = S[c, 0], S[c, 1], S[c, 2]
         for j in range(n):
             D[c, j] = U[c, j] - (s0 * K[0, j] + s1 * K[1, j] + s2 * K[2, j])
-    if update_x:
-        i0, i1, i2 = innov[0], innov[1], innov[2]
-        for j in range(n):
-            x[j] += K[0, j] * i0 + K[1, j] * i1 + K[2, j] * i2
+
+
+@njit(cache=True, inline="always")
+def joseph_lower3(P, U, K, D):
+    """``P -= K U^T + D K^T`` on the lower triangle of P (rows padded to whole vectors), m = 3
+    (:func:`_correct3`; the upper triangle is left for :func:`mirror_lower`)."""
+    n = P.shape[0]
     for i in range(n):
         a0, a1, a2 = K[0, i], K[1, i], K[2, i]
         b0, b1, b2 = D[0, i], D[1, i], D[2, i]
@@ -369,7 +385,6 @@ def _correct3(x, P, innov, U, K, D, S, Sinv, update_x):
         for j in range(min(n, (i // _LANES + 1) * _LANES)):
             P[i, j] -= ((a0 * U[0, j] + a1 * U[1, j] + a2 * U[2, j])
                         + (b0 * K[0, j] + b1 * K[1, j] + b2 * K[2, j]))
-    mirror_lower(P)
 
 
 @njit(cache=True, inline="always")

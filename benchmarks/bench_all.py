@@ -14,7 +14,8 @@ side does:
   ``ExtendedKalmanFilter`` with the rig's own compiled rate, RK4 and measurement functions
   (Phi = I + F dt + F^2 dt^2 / 2, Q = T T^T ARW^2 dt, the 6-D update with the angles wrapped);
 * sled: ``identify`` (mechanisation, run and stop filters, compensation) with its linear filter
-  ``platcal.rigs.sled.filters.kalman`` replaced by FilterPy's ``KalmanFilter`` (same Phi, Q, H, R);
+  ``platcal.rigs.sled.filters.kalman`` replaced by FilterPy's ``KalmanFilter`` (same Phi, Q, H, R;
+  F from the filter's :class:`~platcal.rigs.sled.filters.Dynamics` as one numpy array);
 * lowprec_centrifuge: ``identify_proposed`` (window means, then the 14-state filter) with its
   filter ``proposed.run_filter`` replaced by FilterPy's ``KalmanFilter`` (Joseph update, same
   Phi, H, Q, R per window).
@@ -220,6 +221,7 @@ def sled(B: int, repeat: int) -> dict:
     tp, idn = best_time(lambda: identify(cfg, sb.traj, sb.f, sb.w), repeat)
 
     def kalman_fp(Fs, z, x0, tun, T, T_nominal=None):
+        Fs = Fs.dense() if isinstance(Fs, filters.Dynamics) else Fs   # the system matrices as numpy arrays
         S, J, n = Fs.shape[0], Fs.shape[1], Fs.shape[-1]
         T = np.broadcast_to(np.asarray(T, dtype=float), (J,))
         scale = np.ones(J) if tun.per_step or T_nominal is None else T / T_nominal
@@ -255,10 +257,12 @@ def sled(B: int, repeat: int) -> dict:
     return dict(rig="sled", test=f"85.9 s at 200 Hz, run + stop filters ({J} epochs), mechanisation, compensation",
                 platcal_s=tp[0] / B, filterpy_s=tf[0], platcal_cpu_s=tp[1] / B, filterpy_cpu_s=tf[1],
                 filter_platcal_s=timed_pc.wall / B, filter_filterpy_s=timed_fp.wall,
-                max_diff_sigma=d, note="the run and stop filters (7 and 6 states) are one compiled kernel over "
-                                        "replicates and epochs, Phi = I + FT + (FT)^2/2 formed in it (FilterPy's "
-                                        "side forms it with numpy): filter_ratio; the 200 Hz mechanisation and the "
-                                        "compensation, shared by both sides, add to platcal's time")
+                max_diff_sigma=d, note="the run and stop filters (6 states by default, 7 and 6) run 4 replicates per vector "
+                                        "(SIMD lanes; F and Phi = I + FT + (FT)^2/2 formed in the kernel from the "
+                                        "mean force, Phi's zero products left out; FilterPy's side forms F and Phi "
+                                        "with numpy): filter_ratio; the 200 Hz mechanisation, epoch means and X "
+                                        "compensation, shared by both sides, are compiled loops over the replicates "
+                                        "and add to platcal's time: benchmarks/profile_sled.py")
 
 
 def lowprec_centrifuge(B: int, repeat: int) -> dict:

@@ -15,9 +15,12 @@ several processes share the machine (e.g. parallel workflow jobs)::
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
 import numba
+import numpy as np
 
 
 def max_threads() -> int:
@@ -51,3 +54,20 @@ def threads(n: int | None):
         yield get_threads()
     finally:
         numba.set_num_threads(old)
+
+
+def run_threaded(fn, n: int, threads: int | None, *args) -> None:
+    """Run ``fn(lo, hi, *args)`` over the items [0, n) split into ``threads`` contiguous chunks
+    (None or 0: every core, ``os.cpu_count()``), one Python thread each.
+
+    For kernels compiled ``nogil`` over independent items (replicates, blocks of replicates):
+    the numbers do not depend on the thread count, and there is no ``parallel=True`` compile
+    (which would cost a much longer compile).
+    """
+    threads = max(1, min(int(threads or os.cpu_count() or 1), n))
+    if threads == 1:
+        fn(0, n, *args)
+        return
+    bounds = np.linspace(0, n, threads + 1).astype(np.int64)
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(lambda i: fn(int(bounds[i]), int(bounds[i + 1]), *args), range(threads)))

@@ -297,10 +297,11 @@ def truth_table(kin) -> np.ndarray:
 
 class FineTruth:
     """The true motion of one run on the fine grid (step dt / (2 steps)), shared by every replicate
-    and variant: ``kin`` (:class:`.profile.Kinematics`) and the table ``tr`` the kernel reads."""
+    and variant: the table ``tr`` the kernel reads, from the fine grid's ``kin``
+    (:class:`.profile.Kinematics`), which is not kept (the table is all the kernel needs, and a
+    Monte Carlo cell holds the tables of the runs still to come)."""
 
     def __init__(self, kin, steps: int, dt: float, lat_deg: float):
-        self.kin = kin
         self.steps = int(steps)
         self.h = dt / self.steps
         self.tr = truth_table(kin)
@@ -320,14 +321,16 @@ class FineTruth:
 
     def navigate_lanes(self, n: int, coef: np.ndarray, gcoef: np.ndarray, eps: np.ndarray, phi0: np.ndarray,
                        acc_w: np.ndarray | None, gyro_w: np.ndarray | None, noise_of: np.ndarray,
-                       keep_phi: bool = False):
+                       keep_phi: bool = False, out: tuple | None = None):
         """K INSs over the run's ``n`` data samples in one kernel call (:func:`_navigate`), each
         with the numbers of navigating it alone: coef (K, 8) g/g, gcoef (K, 48) deg/h/g and
         deg/h/g^2, eps (K, 3) rad/s, phi0 (K, 3) rad; acc_w (S, n, 2) m/s^2 and gyro_w (S, n, 3)
         rad/s the noises lane k reads (noise_of[k]; -1 or None noises: noise-free). Returns
-        (errors (K, n, 4), phi (K, n, 3) or None, measured f (K, n, 2))."""
+        (errors (K, n, 4), phi (K, n, 3) or None, measured f (K, n, 2)); ``out``: C-contiguous
+        arrays (K, n, 4), (K, n, 2) for the errors and f (a caller's buffers reused from call to
+        call rather than fresh pages each time), None: new arrays."""
         K = len(coef)
-        err, fm = np.empty((K, n, 4)), np.empty((K, n, 2))
+        err, fm = (np.empty((K, n, 4)), np.empty((K, n, 2))) if out is None else out
         phi = np.empty((K, n, 3)) if keep_phi else np.empty((0, n, 3))
         q0 = np.stack([quaternion_of(p) for p in phi0], axis=1)
         noise_of = np.asarray(noise_of, np.int64)

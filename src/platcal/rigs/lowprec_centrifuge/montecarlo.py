@@ -48,7 +48,7 @@ from .metrics import CHANNEL, ERRORS, compensate, effect, nonlinear_effect
 from .proposed import K_SLICE, identify_proposed
 from .scenario import failed_fits, scenarios, trace_of
 from .traditional import identify_traditional
-from .truth import coeff_vector, simulate_batch
+from .truth import TruthCache, coeff_vector, simulate_batch
 
 if TYPE_CHECKING:  # annotations only: the rig's identify imports this module and loads no pandas
     import pandas as pd
@@ -170,6 +170,9 @@ def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
     est, sig, nees_sum, nis, n_blocks, skipped = [], [], np.zeros(B), np.zeros(B), 0, np.zeros(B, np.int64)
     extra = {}
     arm = study.centrifuge.arm_m
+    # each distinct run profile's true motion built once in the cell
+    truths = TruthCache(study, [(p, r) for p in study.platform_names() for r in study.run_names(p)
+                                if (r == "traditional") == (estimator == "traditional")])
     for p in study.platform_names():
         truth = coeff_vector(study, p)
         finals, floors, sens, coef = {}, {}, {}, {}
@@ -177,7 +180,8 @@ def cell_batch(study, estimator: str, seeds, replicates=None) -> ReplicateBatch:
             if (r == "traditional") != (estimator == "traditional"):
                 continue
             # the traditional run needs no floor and no unit-coefficient responses (not evaluated on)
-            rb = simulate_batch(study, p, r, seeds, replicates, floor=r != "traditional", sens=r != "traditional")
+            rb = simulate_batch(study, p, r, seeds, replicates, floor=r != "traditional", sens=r != "traditional",
+                                truths=truths)
             if r == "traditional":
                 c = identify_traditional(rb.prof.t, rb.v_ind, rb.psi, rb.prof.schedule, rb.prof.levels, arm)
                 est.append(c)

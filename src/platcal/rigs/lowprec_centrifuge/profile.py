@@ -56,8 +56,9 @@ class Kinematics:
     lat: np.ndarray     # (N,) true latitude, rad
 
     def subsample(self, step: int) -> "Kinematics":
-        """Every ``step``-th sample (the record's grid from the truth's fine grid)."""
-        return Kinematics(**{k: getattr(self, k)[::step] for k in self.__dataclass_fields__})
+        """Every ``step``-th sample (the record's grid from the truth's fine grid), as copies (not
+        views: the fine grid's arrays can then be freed)."""
+        return Kinematics(**{k: np.ascontiguousarray(getattr(self, k)[::step]) for k in self.__dataclass_fields__})
 
 
 def level_rate(level_g: float, arm_m: float) -> float:

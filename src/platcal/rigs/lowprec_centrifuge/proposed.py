@@ -123,11 +123,49 @@ def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray) -> Wind
 
 
 def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Cumulative trapezoid integral of y (N, m) from t[0]."""
-    c = np.empty_like(y)
-    c[0] = 0.0
-    np.cumsum(0.5 * np.diff(t)[:, None] * (y[1:] + y[:-1]), axis=0, out=c[1:])
+    """Cumulative trapezoid integral of y (N, m) from t[0] (:func:`_cumtrap`; the window
+    integrals of docs/lowprec-centrifuge.md §7)."""
+    c = np.empty((y.shape[0], y.shape[1]))
+    _cumtrap(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float), c)
     return c
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _cumtrap(t, y, c):
+    """c (N, m) = the cumulative trapezoid of y (N, m) over t (N,) s from 0, in one pass: the
+    operations of numpy's ``cumsum(0.5 * diff(t)[:, None] * (y[1:] + y[:-1]))`` (the first
+    term alone, then each added to the sum before it), so the same numbers bit for bit
+    (docs/lowprec-centrifuge.md §7)."""
+    for j in range(y.shape[1]):
+        c[0, j] = 0.0
+    for k in range(1, t.size):
+        h = 0.5 * (t[k] - t[k - 1])
+        for j in range(y.shape[1]):
+            term = h * (y[k, j] + y[k - 1, j])
+            c[k, j] = term if k == 1 else c[k - 1, j] + term
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _window_integrands(t, v, p_rel, cos_psi, sin_psi, u0, arm_m, f, y, c, yf, cf):
+    """One pass over a record of N samples: y (N, 4) = (VE, VN, :func:`arm_offset`) and, unless f
+    has no rows, yf (N, 4) = :func:`force_integrand` of f (N, 2) m/s^2, with their cumulative
+    trapezoids c, cf (:func:`_cumtrap`); v, p_rel (N, 2) m/s, m; cos_psi, sin_psi (N,) of the
+    unwrapped heading (numpy's, as :func:`arm_offset`); u0 (2,) and arm_m (m) as
+    :func:`arm_offset`. Each value by numpy's operations in numpy's order (bit for bit;
+    docs/lowprec-centrifuge.md §7)."""
+    force = f.shape[0] > 0
+    o0, o1 = arm_m * u0[0], arm_m * u0[1]
+    for k in range(t.size):
+        y[k, 0] = v[k, 0]
+        y[k, 1] = v[k, 1]
+        y[k, 2] = p_rel[k, 0] + o0 - arm_m * cos_psi[k]
+        y[k, 3] = p_rel[k, 1] + o1 - arm_m * sin_psi[k]
+        if force:
+            ae, an = f[k, 0] / G0, f[k, 1] / G0
+            yf[k, 0], yf[k, 1], yf[k, 2], yf[k, 3] = abs(ae), abs(an), ae * ae, an * an
+    _cumtrap(t, y, c)
+    if force:
+        _cumtrap(t, yf, cf)
 
 
 def boundary_integrals(t: np.ndarray, y: np.ndarray, c: np.ndarray, tb: np.ndarray) -> np.ndarray:
@@ -186,9 +224,15 @@ def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None):
     ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds).
     """
     win = find_windows(t, psi_u, schedule)
-    y = np.concatenate([v, arm_offset(p_rel, psi_u, np.array([np.cos(psi_u[0]), np.sin(psi_u[0])]), arm_m)], axis=1)
-    c = cumtrap(t, y)
-    yf, cf = force_terms(t, f) if force is None else force
+    # y, yf and their integrals in one compiled pass (:func:`_window_integrands`), the heading's
+    # cos and sin by numpy as :func:`arm_offset` takes them
+    n = t.size
+    y, c = np.empty((n, 4)), np.empty((n, 4))
+    yf, cf = (np.empty((n, 4)), np.empty((n, 4))) if force is None else force
+    _window_integrands(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(v, dtype=float),
+                       np.ascontiguousarray(p_rel, dtype=float), np.cos(psi_u), np.sin(psi_u),
+                       np.array([np.cos(psi_u[0]), np.sin(psi_u[0])]), float(arm_m),
+                       np.ascontiguousarray(f, dtype=float) if force is None else np.empty((0, 2)), y, c, yf, cf)
     tt, z, m = window_means(win.ts, win.te, boundary_integrals(t, y, c, win.ts), boundary_integrals(t, y, c, win.te),
                             boundary_integrals(t, yf, cf, win.ts), boundary_integrals(t, yf, cf, win.te),
                             np.interp(win.ts, t, psi_u), np.interp(win.te, t, psi_u), arm_m)
@@ -402,6 +446,33 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
                         innovations=innovations if keep_innovations else None)
 
 
+def unwrap_heading(psi: np.ndarray) -> np.ndarray:
+    """``numpy.unwrap`` of each record's heading psi (S, N) rad along its samples, bit for bit:
+    a record whose steps are all below pi (every simulated one: the arm turns far less than pi in
+    a sample) in one compiled pass (:func:`_unwrap_small_steps`), any other by numpy (the
+    windows' heading, docs/lowprec-centrifuge.md §7)."""
+    psi = np.ascontiguousarray(psi, dtype=float)
+    out = np.empty_like(psi)
+    for s in range(psi.shape[0]):
+        if not _unwrap_small_steps(psi[s], out[s]):
+            out[s] = np.unwrap(psi[s])
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _unwrap_small_steps(p, out):
+    """numpy.unwrap of p (N,) into out when every step |p[k] - p[k-1]| < pi (True), else False
+    (out partly written): numpy then adds a correction of +0.0 to every sample after the first
+    (its cumulative sum of zeros), which is done here too (it turns -0.0 into 0.0)."""
+    if p.size:
+        out[0] = p[0]
+    for k in range(1, p.size):
+        if not abs(p[k] - p[k - 1]) < np.pi:
+            return False
+        out[k] = p[k] + 0.0
+    return True
+
+
 def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float,
                       keep_innovations: bool = False) -> FilterResult:
     """Proposed method on S records: t (N,), v, p_rel (S, N, 2), psi (S, N) rad, f (N, 2) or (S, N, 2);
@@ -409,9 +480,10 @@ def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: floa
     nb = v.shape[0]
     per = []
     common = force_terms(t, f) if f.ndim == 2 else None
+    psi_u = unwrap_heading(psi)
     for s in range(nb):
         fs = f if f.ndim == 2 else f[s]
-        per.append(window_data(t, v[s], p_rel[s], np.unwrap(psi[s]), fs, schedule, arm_m, common)[1:])
+        per.append(window_data(t, v[s], p_rel[s], psi_u[s], fs, schedule, arm_m, common)[1:])
     nw = max(len(a[0]) for a in per)
     T = np.zeros((nb, nw))
     z = np.zeros((nb, nw, 4))

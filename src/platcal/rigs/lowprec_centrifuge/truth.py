@@ -35,7 +35,8 @@ from ...model.instruments import INDEX, N_FULL
 from ...records import CHUNK_ROWS
 from .config import G0, Study
 from .insim import W, FineTruth, _lanes_init, _navigate_block, quaternion_of, truth_table
-from .profile import Kinematics, Profile, build_profile, grid_gradient, kinematics, motion, profile_grid
+from .profile import (Kinematics, Profile, build_profile, grid_gradient, kinematics, motion, profile_grid,
+                      segments)
 
 ARCSEC = np.pi / 180 / 3600
 DEG_H = np.pi / 180 / 3600
@@ -145,15 +146,43 @@ def fine_truth(study: Study, platform: str, run: str) -> tuple[Profile, Kinemati
     return prof, fine.subsample(2 * steps), FineTruth(fine, steps, prof.dt, study.latitude_deg)
 
 
+class TruthCache:
+    """The true motions (:func:`fine_truth`) of the runs one Monte Carlo cell simulates (``runs``:
+    (platform, run) pairs of ``study``), each distinct profile (its segments, §3: platforms with
+    the same levels, every platform's traditional run) built once and dropped after the last run
+    that uses it, so that no more than the runs still to come are held. The runs' batches share
+    its arrays (read only). docs/lowprec-centrifuge.md §2, §12 (truth simulation)."""
+
+    def __init__(self, study: Study, runs):
+        self.study = study
+        self.left: dict = {}
+        for p, r in runs:
+            key = tuple(segments(study, p, r))
+            self.left[key] = self.left.get(key, 0) + 1
+        self.built: dict = {}
+
+    def take(self, platform: str, run: str) -> tuple[Profile, Kinematics, FineTruth]:
+        """:func:`fine_truth` of one of the runs (built at its first use)."""
+        key = tuple(segments(self.study, platform, run))
+        got = self.built.pop(key, None) or fine_truth(self.study, platform, run)
+        self.left[key] = self.left.get(key, 1) - 1
+        if self.left[key] > 0:
+            self.built[key] = got
+        return got
+
+
 def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None, keep_phi: bool = False,
-                   noise_free: bool = False, floor: bool = False, sens: bool = True) -> RunBatch:
+                   noise_free: bool = False, floor: bool = False, sens: bool = True,
+                   truths: TruthCache | None = None) -> RunBatch:
     """Simulate ``run`` of ``platform`` for every replicate SeedSequence of ``seeds`` (§2-§5, §8, §9);
     ``replicates``: their numbers (``RunBatch.seeds``; 0, 1, ... by default).
 
     ``noise_free``: no drawn residual and no noise (truth coefficients only). ``floor``: also the
     end-of-run errors of the same INS (draws, noise) with its coefficients removed
     (``RunBatch.final_floor``, the exact-coefficient compensation of §8). ``sens``: the four
-    unit-coefficient responses (``RunBatch.sens``; None without).
+    unit-coefficient responses (``RunBatch.sens``; None without). ``truths``: a :class:`TruthCache` of
+    the same ``study`` (one Monte Carlo cell) that builds the run's true motion once for every
+    run with its profile (None: built here).
 
     Every INS of the run (each replicate, its floor, the variants) is navigated as a lane of one
     kernel call per block of :data:`.insim.W` lanes (:meth:`.insim.FineTruth.navigate_lanes`),
@@ -163,7 +192,7 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
     """
     streams = [run_streams(s, study.platform_index(platform), study.run_index(platform, run)) for s in seeds]
     seeds = np.arange(len(streams)) if replicates is None else np.asarray(replicates, dtype=np.int64)
-    prof, kin, ft = fine_truth(study, platform, run)
+    prof, kin, ft = fine_truth(study, platform, run) if truths is None else truths.take(platform, run)
     n = prof.t.size
     dt = prof.dt
     res = study.residuals
@@ -198,16 +227,24 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
         coef[4 + j] = 1e-6
         lanes.append((-1, j, coef, np.zeros(N_FULL), np.zeros(3), np.zeros(3)))
     sens_out = np.empty((VARIANTS, n, 4)) if sens else None
+    # one set of block buffers (noises, errors, force) reused by every block: tens of MB that
+    # fresh arrays would take as new zeroed pages for each block
+    nbuf = min(W, len(lanes))
+    bufs = {"acc": np.empty((nbuf, n, 2)), "gyro": np.empty((nbuf, n, 3)), "err": np.empty((nbuf, n, 4)),
+            "f": np.empty((nbuf, n, 2))}
     for a in range(0, len(lanes), W):
         block = lanes[a:a + W]
         reps = sorted({ln[0] for ln in block if ln[0] >= 0 and not noise_free})
         local = {i: k for k, i in enumerate(reps)}
-        # each replicate's white noises, drawn from its stream in the scalar order (accelerometer, gyro)
-        acc_w = np.stack([rngs[i].standard_normal((n, 2)) * s_acc for i in reps]) if reps else None
-        gyro_w = np.stack([rngs[i].standard_normal((n, 3)) * s_gyro for i in reps]) if reps else None
+        # each replicate's white noises, drawn from its stream in the scalar order (accelerometer,
+        # gyro) straight into the block's arrays and scaled in place (no per-replicate temporaries
+        # stacked: the same draws and the same products)
+        acc_w = _draw_scaled([rngs[i] for i in reps], bufs["acc"][:len(reps)], s_acc) if reps else None
+        gyro_w = _draw_scaled([rngs[i] for i in reps], bufs["gyro"][:len(reps)], s_gyro) if reps else None
         e, ph, fm = ft.navigate_lanes(n, np.array([ln[2] for ln in block]), np.array([ln[3] for ln in block]),
                                       np.array([ln[4] for ln in block]), np.array([ln[5] for ln in block]),
-                                      acc_w, gyro_w, np.array([local.get(ln[0], -1) for ln in block]), keep_phi)
+                                      acc_w, gyro_w, np.array([local.get(ln[0], -1) for ln in block]), keep_phi,
+                                      out=(bufs["err"][:len(block)], bufs["f"][:len(block)]))
         for k, (i, what, *_) in enumerate(block):
             if what == "ins":
                 err[i], f_meas[i] = e[k], fm[k]
@@ -217,19 +254,36 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
                 final_floor[i] = e[k, -1]
             else:
                 sens_out[what] = e[k]
-        del e, ph, fm, acc_w, gyro_w
-    for i, rng in enumerate(rngs):
-        v_ind[i] = kin.v + err[i, :, :2]
-        p_ind[i] = kin.p - kin.p[0] + err[i, :, 2:]
-        psi[i] = kin.theta
-        if not noise_free:
-            v_ind[i] += rng.standard_normal((n, 2)) * res["velocity_noise_m_s"]
-            p_ind[i] += rng.standard_normal((n, 2)) * res["position_noise_m"]
-            psi[i] += rng.standard_normal(n) * res["heading_noise_arcsec"] * ARCSEC
+    bufs = e = ph = fm = acc_w = gyro_w = None   # the block buffers (and views of them) freed
+    # the outputs: truth + error (+ noise), every replicate at once; each replicate's noises drawn
+    # in its stream's order (velocity, position, heading) into one reused buffer
+    np.add(kin.v, err[:, :, :2], out=v_ind)
+    np.add(kin.p - kin.p[0], err[:, :, 2:], out=p_ind)
+    psi[:] = kin.theta
+    if not noise_free:
+        buf, buf1 = np.empty((n, 2)), np.empty(n)
+        for i, rng in enumerate(rngs):
+            for out, sigma in ((v_ind[i], res["velocity_noise_m_s"]), (p_ind[i], res["position_noise_m"])):
+                rng.standard_normal(out=buf)
+                buf *= sigma
+                out += buf
+            rng.standard_normal(out=buf1)
+            buf1 *= res["heading_noise_arcsec"]   # two products, in the order of the scalar draw's
+            buf1 *= ARCSEC
+            psi[i] += buf1
     draws = Draws(k0_ug=dr["k0"], scale_ppm=dr["sk"], drift_deg_h=dr["eps"], phi0_rad=dr["phi0"], gyro_g=dr["gg"])
     return RunBatch(platform=platform, run=run, seeds=seeds, coeffs=coeffs, prof=prof, kin=kin, draws=draws,
                     err=err, phi=phi, sens=sens_out, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi,
                     final_floor=final_floor)
+
+
+def _draw_scaled(rngs: list, out: np.ndarray, sigma: float) -> np.ndarray:
+    """``out`` (len(rngs), ...) C-contiguous: one block of standard normals from each generator in
+    turn, times ``sigma`` (the noises of a block of lanes, :func:`simulate_batch`)."""
+    for k, rng in enumerate(rngs):
+        rng.standard_normal(out=out[k])
+    out *= sigma
+    return out
 
 
 @dataclass

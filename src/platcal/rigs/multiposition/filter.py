@@ -27,7 +27,7 @@ in SIMD lanes (:func:`_ekf_block`: P packed, every covariance operation one vect
 the block; issue 22 item 2), the same operations in the same order as the one-replicate reference
 kernel :func:`_ekf_one`, so the numbers are its numbers bit for bit and a replicate's numbers do not
 depend on its lane, the batch or the thread count; blocks run in ``nogil`` compiled loops on a
-thread pool (see :func:`_threaded`).
+thread pool (see :func:`platcal.parallel.run_threaded`).
 
 **Covariance-only** (§8, §14): the same kernel with ``update_x = False`` started at the truth:
 the state then follows the noise-free truth trajectory and F, H are evaluated on it.
@@ -36,8 +36,6 @@ the state then follows the noise-free truth trajectory and F, H are evaluated on
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +47,7 @@ from ...estimation.kalman import joseph_update_sparse, propagate_sparse, update_
 from ...estimation.lanes import (LANES, NoAliasCompiler, cholesky_inverse_lanes, innovation_covariance_lanes,
                                  joseph_correct_lanes, packed_index, propagate_rows_lanes, slp_vectorize)
 from ...model.frames import ARCSEC, DEG
+from ...parallel import run_threaded
 from ...study.sweep import replicate_seed
 from .model import gyro_coefs, layout_index, make_scratch, meas_k, rate_k, rk4_k, rk4_s
 
@@ -84,21 +83,6 @@ def _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, phi_init, wnoise, out_phi,
 def _simulate_range(lo, hi, phi0s, coef, lay, wn, wu, h, n_sub, init, w, phi, z):
     for r in range(lo, hi):
         _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, init[r], w[r], phi[r], z[r])
-
-
-def _threaded(fn, n: int, threads: int | None, *args) -> None:
-    """Run ``fn(lo, hi, *args)`` over [0, n) split into ``threads`` contiguous chunks.
-
-    The kernels are compiled ``nogil`` and replicates are independent, so the numbers do not
-    depend on the thread count (numba's ``parallel=True`` would cost a much longer compile).
-    """
-    threads = max(1, min(int(threads or os.cpu_count() or 1), n))
-    if threads == 1:
-        fn(0, n, *args)
-        return
-    bounds = np.linspace(0, n, threads + 1).astype(np.int64)
-    with ThreadPoolExecutor(threads) as pool:
-        list(pool.map(lambda i: fn(int(bounds[i]), int(bounds[i + 1]), *args), range(threads)))
 
 
 def replicate_seeds(cfg, scheme_name: str, replicates) -> list[np.random.SeedSequence]:
@@ -143,7 +127,7 @@ def simulate(cfg, scheme, seeds, noise_free: bool = False, ext: int = 0, truth=N
         init, w, v = np.zeros((R, K, 3)), np.zeros((R, K, ns - 1, 3)), np.zeros((R, K, ns, 6))
     else:
         init, w, v = draw_noise(cfg, _seed_sequences(cfg, scheme, seeds), K, ns)
-    _threaded(_simulate_range, R, threads, phi0s, coef, lay, wn, wu, cfg.ts, cfg.n_sub, init, w, phi, z)
+    run_threaded(_simulate_range, R, threads, phi0s, coef, lay, wn, wu, cfg.ts, cfg.n_sub, init, w, phi, z)
     z += v
     _check_gimbal(cfg, scheme, phi0s, phi)
     return t, phi, z
@@ -644,7 +628,7 @@ def _ekf_lanes(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols,
         raise ValueError(f"angles {phi0s.shape}, outputs {Z.shape} and times {tk.shape} do not match {R} replicates")
     rec = np.zeros((1, 0, 0, 12)) if rec is None else rec
     with slp_vectorize():  # a first compile (or a cache miss) compiles the lanes as vectors
-        _threaded(_ekf_blocks, nblk, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols,
+        run_threaded(_ekf_blocks, nblk, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols,
                   bool(update_x), int(iters), float(tol), sums, rec, packed_index(X.shape[1]))
     return sums
 

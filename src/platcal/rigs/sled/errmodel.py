@@ -30,29 +30,84 @@ def skew(a: np.ndarray) -> np.ndarray:
                      np.stack([-a[..., 1], a[..., 0], z], -1)], -2)
 
 
+RUN7_KIND, RUN6_KIND, STOP_KIND = 0, 1, 2
+"""The system matrices of :func:`fill_F`: the 7- and 6-state run filters (§6.1), the stop filter (§6.2)."""
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def fill_F(kind, f0, f1, f2, w, wc, F, i):
+    """The nonzero entries of one system matrix into ``F[i]`` (its other entries must be 0): run
+    (§5, §6.1; ``kind`` RUN7_KIND or RUN6_KIND) or stop (§6.2, STOP_KIND) at the computed specific
+    force (f0, f1, f2) (m/s^2), attitude-block rate ``w`` and Coriolis rate ``wc`` (3,) rad/s
+    (:func:`run_F`, :func:`stop_F`). One definition for the numpy builders and the filter
+    kernel, which forms each epoch's F here rather than reading a stored (S, J, n, n) array."""
+    if kind == STOP_KIND:
+        F[i, 1, 0] = 1.0
+        F[i, 0, 4] = f2
+        F[i, 0, 2] = -2.0 * wc[2]
+        F[i, 3, 2] = 1.0
+        F[i, 2, 5] = -f2
+        F[i, 2, 0] = 2.0 * wc[2]
+        F[i, 4, 5] = w[2]
+        F[i, 5, 4] = -w[2]
+    elif kind == RUN7_KIND:
+        F[i, 0, 2] = 2.0 * wc[0]
+        F[i, 0, 4] = f2
+        F[i, 0, 6] = -f0
+        F[i, 1, 0] = 1.0
+        F[i, 2, 0] = -2.0 * wc[0]
+        F[i, 2, 5] = f0
+        F[i, 2, 4] = -f1
+        F[i, 3, 2] = 1.0
+        # -[w x] on [phi_x, phi_y, phi_z]
+        F[i, 4, 5] = w[2]
+        F[i, 4, 6] = -w[1]
+        F[i, 5, 4] = -w[2]
+        F[i, 5, 6] = w[0]
+        F[i, 6, 4] = w[1]
+        F[i, 6, 5] = -w[0]
+    else:  # the 7-state matrix without phi_x's row and column
+        F[i, 0, 2] = 2.0 * wc[0]
+        F[i, 0, 5] = -f0
+        F[i, 1, 0] = 1.0
+        F[i, 2, 0] = -2.0 * wc[0]
+        F[i, 2, 4] = f0
+        F[i, 3, 2] = 1.0
+        F[i, 4, 5] = w[0]
+        F[i, 5, 4] = -w[0]
+
+
+@nb.njit(cache=True)
+def _fill_all(kind, f, w, wc, F):
+    for i in range(F.shape[0]):
+        fill_F(kind, f[i, 0], f[i, 1], f[i, 2], w[i], wc[i], F, i)
+
+
+def kind_states(kind: int) -> int:
+    """The state count of a :func:`fill_F` kind."""
+    return 7 if kind == RUN7_KIND else 6
+
+
+def system_matrices(kind: int, f: np.ndarray, w: np.ndarray, wc: np.ndarray | None = None) -> np.ndarray:
+    """:func:`fill_F` batched: F (…, n, n) of the forces ``f`` (…,3), rates ``w``, ``wc`` (…,3)
+    broadcast against them (``wc`` default ``w``)."""
+    f = np.asarray(f, dtype=float)
+    w = np.broadcast_to(np.asarray(w, dtype=float), f.shape)
+    wc = w if wc is None else np.broadcast_to(np.asarray(wc, dtype=float), f.shape)
+    n = kind_states(kind)
+    F = np.zeros((int(np.prod(f.shape[:-1], dtype=np.int64)), n, n))
+    _fill_all(kind, np.ascontiguousarray(f.reshape(-1, 3)), np.ascontiguousarray(w.reshape(-1, 3)),
+              np.ascontiguousarray(wc.reshape(-1, 3)), F)
+    return F.reshape(f.shape[:-1] + (n, n))
+
+
 def run_F(f: np.ndarray, w: np.ndarray, wc: np.ndarray | None = None, states: int = 7) -> np.ndarray:
     """Run-filter system matrix (§5, §6.1), shape (…, n, n), n = ``states``.
 
     δv̇_y = f_z φ_x − f_x φ_z + 2 ω_x δv_z;  δv̇_z = f_x φ_y − f_y φ_x − 2 ω_x δv_y;
     δṙ = δv;  φ̇ = −[ω×] φ.
     """
-    f = np.asarray(f, dtype=float)
-    w = np.broadcast_to(np.asarray(w, dtype=float), f.shape)
-    wc = w if wc is None else np.broadcast_to(np.asarray(wc, dtype=float), f.shape)
-    F = np.zeros(f.shape[:-1] + (7, 7))
-    F[..., 0, 2] = 2 * wc[..., 0]
-    F[..., 0, 4] = f[..., 2]
-    F[..., 0, 6] = -f[..., 0]
-    F[..., 1, 0] = 1.0
-    F[..., 2, 0] = -2 * wc[..., 0]
-    F[..., 2, 5] = f[..., 0]
-    F[..., 2, 4] = -f[..., 1]
-    F[..., 3, 2] = 1.0
-    F[..., 4:7, 4:7] = -skew(w)
-    if states == 7:
-        return F
-    keep = [0, 1, 2, 3, 5, 6]
-    return F[..., keep, :][..., :, keep]
+    return system_matrices(RUN7_KIND if states == 7 else RUN6_KIND, f, w, wc)
 
 
 def stop_F(f: np.ndarray, w: np.ndarray, wc: np.ndarray | None = None) -> np.ndarray:
@@ -61,19 +116,7 @@ def stop_F(f: np.ndarray, w: np.ndarray, wc: np.ndarray | None = None) -> np.nda
     δṙ_y = δv_y; δv̇_y = f_z φ_x − 2 ω_z δv_x; δṙ_x = δv_x; δv̇_x = −f_z φ_y + 2 ω_z δv_y;
     φ̇_x = ω_z φ_y; φ̇_y = −ω_z φ_x.
     """
-    f = np.asarray(f, dtype=float)
-    w = np.broadcast_to(np.asarray(w, dtype=float), f.shape)
-    wc = w if wc is None else np.broadcast_to(np.asarray(wc, dtype=float), f.shape)
-    F = np.zeros(f.shape[:-1] + (6, 6))
-    F[..., 1, 0] = 1.0
-    F[..., 0, 4] = f[..., 2]
-    F[..., 0, 2] = -2 * wc[..., 2]
-    F[..., 3, 2] = 1.0
-    F[..., 2, 5] = -f[..., 2]
-    F[..., 2, 0] = 2 * wc[..., 2]
-    F[..., 4, 5] = w[..., 2]
-    F[..., 5, 4] = -w[..., 2]
-    return F
+    return system_matrices(STOP_KIND, f, w, wc)
 
 
 def propagate_full(fl: np.ndarray, omega_ie: np.ndarray, phi0: np.ndarray, nabla: np.ndarray,

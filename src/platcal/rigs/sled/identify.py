@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numba as nb
 import numpy as np
 
 from ...errors import InputError
@@ -22,6 +23,7 @@ from ...estimation.fit import FitCheck, fit_check
 from ...lighttable import Table
 from ...logs.calibration import Calibration, calibration_of
 from ...logs.increments import sample_intervals
+from ...parallel import get_threads, run_threaded
 from .config import ARCSEC, DEG_H, G, SledConfig
 from .errmodel import propagate_run_model
 from ...records import nearest_samples
@@ -109,11 +111,45 @@ def x_corrections(fl: np.ndarray, phi_hat: np.ndarray, dt, start: tuple | None =
     (S,N,3) (§7, eqs. 20-21: ``Δa_x = f_y φ̂_z − f_z φ̂_y`` summed by the INS's rules), from
     ``start`` (dv, dr) (S,) each at t_0 (default 0: a streamed record's next block continues from
     the last values of the one before, the same sums as one block)."""
-    da = fl[..., 1] * phi_hat[..., 2] - fl[..., 2] * phi_hat[..., 1]
-    dv0, dr0 = (np.zeros(da.shape[0]), np.zeros(da.shape[0])) if start is None else start
-    dv = np.cumsum(np.concatenate([np.asarray(dv0, float)[:, None], da * dt], axis=1), axis=1)   # at t_0 … t_N
-    dr = np.cumsum(np.concatenate([np.asarray(dr0, float)[:, None], (dv[:, :-1] + dv[:, 1:]) * 0.5 * dt], axis=1),
-                   axis=1)
+    phi_hat = np.asarray(phi_hat, dtype=float)
+    N = fl.shape[1]
+    if phi_hat.shape[1] > 0 and phi_hat.strides[1] == 0:   # one attitude held over the samples
+        return x_corrections_held(fl, phi_hat[:, :1], np.zeros(N, dtype=np.int64), dt, start)
+    return x_corrections_held(fl, phi_hat, np.arange(N), dt, start)
+
+
+@nb.njit(cache=True, nogil=True)
+def _x_corrections(lo, hi, fl, est, hold, dts, dv0, dr0, dv, dr):
+    """:func:`x_corrections_held` for seeds ``lo .. hi - 1``: the cumulative sums of numpy's
+    ``cumsum`` (sequential), each term formed as there, so the same numbers."""
+    for s in range(lo, hi):
+        v = dv0[s]
+        x = dr0[s]
+        dv[s, 0] = v
+        dr[s, 0] = x
+        for k in range(fl.shape[1]):
+            p = hold[k]
+            da = fl[s, k, 1] * est[s, p, 2] - fl[s, k, 2] * est[s, p, 1]
+            nv = v + da * dts[k]
+            x = x + (v + nv) * 0.5 * dts[k]
+            v = nv
+            dv[s, k + 1] = v
+            dr[s, k + 1] = x
+
+
+def x_corrections_held(fl: np.ndarray, est: np.ndarray, hold: np.ndarray, dt,
+                       start: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`x_corrections` with sample k's attitude errors ``est[:, hold[k]]`` (``est`` (S,M,3)
+    rad, ``hold`` (N,) int: the estimate each sample holds, :func:`phi_hold`), without forming
+    the (S,N,3) array; one compiled loop per seed, the seeds over the numba threads set."""
+    fl = np.ascontiguousarray(fl, dtype=np.float64)
+    S, N = fl.shape[:2]
+    dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
+    dv0, dr0 = (np.zeros(S), np.zeros(S)) if start is None else (
+        np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=np.float64), (S,))) for v in start)
+    dv, dr = np.empty((S, N + 1)), np.empty((S, N + 1))
+    run_threaded(_x_corrections, S, get_threads(), fl, np.ascontiguousarray(est, dtype=np.float64),
+                 np.ascontiguousarray(hold, dtype=np.int64), dts, dv0, dr0, dv, dr)
     return dv, dr
 
 
@@ -131,19 +167,27 @@ def compensated_track(cfg: SledConfig, f: np.ndarray, w: np.ndarray, t: np.ndarr
                   "x_m": r[0, :n, 0] - dr[0, :n], "v_m_s": v[0, :n, 0] - dv[0, :n]}).to_pandas()
 
 
-def phi_per_sample(run: FilterOut, states: int, epochs: np.ndarray, j_stop: int, n: int, mode: str) -> np.ndarray:
-    """φ̂(t_k) for the X compensation (§7, D6): realtime = latest run estimate held (zero-order
-    hold; the final one after the stop), post = the final run estimate from t = 0. ``epochs``:
-    the epochs' sample indices."""
+def phi_hold(run: FilterOut, states: int, epochs: np.ndarray, j_stop: int, n: int,
+             mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """The run filter's φ̂ [φ_x, φ_y, φ_z] at its epochs (S,j_stop+1,3) rad and, for each of
+    ``n`` samples, the epoch whose estimate the X compensation holds there (n,) (§7, D6):
+    realtime = the latest (zero-order hold; the final one after the stop), post = the final one
+    from t = 0. ``epochs``: the epochs' sample indices."""
     S = run.x.shape[0]
-    cols = phi_columns(states)
     est = np.zeros((S, j_stop + 1, 3))
-    for name, i in cols.items():
+    for name, i in phi_columns(states).items():
         est[..., "xyz".index(name[-1])] = run.x[:, :, i]
     if mode == "post":
-        return np.broadcast_to(est[:, -1:, :], (S, n, 3))
-    j = np.minimum(np.searchsorted(epochs, np.arange(n), side="right") - 1, j_stop)
-    return est[:, j, :]
+        return est, np.full(n, j_stop, dtype=np.int64)
+    return est, np.minimum(np.searchsorted(epochs, np.arange(n), side="right") - 1, j_stop)
+
+
+def phi_per_sample(run: FilterOut, states: int, epochs: np.ndarray, j_stop: int, n: int, mode: str) -> np.ndarray:
+    """φ̂(t_k) (S,n,3) for the X compensation, :func:`phi_hold`'s estimates per sample."""
+    est, hold = phi_hold(run, states, epochs, j_stop, n, mode)
+    if mode == "post":
+        return np.broadcast_to(est[:, -1:, :], (est.shape[0], n, 3))
+    return est[:, hold, :]
 
 
 def run_attitude(run: FilterOut, states: int) -> tuple[np.ndarray, np.ndarray]:
@@ -184,8 +228,8 @@ def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
     stop = stop_filter(cfg, fl, v, r, j_stop, j_end, run.x[:, -1, iy], run.P[:, iy, iy], ep)
     phi_b = np.nan_to_num(phi_run)
     r_model = propagate_run_model(fl[:, :n_stop], cfg.omega_ie, phi_b, cfg.states, dts[:n_stop])
-    xc = {mode: compensate_x(fl, r[..., 0], v[..., 0], phi_per_sample(run, cfg.states, ep.k, j_stop, N, mode), dts)
-          for mode in ("realtime", "post")}
+    xc = {mode: r[..., 0] - x_corrections_held(fl, *phi_hold(run, cfg.states, ep.k, j_stop, N, mode), dts)[1][:, :N]
+          for mode in ("realtime", "post")}   # compensate_x, without forming φ̂ per sample
     other = "post" if cfg.compensation == "realtime" else "realtime"
     nabla = G * (run.x[:, -1, iy] - stop.x[:, -1, 5])
     return Identification(cfg=cfg, traj=traj, v=v, r=r, fl=fl, run=run, stop=stop, j_stop=j_stop, j_end=j_end,

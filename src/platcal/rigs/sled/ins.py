@@ -12,7 +12,8 @@ dt_k is the interval sample k covers, t_{k+1} − t_k of the record's own times 
 §12, "Recorded times"): a jittered or gapped record is integrated over its actual intervals, the
 sample before a small gap held over it (zero-order hold, as the IMU's sample-and-hold would).
 
-One numba kernel loops over seeds (leading axis) and samples.
+One numba kernel loops over seeds (leading axis) and samples, the seeds split over the numba
+threads set (:func:`platcal.parallel.set_threads`; the numbers do not depend on them).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from ...parallel import get_threads, run_threaded
 from .config import G
 
 
@@ -53,16 +55,17 @@ def _initial_attitude(phi0, C):
         _rodrigues(-phi0[s, 0], -phi0[s, 1], -phi0[s, 2], C[s])
 
 
-@nb.njit(cache=True)
-def _mechanise(f, w, C, vr, wie, g, dts, v_out, r_out, fl_out):
-    """Navigate the samples f, w (S,N,3) from the state ``C`` (S,3,3) attitude and ``vr`` (S,6)
-    [v, r], both updated in place to the state after the last sample (a record's next block
-    continues from it: the same operations as one call over the whole record)."""
-    S, N = f.shape[0], f.shape[1]
+@nb.njit(cache=True, nogil=True)
+def _mechanise(lo, hi, f, w, C, vr, wie, g, dts, v_out, r_out, fl_out):
+    """Navigate the samples f, w (S,N,3) of seeds ``lo .. hi - 1`` from the state ``C`` (S,3,3)
+    attitude and ``vr`` (S,6) [v, r], both updated in place to the state after the last sample
+    (a record's next block continues from it: the same operations as one call over the whole
+    record). Seeds are independent: threads take contiguous ranges of them."""
+    N = f.shape[1]
     E = np.empty((3, 3))
     D = np.empty((3, 3))
     T = np.empty((3, 3))
-    for s in range(S):
+    for s in range(lo, hi):
         Cs = C[s]
         v0, v1, v2, r0, r1, r2 = vr[s, 0], vr[s, 1], vr[s, 2], vr[s, 3], vr[s, 4], vr[s, 5]
         v_out[s, 0, 0], v_out[s, 0, 1], v_out[s, 0, 2] = v0, v1, v2
@@ -127,7 +130,7 @@ class Navigator:
         r = np.empty((S, N + 1, 3))
         fl = np.empty((S, N, 3))
         dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
-        _mechanise(f, w, self.C, self.vr, self.wie, G, dts, v, r, fl)
+        run_threaded(_mechanise, S, get_threads(), f, w, self.C, self.vr, self.wie, G, dts, v, r, fl)
         return v, r, fl
 
 

@@ -35,8 +35,8 @@ from ...estimation.fit import Moments
 from ...plausibility import refuse_recognised_moments
 from ...records import iter_table, record_writer
 from .config import G, SledConfig
-from .errmodel import propagate_run_model, stop_F
-from .filters import Epochs, FilterOut, KalmanRun, epoch_mean, run_filter, stop_tuning
+from .errmodel import propagate_run_model
+from .filters import Dynamics, Epochs, FilterOut, KalmanRun, epoch_mean, run_filter, stop_tuning
 from .identify import (Identification, Tail, end_errors, epoch_samples, gyro_offsets, gyro_rate_sigma,
                        phi_columns, phi_per_sample, run_attitude, stop_index, x_corrections)
 from .ins import Navigator
@@ -357,7 +357,7 @@ def _stop_part(cfg: SledConfig, st: dict, k, T, j_end: int, s0: int, fl, v, r, d
     j1 = min(j1, j_end)
     if j1 > j0:
         ep = Epochs(k=k[j0:j1 + 1] - base, T=T[j0:j1], dts=bd)
-        Fs = stop_F(epoch_mean(bfl, ep, 0, j1 - j0), cfg.omega_ie)
+        Fs = Dynamics.stop(epoch_mean(bfl, ep, 0, j1 - j0), cfg.omega_ie)
         kk = ep.k[1:]
         z = np.stack([bv[:, kk, 1], br[:, kk, 1], bv[:, kk, 0], br[:, kk, 0] - st["rx_stop"][:, None]], axis=-1)
         xs, sig, _, _ = st["kf"].step(Fs, z, T[j0:j1])

@@ -24,7 +24,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 JOBS = {
-    # what the wrappers in workflow/scripts run, after set_threads(threads) when threads is given
+    # what the wrappers in workflow/scripts run; at the rule's threads (set_threads here, the job's
+    # OMP_NUM_THREADS through platcal/__init__.py in the workflow) when threads is given
     "campaign": ("from platcal.study.campaign import campaign_content, run_campaign\n"
                  "run_campaign(campaign_content('config/campaign.yaml'), OUT)\n"),
     "table1": ("import yaml\nfrom platcal.cli import main\nfrom platcal.io import read_config\n"

@@ -90,3 +90,19 @@ def test_platcal_names_its_locators():
     for entry in platcal._LOCATORS.split(","):
         if entry.startswith("platcal."):
             assert issubclass(getattr(kc, entry.rsplit(".", 1)[1]), kc._PackageStamp), entry
+
+
+@pytest.mark.parametrize("env, expected", [
+    ({"OMP_NUM_THREADS": "1"}, 1),                                # a one-thread Snakemake job
+    ({"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "2"}, 2),       # numba's own variable wins
+    ({"OMP_NUM_THREADS": "abc"}, None),                           # not a count: numba's default
+])
+def test_numba_threads_follow_the_jobs_omp_threads(env, expected):
+    """A job's numba pool is sized by its OMP_NUM_THREADS (platcal/__init__.py), which Snakemake
+    sets to the rule's threads; NUMBA_NUM_THREADS, when set, is numba's own and wins."""
+    base = {k: v for k, v in os.environ.items() if k not in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS")}
+    code = "import platcal, numba; print(numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_DEFAULT_NUM_THREADS)"
+    out = subprocess.run([sys.executable, "-c", code], env={**base, **env, "PYTHONPATH": str(SRC)},
+                         capture_output=True, text=True, check=True).stdout.split()
+    got, default = int(out[0]), int(out[1])
+    assert got == (default if expected is None else expected)

@@ -13,3 +13,11 @@ _LOCATORS = ("platcal.kernelcache.PackageUserProvidedLocator,platcal.kernelcache
 os.environ.setdefault("NUMBA_CACHE_LOCATOR_CLASSES", _LOCATORS)
 if "numba.core.config" in sys.modules and not sys.modules["numba.core.config"].CACHE_LOCATOR_CLASSES:
     sys.modules["numba.core.config"].CACHE_LOCATOR_CLASSES = _LOCATORS  # numba imported before us
+
+# numba's thread pool defaults to every core. A job given N threads runs its kernels on N: the
+# job's OMP_NUM_THREADS (Snakemake sets it to the rule's threads, as BLAS and OpenMP read it) sizes
+# the pool unless NUMBA_NUM_THREADS is set; a later --threads above it is clipped to it
+# (platcal.parallel.set_threads). Before numba is imported only: the pool is fixed at its import.
+_omp = os.environ.get("OMP_NUM_THREADS", "").strip()
+if _omp.isdigit() and int(_omp) > 0 and "NUMBA_NUM_THREADS" not in os.environ and "numba" not in sys.modules:
+    os.environ["NUMBA_NUM_THREADS"] = _omp

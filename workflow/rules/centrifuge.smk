@@ -194,8 +194,6 @@ rule centrifuge_compare_cell:
         level=lambda w: compare_levels(CEN)[w.noise],
         code=lambda w: CODE_COMPUTE["centrifuge"],
     threads: 1
-    # the longest cells first, so that none is left running alone at the end
-    priority: lambda w: 5 if w.estimator in ("ukf", "ml", "ekf2") else 0
     conda:
         "../envs/platcal.yaml"
     benchmark:

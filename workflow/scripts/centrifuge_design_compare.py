@@ -1,10 +1,8 @@
 """Snakemake wrapper: table1, classical, random and GA schemes by criterion and Monte Carlo error."""
 from pathlib import Path
 
-from platcal.parallel import set_threads
 from platcal.rig import rig_config
 from platcal.rigs.centrifuge.design_study import compare_job
 
 sm = snakemake  # noqa: F821
-set_threads(sm.threads)
 compare_job(rig_config(sm.config, "centrifuge"), list(sm.input.schemes), Path(sm.output.summary).parent, log_path=sm.log[0])

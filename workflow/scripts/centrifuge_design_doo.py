@@ -1,10 +1,8 @@
 """Snakemake wrapper: D_OO aliasing (eq. 22) and the two-g-level 51-state filter."""
 from pathlib import Path
 
-from platcal.parallel import set_threads
 from platcal.rig import rig_config
 from platcal.rigs.centrifuge.design_study import doo_job
 
 sm = snakemake  # noqa: F821
-set_threads(sm.threads)
 doo_job(rig_config(sm.config, "centrifuge"), sm.input.scheme, Path(sm.output.covariance).parent, log_path=sm.log[0])

@@ -1,10 +1,8 @@
 """Snakemake wrapper: GA schemes for N positions, criterion and Monte Carlo error against N."""
 from pathlib import Path
 
-from platcal.parallel import set_threads
 from platcal.rig import rig_config
 from platcal.rigs.centrifuge.design_study import npos_job
 
 sm = snakemake  # noqa: F821
-set_threads(sm.threads)
 npos_job(rig_config(sm.config, "centrifuge"), list(sm.input.schemes), Path(sm.output.table).parent, log_path=sm.log[0])

@@ -1,10 +1,8 @@
 """Snakemake wrapper: the same positions with the centrifuge off (static 1 g) and on."""
 from pathlib import Path
 
-from platcal.parallel import set_threads
 from platcal.rig import rig_config
 from platcal.rigs.centrifuge.design_study import static_job
 
 sm = snakemake  # noqa: F821
-set_threads(sm.threads)
 static_job(rig_config(sm.config, "centrifuge"), list(sm.input.schemes), Path(sm.output.table).parent, log_path=sm.log[0])

@@ -1,11 +1,9 @@
 """Snakemake wrapper: the figures' traces of the lowprec_centrifuge study (replicate 0, default scenario)."""
 from platcal.log import job_logger
-from platcal.parallel import set_threads
 from platcal.rigs.lowprec_centrifuge.montecarlo import study_trace
 from platcal.rigs.lowprec_centrifuge.report import write_trace
 
 sm = snakemake  # noqa: F821
-set_threads(sm.threads)
 log = job_logger(sm.log[0])
 write_trace(study_trace(dict(sm.params.cfg)), sm.output[0])
 log.info(f"traces -> {sm.output[0]}")

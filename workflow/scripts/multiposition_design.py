@@ -4,11 +4,9 @@ import yaml
 
 from platcal.io import atomic_to_csv, atomic_write_text
 from platcal.log import job_logger
-from platcal.parallel import set_threads
 from platcal.rigs.multiposition.design import compare, run_design
 from platcal.rigs.multiposition.study import load
 
-set_threads(snakemake.threads)  # noqa: F821
 log = job_logger(snakemake.log[0])  # noqa: F821
 cfg = load(snakemake.params.config)  # noqa: F821
 res = [run_design(cfg, k, log=log.info) for k in cfg.raw["design"]["positions"]]

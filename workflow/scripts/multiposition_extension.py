@@ -5,11 +5,9 @@ import pandas as pd
 
 from platcal.io import atomic_to_csv, atomic_write_text
 from platcal.log import job_logger
-from platcal.parallel import set_threads
 from platcal.rigs.multiposition.extension import draw_spread, rank_table, sigma_table
 from platcal.rigs.multiposition.study import load
 
-set_threads(snakemake.threads)  # noqa: F821
 log = job_logger(snakemake.log[0])  # noqa: F821
 cfg = load(snakemake.params.config)  # noqa: F821
 ranks = rank_table(cfg)

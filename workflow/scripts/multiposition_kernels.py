@@ -3,10 +3,8 @@ import json, time  # noqa: E401
 
 from platcal.io import atomic_write_text
 from platcal.log import job_logger
-from platcal.parallel import set_threads
 from platcal.rigs.multiposition.study import load, warm_kernels
 
-set_threads(snakemake.threads)  # noqa: F821  (the rule's threads, as the cells it warms for: not every core)
 log = job_logger(snakemake.log[0])  # noqa: F821
 cfg, t0 = load(snakemake.params.config), time.perf_counter()  # noqa: F821
 warm_kernels(cfg)

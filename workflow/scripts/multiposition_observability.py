@@ -2,11 +2,9 @@
 from types import SimpleNamespace
 
 from platcal.log import job_logger
-from platcal.parallel import set_threads
 from platcal.rigs.multiposition.study_commands import cmd_observability
 from platcal.rigs.multiposition.study import load
 
-set_threads(snakemake.threads)  # noqa: F821
 log = job_logger(snakemake.log[0])  # noqa: F821
 cfg = load(snakemake.params.config)  # noqa: F821
 for scheme, out in zip(snakemake.params.schemes, snakemake.params.outdirs):  # noqa: F821

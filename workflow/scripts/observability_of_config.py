@@ -7,12 +7,8 @@ from pathlib import Path
 import yaml
 
 from platcal.cli import main
-from platcal.parallel import set_threads
 
 sm = snakemake  # noqa: F821
-# the rule's threads, not numba's default of every core: one thread runs the serial EKF kernel
-# the centrifuge's Monte Carlo cells also compile, and no thread waits for a busy core
-set_threads(sm.threads)
 with tempfile.TemporaryDirectory() as d, open(sm.log[0], "w") as log, redirect_stdout(log), redirect_stderr(log):
     cfg = Path(d) / "config.yaml"
     cfg.write_text(yaml.safe_dump(dict(sm.params.config)), encoding="utf-8")

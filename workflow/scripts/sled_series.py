@@ -4,11 +4,9 @@ import os
 for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[var] = "1"
 
-from platcal.parallel import set_threads  # noqa: E402
 from platcal.rig import rig_config  # noqa: E402
 from platcal.rigs.sled.montecarlo import check  # noqa: E402
 from platcal.rigs.sled.series import write_series  # noqa: E402
 
 sm = snakemake  # noqa: F821
-set_threads(sm.threads)
 write_series(check(rig_config(sm.config, "sled")), sm.wildcards.case, sm.output[0], log_path=sm.log[0])

@@ -70,7 +70,7 @@ def run_job(job: str, dwell: float, out: Path) -> None:
         from platcal.rigs.centrifuge.study import single_job
         single_job(cfg, out)
     elif kind == "design":
-        from platcal.rigs.centrifuge.design_study import design_scheme_job
+        from platcal.rigs.centrifuge.design import design_scheme_job
         design_scheme_job(cfg, arg, out / f"{arg}.yaml")
     else:
         raise ValueError(job)

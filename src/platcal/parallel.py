@@ -15,7 +15,6 @@ several processes share the machine (e.g. parallel workflow jobs)::
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
@@ -58,13 +57,14 @@ def threads(n: int | None):
 
 def run_threaded(fn, n: int, threads: int | None, *args) -> None:
     """Run ``fn(lo, hi, *args)`` over the items [0, n) split into ``threads`` contiguous chunks
-    (None or 0: every core, ``os.cpu_count()``), one Python thread each.
+    (None or 0: the kernels' thread count now, :func:`get_threads`, which a job's threads set),
+    one Python thread each.
 
     For kernels compiled ``nogil`` over independent items (replicates, blocks of replicates):
     the numbers do not depend on the thread count, and there is no ``parallel=True`` compile
     (which would cost a much longer compile).
     """
-    threads = max(1, min(int(threads or os.cpu_count() or 1), n))
+    threads = max(1, min(int(threads or get_threads()), n))
     if threads == 1:
         fn(0, n, *args)
         return

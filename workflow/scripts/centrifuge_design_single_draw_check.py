@@ -10,13 +10,13 @@ from dataclasses import replace
 import numpy as np
 from scipy.stats import spearmanr
 
-from platcal.rigs.centrifuge.design import SchemeEvaluator
-from platcal.rigs.centrifuge.design_study import _study, random_schemes
+from platcal.rigs.centrifuge.design import SchemeEvaluator, design_study_of
+from platcal.rigs.centrifuge.design_study import random_schemes
 from platcal.io import read_yaml
 from platcal.rigs.centrifuge.observability import monte_carlo_errors
 
 cfg = read_yaml(open(sys.argv[1] if len(sys.argv) > 1 else "config/centrifuge.yaml").read())
-st = _study(cfg)
+st = design_study_of(cfg)
 schemes = [st.schemes["table1"]] + random_schemes(1, 20, 6, 60.0)
 ev = SchemeEvaluator(st, 60.0)
 J = np.array([ev.evaluate(s.angles_deg)["J"][0] for s in schemes])

@@ -28,9 +28,7 @@ from ...study.plots import save as save_figure  # noqa: E402
 from ...log import job_logger  # noqa: E402
 from ...model.instruments import FULL_NAMES, INDEX, N_IDENTIFIED, NAMES  # noqa: E402
 from ...study.tables import write_table  # noqa: E402
-# design_scheme_job: the GA job's wrapper may import it from here or, lighter, from .design
-from .design import (SchemeEvaluator, design_config, design_scheme_job, design_study_of,  # noqa: E402,F401
-                     preset, run_design, write_design)
+from .design import SchemeEvaluator, design_config, design_study_of  # noqa: E402
 from .ekf import default_p0_sigma  # noqa: E402
 from .identify import simulate_identify  # noqa: E402
 from .observability import (CRITERIA, InfoCache, correlation, monte_carlo_errors,  # noqa: E402

@@ -30,7 +30,7 @@ import numpy as np
 
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse
 from ...estimation.lanes import LANES, NoAliasCompiler, slp_vectorize
-from ...parallel import get_threads, run_threaded
+from ...parallel import run_threaded
 from .config import SledConfig
 from .errmodel import RUN6_KIND, RUN7_KIND, STOP_KIND, fill_F, kind_states, system_matrices
 
@@ -587,7 +587,7 @@ def _kalman_lanes(dyn: Dynamics, Ts, z, X, PP, Qs, r_var, xs, sig, acc, failed, 
     start = (X.copy(), PP.copy(), acc.copy(), failed.copy())
     if not bad.all():
         with slp_vectorize():  # a first compile (or a cache miss) compiles the lanes as vectors
-            run_threaded(_kalman_blocks, nblk, threads if threads else get_threads(), dyn.kind, fm, w, wc, Ts, z,
+            run_threaded(_kalman_blocks, nblk, threads, dyn.kind, fm, w, wc, Ts, z,
                          X, PP, Qs, r_var, xs, sig, acc, failed, innov, s_var, bad, *_structure(dyn.kind))
     for blk in np.flatnonzero(bad):
         sl = slice(blk * LANES, min(S, (blk + 1) * LANES))
@@ -740,7 +740,7 @@ def epoch_mean(fl: np.ndarray, ep: Epochs, j0: int, j1: int) -> np.ndarray:
     den = np.add.reduceat(dts[k[0]:k[-1]], k[:-1] - k[0])
     fl = np.ascontiguousarray(fl, dtype=np.float64)
     out = np.empty((fl.shape[0], k.size - 1, 3))
-    run_threaded(_epoch_mean, fl.shape[0], get_threads(), fl, k, dts, den, out)
+    run_threaded(_epoch_mean, fl.shape[0], None, fl, k, dts, den, out)
     return out
 
 

@@ -23,7 +23,7 @@ from ...estimation.fit import FitCheck, fit_check
 from ...lighttable import Table
 from ...logs.calibration import Calibration, calibration_of
 from ...logs.increments import sample_intervals
-from ...parallel import get_threads, run_threaded
+from ...parallel import run_threaded
 from .config import ARCSEC, DEG_H, G, SledConfig
 from .errmodel import propagate_run_model
 from ...records import nearest_samples
@@ -94,14 +94,15 @@ def phi_columns(states: int) -> dict[str, int]:
     return {"phi_x": 4, "phi_y": 5, "phi_z": 6} if states == 7 else {"phi_y": 4, "phi_z": 5}
 
 
-def compensate_x(fl: np.ndarray, r_x: np.ndarray, v_x: np.ndarray, phi_hat: np.ndarray, dt):
-    """Open-loop X compensation (§7, eqs. 20-21) with φ̂ per sample (S,N,3) [φ_x, φ_y, φ_z].
+def compensate_x(fl: np.ndarray, r_x: np.ndarray, est: np.ndarray, hold: np.ndarray, dt) -> np.ndarray:
+    """Open-loop X compensation (§7, eqs. 20-21) with sample k holding the attitude errors
+    ``est[:, hold[k]]`` [φ_x, φ_y, φ_z] rad (:func:`phi_hold`).
 
     ``Δa_x = f_y φ̂_z − f_z φ̂_y``; ``v^c = v − Σ Δa dt`` (Euler), ``r^c = r − trapezoid`` (the
-    INS's rules). ``r_x``, ``v_x`` (S,N) at t_k; ``dt`` the IMU period or (N,) the record's
-    sample intervals, s; returns r_x^c (S,N).
+    INS's rules). ``r_x`` (S,N) at t_k, m; ``dt`` the IMU period or (N,) the record's sample
+    intervals, s; returns r_x^c (S,N), m.
     """
-    _, dr = x_corrections(fl, phi_hat, dt)
+    _, dr = x_corrections_held(fl, est, hold, dt)
     return r_x - dr[:, :r_x.shape[1]]
 
 
@@ -148,7 +149,7 @@ def x_corrections_held(fl: np.ndarray, est: np.ndarray, hold: np.ndarray, dt,
     dv0, dr0 = (np.zeros(S), np.zeros(S)) if start is None else (
         np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=np.float64), (S,))) for v in start)
     dv, dr = np.empty((S, N + 1)), np.empty((S, N + 1))
-    run_threaded(_x_corrections, S, get_threads(), fl, np.ascontiguousarray(est, dtype=np.float64),
+    run_threaded(_x_corrections, S, None, fl, np.ascontiguousarray(est, dtype=np.float64),
                  np.ascontiguousarray(hold, dtype=np.int64), dts, dv0, dr0, dv, dr)
     return dv, dr
 
@@ -228,8 +229,8 @@ def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
     stop = stop_filter(cfg, fl, v, r, j_stop, j_end, run.x[:, -1, iy], run.P[:, iy, iy], ep)
     phi_b = np.nan_to_num(phi_run)
     r_model = propagate_run_model(fl[:, :n_stop], cfg.omega_ie, phi_b, cfg.states, dts[:n_stop])
-    xc = {mode: r[..., 0] - x_corrections_held(fl, *phi_hold(run, cfg.states, ep.k, j_stop, N, mode), dts)[1][:, :N]
-          for mode in ("realtime", "post")}   # compensate_x, without forming φ̂ per sample
+    xc = {mode: compensate_x(fl, r[..., 0], *phi_hold(run, cfg.states, ep.k, j_stop, N, mode), dts)
+          for mode in ("realtime", "post")}
     other = "post" if cfg.compensation == "realtime" else "realtime"
     nabla = G * (run.x[:, -1, iy] - stop.x[:, -1, 5])
     return Identification(cfg=cfg, traj=traj, v=v, r=r, fl=fl, run=run, stop=stop, j_stop=j_stop, j_end=j_end,

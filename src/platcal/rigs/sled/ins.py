@@ -21,7 +21,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from ...parallel import get_threads, run_threaded
+from ...parallel import run_threaded
 from .config import G
 
 
@@ -130,7 +130,7 @@ class Navigator:
         r = np.empty((S, N + 1, 3))
         fl = np.empty((S, N, 3))
         dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
-        run_threaded(_mechanise, S, get_threads(), f, w, self.C, self.vr, self.wie, G, dts, v, r, fl)
+        run_threaded(_mechanise, S, None, f, w, self.C, self.vr, self.wie, G, dts, v, r, fl)
         return v, r, fl
 
 

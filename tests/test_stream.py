@@ -16,7 +16,8 @@ import pytest
 from platcal.cli import main
 from platcal.errors import InputError
 from platcal.mapping import RecordMapping
-from platcal.records import TimeCheck, iter_table, read_table
+from platcal import records
+from platcal.records import PassMedian, TimeCheck, iter_table, read_table
 
 CONFIG = """
 rig: centrifuge
@@ -138,3 +139,51 @@ def test_time_check_across_chunk_boundaries():
     check(np.array([0.3, 0.4]))
     with pytest.raises(InputError, match=r"sample 6 \(t = 0.4 then 0.35 s\)"):
         check(np.array([0.35, 0.5]))
+
+
+def _pass_median(values, cut):
+    """PassMedian fed ``values`` in slices of ``cut`` (shuffled order each pass), pass after pass."""
+    m, order = PassMedian(), np.random.default_rng(5).permutation(values.size)
+    while True:
+        for i in range(0, values.size, cut):
+            m.add(values[order[i:i + cut]])
+        if m.end_pass():
+            return m.value, m.passes
+
+
+AWKWARD = {
+    "clean steps": np.diff(np.arange(20001) * 0.005),
+    "jittered steps, odd": 0.005 + 1e-6 * np.random.default_rng(1).standard_normal(20001),
+    "jittered steps, even": 0.005 + 1e-6 * np.random.default_rng(2).standard_normal(20000),
+    "all equal": np.full(999, 0.02),
+    "ties across the middle": np.repeat(np.random.default_rng(3).standard_normal(3000), 4),
+    "middle pair differs in the last bit": np.r_[np.full(50, 1.0), np.full(50, np.nextafter(1.0, 2.0))],
+    "negative and signed zeros": np.r_[-np.zeros(7), np.zeros(6), -1e-300, -5.0, 3.0],
+    "one value": np.array([7.5]),
+    "NaN among them": np.r_[1.0, 2.0, np.nan, 4.0],
+    "infinities": np.r_[-np.inf, 1.0, np.inf, np.inf],
+}
+
+
+@pytest.mark.parametrize("name", list(AWKWARD))
+@pytest.mark.parametrize("hold", [1 << 18, 3])
+def test_pass_median_is_numpys_median(name, hold, monkeypatch):
+    """The bounded-memory median equals np.median bit for bit, whatever the cut and order of the
+    passes, through the distinct-value count, the radix passes down to the last 16 bits (a hold
+    of 3 values) and the gathering of a few candidates."""
+    monkeypatch.setattr(records, "MEDIAN_HOLD", hold)
+    values = AWKWARD[name]
+    got, passes = _pass_median(values, cut=97)
+    assert np.array_equal(got, np.median(values), equal_nan=True)
+    assert passes <= 5
+
+
+def test_pass_median_radix_when_values_are_many_distinct(monkeypatch):
+    """More distinct values than MEDIAN_DISTINCT: the radix passes, not the count, give the
+    median (and a hold of 3 forces all four 16-bit levels)."""
+    monkeypatch.setattr(records, "MEDIAN_DISTINCT", 10)
+    monkeypatch.setattr(records, "MEDIAN_HOLD", 3)
+    values = 0.005 + 1e-9 * np.arange(-500, 501) ** 3
+    got, passes = _pass_median(values, cut=64)
+    assert got == np.median(values)
+    assert passes >= 3

@@ -536,6 +536,134 @@ def check_times(t: np.ndarray, sample_s: float, max_gap_s: float, field: str, ex
     return med
 
 
+MEDIAN_DISTINCT = 4096
+"""Distinct values :class:`PassMedian` counts in its first pass before it turns to radix passes
+(a clean record's steps take a handful of values: its median is then known after one pass)."""
+MEDIAN_HOLD = 1 << 18
+"""Values :class:`PassMedian` gathers in one pass (2 MiB of keys): once the candidates of a middle
+rank are this few, the next pass collects them and ends the selection."""
+_SIGN = np.uint64(1 << 63)
+
+
+def _order_keys(v: np.ndarray) -> np.ndarray:
+    """float64 values as uint64 keys in the same order (IEEE 754 bit patterns: a positive value's
+    sign bit set, a negative one's bits inverted, so unsigned order is numeric order; -0 < +0)."""
+    u = np.ascontiguousarray(v, dtype=np.float64).view(np.uint64)
+    return np.where(u & _SIGN, ~u, u | _SIGN)
+
+
+def _key_value(key: int) -> float:
+    """The float64 of one :func:`_order_keys` key."""
+    k = np.uint64(key)
+    u = k ^ _SIGN if k & _SIGN else ~k
+    return float(np.array([u], dtype=np.uint64).view(np.float64)[0])
+
+
+class PassMedian:
+    """The exact median of values that can be read again (``np.median``'s number, bit for bit) in
+    memory that does not grow with their count: the caller feeds every value to :meth:`add` in a
+    pass, calls :meth:`end_pass`, and feeds the same values again, in any order and cut, while it
+    returns False. Pass 1 counts the values, their distinct values (up to :data:`MEDIAN_DISTINCT`:
+    a median of few distinct values is then known) and a 65 536-bin histogram of the top 16 bits
+    of their order keys (:func:`_order_keys`); each further pass narrows each middle rank's bin
+    by the next 16 bits, or gathers its candidates once they are at most :data:`MEDIAN_HOLD`
+    (radix selection: at most 4 passes after the first, 1-2 on a jittered clock's steps). Held:
+    two 65 536-bin counts (1 MiB) and at most :data:`MEDIAN_HOLD` keys. NaN among the values gives
+    NaN, as ``np.median``; no values give NaN (the callers refuse an empty record before)."""
+
+    def __init__(self):
+        self.n, self.nan, self.passes = 0, False, 0
+        self.value: float | None = None
+        self._distinct: tuple[np.ndarray, np.ndarray] | None = (np.zeros(0), np.zeros(0, np.int64))
+        self._hist = np.zeros(1 << 16, np.int64)
+        self._ranks: list[dict] = []     # per middle rank: its key's known top bits and what the pass gathers
+
+    def add(self, values) -> None:
+        """Feed values of this pass (any shape: flattened)."""
+        v = np.asarray(values, dtype=np.float64).ravel()
+        if self.value is not None or v.size == 0:
+            return
+        if self.passes == 0:
+            self.n += v.size
+            if np.isnan(v).any():
+                self.nan = True
+                return
+            if self._distinct is not None:
+                new_vals, new_counts = np.unique(v, return_counts=True)
+                vals = np.union1d(self._distinct[0], new_vals)
+                if vals.size > MEDIAN_DISTINCT:
+                    self._distinct = None   # a jittered clock: the radix passes
+                else:
+                    counts = np.zeros(vals.size, np.int64)
+                    counts[np.searchsorted(vals, self._distinct[0])] += self._distinct[1]
+                    counts[np.searchsorted(vals, new_vals)] += new_counts
+                    self._distinct = (vals, counts)
+            self._hist += np.bincount((_order_keys(v) >> np.uint64(48)).astype(np.int64), minlength=1 << 16)
+            return
+        if self.nan:
+            return
+        keys = _order_keys(v)
+        for r in self._ranks:
+            if r["key"] is not None:
+                continue
+            inside = keys[(keys >> np.uint64(r["shift"])) == np.uint64(r["prefix"])]
+            if r["gather"]:
+                r["got"].append(inside)
+            else:
+                digit = ((inside >> np.uint64(r["shift"] - 16)) & np.uint64(0xFFFF)).astype(np.int64)
+                r["hist"] += np.bincount(digit, minlength=1 << 16)
+
+    def _narrow(self, r: dict, hist: np.ndarray) -> None:
+        """Rank ``r``'s bin in ``hist`` (the counts of its next 16 bits): its top bits, rank inside."""
+        cum = np.cumsum(hist)
+        b = int(np.searchsorted(cum, r["rank"], side="right"))
+        r["rank"] -= int(cum[b - 1]) if b else 0
+        r["prefix"], r["shift"] = (r["prefix"] << 16) | b, r["shift"] - 16
+        if r["shift"] == 0:
+            r["key"] = r["prefix"]
+            return
+        r["gather"] = int(hist[b]) <= MEDIAN_HOLD
+        r["got"], r["hist"] = [], None if r["gather"] else np.zeros(1 << 16, np.int64)
+
+    def end_pass(self) -> bool:
+        """End a pass; True once the median is known (:attr:`value`), False when the values must
+        be fed again."""
+        if self.value is not None:
+            return True
+        first = self.passes == 0
+        self.passes += 1
+        if self.nan or self.n == 0:
+            self.value = float("nan")
+            return True
+        mid = sorted({(self.n - 1) // 2, self.n // 2})
+        if first and self._distinct is not None:
+            vals, counts = self._distinct
+            cum = np.cumsum(counts)
+            return self._done([float(vals[int(np.searchsorted(cum, i, side="right"))]) for i in mid])
+        if first:
+            self._ranks = [{"rank": i, "prefix": 0, "shift": 64, "key": None} for i in mid]
+            for r in self._ranks:
+                self._narrow(r, self._hist)
+            self._hist = None
+        else:
+            for r in self._ranks:
+                if r["key"] is not None:
+                    continue
+                if r["gather"]:
+                    got = np.concatenate(r["got"])
+                    r["key"], r["got"] = int(np.partition(got, r["rank"])[r["rank"]]), None
+                else:
+                    self._narrow(r, r["hist"])
+        if all(r["key"] is not None for r in self._ranks):
+            return self._done([_key_value(r["key"]) for r in self._ranks])
+        return False
+
+    def _done(self, middle: list[float]) -> bool:
+        # np.median's own arithmetic: the mean of the middle value(s)
+        self.value = float(np.mean(np.array(middle)))
+        return True
+
+
 def grid_origin(t: np.ndarray, step: float) -> float:
     """The instant of the first sample of a (jittered) grid of period ``step``: ``t[0]`` corrected
     by the median offset of all samples from the grid, so jitter of the first sample alone does not

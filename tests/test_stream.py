@@ -187,3 +187,53 @@ def test_pass_median_radix_when_values_are_many_distinct(monkeypatch):
     got, passes = _pass_median(values, cut=64)
     assert got == np.median(values)
     assert passes >= 3
+
+
+def _spill(t):
+    spill = records.ColumnSpill()
+    for i in range(0, t.size, 1001):
+        spill.write(t[i:i + 1001])
+    return spill
+
+
+@pytest.mark.parametrize("origin", [0.0, 36512.25])
+def test_spilled_times_equal_the_whole_checks(origin, monkeypatch):
+    """check_times, grid_origin, the median step of the shifted t and nearest_samples over a
+    spilled t (blocks of 1000 values) give the whole record's numbers: a jittered 200 Hz clock
+    from another origin, decimated to 20 ms."""
+    monkeypatch.setattr(records, "SPILL_BLOCK", 1000)
+    rng = np.random.default_rng(7)
+    t = origin + 0.005 * np.arange(12345) + 2e-4 * rng.standard_normal(12345)
+    args = (0.005, 0.05, "--data column t", "a step of 0.005 s")
+    with _spill(t) as spill:
+        med = records.spilled_times(spill, *args)
+        assert med == records.check_times(t, *args)
+        o = records.spilled_grid_origin(spill, med)
+        assert o == records.grid_origin(t, med)
+        assert records.spilled_median_step(spill, o) == float(np.median(np.diff(t - o)))
+        for first in (None, 1):
+            near = records.NearestSamples(spill.first - o, spill.last - o, 0.02, 0.5 * med, first)
+            for g, ahead, _ in spill.steps(o):
+                near.add(g, ahead)
+            idx, at = near.result()
+            want = records.nearest_samples(t - o, 0.02, 0.5 * med, first)
+            assert np.array_equal(idx, want) and np.array_equal(at, (t - o)[want])
+
+
+@pytest.mark.parametrize("bad, message", [
+    (lambda t: np.r_[t[:5000], t[4999], t[5001:]], r"time does not increase at sample 5001 "),
+    (lambda t: np.r_[t[:7000], t[7000:] + 1.0], r"gap of 1.005 s between t = 34.995 and 36 s"),
+    (lambda t: t * 1000.0, "median time step 5 s"),
+    (lambda t: t[:1], "has 1 sample"),
+])
+def test_spilled_times_refuse_as_the_whole_check(bad, message, monkeypatch):
+    """A step back (refused before the median is taken), a gap, t in ms and one sample: the
+    spilled check refuses with the whole check's message."""
+    monkeypatch.setattr(records, "SPILL_BLOCK", 1000)
+    t = bad(0.005 * np.arange(10000))
+    args = (0.005, 0.05, "--data column t", "a step of 0.005 s")
+    with pytest.raises(InputError, match=message) as whole:
+        records.check_times(t, *args)
+    with _spill(t) as spill, pytest.raises(InputError, match=message) as streamed:
+        records.spilled_times(spill, *args)
+    assert str(streamed.value) == str(whole.value)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import codecs
 import json
 import os
+import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -662,6 +663,179 @@ class PassMedian:
         # np.median's own arithmetic: the mean of the middle value(s)
         self.value = float(np.mean(np.array(middle)))
         return True
+
+
+def pass_median(passes: Callable[[], Iterator[np.ndarray]]) -> float:
+    """:class:`PassMedian` of the values ``passes()`` yields afresh at each call (its arrays, in
+    order): ``np.median`` of them all, in bounded memory."""
+    m = PassMedian()
+    while True:
+        for values in passes():
+            m.add(values)
+        if m.end_pass():
+            return m.value
+
+
+SPILL_BLOCK = 1 << 16
+"""Values a :class:`ColumnSpill` hands back at a time (512 KiB of float64)."""
+
+
+class ColumnSpill:
+    """One float64 column of a streamed record (its ``t``, s) spilled to a temporary file as the
+    chunks are read, so that the checks that need it whole (medians, nearest samples) pass over
+    it again from disk, :data:`SPILL_BLOCK` values at a time, instead of reading the record
+    again or holding it (8 bytes a sample on disk, none in memory). A context manager: the
+    file goes at the end. ``first`` and ``last``: its first and last values."""
+
+    def __init__(self):
+        self._fh = tempfile.TemporaryFile(prefix="platcal_spill_")
+        self.rows = 0
+        self.first = self.last = float("nan")
+
+    def __enter__(self) -> ColumnSpill:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._fh.close()
+
+    def write(self, values: np.ndarray) -> None:
+        """Append the next chunk's values."""
+        v = np.ascontiguousarray(values, dtype=np.float64)
+        if v.size == 0:
+            return
+        if self.rows == 0:
+            self.first = float(v[0])
+        self.last = float(v[-1])
+        self._fh.seek(0, os.SEEK_END)
+        self._fh.write(v.tobytes())
+        self.rows += v.size
+
+    def blocks(self, shift: float = 0.0) -> Iterator[tuple[int, np.ndarray]]:
+        """``(i0, values - shift)``: the column from row ``i0``, :data:`SPILL_BLOCK` rows at a
+        time (``shift`` taken off elementwise, as ``t - shift`` of the whole column)."""
+        self._fh.seek(0)
+        for i0 in range(0, self.rows, SPILL_BLOCK):
+            v = np.fromfile(self._fh, dtype=np.float64, count=min(SPILL_BLOCK, self.rows - i0))
+            yield i0, (v - shift if shift != 0.0 else v)
+
+    def steps(self, shift: float = 0.0) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+        """``(g, ahead, step)``: each block with the previous block's last value in front
+        (``ahead``, whose first value is row ``g``) and ``step = np.diff(ahead)`` (the steps of
+        ``values - shift`` from row ``g`` on, those across block boundaries included)."""
+        prev = None
+        for i0, v in self.blocks(shift):
+            ahead = v if prev is None else np.r_[prev, v]
+            yield (i0 if prev is None else i0 - 1), ahead, np.diff(ahead)
+            prev = v[-1]
+
+
+def spilled_times(spill: ColumnSpill, sample_s: float, max_gap_s: float, field: str, expected: str,
+                  gap_key: str = "record.max_gap_s", where: str = "") -> float:
+    """:func:`check_times` of the spilled ``t`` (s): the same checks in the same order, with the
+    same messages and the same median step (s, :class:`PassMedian`: ``np.median``'s number), in
+    memory that does not grow with the record."""
+    n = spill.rows
+    if n < 2:
+        raise InputError(field, f"has {n} sample{where}; a record needs samples every {sample_s:g} s")
+    med, back, big = PassMedian(), None, (-np.inf, 0, 0.0, 0.0)
+    while True:
+        for g, ahead, step in spill.steps():
+            med.add(step)
+            if med.passes:
+                continue
+            if back is None and np.any(step <= 0):
+                j = int(np.argmax(step <= 0))
+                back = (g + j + 1, ahead[j], ahead[j + 1])
+            j = int(np.argmax(step))
+            if step[j] > big[0]:        # strictly: the first largest step, as np.argmax over the record
+                big = (float(step[j]), g + j, ahead[j], ahead[j + 1])
+        if back is not None:
+            i, t0, t1 = back
+            raise InputError(field, f"time does not increase at sample {i + 1}{where} (t = {num(t0)} then {num(t1)} s)")
+        if med.end_pass():
+            break
+    unit_verdict(med.value, sample_s, field, expected)
+    largest, i, t0, t1 = big
+    gap_verdict(np.array([t0, t1]), 0, largest, max_gap_s, field, gap_key, sample_s)
+    return med.value
+
+
+def spilled_grid_origin(spill: ColumnSpill, step: float) -> float:
+    """:func:`grid_origin` of the spilled ``t`` (s), in bounded memory."""
+    t0 = spill.first
+
+    def offsets():
+        for _, v in spill.blocks():
+            d = v - t0
+            yield d - step * np.round(d / step)
+
+    return float(t0 + pass_median(offsets))
+
+
+def spilled_median_step(spill: ColumnSpill, shift: float = 0.0) -> float:
+    """``np.median(np.diff(t - shift))`` of the spilled ``t`` (s), in bounded memory."""
+    return pass_median(lambda: (step for _, _, step in spill.steps(shift)))
+
+
+class NearestSamples:
+    """:func:`nearest_samples` of a ``t`` seen block by block, in order (:meth:`add` each block
+    with the row of its first sample, the previous block's last sample in front or not;
+    :meth:`result` at the end): the same indices, with the times at them. ``t_first`` and
+    ``t_last``: the record's first and last times (the multiples to look for). Holds the
+    result (two values per index found)."""
+
+    def __init__(self, t_first: float, t_last: float, period_s: float, tol_s: float, first: int | None = None):
+        self.period, self.tol = period_s, tol_s
+        self.m0 = np.ceil((t_first - tol_s) / period_s)
+        self.m1 = np.floor((t_last + tol_s) / period_s)
+        if first is not None:
+            self.m0 = max(self.m0, float(first))
+        self.idx: list[np.ndarray] = []
+        self.at: list[np.ndarray] = []
+        self.tail: tuple | None = None      # the row of the last two samples seen, their times
+        self.started = False
+
+    def _wants(self, lo: float, hi: float) -> np.ndarray:
+        """The multiples ``m period`` in (lo, hi] (lo = -inf: every one up to hi), as the whole
+        record's ``np.arange`` of m times the period gives them."""
+        a = self.m0 if lo == -np.inf else max(self.m0, np.floor(lo / self.period) - 1)
+        b = self.m1 if hi == np.inf else min(self.m1, np.floor(hi / self.period) + 1)
+        if b < a:
+            return np.zeros(0)
+        want = np.arange(a, b + 1) * self.period
+        return want[(want > lo) & (want <= hi)]
+
+    def _keep(self, j: np.ndarray, tj: np.ndarray, want: np.ndarray) -> None:
+        ok = np.abs(tj - want) <= self.tol + TIME_TOL
+        self.idx.append(j[ok])
+        self.at.append(tj[ok])
+
+    def add(self, g: int, ahead: np.ndarray) -> None:
+        """One block: ``ahead`` the samples from row ``g`` (the previous block's last in front)."""
+        if not self.started:
+            self.started = True
+            want = self._wants(-np.inf, float(ahead[0]))        # at or before the first sample: sample 0
+            self._keep(np.zeros(want.size, np.int64), np.full(want.size, ahead[0]), want)
+        if ahead.size > 1:
+            want = self._wants(float(ahead[0]), float(ahead[-1]))
+            j = np.searchsorted(ahead, want)                     # 1 .. len - 1: ahead[j - 1] < want <= ahead[j]
+            j = np.where(np.abs(ahead[j - 1] - want) <= np.abs(ahead[j] - want), j - 1, j)
+            self._keep(g + j, ahead[j], want)
+        if ahead.size > 1:
+            self.tail = (g + ahead.size - 2, ahead[-2:].copy())
+
+    def result(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(indices, times)``: the samples nearest each multiple, increasing, without repeats."""
+        if self.tail is not None:   # after the last sample: the nearer of the last two, as the whole record's clip
+            g, two = self.tail
+            want = self._wants(float(two[1]), np.inf)
+            j = np.where(np.abs(two[0] - want) <= np.abs(two[1] - want), 0, 1)
+            self._keep(g + j, two[j], want)
+        idx = np.concatenate(self.idx) if self.idx else np.zeros(0, np.int64)
+        at = np.concatenate(self.at) if self.at else np.zeros(0)
+        self.idx, self.at = [], []
+        idx, first = np.unique(idx, return_index=True)
+        return idx.astype(np.int64), at[first]
 
 
 def grid_origin(t: np.ndarray, step: float) -> float:

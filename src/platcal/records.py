@@ -681,42 +681,60 @@ SPILL_BLOCK = 1 << 16
 
 
 class ColumnSpill:
-    """One float64 column of a streamed record (its ``t``, s) spilled to a temporary file as the
-    chunks are read, so that the checks that need it whole (medians, nearest samples) pass over
-    it again from disk, :data:`SPILL_BLOCK` values at a time, instead of reading the record
-    again or holding it (8 bytes a sample on disk, none in memory). A context manager: the
-    file goes at the end. ``first`` and ``last``: its first and last values."""
+    """One float64 column of a streamed record (its ``t``, s; or ``width`` columns side by side,
+    e.g. Ax, Ay, Az) spilled to a temporary file as the chunks are read, so that the checks that
+    need it whole (medians, nearest samples) pass over it again from disk, :data:`SPILL_BLOCK`
+    rows at a time, instead of reading the record again or holding it (8 bytes a value on disk,
+    none in memory). A context manager: the file goes at the end. ``first`` and ``last``: the
+    first and last values of a single column."""
 
-    def __init__(self):
+    def __init__(self, width: int = 1):
         self._fh = tempfile.TemporaryFile(prefix="platcal_spill_")
-        self.rows = 0
+        self.width, self.rows = width, 0
         self.first = self.last = float("nan")
 
     def __enter__(self) -> ColumnSpill:
         return self
 
     def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
         self._fh.close()
 
     def write(self, values: np.ndarray) -> None:
-        """Append the next chunk's values."""
+        """Append the next chunk's values ((n,) or (n, width))."""
         v = np.ascontiguousarray(values, dtype=np.float64)
         if v.size == 0:
             return
-        if self.rows == 0:
-            self.first = float(v[0])
-        self.last = float(v[-1])
+        if self.width == 1:
+            if self.rows == 0:
+                self.first = float(v[0])
+            self.last = float(v[-1])
         self._fh.seek(0, os.SEEK_END)
         self._fh.write(v.tobytes())
-        self.rows += v.size
+        self.rows += v.size // self.width
 
-    def blocks(self, shift: float = 0.0) -> Iterator[tuple[int, np.ndarray]]:
+    def blocks(self, shift: float = 0.0, rows: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
         """``(i0, values - shift)``: the column from row ``i0``, :data:`SPILL_BLOCK` rows at a
-        time (``shift`` taken off elementwise, as ``t - shift`` of the whole column)."""
+        time (``shift`` taken off elementwise, as ``t - shift`` of the whole column), up to row
+        ``rows`` (default: every row); (n, width) for a spill of several columns."""
+        end = self.rows if rows is None else min(rows, self.rows)
         self._fh.seek(0)
-        for i0 in range(0, self.rows, SPILL_BLOCK):
-            v = np.fromfile(self._fh, dtype=np.float64, count=min(SPILL_BLOCK, self.rows - i0))
+        for i0 in range(0, end, SPILL_BLOCK):
+            n = min(SPILL_BLOCK, end - i0)
+            v = np.fromfile(self._fh, dtype=np.float64, count=n * self.width)
+            if self.width > 1:
+                v = v.reshape(n, self.width)
             yield i0, (v - shift if shift != 0.0 else v)
+
+    def take(self, idx: np.ndarray) -> np.ndarray:
+        """The rows ``idx`` (increasing) of the spill, as ``values[idx]`` of the whole column."""
+        out = np.empty((idx.size,) + ((self.width,) if self.width > 1 else ()))
+        for i0, v in self.blocks():
+            a, b = np.searchsorted(idx, [i0, i0 + len(v)])
+            out[a:b] = v[idx[a:b] - i0]
+        return out
 
     def steps(self, shift: float = 0.0) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
         """``(g, ahead, step)``: each block with the previous block's last value in front
@@ -729,18 +747,17 @@ class ColumnSpill:
             prev = v[-1]
 
 
-def spilled_times(spill: ColumnSpill, sample_s: float, max_gap_s: float, field: str, expected: str,
-                  gap_key: str = "record.max_gap_s", where: str = "") -> float:
-    """:func:`check_times` of the spilled ``t`` (s): the same checks in the same order, with the
-    same messages and the same median step (s, :class:`PassMedian`: ``np.median``'s number), in
-    memory that does not grow with the record."""
-    n = spill.rows
-    if n < 2:
-        raise InputError(field, f"has {n} sample{where}; a record needs samples every {sample_s:g} s")
+def spilled_steps(spill: ColumnSpill, shift: float = 0.0, median: bool = True) -> tuple:
+    """``(back, largest, med)`` of the steps of the spilled ``t - shift`` (s): the first step
+    that is not positive as ``(i, t[i - 1], t[i])`` or None; the first largest step as
+    ``(step, i, t[i], t[i + 1])``; their median (``np.median``'s number by
+    :class:`PassMedian`; None when not ``median`` or when a step back is found: the callers
+    refuse it first)."""
     med, back, big = PassMedian(), None, (-np.inf, 0, 0.0, 0.0)
     while True:
-        for g, ahead, step in spill.steps():
-            med.add(step)
+        for g, ahead, step in spill.steps(shift):
+            if median and back is None:
+                med.add(step)
             if med.passes:
                 continue
             if back is None and np.any(step <= 0):
@@ -749,15 +766,30 @@ def spilled_times(spill: ColumnSpill, sample_s: float, max_gap_s: float, field: 
             j = int(np.argmax(step))
             if step[j] > big[0]:        # strictly: the first largest step, as np.argmax over the record
                 big = (float(step[j]), g + j, ahead[j], ahead[j + 1])
-        if back is not None:
-            i, t0, t1 = back
-            raise InputError(field, f"time does not increase at sample {i + 1}{where} (t = {num(t0)} then {num(t1)} s)")
-        if med.end_pass():
-            break
-    unit_verdict(med.value, sample_s, field, expected)
-    largest, i, t0, t1 = big
+        if not median or back is not None or med.end_pass():
+            return back, big, (med.value if median and back is None else None)
+
+
+def refuse_back(back: tuple | None, field: str, where: str = "") -> None:
+    """:func:`check_increasing`'s refusal of the step back ``back`` (:func:`spilled_steps`)."""
+    if back is not None:
+        i, t0, t1 = back
+        raise InputError(field, f"time does not increase at sample {i + 1}{where} (t = {num(t0)} then {num(t1)} s)")
+
+
+def spilled_times(spill: ColumnSpill, sample_s: float, max_gap_s: float, field: str, expected: str,
+                  gap_key: str = "record.max_gap_s", where: str = "") -> float:
+    """:func:`check_times` of the spilled ``t`` (s): the same checks in the same order, with the
+    same messages and the same median step (s, :class:`PassMedian`: ``np.median``'s number), in
+    memory that does not grow with the record."""
+    n = spill.rows
+    if n < 2:
+        raise InputError(field, f"has {n} sample{where}; a record needs samples every {sample_s:g} s")
+    back, (largest, _, t0, t1), med = spilled_steps(spill)
+    refuse_back(back, field, where)
+    unit_verdict(med, sample_s, field, expected)
     gap_verdict(np.array([t0, t1]), 0, largest, max_gap_s, field, gap_key, sample_s)
-    return med.value
+    return med
 
 
 def spilled_grid_origin(spill: ColumnSpill, step: float) -> float:

@@ -386,6 +386,36 @@ def position_blocks(chunks, check: Callable[[Table], None] | None = None) -> Ite
         row += len(df)
 
 
+def spilled_positions(chunks, check: Callable[[Table], None] | None = None,
+                      each_block: Callable | None = None) -> Iterator[tuple[int, int, ColumnSpill, ColumnSpill]]:
+    """The positions of a positioned-platform log read in ``chunks`` (:func:`position_blocks`, its
+    ``check`` of each chunk), each gathered into temporary files as it is read: yields ``(k, row0,
+    t, a)`` when position ``k`` (whose first row is the file's data row ``row0``) ends, its ``t``
+    (s) and ``Ax, Ay, Az`` (g, 3 columns) as :class:`ColumnSpill` (the files go when the caller
+    asks for the next position). ``each_block(df, i0, i1, k, starts)`` sees every block of rows
+    before it is spilled (a rig's checks of a position's rows). Held: one chunk; the position is
+    on disk (32 bytes a sample)."""
+    cur = None
+    try:
+        for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
+            if starts and cur is not None:
+                yield cur
+                for spill in cur[2:]:
+                    spill.close()
+                cur = None
+            if each_block is not None:
+                each_block(df, i0, i1, k, starts)
+            if starts:
+                cur = (k, row0 + i0, ColumnSpill(), ColumnSpill(3))
+            cur[2].write(df["t"].to_numpy(float)[i0:i1])
+            cur[3].write(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
+        if cur is not None:
+            yield cur
+    finally:
+        for spill in cur[2:] if cur is not None else ():
+            spill.close()
+
+
 def _file_numbers(columns: tuple[str, ...], text: tuple[str, ...], mapping: RecordMapping | None) -> set[str]:
     """The file columns a CSV reader parses as numbers straight away: those that fill the rig's
     numeric ``columns`` (not ``text``, not ISO date-times; by the file's names when ``mapping``

@@ -26,7 +26,7 @@ from .estimators import check_kind, run_estimator
 from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
                      check_every_position, check_position_numbers, check_position_spilled, check_record,
                      continuous_record, filter_input, has_truth_columns, select_instants_spilled)
-from ...records import position_blocks, read_table
+from ...records import read_table, spilled_positions
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
 from .tables import estimates_columns, table2_markdown
@@ -264,26 +264,17 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     positions, ts, rows, jit, rates = [], [], [], 0.0, []
     moments = Moments.zero(3)
     truth = None
-    held: dict = {"k": None, "t": None, "a": None, "row0": 0}
 
-    def finish() -> None:
+    def finish(k: int, row0: int, t: ColumnSpill, a: ColumnSpill) -> None:
         nonlocal jit
-        k, t, a = held["k"], held["t"], held["a"]
-        if k is None:
-            return
-        try:
-            med, origin = check_position_spilled(k, t, a, scheme, study.sample_s, max_gap, float(want[k - 1]))
-            jit = max(jit, spilled_jitter(t, study.sample_s))
-            rates.append(spilled_segment_rate(t, study.sample_s, med))
-            keep, tk = select_instants_spilled(k, t, med, origin, study.filter.period_s, study.filter.update_at_reset)
-            moments.add(a.take(keep), nominal_at(study, scheme, params, k, tk))
-        finally:
-            t.close()
-            a.close()
+        med, origin = check_position_spilled(k, t, a, scheme, study.sample_s, max_gap, float(want[k - 1]))
+        jit = max(jit, spilled_jitter(t, study.sample_s))
+        rates.append(spilled_segment_rate(t, study.sample_s, med))
+        keep, tk = select_instants_spilled(k, t, med, origin, study.filter.period_s, study.filter.update_at_reset)
+        moments.add(a.take(keep), nominal_at(study, scheme, params, k, tk))
         positions.append(k)
         ts.append(tk)
-        rows.append(held["row0"] + keep)
-        held.update(k=None, t=None, a=None)
+        rows.append(row0 + keep)
 
     def check(df) -> None:
         nonlocal truth
@@ -293,18 +284,8 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         check_position_numbers(pos, scheme)
         check_commanded(pos, df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float), scheme)
 
-    try:
-        for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
-            if starts:
-                finish()
-                held.update(k=k, row0=row0 + i0, t=ColumnSpill(), a=ColumnSpill(3))
-            held["t"].write(df["t"].to_numpy(float)[i0:i1])
-            held["a"].write(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
-        finish()
-    finally:
-        for spill in (held["t"], held["a"]):
-            if spill is not None:
-                spill.close()
+    for position in spilled_positions(chunks, check):
+        finish(*position)
     check_every_position(positions, scheme)
     return StreamScan(positions, ts, np.concatenate(rows), bool(truth), jit, moments, cmd[np.array(positions) - 1],
                       ClockRate.combine(rates))

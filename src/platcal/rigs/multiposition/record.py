@@ -24,7 +24,7 @@ from ...model.frames import DEG
 from ...plausibility import ClockRate, segment_rate, spilled_segment_rate
 from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, ColumnSpill, NearestSamples, check_times, grid_origin,  # noqa: F401
                         iter_table, nearest_samples, num, position_blocks, read_table, spilled_grid_origin,
-                        spilled_median_step, spilled_times, whole_group)
+                        spilled_median_step, spilled_positions, spilled_times, whole_group)
 from ...scheme import Scheme
 from .model import drift, measure
 
@@ -215,25 +215,17 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
     angles (3,) deg, instants (s) and its ``Ax, Ay, Az`` there (g) as it ends (the plausibility sums)."""
     positions, cmds, ts_used, rows, rates = [], [], [], [], []
     has_truth = None
-    held: dict = {"k": None, "t": None, "a": None, "row0": 0, "cmd": None}
+    held: dict = {"cmd": None}
 
-    def finish() -> None:
-        k, t, a = held["k"], held["t"], held["a"]
-        if k is None:
-            return
-        try:
-            keep, tk, rate = instants_spilled(k, t, scheme, ts, max_gap_s)
-            rates.append(rate)
-            if each is not None:
-                each(k, held["cmd"], tk, a.take(keep))
-        finally:
-            t.close()
-            a.close()
+    def finish(k: int, row0: int, t: ColumnSpill, a: ColumnSpill) -> None:
+        keep, tk, rate = instants_spilled(k, t, scheme, ts, max_gap_s)
+        rates.append(rate)
+        if each is not None:
+            each(k, held["cmd"], tk, a.take(keep))
         positions.append(k)
         cmds.append(held["cmd"])
         ts_used.append(tk)
-        rows.append(held["row0"] + keep)
-        held.update(k=None, t=None, a=None, cmd=None)
+        rows.append(row0 + keep)
 
     def check(df) -> None:
         nonlocal has_truth
@@ -241,22 +233,15 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
             has_truth = whole_group(list(df.columns), TRUTH_COLUMNS, "the true angles")
         check_position_numbers(df["position"].to_numpy(), scheme)
 
-    try:
-        for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
-            cmd = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)[i0:i1]
-            if starts:
-                finish()
-                held.update(k=k, row0=row0 + i0, cmd=check_commanded(k, cmd, scheme), t=ColumnSpill(),
-                            a=ColumnSpill(3))
-            elif np.ptp(np.vstack([held["cmd"][None], cmd]), axis=0).max() > 1e-9:
-                raise InputError(f"--data position {k}", "commanded angles change within the position")
-            held["t"].write(df["t"].to_numpy(float)[i0:i1])
-            held["a"].write(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
-        finish()
-    finally:
-        for spill in (held["t"], held["a"]):
-            if spill is not None:
-                spill.close()
+    def commanded(df, i0, i1, k, starts) -> None:
+        cmd = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)[i0:i1]
+        if starts:
+            held["cmd"] = check_commanded(k, cmd, scheme)
+        elif np.ptp(np.vstack([held["cmd"][None], cmd]), axis=0).max() > 1e-9:
+            raise InputError(f"--data position {k}", "commanded angles change within the position")
+
+    for position in spilled_positions(chunks, check, commanded):
+        finish(*position)
     if scheme is not None:
         check_every_position(positions, scheme)
     cmd = np.array(cmds)

@@ -105,6 +105,35 @@ def test_identify_in_chunks_jittered_clock_from_another_origin(tmp_path):
         np.testing.assert_allclose(clock_c[key], clock_w[key], rtol=1e-9, atol=0, err_msg=key)
 
 
+BAD_POSITIONS = {
+    "gap": lambda df: df.drop(index=range(500, 560)),
+    "t in ms": lambda df: df.assign(t=np.where(df.position == 2, df.t * 1000.0, df.t)),
+    "A in m/s^2": lambda df: df.assign(Ax=np.where(df.position == 3, df.Ax * 9.80665, df.Ax),
+                                      Ay=np.where(df.position == 3, df.Ay * 9.80665, df.Ay),
+                                      Az=np.where(df.position == 3, df.Az * 9.80665, df.Az)),
+    "step back": lambda df: df.assign(t=np.where(df.index == 1000, df.t.shift(2), df.t)),
+    "short dwell": lambda df: df[~((df.position == 2) & (df.t > 3.0))],
+}
+
+
+@pytest.mark.parametrize("bad", list(BAD_POSITIONS))
+def test_chunked_position_checks_refuse_as_whole(tmp_path, capsys, bad):
+    """A position's checks on the spilled position (a gap, t in ms, |A| in m/s^2, a step back, a
+    dwell too short) refuse with exit 2 and the whole read's message, before any output."""
+    cfg = _config(tmp_path)
+    rec = tmp_path / "bad.csv"
+    BAD_POSITIONS[bad](pd.read_csv(_simulate(tmp_path, cfg))).to_csv(rec, index=False)
+    errs = []
+    for chunk in (CHUNK, "0"):
+        capsys.readouterr()
+        out = tmp_path / f"o{chunk}"
+        assert main(["identify", "--config", str(cfg), "--scheme", "short", "--data", str(rec), "--out", str(out),
+                     "--chunk-rows", chunk]) == 2
+        errs.append(capsys.readouterr().err.strip().splitlines()[-1])
+        assert not out.exists()
+    assert errs[0] == errs[1] and "error: --data column" in errs[0]
+
+
 def test_chunked_plausibility_refuses_a_swap_as_whole(tmp_path, capsys):
     """Ax and Ay swapped: refused before the filter (exit 2) with the same finding either way."""
     cfg = _config(tmp_path)

@@ -36,6 +36,7 @@ import os
 import sys
 import tempfile
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -209,10 +210,13 @@ def build(kset: KernelSet, folder: Path | None = None) -> tuple[Path, float]:
     together); older builds of the set there are removed. Returns the module's path and the build's
     wall time, s. Needs numba and a C compiler (the one Python's ``sysconfig`` names)."""
     t0 = time.perf_counter()
-    load_numba()  # the kernels' modules then hold numba's dispatchers, which pycc types
-    # pycc is imported only here: the build's own dependency, never a command's at run time
+    numba = load_numba()  # the kernels' modules then hold numba's dispatchers, which pycc types
+    # pycc is imported only here: the build's own dependency, never a command's at run time. Its
+    # pending deprecation (numba 0.57) is known and said in the README; not repeated per build
     from numba.core import sigutils
-    from numba.pycc import CC
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", numba.NumbaPendingDeprecationWarning)
+        from numba.pycc import CC
 
     folder = Path(folder or cache_dir())
     folder.mkdir(parents=True, exist_ok=True)

@@ -133,3 +133,13 @@ def test_arguments_unlike_the_build_are_refused():
                 (np.zeros((2, 3), np.float32), 1.0, good[2]), (np.zeros((2, 3)), 1.0, (2.0, True))]:
         with pytest.raises(TypeError, match="ahead-of-time kernel k"):
             aot._check("k", spec, bad)
+
+
+def test_no_c_compiler_is_refused_naming_cc(record, tmp_path, monkeypatch, capsys):
+    """Without a working C compiler ``platcal kernels`` exits 2 naming CC, and writes nothing."""
+    cfg, _ = record
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    monkeypatch.setenv("PLATCAL_AOT_DIR", str(tmp_path / "aot"))
+    assert main(["kernels", "--config", str(cfg)]) == 2
+    assert "error: CC: numba.pycc finds no working C compiler" in capsys.readouterr().err
+    assert not any(p.is_file() for p in (tmp_path / "aot").rglob("*"))

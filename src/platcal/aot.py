@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import InputError
 from .io import atomic_files
 from .jit import load_numba
 from .rig import resolve
@@ -148,6 +149,11 @@ def kernel(kset: KernelSet, name: str):
     return call
 
 
+def in_use() -> tuple[str, ...]:
+    """The kernel sets this process has loaded (run on their ahead-of-time kernels)."""
+    return tuple(name for name, mod in _LOADED.items() if not name.endswith(".spec") and mod is not None)
+
+
 def _load(kset: KernelSet):
     """The set's current module (imported once per process), or None when it is not built."""
     if kset.name in _LOADED:
@@ -224,7 +230,11 @@ def build(kset: KernelSet, folder: Path | None = None) -> tuple[Path, float]:
     name = module_name(kset)
     checks = {}
     with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as work:
-        cc = CC(name)
+        try:  # pycc looks for the C compiler here, before any kernel is compiled
+            cc = CC(name)
+        except RuntimeError as exc:
+            raise InputError("CC", "numba.pycc finds no working C compiler; install one (gcc: apt-get install gcc) or "
+                                   "name it in the environment variable CC; identify runs on the JIT meanwhile") from exc
         cc.output_dir = work
         for k in kset.kernels:
             fn = resolve(k.kernel)

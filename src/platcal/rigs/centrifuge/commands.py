@@ -141,6 +141,8 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if segmentation is not None:
         msg += " (dwells found in the continuous log: dwells.png)"
+    if aot.in_use():
+        msg += " (kernels compiled ahead of time)"
     if "nees" in summary:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.3f} %, NEES {summary['nees']:.1f} (dof {summary['nees_dof']})")

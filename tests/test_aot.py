@@ -135,11 +135,14 @@ def test_arguments_unlike_the_build_are_refused():
             aot._check("k", spec, bad)
 
 
-def test_no_c_compiler_is_refused_naming_cc(record, tmp_path, monkeypatch, capsys):
-    """Without a working C compiler ``platcal kernels`` exits 2 naming CC, and writes nothing."""
+def test_no_c_compiler_is_refused_naming_cc(record, tmp_path):
+    """Without a working C compiler ``platcal kernels`` exits 2 naming CC, and writes nothing
+    (a fresh process: pycc checks the compiler once per process)."""
     cfg, _ = record
-    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
-    monkeypatch.setenv("PLATCAL_AOT_DIR", str(tmp_path / "aot"))
-    assert main(["kernels", "--config", str(cfg)]) == 2
-    assert "error: CC: numba.pycc finds no working C compiler" in capsys.readouterr().err
+    env = {**os.environ, "CC": str(tmp_path / "no-such-compiler"), "PLATCAL_AOT_DIR": str(tmp_path / "aot")}
+    res = subprocess.run([sys.executable, "-m", "platcal.cli", "kernels", "--config", str(cfg)], capture_output=True,
+                         text=True, env=env)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.startswith("platcal kernels: error: CC: numba.pycc finds no working C compiler"), res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
     assert not any(p.is_file() for p in (tmp_path / "aot").rglob("*"))

@@ -220,9 +220,12 @@ def build(kset: KernelSet, folder: Path | None = None) -> tuple[Path, float]:
     # pycc is imported only here: the build's own dependency, never a command's at run time. Its
     # pending deprecation (numba 0.57) is known and said in the README; not repeated per build
     from numba.core import sigutils
+    from setuptools.errors import CCompilerError, ExecError  # what pycc's compiler calls raise
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", numba.NumbaPendingDeprecationWarning)
         from numba.pycc import CC
+    no_compiler = InputError("CC", "numba.pycc finds no working C compiler; install one (gcc: apt-get install gcc) or "
+                                   "name it in the environment variable CC; identify runs on the JIT meanwhile")
 
     folder = Path(folder or cache_dir())
     folder.mkdir(parents=True, exist_ok=True)
@@ -230,18 +233,20 @@ def build(kset: KernelSet, folder: Path | None = None) -> tuple[Path, float]:
     name = module_name(kset)
     checks = {}
     with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as work:
-        try:  # pycc looks for the C compiler here, before any kernel is compiled
+        try:  # pycc looks for the C compiler here, before any kernel is compiled (once per process)
             cc = CC(name)
         except RuntimeError as exc:
-            raise InputError("CC", "numba.pycc finds no working C compiler; install one (gcc: apt-get install gcc) or "
-                                   "name it in the environment variable CC; identify runs on the JIT meanwhile") from exc
+            raise no_compiler from exc
         cc.output_dir = work
         for k in kset.kernels:
             fn = resolve(k.kernel)
             args, _ = sigutils.normalize_signature(k.signature)
             checks[k.name] = [_spec_of(a) for a in args]
             cc.export(k.name, k.signature)(fn.py_func)
-        cc.compile()
+        try:
+            cc.compile()
+        except (CCompilerError, ExecError) as exc:  # a compiler that went away since pycc's check
+            raise no_compiler from exc
         built = Path(work) / cc.output_file
         with atomic_files(folder) as tmp:
             tmp(checks_path(kset, folder).name).write_text(json.dumps(checks))

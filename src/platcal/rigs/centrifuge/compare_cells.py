@@ -89,6 +89,26 @@ def passes_of(cfg: dict, name: str) -> int:
     return int(entry.get("passes", cfg["filter"]["passes"]))
 
 
+def warm_estimator(cfg: dict, scheme, level: float, estimator: str) -> None:
+    """Run ``estimator`` (a name of ``study.estimators`` of the checked ``cfg``) once on a 2-period
+    version of ``scheme`` at ``level`` (ug), one replicate: its numba kernels compiled, or loaded
+    from numba's cache, and nothing written (docs/centrifuge-model.md §10-11)."""
+    short = replace(scheme, dwell_s=2 * float(cfg["filter"]["period_ms"]) / 1000.0)
+    get_rig("centrifuge").montecarlo.run_batch(cfg, short, level, estimator, [np.random.SeedSequence(0)])
+
+
+def warm_kernels(cfg: dict) -> None:
+    """Compile (or load) the kernels of every estimator of the sweep and of the comparison once
+    (:func:`warm_estimator` on the comparison's scheme), so that the cells, the comparison's cells
+    and the single run that follow load them from numba's cache instead of compiling them side by
+    side (issue 22 item 4). ``cfg``: the raw or checked centrifuge config."""
+    cfg = with_compare_estimators(check_study(cfg))
+    scheme = builtin_scheme(cfg, compare_settings(cfg)["scheme"])
+    level = float(cfg["study"]["sigma_a_ug"][0])
+    for name in cfg["study"]["estimators"]:  # the sweep's and the comparison's own, in order
+        warm_estimator(cfg, scheme, level, name)
+
+
 def compare_cell_job(cfg: dict, level: float, estimator: str, out_dir, threads: int = 1, log_path=None) -> None:
     """Rule body: one (noise level, estimator) cell of the comparison."""
     lg = job_logger(log_path)
@@ -98,10 +118,9 @@ def compare_cell_job(cfg: dict, level: float, estimator: str, out_dir, threads: 
     scheme = builtin_scheme(cfg, c["scheme"])
     lg.info("comparison cell %s, sigma_a = %g ug, estimator %s: %d replicates", scheme.name, level, estimator,
             c["replicates"])
-    # load the compiled kernels before the clock starts (a 2-period run of this estimator), so the
-    # cost per run is the runs', not the process's start-up
-    short = replace(scheme, dwell_s=2 * float(cfg["filter"]["period_ms"]) / 1000.0)
-    rig.montecarlo.run_batch(cfg, short, level, estimator, [np.random.SeedSequence(0)])
+    # load the compiled kernels before the clock starts, so the cost per run is the runs', not the
+    # process's start-up
+    warm_estimator(cfg, scheme, level, estimator)
     t0, c0 = time.perf_counter(), time.process_time()
     coef, runs, timing = cell_tables(rig, cfg, scheme, level, estimator, replicates=int(c["replicates"]),
                                      threads=threads)

@@ -186,24 +186,6 @@ CEN_COMPARE = [] if CEN is None else compare_cells(CEN)
 CEN_COMPARE_DIRS = [f"results/centrifuge/compare/noise{n}/{e}" for n, e in CEN_COMPARE]
 
 
-rule centrifuge_kernels:
-    output:
-        "results/centrifuge/kernels.json",
-    priority: 20  # every cell, comparison cell and the single run wait for it (CentrifugeMonteCarlo.requires)
-    params:
-        # compiling depends on the code only: a config change reruns no cell through this file
-        code=lambda w: CODE_COMPUTE["centrifuge"],
-    threads: 1
-    conda:
-        "../envs/platcal.yaml"
-    benchmark:
-        bench("centrifuge", "centrifuge_kernels"),
-    log:
-        "results/centrifuge/logs/kernels.log",
-    script:
-        "../scripts/centrifuge_kernels.py"
-
-
 rule centrifuge_compare_cell:
     input:
         rig_requires("centrifuge"),

@@ -3,9 +3,10 @@
 # (MC_CONFIG["sled"]); defines SLED_TARGETS (results/sled/..., ending with results/sled/report.md),
 # or an empty list when the rig is not in the index.
 # The cases' replicates run as generic Monte Carlo cells (montecarlo.smk; hooks in
-# platcal.rigs.sled.montecarlo) collected into results/sled/montecarlo/{coef,runs}.parquet. Here:
-# the kernels' compile-once job that the cells and series wait for, the rank table, each case's replicate 0 as time series for the figures, and the summary
-# (Table-1 analogue, checks, figures, report.md). Each rule's params are the config it reads.
+# platcal.rigs.sled.montecarlo) collected into results/sled/montecarlo/{coef,runs}.parquet; they and
+# the series wait for the rig's kernels job (the generic rule kernels). Here: the rank table, each
+# case's replicate 0 as time series for the figures, and the summary (Table-1 analogue, checks,
+# figures, report.md). Each rule's params are the config it reads.
 
 from platcal.rigs.sled.montecarlo import case_params as _sled_case_params
 from platcal.study.montecarlo import package_code_hash as _sled_code_hash
@@ -25,22 +26,6 @@ if "sled" in MC_CONFIG:
     ]
     # what the rig's claims are judged on (platcal.rigs.sled.claims): its report opens on them
     SLED_EVIDENCE = ["results/sled/montecarlo/runs.parquet"]
-
-    rule sled_kernels:
-        output:
-            "results/sled/kernels.json",
-        priority: 20  # the series and every Monte Carlo cell wait for it (SledMonteCarlo.requires)
-        params:
-            # compiling depends on the code only: a config change reruns no cell through this file
-            code=CODE_COMPUTE["sled"],
-        conda:
-            "../envs/platcal.yaml"
-        benchmark:
-            bench("sled", "sled_kernels"),
-        log:
-            "results/sled/logs/kernels.log",
-        script:
-            "../scripts/sled_kernels.py"
 
     rule sled_series:
         input:

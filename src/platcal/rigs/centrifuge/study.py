@@ -33,7 +33,7 @@ from ...logs.calibration import write_covariance
 from ...log import job_logger
 from ...model.instruments import group_of, unit_of
 from ...parallel import set_threads
-from ...rig import NoiseAxis, ReplicateBatch
+from ...rig import NoiseAxis, ReplicateBatch, resolve
 from ...seeding import stable_key
 from ...study.sweep import StudySectionHooks, noise_key, noise_label, replicate_seed
 from .config import check_filter, study_from_config, validate_config
@@ -273,12 +273,12 @@ class CentrifugeMonteCarlo(StudySectionHooks):
     def case_file(self, cfg: dict, name: str) -> str | None:
         return f"design/{name}.yaml" if is_generated(name, cfg["study"]) else None
 
-    def requires(self, cfg: dict) -> list[str]:
-        """Every cell waits for the rule ``centrifuge_kernels``
-        (:func:`platcal.rigs.centrifuge.compare_cells.warm_kernels`), which compiles (or loads) the
-        estimators' numba kernels once: with a cold cache the first cells would compile them side
-        by side (issue 22 item 4; the comparison's cells and the single run wait for it too)."""
-        return ["kernels.json"]
+    def warm_kernels(self, cfg: dict) -> None:
+        """Compile (or load) every estimator's kernels once, for the workflow's rule ``kernels``
+        that the cells, the comparison's cells and the single run wait for
+        (:func:`platcal.rigs.centrifuge.compare_cells.warm_kernels`, named by path: it imports
+        this module)."""
+        resolve("platcal.rigs.centrifuge.compare_cells:warm_kernels")(cfg)
 
     def cell_params(self, cfg: dict, case: str, noise: float, estimator: str) -> dict:
         p = {k: cfg[k] for k in MODEL_KEYS}

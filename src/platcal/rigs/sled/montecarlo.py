@@ -52,9 +52,6 @@ CASES = {
 ESTIMATOR = "kf"
 """The one estimator of the sweep: the run and stop filters as the case configures them."""
 
-KERNELS_FILE = "kernels.json"
-"""The file (under results/sled/) the rule ``sled_kernels`` writes once the kernels are compiled."""
-
 BATCH = 20
 """Replicates per batched call (memory; the numbers do not depend on it)."""
 
@@ -209,11 +206,9 @@ class SledMonteCarlo:
     def case_file(self, cfg: dict, name: str) -> str | None:
         return None
 
-    def requires(self, cfg: dict) -> list[str]:
-        """Every cell waits for the rule ``sled_kernels`` (:func:`warm_kernels`), which compiles
-        (or loads) the numba kernels once: with a cold cache the first cells and the series jobs
-        would compile them side by side."""
-        return [KERNELS_FILE]
+    def warm_kernels(self, cfg: dict) -> None:
+        """The workflow's rule ``kernels``, which the series and the cells wait for (:func:`warm_kernels`)."""
+        warm_kernels(cfg)
 
     def cell_params(self, cfg: dict, case: str, noise: float, estimator: str) -> dict:
         return {**case_params(cfg, case, noise), "replicates": int(cfg["study"]["seeds"])}

@@ -34,6 +34,8 @@ COMMANDS = {
     "report": "write the rig's report.md from the study's tables and figures",
     "inspect": "what a log holds as the rig reads it: columns, units, rate, dwells, gaps",
     "compensate": "apply an identification (calibration.yaml) to a log",
+    "kernels": "compile the rig's identify kernels ahead of time (numba.pycc, a C compiler) into the per-user "
+               "cache: identify then loads neither numba nor llvmlite",
 }
 COMMON = {
     "simulate": (option("--seed", type=SEED, default=None, help="which run: replicate N of the study's Monte Carlo for the rigs with one, else seed N of its study (default: the config's)"),
@@ -53,6 +55,7 @@ COMMON = {
                    option("--data", required=True, help="the log (.csv or .parquet), read through the "
                                                         "calibration's config 'record:' mapping"),
                    option("--out", required=True, help="compensated log to write (.csv or .parquet)")),
+    "kernels": (),
 }
 """Options every rig's sub-command takes; a rig adds its own (``Rig.options``)."""
 GENERIC = {

@@ -10,7 +10,9 @@ several processes share the machine (e.g. parallel workflow jobs)::
     with threads(2):          # temporarily 2
         ...
 
-``NUMBA_NUM_THREADS`` (environment, read at import) caps what can be set.
+``NUMBA_NUM_THREADS`` (environment, read at import) caps what can be set. numba is imported by
+the first of these calls (:func:`platcal.jit.load_numba`), not by this module: a command whose
+kernels are compiled ahead of time (:mod:`platcal.aot`) never asks for threads.
 """
 
 from __future__ import annotations
@@ -18,18 +20,19 @@ from __future__ import annotations
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
-import numba
 import numpy as np
+
+from .jit import load_numba
 
 
 def max_threads() -> int:
     """Most threads the kernels can use in this process (``NUMBA_NUM_THREADS``)."""
-    return int(numba.config.NUMBA_NUM_THREADS)
+    return int(load_numba().config.NUMBA_NUM_THREADS)
 
 
 def get_threads() -> int:
     """Threads the kernels use now (for the calling Python thread)."""
-    return int(numba.get_num_threads())
+    return int(load_numba().get_num_threads())
 
 
 def set_threads(n: int | None = None) -> int:
@@ -40,7 +43,7 @@ def set_threads(n: int | None = None) -> int:
     """
     cap = max_threads()
     n = cap if not n else max(1, min(int(n), cap))
-    numba.set_num_threads(n)
+    load_numba().set_num_threads(n)
     return n
 
 
@@ -52,7 +55,7 @@ def threads(n: int | None):
     try:
         yield get_threads()
     finally:
-        numba.set_num_threads(old)
+        load_numba().set_num_threads(old)
 
 
 def run_threaded(fn, n: int, threads: int | None, *args) -> None:

@@ -9,6 +9,7 @@ here name no rig.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -147,6 +148,82 @@ def segment_rate(t, step_s: float, divisor: bool = False) -> ClockRate:
     if rms > INDEX_JITTER * b:  # stamps this scattered may slip the index: no rate is measured
         return ClockRate.none()
     return ClockRate(b / step - 1.0, rms / step / np.sqrt(sxx), step, int(t.size))
+
+
+def _head(spill, m: int, shift: float = 0.0):
+    """The first ``m`` values of a spilled column (:class:`platcal.records.ColumnSpill`), block by block."""
+    return (v for _, v in spill.blocks(shift, rows=m))
+
+
+def spilled_segment_rate(spill, step_s: float, med: float, divisor: bool = False, shift: float = 0.0) -> ClockRate:
+    """:func:`segment_rate` of the stamps ``t - shift`` spilled to a file
+    (:class:`platcal.records.ColumnSpill`; ``med``: their median step, s), by passes over it: the
+    same doubling head, each line fitted from centred sums (two passes over the head), so memory
+    does not grow with the stamps. The figures agree with the whole array's to rounding (the
+    sums are taken in another order, exactly rounded per pass: ``math.fsum``), not bit for bit."""
+    n = spill.rows
+    if n < 3 or not med > 0:
+        return ClockRate.none()
+    step = float(step_s)
+    if divisor:
+        d = max(1.0, round(step / med))
+        if abs(step / (d * med) - 1.0) > DIVISOR_SLACK:
+            return ClockRate.none()
+        step /= d
+    a, b, m = spill.first - shift, med, 16
+    while True:
+        m = min(2 * m, n)
+        sk, st = [], []
+        for v in _head(spill, m, shift):
+            sk.append(float(np.rint((v - a) / b).sum()))
+            st.append(float(v.sum()))
+        kbar, tbar = math.fsum(sk) / m, math.fsum(st) / m
+        sxx, sxt = [], []
+        for v in _head(spill, m, shift):
+            kc = np.rint((v - a) / b) - kbar
+            sxx.append(float(kc @ kc))
+            sxt.append(float(kc @ (v - tbar)))
+        sxx_m = math.fsum(sxx)
+        a_k, b_k = a, b                 # the line the last index came from
+        b = math.fsum(sxt) / sxx_m
+        a = tbar - b * kbar
+        if m == n:
+            break
+    rr = []
+    for v in _head(spill, n, shift):
+        r = v - tbar - b * (np.rint((v - a_k) / b_k) - kbar)
+        rr.append(float(r @ r))
+    big = max(abs(spill.first - shift), abs(spill.last - shift))   # increasing stamps: an end is the largest
+    rms = max(math.sqrt(math.fsum(rr) / n), np.finfo(float).eps * big)
+    if rms > INDEX_JITTER * b:
+        return ClockRate.none()
+    return ClockRate(b / step - 1.0, rms / step / np.sqrt(sxx_m), step, int(n))
+
+
+def spilled_jitter(spill, step: float) -> float:
+    """:func:`timestamp_jitter` of the stamps spilled to a file
+    (:class:`platcal.records.ColumnSpill`), s: the line through them from centred sums (two passes)
+    and the RMS residual (a third), equal to the least-squares fit's to rounding."""
+    n = spill.rows
+    if n < 3:
+        return 0.0
+    t0 = spill.first
+    sk, st = [], []
+    for _, v in spill.blocks():
+        sk.append(float(np.rint((v - t0) / step).sum()))
+        st.append(float(v.sum()))
+    kbar, tbar = math.fsum(sk) / n, math.fsum(st) / n
+    sxx, sxt = [], []
+    for _, v in spill.blocks():
+        kc = np.rint((v - t0) / step) - kbar
+        sxx.append(float(kc @ kc))
+        sxt.append(float(kc @ (v - tbar)))
+    b = math.fsum(sxt) / math.fsum(sxx)
+    rr = []
+    for _, v in spill.blocks():
+        r = (v - tbar) - b * (np.rint((v - t0) / step) - kbar)
+        rr.append(float(r @ r))
+    return float(np.sqrt(math.fsum(rr) / n))
 
 
 def clock_rate_tolerance(names, estimate, sigma, per_hour, phase_rate: float = 0.0,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import codecs
 import json
 import os
+import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -385,6 +386,36 @@ def position_blocks(chunks, check: Callable[[Table], None] | None = None) -> Ite
         row += len(df)
 
 
+def spilled_positions(chunks, check: Callable[[Table], None] | None = None,
+                      each_block: Callable | None = None) -> Iterator[tuple[int, int, ColumnSpill, ColumnSpill]]:
+    """The positions of a positioned-platform log read in ``chunks`` (:func:`position_blocks`, its
+    ``check`` of each chunk), each gathered into temporary files as it is read: yields ``(k, row0,
+    t, a)`` when position ``k`` (whose first row is the file's data row ``row0``) ends, its ``t``
+    (s) and ``Ax, Ay, Az`` (g, 3 columns) as :class:`ColumnSpill` (the files go when the caller
+    asks for the next position). ``each_block(df, i0, i1, k, starts)`` sees every block of rows
+    before it is spilled (a rig's checks of a position's rows). Held: one chunk; the position is
+    on disk (32 bytes a sample)."""
+    cur = None
+    try:
+        for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
+            if starts and cur is not None:
+                yield cur
+                for spill in cur[2:]:
+                    spill.close()
+                cur = None
+            if each_block is not None:
+                each_block(df, i0, i1, k, starts)
+            if starts:
+                cur = (k, row0 + i0, ColumnSpill(), ColumnSpill(3))
+            cur[2].write(df["t"].to_numpy(float)[i0:i1])
+            cur[3].write(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
+        if cur is not None:
+            yield cur
+    finally:
+        for spill in cur[2:] if cur is not None else ():
+            spill.close()
+
+
 def _file_numbers(columns: tuple[str, ...], text: tuple[str, ...], mapping: RecordMapping | None) -> set[str]:
     """The file columns a CSV reader parses as numbers straight away: those that fill the rig's
     numeric ``columns`` (not ``text``, not ISO date-times; by the file's names when ``mapping``
@@ -534,6 +565,339 @@ def check_times(t: np.ndarray, sample_s: float, max_gap_s: float, field: str, ex
     med = unit_verdict(float(np.median(step, overwrite_input=True)), sample_s, field, expected)
     gap_verdict(t, i, largest, max_gap_s, field, gap_key, sample_s)
     return med
+
+
+MEDIAN_DISTINCT = 4096
+"""Distinct values :class:`PassMedian` counts in its first pass before it turns to radix passes
+(a clean record's steps take a handful of values: its median is then known after one pass)."""
+MEDIAN_HOLD = 1 << 18
+"""Values :class:`PassMedian` gathers in one pass (2 MiB of keys): once the candidates of a middle
+rank are this few, the next pass collects them and ends the selection."""
+_SIGN = np.uint64(1 << 63)
+
+
+def _order_keys(v: np.ndarray) -> np.ndarray:
+    """float64 values as uint64 keys in the same order (IEEE 754 bit patterns: a positive value's
+    sign bit set, a negative one's bits inverted, so unsigned order is numeric order; -0 < +0)."""
+    u = np.ascontiguousarray(v, dtype=np.float64).view(np.uint64)
+    return np.where(u & _SIGN, ~u, u | _SIGN)
+
+
+def _key_value(key: int) -> float:
+    """The float64 of one :func:`_order_keys` key."""
+    k = np.uint64(key)
+    u = k ^ _SIGN if k & _SIGN else ~k
+    return float(np.array([u], dtype=np.uint64).view(np.float64)[0])
+
+
+class PassMedian:
+    """The exact median of values that can be read again (``np.median``'s number, bit for bit) in
+    memory that does not grow with their count: the caller feeds every value to :meth:`add` in a
+    pass, calls :meth:`end_pass`, and feeds the same values again, in any order and cut, while it
+    returns False. Pass 1 counts the values, their distinct values (up to :data:`MEDIAN_DISTINCT`:
+    a median of few distinct values is then known) and a 65 536-bin histogram of the top 16 bits
+    of their order keys (:func:`_order_keys`); each further pass narrows each middle rank's bin
+    by the next 16 bits, or gathers its candidates once they are at most :data:`MEDIAN_HOLD`
+    (radix selection: at most 4 passes after the first, 1-2 on a jittered clock's steps). Held:
+    two 65 536-bin counts (1 MiB) and at most :data:`MEDIAN_HOLD` keys. NaN among the values gives
+    NaN, as ``np.median``; no values give NaN (the callers refuse an empty record before)."""
+
+    def __init__(self):
+        self.n, self.nan, self.passes = 0, False, 0
+        self.value: float | None = None
+        self._distinct: tuple[np.ndarray, np.ndarray] | None = (np.zeros(0), np.zeros(0, np.int64))
+        self._hist = np.zeros(1 << 16, np.int64)
+        self._ranks: list[dict] = []     # per middle rank: its key's known top bits and what the pass gathers
+
+    def add(self, values) -> None:
+        """Feed values of this pass (any shape: flattened)."""
+        v = np.asarray(values, dtype=np.float64).ravel()
+        if self.value is not None or v.size == 0:
+            return
+        if self.passes == 0:
+            self.n += v.size
+            if np.isnan(v).any():
+                self.nan = True
+                return
+            if self._distinct is not None:
+                new_vals, new_counts = np.unique(v, return_counts=True)
+                vals = np.union1d(self._distinct[0], new_vals)
+                if vals.size > MEDIAN_DISTINCT:
+                    self._distinct = None   # a jittered clock: the radix passes
+                else:
+                    counts = np.zeros(vals.size, np.int64)
+                    counts[np.searchsorted(vals, self._distinct[0])] += self._distinct[1]
+                    counts[np.searchsorted(vals, new_vals)] += new_counts
+                    self._distinct = (vals, counts)
+            self._hist += np.bincount((_order_keys(v) >> np.uint64(48)).astype(np.int64), minlength=1 << 16)
+            return
+        if self.nan:
+            return
+        keys = _order_keys(v)
+        for r in self._ranks:
+            if r["key"] is not None:
+                continue
+            inside = keys[(keys >> np.uint64(r["shift"])) == np.uint64(r["prefix"])]
+            if r["gather"]:
+                r["got"].append(inside)
+            else:
+                digit = ((inside >> np.uint64(r["shift"] - 16)) & np.uint64(0xFFFF)).astype(np.int64)
+                r["hist"] += np.bincount(digit, minlength=1 << 16)
+
+    def _narrow(self, r: dict, hist: np.ndarray) -> None:
+        """Rank ``r``'s bin in ``hist`` (the counts of its next 16 bits): its top bits, rank inside."""
+        cum = np.cumsum(hist)
+        b = int(np.searchsorted(cum, r["rank"], side="right"))
+        r["rank"] -= int(cum[b - 1]) if b else 0
+        r["prefix"], r["shift"] = (r["prefix"] << 16) | b, r["shift"] - 16
+        if r["shift"] == 0:
+            r["key"] = r["prefix"]
+            return
+        r["gather"] = int(hist[b]) <= MEDIAN_HOLD
+        r["got"], r["hist"] = [], None if r["gather"] else np.zeros(1 << 16, np.int64)
+
+    def end_pass(self) -> bool:
+        """End a pass; True once the median is known (:attr:`value`), False when the values must
+        be fed again."""
+        if self.value is not None:
+            return True
+        first = self.passes == 0
+        self.passes += 1
+        if self.nan or self.n == 0:
+            self.value = float("nan")
+            return True
+        mid = sorted({(self.n - 1) // 2, self.n // 2})
+        if first and self._distinct is not None:
+            vals, counts = self._distinct
+            cum = np.cumsum(counts)
+            return self._done([float(vals[int(np.searchsorted(cum, i, side="right"))]) for i in mid])
+        if first:
+            self._ranks = [{"rank": i, "prefix": 0, "shift": 64, "key": None} for i in mid]
+            for r in self._ranks:
+                self._narrow(r, self._hist)
+            self._hist = None
+        else:
+            for r in self._ranks:
+                if r["key"] is not None:
+                    continue
+                if r["gather"]:
+                    got = np.concatenate(r["got"])
+                    r["key"], r["got"] = int(np.partition(got, r["rank"])[r["rank"]]), None
+                else:
+                    self._narrow(r, r["hist"])
+        if all(r["key"] is not None for r in self._ranks):
+            return self._done([_key_value(r["key"]) for r in self._ranks])
+        return False
+
+    def _done(self, middle: list[float]) -> bool:
+        # np.median's own arithmetic: the mean of the middle value(s)
+        self.value = float(np.mean(np.array(middle)))
+        return True
+
+
+def pass_median(passes: Callable[[], Iterator[np.ndarray]]) -> float:
+    """:class:`PassMedian` of the values ``passes()`` yields afresh at each call (its arrays, in
+    order): ``np.median`` of them all, in bounded memory."""
+    m = PassMedian()
+    while True:
+        for values in passes():
+            m.add(values)
+        if m.end_pass():
+            return m.value
+
+
+SPILL_BLOCK = 1 << 16
+"""Values a :class:`ColumnSpill` hands back at a time (512 KiB of float64)."""
+
+
+class ColumnSpill:
+    """One float64 column of a streamed record (its ``t``, s; or ``width`` columns side by side,
+    e.g. Ax, Ay, Az) spilled to a temporary file as the chunks are read, so that the checks that
+    need it whole (medians, nearest samples) pass over it again from disk, :data:`SPILL_BLOCK`
+    rows at a time, instead of reading the record again or holding it (8 bytes a value on disk,
+    none in memory). A context manager: the file goes at the end. ``first`` and ``last``: the
+    first and last values of a single column."""
+
+    def __init__(self, width: int = 1):
+        self._fh = tempfile.TemporaryFile(prefix="platcal_spill_")
+        self.width, self.rows = width, 0
+        self.first = self.last = float("nan")
+
+    def __enter__(self) -> ColumnSpill:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def write(self, values: np.ndarray) -> None:
+        """Append the next chunk's values ((n,) or (n, width))."""
+        v = np.ascontiguousarray(values, dtype=np.float64)
+        if v.size == 0:
+            return
+        if self.width == 1:
+            if self.rows == 0:
+                self.first = float(v[0])
+            self.last = float(v[-1])
+        self._fh.seek(0, os.SEEK_END)
+        self._fh.write(v.tobytes())
+        self.rows += v.size // self.width
+
+    def blocks(self, shift: float = 0.0, rows: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
+        """``(i0, values - shift)``: the column from row ``i0``, :data:`SPILL_BLOCK` rows at a
+        time (``shift`` taken off elementwise, as ``t - shift`` of the whole column), up to row
+        ``rows`` (default: every row); (n, width) for a spill of several columns."""
+        end = self.rows if rows is None else min(rows, self.rows)
+        self._fh.seek(0)
+        for i0 in range(0, end, SPILL_BLOCK):
+            n = min(SPILL_BLOCK, end - i0)
+            v = np.fromfile(self._fh, dtype=np.float64, count=n * self.width)
+            if self.width > 1:
+                v = v.reshape(n, self.width)
+            yield i0, (v - shift if shift != 0.0 else v)
+
+    def take(self, idx: np.ndarray) -> np.ndarray:
+        """The rows ``idx`` (increasing) of the spill, as ``values[idx]`` of the whole column."""
+        out = np.empty((idx.size,) + ((self.width,) if self.width > 1 else ()))
+        for i0, v in self.blocks():
+            a, b = np.searchsorted(idx, [i0, i0 + len(v)])
+            out[a:b] = v[idx[a:b] - i0]
+        return out
+
+    def steps(self, shift: float = 0.0) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+        """``(g, ahead, step)``: each block with the previous block's last value in front
+        (``ahead``, whose first value is row ``g``) and ``step = np.diff(ahead)`` (the steps of
+        ``values - shift`` from row ``g`` on, those across block boundaries included)."""
+        prev = None
+        for i0, v in self.blocks(shift):
+            ahead = v if prev is None else np.r_[prev, v]
+            yield (i0 if prev is None else i0 - 1), ahead, np.diff(ahead)
+            prev = v[-1]
+
+
+def spilled_steps(spill: ColumnSpill, shift: float = 0.0, median: bool = True) -> tuple:
+    """``(back, largest, med)`` of the steps of the spilled ``t - shift`` (s): the first step
+    that is not positive as ``(i, t[i - 1], t[i])`` or None; the first largest step as
+    ``(step, i, t[i], t[i + 1])``; their median (``np.median``'s number by
+    :class:`PassMedian`; None when not ``median`` or when a step back is found: the callers
+    refuse it first)."""
+    med, back, big = PassMedian(), None, (-np.inf, 0, 0.0, 0.0)
+    while True:
+        for g, ahead, step in spill.steps(shift):
+            if median and back is None:
+                med.add(step)
+            if med.passes:
+                continue
+            if back is None and np.any(step <= 0):
+                j = int(np.argmax(step <= 0))
+                back = (g + j + 1, ahead[j], ahead[j + 1])
+            j = int(np.argmax(step))
+            if step[j] > big[0]:        # strictly: the first largest step, as np.argmax over the record
+                big = (float(step[j]), g + j, ahead[j], ahead[j + 1])
+        if not median or back is not None or med.end_pass():
+            return back, big, (med.value if median and back is None else None)
+
+
+def refuse_back(back: tuple | None, field: str, where: str = "") -> None:
+    """:func:`check_increasing`'s refusal of the step back ``back`` (:func:`spilled_steps`)."""
+    if back is not None:
+        i, t0, t1 = back
+        raise InputError(field, f"time does not increase at sample {i + 1}{where} (t = {num(t0)} then {num(t1)} s)")
+
+
+def spilled_times(spill: ColumnSpill, sample_s: float, max_gap_s: float, field: str, expected: str,
+                  gap_key: str = "record.max_gap_s", where: str = "") -> float:
+    """:func:`check_times` of the spilled ``t`` (s): the same checks in the same order, with the
+    same messages and the same median step (s, :class:`PassMedian`: ``np.median``'s number), in
+    memory that does not grow with the record."""
+    n = spill.rows
+    if n < 2:
+        raise InputError(field, f"has {n} sample{where}; a record needs samples every {sample_s:g} s")
+    back, (largest, _, t0, t1), med = spilled_steps(spill)
+    refuse_back(back, field, where)
+    unit_verdict(med, sample_s, field, expected)
+    gap_verdict(np.array([t0, t1]), 0, largest, max_gap_s, field, gap_key, sample_s)
+    return med
+
+
+def spilled_grid_origin(spill: ColumnSpill, step: float) -> float:
+    """:func:`grid_origin` of the spilled ``t`` (s), in bounded memory."""
+    t0 = spill.first
+
+    def offsets():
+        for _, v in spill.blocks():
+            d = v - t0
+            yield d - step * np.round(d / step)
+
+    return float(t0 + pass_median(offsets))
+
+
+def spilled_median_step(spill: ColumnSpill, shift: float = 0.0) -> float:
+    """``np.median(np.diff(t - shift))`` of the spilled ``t`` (s), in bounded memory."""
+    return pass_median(lambda: (step for _, _, step in spill.steps(shift)))
+
+
+class NearestSamples:
+    """:func:`nearest_samples` of a ``t`` seen block by block, in order (:meth:`add` each block
+    with the row of its first sample, the previous block's last sample in front or not;
+    :meth:`result` at the end): the same indices, with the times at them. ``t_first`` and
+    ``t_last``: the record's first and last times (the multiples to look for). Holds the
+    result (two values per index found)."""
+
+    def __init__(self, t_first: float, t_last: float, period_s: float, tol_s: float, first: int | None = None):
+        self.period, self.tol = period_s, tol_s
+        self.m0 = np.ceil((t_first - tol_s) / period_s)
+        self.m1 = np.floor((t_last + tol_s) / period_s)
+        if first is not None:
+            self.m0 = max(self.m0, float(first))
+        self.idx: list[np.ndarray] = []
+        self.at: list[np.ndarray] = []
+        self.tail: tuple | None = None      # the row of the last two samples seen, their times
+        self.started = False
+
+    def _wants(self, lo: float, hi: float) -> np.ndarray:
+        """The multiples ``m period`` in (lo, hi] (lo = -inf: every one up to hi), as the whole
+        record's ``np.arange`` of m times the period gives them."""
+        a = self.m0 if lo == -np.inf else max(self.m0, np.floor(lo / self.period) - 1)
+        b = self.m1 if hi == np.inf else min(self.m1, np.floor(hi / self.period) + 1)
+        if b < a:
+            return np.zeros(0)
+        want = np.arange(a, b + 1) * self.period
+        return want[(want > lo) & (want <= hi)]
+
+    def _keep(self, j: np.ndarray, tj: np.ndarray, want: np.ndarray) -> None:
+        ok = np.abs(tj - want) <= self.tol + TIME_TOL
+        self.idx.append(j[ok])
+        self.at.append(tj[ok])
+
+    def add(self, g: int, ahead: np.ndarray) -> None:
+        """One block: ``ahead`` the samples from row ``g`` (the previous block's last in front)."""
+        if not self.started:
+            self.started = True
+            want = self._wants(-np.inf, float(ahead[0]))        # at or before the first sample: sample 0
+            self._keep(np.zeros(want.size, np.int64), np.full(want.size, ahead[0]), want)
+        if ahead.size > 1:
+            want = self._wants(float(ahead[0]), float(ahead[-1]))
+            j = np.searchsorted(ahead, want)                     # 1 .. len - 1: ahead[j - 1] < want <= ahead[j]
+            j = np.where(np.abs(ahead[j - 1] - want) <= np.abs(ahead[j] - want), j - 1, j)
+            self._keep(g + j, ahead[j], want)
+        if ahead.size > 1:
+            self.tail = (g + ahead.size - 2, ahead[-2:].copy())
+
+    def result(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(indices, times)``: the samples nearest each multiple, increasing, without repeats."""
+        if self.tail is not None:   # after the last sample: the nearer of the last two, as the whole record's clip
+            g, two = self.tail
+            want = self._wants(float(two[1]), np.inf)
+            j = np.where(np.abs(two[0] - want) <= np.abs(two[1] - want), 0, 1)
+            self._keep(g + j, two[j], want)
+        idx = np.concatenate(self.idx) if self.idx else np.zeros(0, np.int64)
+        at = np.concatenate(self.at) if self.at else np.zeros(0)
+        self.idx, self.at = [], []
+        idx, first = np.unique(idx, return_index=True)
+        return idx.astype(np.int64), at[first]
 
 
 def grid_origin(t: np.ndarray, step: float) -> float:

@@ -43,7 +43,7 @@ of S and ``K r`` (O(m^2 n)); the O(m n^2) covariance update is done once.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ..jit import njit
 
 from .kalman import cholesky_inverse, innovation_covariance, joseph_update_sparse
 

@@ -16,7 +16,7 @@ is worth a third of the filter's time; the general loops give the same numbers t
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ..jit import njit
 
 _LANES = 4
 """Width (float64 entries) to which the rows of the lower-triangle update are padded: one AVX2

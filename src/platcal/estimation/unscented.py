@@ -47,7 +47,7 @@ triangle mirrored) and first-order insensitive to rounding in ``K``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ..jit import njit
 
 from .kalman import add_row_combinations, joseph_update  # joseph_update: the update from U and S (below)
 

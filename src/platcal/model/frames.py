@@ -9,7 +9,7 @@ and the filter kernels can call it; each is also callable from Python on scalars
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ..jit import njit
 
 ARCSEC = np.pi / (180.0 * 3600.0)
 """One arc second in radians."""

@@ -16,7 +16,7 @@ ug/g, ug/g^2, ug/g^3; misalignments in arcsec. Specific force arguments ``f`` ar
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ..jit import njit
 
 from .frames import ARCSEC
 

@@ -21,7 +21,7 @@ loops never allocate. ``coef`` is always the full 48-vector of :mod:`platcal.ins
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ...jit import njit
 
 from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into, euler_t_into
 from ...model.instruments import (GYRO_AXES, I_DOO, I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one, accel_output_into,

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numba import njit
+from ...jit import njit
 
 from .attitude import P_G, P_OMEGA_N, P_OMEGA_U
 

@@ -13,6 +13,7 @@ from dataclasses import replace
 import sys
 import time
 
+from ... import aot
 from ...errors import InputError
 from ...estimation.consistency import EXIT_RUN_FAILED, failed_run_status
 from ...estimation.fit import fit_exit_status
@@ -88,7 +89,9 @@ def with_estimator(study: Study, name: str | None) -> Study:
 
 def identify_command(study: Study, args: argparse.Namespace) -> int:
     """``platcal identify``: the study's estimator (``--estimator`` or ``filter.estimator``) over a
-    test record."""
+    test record. Its kernels are the ahead-of-time ones when they are built and current
+    (``platcal kernels``, :mod:`platcal.aot`: numba is then not loaded), else the JIT's."""
+    aot.enable()
     study = with_estimator(study, args.estimator)
     check_filter(study.filter)
     scheme = scheme_option(study, args)
@@ -138,6 +141,8 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if segmentation is not None:
         msg += " (dwells found in the continuous log: dwells.png)"
+    if aot.in_use():
+        msg += " (kernels compiled ahead of time)"
     if "nees" in summary:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.3f} %, NEES {summary['nees']:.1f} (dof {summary['nees_dof']})")
@@ -232,7 +237,8 @@ _HERE, _STUDY = __name__, f"{__package__}.study_commands"
 COMMANDS = {"inspect": f"{_HERE}:inspect_command", "simulate": f"{_HERE}:simulate_command",
             "identify": f"{_HERE}:identify_command", "observability": f"{_STUDY}:observability_command",
             "design": f"{_STUDY}:design_command", "montecarlo": f"{_STUDY}:montecarlo_command",
-            "report": f"{_STUDY}:report_command", "compensate": f"{_HERE}:compensate_command"}
+            "report": f"{_STUDY}:report_command", "compensate": f"{_HERE}:compensate_command",
+            "kernels": f"{__package__}.aot_kernels:kernels_command"}
 """Each sub-command by module path (:func:`platcal.rig.resolve`): the commands on a log live
 here, those of the study (observability, design, Monte Carlo cell, report: pymoo, matplotlib)
 in :mod:`.study_commands`, imported only when one of them is chosen."""

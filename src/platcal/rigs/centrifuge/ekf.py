@@ -35,17 +35,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-import numba
 import numpy as np
-from numba import njit, prange
+from ...jit import njit, parallel_chunksize, prange
+from ...parallel import get_threads
 
 from ...estimation.kalman import (cholesky_inverse, innovation_covariance, joseph_update_sparse, propagate_sparse,
                                  update_scratch)
 from .attitude import GYRO_COLS, MEAS_COLS, P_G, make_step_scratch, measure_jac_sc, rk4_jac_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of
+from .aot_kernels import KERNELS
 from .base import broadcast_params, specific_force_into
-from .ekf_lanes import run_pass_lanes
+from ...aot import kernel as aot_kernel
 
 ANGLE_NAMES = ("alpha", "beta", "gamma")
 
@@ -641,7 +642,7 @@ def drive_passes(run_pass, x: np.ndarray, P: np.ndarray, z: list | None, t: list
             nis[:] = 0.0
         hidx_all = pass_history_index(t, hist_slots, total, p, settings.period_s,
                                       settings.history_every_s is not None, hist_t)
-        with numba.parallel_chunksize(1):
+        with parallel_chunksize(1):
             run_pass(x, P, z_all, t_all, offs, hidx_all, hist_x, hist_s, nis, n_bad)
         pass_x[p] = x[:, :nc]
         pass_P[p] = P[:, :nc, :nc]
@@ -737,9 +738,16 @@ def run_ekf(
     p0 = np.asarray(settings.p0_sigma, float)
     it_ctl = iteration_control(p0) if iterate is None or cov_only else np.ascontiguousarray(iterate, float)
     if lanes:
+        # imported here: its pipeline class subclasses numba's compiler, which an identify whose
+        # kernels were compiled ahead of time does not load (platcal.aot)
+        from .ekf_lanes import run_pass_lanes
         kernel = run_pass_lanes
+    elif B == 1:
+        # a batch of one: the ahead-of-time kernel when a command enabled it and it is built from
+        # these sources (the JIT's numbers), else the JIT's serial kernel
+        kernel = aot_kernel(KERNELS, "run_pass_serial") or _run_pass_serial
     else:
-        kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
+        kernel = _run_pass_serial if get_threads() == 1 else _run_pass
     keep = settings.innovations and not cov_only
     # every full pass overwrites it, so it ends holding the last pass's innovations
     rec = np.zeros((B, sum(len(tk) for tk in t) if keep and z_source is None else 0, 6))
@@ -767,7 +775,7 @@ def run_ekf(
         offs_w, t_w, z_w = end_to_end([np.asarray(zk, float)[:, kp] for zk, kp in zip(z, keep)],
                                       [np.asarray(tk, float)[kp] for tk, kp in zip(t, keep)], B)
         no_hist = np.full(t_w.size, -1, dtype=np.int64)
-        with numba.parallel_chunksize(1):
+        with parallel_chunksize(1):
             run_pass(x, P, z_w, t_w, offs_w, no_hist, np.zeros((B, 0, nc + 3)), np.zeros((B, 0, nc + 3)),
                      nis, n_bad, update_x=True, rec=np.zeros((B, 0, 6)))
         P = restart_covariance(P, nc)

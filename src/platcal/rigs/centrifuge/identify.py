@@ -16,17 +16,17 @@ from ...logs.calibration import Calibration, calibration_of, write_calibration_f
 from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...model.instruments import unit_of
 from ...plausibility import (ClockRate, clock_rate, clock_rate_tolerance, refuse_clock_rate, refuse_recognised,
-                             refuse_recognised_moments, segment_rate, timestamp_jitter)
-from ...records import CHUNK_ROWS
+                             refuse_recognised_moments, spilled_jitter, spilled_segment_rate, timestamp_jitter)
+from ...records import CHUNK_ROWS, ColumnSpill
 from ...rig import resolve
 from .catalogue import load_catalogue
 from .config import Study
 from .ekf import Estimate, EstimatorInput, FilterSettings, first_instant
 from .estimators import check_kind, run_estimator
 from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
-                     check_every_position, check_position, check_position_numbers, check_record, continuous_record,
-                     filter_input, has_truth_columns, select_instants)
-from ...records import position_blocks, read_table
+                     check_every_position, check_position_numbers, check_position_spilled, check_record,
+                     continuous_record, filter_input, has_truth_columns, select_instants_spilled)
+from ...records import read_table, spilled_positions
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
 from .tables import estimates_columns, table2_markdown
@@ -248,9 +248,13 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     A streamed record holds each position as one block of rows, positions in increasing order
     (a logger's order; a record in any other order is read whole, ``--chunk-rows 0``). Every
     chunk's position numbers and commanded angles are checked as it comes; a position's checks
-    (:func:`~.record.check_position`) and its filter instants (:func:`~.record.select_instants`)
-    need its times whole (their medians), so the position's ``t`` and ``Ax, Ay, Az`` are held
-    until it ends (32 bytes per sample of the longest position); the nominal output at its
+    (:func:`~.record.check_position`), clock figures and filter instants
+    (:func:`~.record.select_instants`) need its times whole (their medians, the clock's line), so
+    the position's ``t`` and ``Ax, Ay, Az`` are spilled to temporary files (32 bytes a sample on
+    disk, :class:`platcal.records.ColumnSpill`) and taken by passes over them
+    (:func:`~.record.check_position_spilled`, :func:`platcal.plausibility.spilled_segment_rate`,
+    :func:`~.record.select_instants_spilled`): held are the position's instants, their rows and
+    outputs (64 bytes per instant of the longest position, with the nominal output); the nominal output at its
     instants comes from a noise-free simulation of that position in chunks.
     """
     cmd = scheme.angles_deg
@@ -260,25 +264,17 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     positions, ts, rows, jit, rates = [], [], [], 0.0, []
     moments = Moments.zero(3)
     truth = None
-    held: dict = {"k": None, "t": [], "a": [], "row0": 0}
 
-    def finish() -> None:
+    def finish(k: int, row0: int, t: ColumnSpill, a: ColumnSpill) -> None:
         nonlocal jit
-        k = held["k"]
-        if k is None:
-            return
-        t = np.concatenate(held["t"])
-        a = np.concatenate(held["a"])
-        check_position(k, t, a, scheme, study.sample_s, max_gap, float(want[k - 1]))
-        jit = max(jit, timestamp_jitter(t, study.sample_s))
-        rates.append(segment_rate(t, study.sample_s))
-        keep, tk = select_instants(k, t, study.filter.period_s, max_gap, study.filter.update_at_reset)
-        tk = tk[keep]
-        moments.add(a[keep], nominal_at(study, scheme, params, k, tk))
+        med, origin = check_position_spilled(k, t, a, scheme, study.sample_s, max_gap, float(want[k - 1]))
+        jit = max(jit, spilled_jitter(t, study.sample_s))
+        rates.append(spilled_segment_rate(t, study.sample_s, med))
+        keep, tk = select_instants_spilled(k, t, med, origin, study.filter.period_s, study.filter.update_at_reset)
+        moments.add(a.take(keep), nominal_at(study, scheme, params, k, tk))
         positions.append(k)
         ts.append(tk)
-        rows.append(held["row0"] + keep)
-        held.update(k=None, t=[], a=[])
+        rows.append(row0 + keep)
 
     def check(df) -> None:
         nonlocal truth
@@ -288,13 +284,8 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         check_position_numbers(pos, scheme)
         check_commanded(pos, df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float), scheme)
 
-    for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
-        if starts:
-            finish()
-            held.update(k=k, row0=row0 + i0)
-        held["t"].append(df["t"].to_numpy(float)[i0:i1])
-        held["a"].append(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
-    finish()
+    for position in spilled_positions(chunks, check):
+        finish(*position)
     check_every_position(positions, scheme)
     return StreamScan(positions, ts, np.concatenate(rows), bool(truth), jit, moments, cmd[np.array(positions) - 1],
                       ClockRate.combine(rates))

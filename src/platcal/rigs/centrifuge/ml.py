@@ -56,9 +56,9 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 
-import numba
 import numpy as np
-from numba import njit, prange
+from ...jit import njit, parallel_chunksize, prange
+from ...parallel import get_threads
 
 from ...errors import InputError
 from ...estimation.gauss_newton import GNResult, one_step, solve_map
@@ -398,10 +398,10 @@ class _Problem:
         N = np.empty((Ba, self.n, self.n))
         g = np.empty((Ba, self.n))
         stats = np.zeros((Ba, 3))
-        kernel = (_normal_equations_serial if Ba == 1 or numba.get_num_threads() == 1
+        kernel = (_normal_equations_serial if Ba == 1 or get_threads() == 1
                   else _normal_equations)
         theta = np.ascontiguousarray(theta, float)
-        with numba.parallel_chunksize(1):
+        with parallel_chunksize(1):
             kernel(rows, theta, self.z_all, self.t_all, self.offs, self.est_idx,
                    self.coef_fixed, self.params, self.r_var, self.q_rate, *self.structure, N, g, stats)
         # each replicate's latest statistics and where they were taken (diagnostics of the estimate)

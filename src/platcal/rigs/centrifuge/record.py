@@ -16,8 +16,10 @@ import numpy as np
 
 from ...errors import InputError
 from ...lighttable import Table
-from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, check_gap, check_increasing, check_time_unit, grid_origin,
-                        iter_table, nearest_samples, whole_group, write_record)  # noqa: F401 (write_record re-exported)
+from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, UNIT_FACTOR, ColumnSpill, NearestSamples, check_gap,  # noqa: F401
+                        check_increasing, check_time_unit, gap_verdict, grid_origin, iter_table, nearest_samples,
+                        pass_median, refuse_back, spilled_grid_origin, spilled_steps, unit_verdict, whole_group,
+                        write_record)  # (UNIT_FACTOR, write_record re-exported)
 from ...records import num as _num
 from ...logs.calibration import Calibration
 from ...logs.dwells import DwellRule, find_dwells, labelled_frame
@@ -177,30 +179,76 @@ def check_position(k: int, t: np.ndarray, a: np.ndarray | None, scheme: Scheme, 
     ``want_g`` (the magnitude of the specific force it should measure, g), its outputs ``a``
     (n, 3) g."""
     field = f"--data column t, position {k}"
-    if t.size < 2:
-        raise InputError(field, f"has {t.size} sample; a position of scheme {scheme.name!r} lasts "
-                         f"{scheme.dwell_s:g} s, about {round(scheme.dwell_s / sample_s)} samples")
+    refuse_few_samples(k, t.size, scheme, sample_s)
     check_increasing(t, field, " of the position")
-    med = check_time_unit(t, sample_s, field, f"sampling.sample_ms = {sample_s * 1e3:g} ms = {sample_s:g} s",
-                          " since the position's start")
+    med = check_time_unit(t, sample_s, field, *_unit_words(sample_s))
     t = t - position_origin(t, med, max_gap_s)
     check_gap(t, max_gap_s, field)
+    size = None
     if want_g is not None:
         with np.errstate(over="ignore"):  # 1e300 g is refused below, without a numpy warning
             size = float(np.median(np.linalg.norm(a, axis=1)))
-        if not (want_g / UNIT_FACTOR_G <= size <= want_g * UNIT_FACTOR_G):
-            raise InputError(f"--data columns Ax, Ay, Az, position {k}",
-                             f"median |A| = {size:.4g}, expected about {want_g:.4g} g at this position "
-                             "(centrifuge g_level and gravity); the accelerations must be in g")
-    if t[0] > max_gap_s:
-        raise InputError(field, f"first sample {_num(t[0])} s after the position's start, more than "
+    position_verdicts(k, float(t[0]), float(t[-1]), med, scheme, max_gap_s, want_g, size)
+
+
+def _unit_words(sample_s: float) -> tuple[str, str]:
+    """The ``expected`` and ``origin_note`` of a position's time-unit check."""
+    return f"sampling.sample_ms = {sample_s * 1e3:g} ms = {sample_s:g} s", " since the position's start"
+
+
+def refuse_few_samples(k: int, size: int, scheme: Scheme, sample_s: float) -> None:
+    """Refuse a position ``k`` of fewer than 2 samples (:func:`check_position`)."""
+    if size < 2:
+        raise InputError(f"--data column t, position {k}", f"has {size} sample; a position of scheme "
+                         f"{scheme.name!r} lasts {scheme.dwell_s:g} s, about {round(scheme.dwell_s / sample_s)} "
+                         "samples")
+
+
+def position_verdicts(k: int, first: float, last: float, med: float, scheme: Scheme, max_gap_s: float,
+                      want_g: float | None, size: float | None) -> None:
+    """:func:`check_position`'s checks of position ``k`` after its time checks: the median
+    ``|A|`` ``size`` (g) against ``want_g``, the first and last sample ``first``, ``last`` (s from
+    the position's start) and the span with the median step ``med`` (s) against the scheme's dwell."""
+    field = f"--data column t, position {k}"
+    if want_g is not None and not (want_g / UNIT_FACTOR_G <= size <= want_g * UNIT_FACTOR_G):
+        raise InputError(f"--data columns Ax, Ay, Az, position {k}",
+                         f"median |A| = {size:.4g}, expected about {want_g:.4g} g at this position "
+                         "(centrifuge g_level and gravity); the accelerations must be in g")
+    if first > max_gap_s:
+        raise InputError(field, f"first sample {_num(first)} s after the position's start, more than "
                          f"record.max_gap_s = {max_gap_s:g} s")
-    span = float(t[-1] + med)
+    span = float(last + med)
     if abs(span - scheme.dwell_s) > max_gap_s:
-        raise InputError(field, f"position {k} spans {span:g} s (t = {_num(t[0])} .. {_num(t[-1])} s "
+        raise InputError(field, f"position {k} spans {span:g} s (t = {_num(first)} .. {_num(last)} s "
                          "from its start), "
                          f"but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s per position "
                          f"(record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
+
+
+def check_position_spilled(k: int, t: ColumnSpill, a: ColumnSpill, scheme: Scheme, sample_s: float,
+                           max_gap_s: float, want_g: float) -> tuple[float, float]:
+    """:func:`check_position` of position ``k`` from its times ``t`` (s) and outputs ``a`` (3
+    columns, g) spilled to files (:class:`platcal.records.ColumnSpill`): the same checks in the
+    same order with the same messages, the medians by passes over the files
+    (:class:`platcal.records.PassMedian`); memory does not grow with the position. Returns
+    ``(median step, origin)``, s."""
+    field = f"--data column t, position {k}"
+    refuse_few_samples(k, t.rows, scheme, sample_s)
+    back, big, med = spilled_steps(t)
+    refuse_back(back, field, " of the position")
+    unit_verdict(med, sample_s, field, *_unit_words(sample_s))
+    origin = 0.0 if abs(t.first) <= max_gap_s else spilled_grid_origin(t, med)
+    if origin != 0.0:       # the gap of t - origin (its steps round otherwise)
+        _, big, _ = spilled_steps(t, origin, median=False)
+    gap_verdict(np.array(big[2:]), 0, big[0], max_gap_s, field)
+
+    def norms():
+        with np.errstate(over="ignore"):  # 1e300 g is refused below, without a numpy warning
+            for _, v in a.blocks():
+                yield np.linalg.norm(v, axis=1)
+
+    position_verdicts(k, t.first - origin, t.last - origin, med, scheme, max_gap_s, want_g, pass_median(norms))
+    return med, origin
 
 
 def position_origin(t: np.ndarray, step: float, max_gap_s: float | None) -> float:
@@ -276,9 +324,28 @@ def select_instants(k: int, t: np.ndarray, period_s: float, max_gap_s: float | N
     if origin != 0.0:
         t = t - origin
     keep = nearest_samples(t, period_s, 0.5 * step, first=0 if update_at_reset else 1)
+    refuse_no_instant(k, keep, period_s)
+    return keep, t
+
+
+def refuse_no_instant(k: int, keep: np.ndarray, period_s: float) -> None:
+    """Refuse position ``k`` when no sample falls on a filter instant (``keep`` empty)."""
     if keep.size < 1:
         raise InputError(f"--data column t, position {k}", f"no sample falls on a {period_s * 1e3:g} ms filter instant")
-    return keep, t
+
+
+def select_instants_spilled(k: int, t: ColumnSpill, med: float, origin: float, period_s: float,
+                            update_at_reset: bool) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`select_instants` of position ``k``'s times spilled to a file (``med``, ``origin``:
+    its median step and origin from :func:`check_position_spilled`, s): ``(keep, t[keep] -
+    origin)``, the samples nearest the filter instants block by block
+    (:class:`platcal.records.NearestSamples`)."""
+    near = NearestSamples(t.first - origin, t.last - origin, period_s, 0.5 * med, first=0 if update_at_reset else 1)
+    for g, ahead, _ in t.steps(origin):
+        near.add(g, ahead)
+    keep, tk = near.result()
+    refuse_no_instant(k, keep, period_s)
+    return keep, tk
 
 
 COMMANDED_COLUMNS = ("alpha_cmd", "beta_cmd", "gamma_cmd")

@@ -21,14 +21,16 @@ from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-import numba
 import numpy as np
-from numba import njit, prange
+from ...jit import njit, parallel_chunksize, prange
+from ...parallel import get_threads
 
 from .attitude import P_G, measure_scalar, rk4_scalar_sc
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import N_FULL
+from .aot_kernels import KERNELS
 from .base import broadcast_params
+from ...aot import kernel as aot_kernel
 from ...scheme import Scheme, whole_periods
 
 
@@ -244,10 +246,12 @@ def simulate_chunks(truth: np.ndarray, scheme: Scheme, centrifuge_params: np.nda
         for b, (g_set, _, _) in enumerate(streams):
             set_err[b] = g_set.standard_normal((K, 3)) * noise.sigma_set_arcsec * ARCSEC
     arw_step = noise.arw_deg_rth * DEG / 60.0 * np.sqrt(sample_s)  # rad per step
-    kernel = _simulate_position_serial if B == 1 or numba.get_num_threads() == 1 else _simulate_position
+    # a batch of one: the ahead-of-time kernel when a command enabled it (platcal.aot), else the JIT's
+    kernel = ((aot_kernel(KERNELS, "simulate_position_serial") or _simulate_position_serial) if B == 1
+              else _simulate_position_serial if get_threads() == 1 else _simulate_position)
     use_acc = streams is not None and noise.sigma_a_ug > 0
     use_arw = streams is not None and arw_step > 0
-    n_workers = min(B, numba.get_num_threads())
+    n_workers = 1 if B == 1 else min(B, get_threads())  # B = 1 asks no thread count: numba stays unloaded
     pool = ThreadPoolExecutor(n_workers) if n_workers > 1 and (use_acc or use_arw) else None
     # noise buffers for the largest chunk, reused by every chunk (no fresh pages per chunk)
     acc_buf = np.empty(B * min(step, n) * 3 if use_acc else 0)
@@ -283,7 +287,7 @@ def simulate_chunks(truth: np.ndarray, scheme: Scheme, centrifuge_params: np.nda
                 A = np.empty((B, kept.size, 3))
                 ang = np.empty((B, kept.size, 3))
                 fr_tab, tab_of = _force_tables(pk, m, sample_s, i0)
-                with numba.parallel_chunksize(1):  # dynamic: balances threads slowed by other load
+                with parallel_chunksize(1):  # dynamic: balances threads slowed by other load
                     kernel(theta0, truth, m, sample_s, pk, fr_tab, tab_of, acc, float(noise.sigma_a_ug), arw,
                            float(arw_step), keep_every, A, ang, i0, n)
                 yield SimChunk(position=k, j0=j0, A=A, angles=ang, t=kept * sample_s, set_error=set_err)

@@ -51,9 +51,9 @@ not depend on the batch size or the number of threads.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
-from numba import njit, prange
+from ...jit import njit, parallel_chunksize, prange
+from ...parallel import get_threads
 
 from ...errors import InputError
 from ...estimation.kalman import update_scratch
@@ -526,7 +526,7 @@ def run_ukf(
     pcols, pg = propagation_structure(est_idx)
     nl, nl_full, lin = measurement_structure(est_idx)
     mstates = np.array([k for k, f in enumerate(est_idx) if I_K0 <= f < I_THETA + 3], dtype=np.int64)
-    kernel = _run_pass_serial if B == 1 or numba.get_num_threads() == 1 else _run_pass
+    kernel = _run_pass_serial if B == 1 or get_threads() == 1 else _run_pass
 
     def run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad):
         kernel(x, P, z_all, t_all, offs, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params, st.r_var,

@@ -21,9 +21,10 @@ from ...lighttable import Table
 from ...logs.dwells import DwellRule, find_dwells, labelled_frame, lacks_position
 from ...mapping import RecordMapping
 from ...model.frames import DEG
-from ...plausibility import ClockRate, segment_rate
-from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, check_times, grid_origin, nearest_samples, num,  # noqa: F401
-                         iter_table, position_blocks, read_table, whole_group)
+from ...plausibility import ClockRate, segment_rate, spilled_segment_rate
+from ...records import (LOG_COLUMNS, TRUTH_COLUMNS, ColumnSpill, NearestSamples, check_times, grid_origin,  # noqa: F401
+                        iter_table, nearest_samples, num, position_blocks, read_table, spilled_grid_origin,
+                        spilled_median_step, spilled_positions, spilled_times, whole_group)
 from ...scheme import Scheme
 from .model import drift, measure
 
@@ -205,30 +206,26 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
 
     A streamed record holds each position as one block of rows, positions in increasing order (a
     logger's order; any other order is read whole, ``--chunk-rows 0``). Position numbers and
-    commanded angles are checked chunk by chunk; a position's time checks and instants need its
-    times whole (medians, :func:`platcal.records.check_times`, :func:`~platcal.records.grid_origin`),
-    so its ``t`` and ``Ax, Ay, Az`` are held until it ends (32 bytes per sample of the longest
-    position). ``each(k, cmd, t, a)``, when given, receives each position's number, commanded
+    commanded angles are checked chunk by chunk; a position's time checks, clock rate and instants
+    need its times whole (medians, :func:`platcal.records.check_times`,
+    :func:`~platcal.records.grid_origin`), so its ``t`` and ``Ax, Ay, Az`` are spilled to
+    temporary files (32 bytes a sample on disk, :class:`platcal.records.ColumnSpill`) and taken by
+    passes over them (:func:`instants_spilled`); held are the position's instants, their rows and
+    outputs (40 bytes per instant of the longest position). ``each(k, cmd, t, a)``, when given, receives each position's number, commanded
     angles (3,) deg, instants (s) and its ``Ax, Ay, Az`` there (g) as it ends (the plausibility sums)."""
     positions, cmds, ts_used, rows, rates = [], [], [], [], []
     has_truth = None
-    held: dict = {"k": None, "t": [], "a": [], "row0": 0, "cmd": None}
+    held: dict = {"cmd": None}
 
-    def finish() -> None:
-        k = held["k"]
-        if k is None:
-            return
-        t = np.concatenate(held["t"])
-        a = np.concatenate(held["a"])
-        keep, t, rate = instants(k, t, scheme, ts, max_gap_s)
+    def finish(k: int, row0: int, t: ColumnSpill, a: ColumnSpill) -> None:
+        keep, tk, rate = instants_spilled(k, t, scheme, ts, max_gap_s)
         rates.append(rate)
         if each is not None:
-            each(k, held["cmd"], t[keep], a[keep])
+            each(k, held["cmd"], tk, a.take(keep))
         positions.append(k)
         cmds.append(held["cmd"])
-        ts_used.append(t[keep])
-        rows.append(held["row0"] + keep)
-        held.update(k=None, t=[], a=[], cmd=None)
+        ts_used.append(tk)
+        rows.append(row0 + keep)
 
     def check(df) -> None:
         nonlocal has_truth
@@ -236,16 +233,15 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
             has_truth = whole_group(list(df.columns), TRUTH_COLUMNS, "the true angles")
         check_position_numbers(df["position"].to_numpy(), scheme)
 
-    for df, row0, i0, i1, k, starts in position_blocks(chunks, check):
+    def commanded(df, i0, i1, k, starts) -> None:
         cmd = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)[i0:i1]
         if starts:
-            finish()
-            held.update(k=k, row0=row0 + i0, cmd=check_commanded(k, cmd, scheme))
+            held["cmd"] = check_commanded(k, cmd, scheme)
         elif np.ptp(np.vstack([held["cmd"][None], cmd]), axis=0).max() > 1e-9:
             raise InputError(f"--data position {k}", "commanded angles change within the position")
-        held["t"].append(df["t"].to_numpy(float)[i0:i1])
-        held["a"].append(df[["Ax", "Ay", "Az"]].to_numpy(float)[i0:i1])
-    finish()
+
+    for position in spilled_positions(chunks, check, commanded):
+        finish(*position)
     if scheme is not None:
         check_every_position(positions, scheme)
     cmd = np.array(cmds)
@@ -295,16 +291,48 @@ def instants(k: int, t: np.ndarray, scheme: Scheme | None, ts: float,
     field = f"--data column t, position {k}"
     med = check_times(t, ts, max_gap_s, field, f"sampling.ts_ms = {ts * 1e3:g} ms", where=" of the position")
     t = t - (0.0 if abs(t[0]) <= max_gap_s else grid_origin(t, med))
-    if scheme is not None:
-        span = float(t[-1])
-        if abs(span - scheme.dwell_s) > max_gap_s:
-            raise InputError(field, f"position {k} spans {num(span)} s (t = {num(t[0])} .. {num(t[-1])} s "
-                             f"from its start), but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s per "
-                             f"position (record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
+    span_verdict(k, float(t[0]), float(t[-1]), scheme, max_gap_s)
     keep = nearest_samples(t, ts, 0.5 * med)
-    if keep.size < 2:
-        raise InputError(field, f"only {keep.size} sample(s) fall on the {ts * 1e3:g} ms filter instants")
+    refuse_few_instants(k, keep, ts)
     return keep, t, segment_rate(t, ts, divisor=True)
+
+
+def span_verdict(k: int, first: float, last: float, scheme: Scheme | None, max_gap_s: float) -> None:
+    """Refuse position ``k`` whose samples (``first`` .. ``last``, s from its start) do not span
+    the scheme's dwell within ``max_gap_s`` (:func:`instants`)."""
+    if scheme is not None and abs(last - scheme.dwell_s) > max_gap_s:
+        raise InputError(f"--data column t, position {k}", f"position {k} spans {num(last)} s (t = {num(first)} .. "
+                         f"{num(last)} s from its start), but scheme {scheme.name!r} dwells {scheme.dwell_s:g} s "
+                         f"per position (record.max_gap_s = {max_gap_s:g} s); pick the right --scheme")
+
+
+def refuse_few_instants(k: int, keep: np.ndarray, ts: float) -> None:
+    """Refuse position ``k`` with fewer than 2 samples ``keep`` on the filter instants."""
+    if keep.size < 2:
+        raise InputError(f"--data column t, position {k}",
+                         f"only {keep.size} sample(s) fall on the {ts * 1e3:g} ms filter instants")
+
+
+def instants_spilled(k: int, t: ColumnSpill, scheme: Scheme | None, ts: float,
+                     max_gap_s: float) -> tuple[np.ndarray, np.ndarray, ClockRate]:
+    """:func:`instants` of position ``k``'s times spilled to a file
+    (:class:`platcal.records.ColumnSpill`): ``(keep, t[keep] from the position's start, clock
+    rate)``, the same checks and messages, the medians and instants by passes over the file
+    (:func:`platcal.records.spilled_times`, :class:`platcal.records.NearestSamples`), the rate by
+    :func:`platcal.plausibility.spilled_segment_rate` (to rounding)."""
+    med = spilled_times(t, ts, max_gap_s, f"--data column t, position {k}", f"sampling.ts_ms = {ts * 1e3:g} ms",
+                        where=" of the position")
+    origin = 0.0 if abs(t.first) <= max_gap_s else spilled_grid_origin(t, med)
+    first, last = t.first - origin, t.last - origin
+    span_verdict(k, first, last, scheme, max_gap_s)
+    near = NearestSamples(first, last, ts, 0.5 * med)
+    for g, ahead, _ in t.steps(origin):
+        near.add(g, ahead)
+    keep, tk = near.result()
+    refuse_few_instants(k, keep, ts)
+    # the rate's median step is that of t - origin (of t when the origin is 0: the same numbers)
+    med_t = med if origin == 0.0 else spilled_median_step(t, origin)
+    return keep, tk, spilled_segment_rate(t, ts, med_t, divisor=True, shift=origin)
 
 
 def record_scheme(path: str | os.PathLike, cmd: np.ndarray, ts_used: list[np.ndarray]) -> Scheme:

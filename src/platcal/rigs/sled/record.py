@@ -151,13 +151,21 @@ def record_times(cfg: SledConfig, n_traj: int, t: np.ndarray) -> tuple[np.ndarra
     med = check_times(t, cfg.dt, max_gap, field, f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
     origin = 0.0 if abs(t[0]) <= max_gap else grid_origin(t, med)
     t = t - origin
-    span, want = float(t[-1] + med), n_traj * cfg.dt
-    if abs(span - want) > max_gap:
-        raise InputError(field, f"the record lasts {span:g} s ({t.size} rows from t = {num(t[0])} s), but the "
-                         f"config's trajectory lasts {want:g} s ({n_traj} IMU samples: static_before_s, phases, "
-                         f"braking, static_after_s; record.max_gap_s = {max_gap:g} s); check the trajectory "
-                         "section or the record")
+    check_span(cfg, n_traj, float(t[0]), float(t[-1]), t.size, med)
     return t, med, origin
+
+
+def check_span(cfg: SledConfig, n_traj: int, t_first: float, t_last: float, rows: int, med: float) -> None:
+    """Refuse a record (``rows`` samples from ``t_first`` to ``t_last``, s from its start, median
+    step ``med`` s) that does not last the trajectory's ``n_traj`` samples within
+    ``record.max_gap_s`` (:func:`record_times`)."""
+    max_gap = float(cfg.raw["record"]["max_gap_s"])
+    span, want = float(t_last + med), n_traj * cfg.dt
+    if abs(span - want) > max_gap:
+        raise InputError("--data column t", f"the record lasts {span:g} s ({rows} rows from t = {num(t_first)} s), "
+                         f"but the config's trajectory lasts {want:g} s ({n_traj} IMU samples: static_before_s, "
+                         f"phases, braking, static_after_s; record.max_gap_s = {max_gap:g} s); check the trajectory "
+                         "section or the record")
 
 
 def refuse_fz(fz: float) -> None:
@@ -275,7 +283,11 @@ def rest_seconds(rest: np.ndarray, t: np.ndarray) -> float:
 def static_rate_tolerance(cfg: SledConfig, traj: Trajectory, t: np.ndarray) -> np.ndarray:
     """(3,) rad/s: the largest constant rate error of each gyro :func:`check_static_rates` lets
     pass on a record with stamps ``t`` (inf when it has no rest)."""
-    seconds = rest_seconds(rest_samples(cfg, traj, t), t)
+    return rest_tolerance(cfg, rest_seconds(rest_samples(cfg, traj, t), t))
+
+
+def rest_tolerance(cfg: SledConfig, seconds: float) -> np.ndarray:
+    """(3,) rad/s: :func:`static_rate_tolerance` of a record with ``seconds`` s at rest."""
     return STATIC_RATE_K * static_rate_sigma(cfg, seconds) if seconds > 0 else np.full(3, np.inf)
 
 

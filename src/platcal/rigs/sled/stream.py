@@ -5,9 +5,11 @@ item 3; docs/rocket-sled.md §4-8, §10, §12).
 (``--chunk-rows`` rows at a time):
 
 1. the times: the read's time checks, the clock's origin, the filter epochs and the stop take
-   medians and nearest samples over the whole record, so ``t`` is held whole for this pass
-   (8 bytes a sample) and, after it, only the epochs' sample indices and intervals (16 bytes an
-   epoch, one per filter period);
+   medians and nearest samples over the whole record, so ``t`` is spilled to a temporary file
+   (8 bytes a sample on disk) and those are taken by passes over it (exact medians by radix
+   selection, :class:`platcal.records.PassMedian`; nearest samples block by block); after it
+   only the epochs' sample indices and intervals are held (16 bytes an epoch, one per filter
+   period: 17 MB for 6 h at 20 ms, what still grows with the record);
 2. the checks (:mod:`.record`) from sums: the median ``fz`` and each phase's median ``fx`` are
    judged by counting the samples below and above the tolerance (a median is inside when its
    middle samples are: exact), the nominal output's regression (:class:`Moments`), the gyros'
@@ -33,16 +35,17 @@ import numpy as np
 
 from ...estimation.fit import Moments
 from ...plausibility import refuse_recognised_moments
-from ...records import iter_table, record_writer
+from ...records import (ColumnSpill, NearestSamples, iter_table, record_writer, spilled_grid_origin,
+                        spilled_median_step, spilled_times)
 from .config import G, SledConfig
 from .errmodel import propagate_run_model
 from .filters import Dynamics, Epochs, FilterOut, KalmanRun, epoch_mean, run_filter, stop_tuning
-from .identify import (Identification, Tail, end_errors, epoch_samples, gyro_offsets, gyro_rate_sigma,
-                       phi_columns, phi_per_sample, run_attitude, stop_index, x_corrections)
+from .identify import (Identification, Tail, end_errors, gyro_offsets, gyro_rate_sigma, phi_columns, phi_per_sample,
+                       run_attitude, x_corrections)
 from .ins import Navigator
-from .record import (IMU_COLUMNS, NOMINAL_FIX, RECORD_FLOATS, TRUTH_COLUMNS, check_out_path, gain_and_error,
-                     incremental, nominal_imu, phase_off, phase_windows, read_record, record_frame, record_times,
-                     refuse_lateral, refuse_static_rates, rest_samples, samples_per_phase, static_rate_tolerance,
+from .record import (IMU_COLUMNS, NOMINAL_FIX, RECORD_FLOATS, TRUTH_COLUMNS, check_out_path, check_span,
+                     gain_and_error, incremental, nominal_imu, phase_off, phase_windows, read_record, record_frame,
+                     refuse_lateral, refuse_static_rates, rest_samples, rest_tolerance, samples_per_phase,
                      table_options, truth_params, truth_side)
 from .sensors import ErrorParams, accel_error, draw_errors, measure, noise_sigmas
 from .simulate import Truth, record_rotation
@@ -75,24 +78,42 @@ def _chunks(path, cfg: SledConfig, chunk_rows: int):
 
 
 def scan_times(path, cfg: SledConfig, tl: Timeline, chunk_rows: int) -> Times:
-    """Pass 1: the record's ``t`` read whole (the rows' own checks as each chunk is read), checked
-    and counted from its start as :func:`.record.read_record` does, then reduced to :class:`Times`."""
-    parts, has_truth = [], None
-    for df in _chunks(path, cfg, chunk_rows):
-        has_truth = all(c in df.columns for c in TRUTH_COLUMNS) if has_truth is None else has_truth
-        parts.append(np.array(df["t"].to_numpy(dtype=float)))   # a copy: the chunk's block is let go
-    t_raw = np.concatenate(parts)
-    del parts
-    t, med, origin = record_times(cfg, tl.n, t_raw)
-    del t_raw
-    k, T = epoch_samples(t, cfg.period_ms / 1000.0)
-    n_stop = stop_index(t, tl.stop_time_s)
-    rest = rest_samples(cfg, tl, t)
-    med_t = float(np.median(np.diff(t), overwrite_input=True))  # the steps are a temporary: no second copy
-    return Times(rows=t.size, origin=origin, med=med, med_t=med_t, k=k, T=T, n_stop=n_stop,
-                 j_stop=int(min(np.searchsorted(k, n_stop), k.size - 1)), per_phase=samples_per_phase(tl, t, cfg.dt),
-                 rest_s=float(rest.sum()) * med_t, tolerance=static_rate_tolerance(cfg, tl, t),
-                 truth_columns=bool(has_truth))
+    """Pass 1: the record's ``t`` spilled to a temporary file (:class:`platcal.records.ColumnSpill`,
+    the rows' own checks as each chunk is read), checked and counted from its start as
+    :func:`.record.read_record` does (:func:`platcal.records.spilled_times`, the same medians by
+    passes over the spilled ``t``: :class:`platcal.records.PassMedian`), then reduced to
+    :class:`Times` in one more pass (the epochs by :class:`platcal.records.NearestSamples`, the
+    stop, the rest and the samples per phase by counts). Held: the epochs (16 bytes an epoch)."""
+    max_gap = float(cfg.raw["record"]["max_gap_s"])
+    has_truth = None
+    with ColumnSpill() as spill:
+        for df in _chunks(path, cfg, chunk_rows):
+            has_truth = all(c in df.columns for c in TRUTH_COLUMNS) if has_truth is None else has_truth
+            spill.write(df["t"].to_numpy(dtype=float))
+        med = spilled_times(spill, cfg.dt, max_gap, "--data column t",
+                            f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
+        origin = 0.0 if abs(spill.first) <= max_gap else spilled_grid_origin(spill, med)
+        first, last = spill.first - origin, spill.last - origin
+        check_span(cfg, tl.n, first, last, spill.rows, med)
+        # the median step of t - origin: that of t when the origin is 0 (the same numbers)
+        med_t = med if origin == 0.0 else spilled_median_step(spill, origin)
+        near = NearestSamples(first, last, cfg.period_ms / 1000.0, 0.5 * med_t)
+        before_stop, rest_n, per_phase = 0, 0, dict.fromkeys(tl.phase_names, 0)
+        for g, ahead, _ in spill.steps(origin):
+            near.add(g, ahead)
+            t = ahead if g == 0 else ahead[1:]          # this block's own samples
+            before_stop += int(np.count_nonzero(t < tl.stop_time_s - 0.5 * med_t))
+            rest_n += int(rest_samples(cfg, tl, t, med_t).sum())
+            for name, count in samples_per_phase(tl, t, cfg.dt).items():
+                per_phase[name] += count
+    idx, at = near.result()
+    if idx.size == 0 or idx[0] != 0:       # epoch 0 (the prior) is the first sample
+        idx, at = np.r_[0, idx], np.r_[first, at]
+    n_stop = min(before_stop, spill.rows - 1)  # :func:`.identify.stop_index`
+    rest_s = float(rest_n) * med_t
+    return Times(rows=spill.rows, origin=origin, med=med, med_t=med_t, k=idx, T=np.diff(at), n_stop=n_stop,
+                 j_stop=int(min(np.searchsorted(idx, n_stop), idx.size - 1)), per_phase=per_phase,
+                 rest_s=rest_s, tolerance=rest_tolerance(cfg, rest_s), truth_columns=bool(has_truth))
 
 
 BLOCK = 16384

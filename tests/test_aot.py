@@ -1,0 +1,148 @@
+"""The centrifuge's identify on kernels compiled ahead of time (:mod:`platcal.aot`, issue 22 item 3):
+built with numba.pycc, it loads neither numba nor llvmlite and gives the JIT's numbers bit for bit;
+a module built from other sources is never loaded (the JIT runs instead)."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from centrifuge_short import short_config
+from platcal import aot
+from platcal.cli import main
+from platcal.rigs.centrifuge.aot_kernels import KERNELS
+
+pytestmark = pytest.mark.slow  # the build compiles two kernels with pycc and a C compiler
+
+PROBE = """
+import json, sys
+import numpy as np
+from platcal.cli import main
+from platcal.rigs.centrifuge import commands
+
+write = commands.write_identification
+
+def keep(out_dir, est, *args, **kw):  # the run's arrays, before the tables round them
+    np.savez(sys.argv[1], x=est.x, P=est.P, history_t=est.history_t, history_x=est.history_x,
+             history_sigma=est.history_sigma, nis=est.mean_nis)
+    return write(out_dir, est, *args, **kw)
+
+commands.write_identification = keep
+code = main(sys.argv[2:])
+print(json.dumps({"code": code, "numba": "numba" in sys.modules, "llvmlite": "llvmlite" in sys.modules}))
+"""
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """A folder holding the centrifuge's kernel set built from these sources."""
+    folder = tmp_path_factory.mktemp("aot")
+    path, _ = aot.build(KERNELS, folder)
+    assert path == aot.module_path(KERNELS, folder) and path.is_file()
+    return folder
+
+
+@pytest.fixture(scope="module")
+def record(tmp_path_factory):
+    """The short study's config and a noisy record of it (3 positions x 4 s, 2400 rows)."""
+    folder = tmp_path_factory.mktemp("rec")
+    cfg = folder / "config.yaml"
+    cfg.write_text(short_config())
+    rec = folder / "rec.csv"
+    assert main(["simulate", "--config", str(cfg), "--scheme", "short", "--seed", "1", "--out", str(rec)]) == 0
+    return cfg, rec
+
+
+def identify(record, folder, out, chunk_rows: str, aot_on: bool) -> tuple[dict, dict]:
+    """Run identify in a fresh interpreter with the kernels of ``folder``; its modules and arrays."""
+    cfg, rec = record
+    env = {**os.environ, "PLATCAL_AOT_DIR": str(folder), "PLATCAL_AOT": "1" if aot_on else "0"}
+    arrays = out.with_name(out.name + ".npz")
+    res = subprocess.run([sys.executable, "-c", PROBE, str(arrays), "identify", "--config", str(cfg),
+                          "--scheme", "short", "--data", str(rec), "--chunk-rows", chunk_rows, "--out", str(out)],
+                         capture_output=True, text=True, env=env)
+    assert res.returncode == 0, res.stderr
+    info = json.loads(res.stdout.splitlines()[-1])
+    assert info["code"] == 0, res.stderr
+    with np.load(arrays) as z:
+        return info, {k: z[k] for k in z.files}
+
+
+@pytest.mark.parametrize("chunk_rows", ["0", "500"])
+def test_aot_identify_loads_no_numba_and_equals_the_jit(built, record, tmp_path, chunk_rows):
+    """Whole (``--chunk-rows 0``) and streamed (500 rows: the kernel runs chunk by chunk), the
+    identify on the built module imports neither numba nor llvmlite; with ``PLATCAL_AOT=0`` the JIT
+    runs (numba loaded) and the estimate, covariance, history and NIS are equal bit for bit."""
+    info_a, a = identify(record, built, tmp_path / "aot", chunk_rows, True)
+    info_j, j = identify(record, built, tmp_path / "jit", chunk_rows, False)
+    assert not info_a["numba"] and not info_a["llvmlite"]
+    assert info_j["numba"] and info_j["llvmlite"]
+    assert a.keys() == j.keys()
+    for k in a:
+        assert np.array_equal(a[k], j[k]), k
+    assert a["history_x"].shape[1] > 0
+
+
+def test_a_module_built_from_other_sources_is_not_loaded(built, record, tmp_path):
+    """A module whose name carries another source key (any edit of the package changes it) is
+    ignored: identify falls back to the JIT, with the same numbers."""
+    stale = tmp_path / "stale"
+    stale.mkdir()
+    name = aot.module_name(KERNELS)
+    other = f"_platcal_aot_{KERNELS.name}_{'0' * 20}"
+    for f in built.iterdir():
+        shutil.copy(f, stale / f.name.replace(name, other))
+    assert not aot.module_path(KERNELS, stale).exists()
+    info, s = identify(record, stale, tmp_path / "stale_out", "0", True)
+    assert info["numba"]
+    _, a = identify(record, built, tmp_path / "aot", "0", True)
+    for k in a:
+        assert np.array_equal(a[k], s[k]), k
+
+
+def test_the_source_key_changes_with_any_source_file(tmp_path, monkeypatch):
+    """The key hashes every .py file of the package by content: an edit of one changes it, and
+    the same sources give the same key."""
+    copy = tmp_path / "platcal"
+    shutil.copytree(aot.PACKAGE_DIR, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(aot, "PACKAGE_DIR", copy)
+    aot.source_key.cache_clear()
+    try:
+        k0 = aot.source_key()
+        aot.source_key.cache_clear()
+        assert aot.source_key() == k0
+        kalman = copy / "estimation" / "kalman.py"
+        kalman.write_text(kalman.read_text() + "\n# an edit\n")
+        aot.source_key.cache_clear()
+        assert aot.source_key() != k0
+    finally:
+        aot.source_key.cache_clear()
+
+
+def test_arguments_unlike_the_build_are_refused():
+    """The argument check refuses what pycc's wrapper would convert silently: an int for a
+    float64, a strided array for a contiguous one, another dtype."""
+    spec = [["array", "float64", 2, True], ["float64"], ["tuple", [["int64"], ["bool"]]]]
+    good = (np.zeros((2, 3)), 1.0, (np.int64(2), True))
+    aot._check("k", spec, good)
+    for bad in [(np.zeros((2, 3)), 1, good[2]), (np.zeros((3, 4))[:, ::2], 1.0, good[2]),
+                (np.zeros((2, 3), np.float32), 1.0, good[2]), (np.zeros((2, 3)), 1.0, (2.0, True))]:
+        with pytest.raises(TypeError, match="ahead-of-time kernel k"):
+            aot._check("k", spec, bad)
+
+
+def test_no_c_compiler_is_refused_naming_cc(record, tmp_path):
+    """Without a working C compiler ``platcal kernels`` exits 2 naming CC, and writes nothing
+    (a fresh process: pycc checks the compiler once per process)."""
+    cfg, _ = record
+    env = {**os.environ, "CC": str(tmp_path / "no-such-compiler"), "PLATCAL_AOT_DIR": str(tmp_path / "aot")}
+    res = subprocess.run([sys.executable, "-m", "platcal.cli", "kernels", "--config", str(cfg)], capture_output=True,
+                         text=True, env=env)
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.startswith("platcal kernels: error: CC: numba.pycc finds no working C compiler"), res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+    assert not any(p.is_file() for p in (tmp_path / "aot").rglob("*"))

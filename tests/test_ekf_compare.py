@@ -13,6 +13,7 @@ from platcal.rigs.centrifuge import RIG, compare, compare_cells
 from platcal.rigs.centrifuge import study as mc
 from platcal.rigs.centrifuge.config import study_from_config
 from platcal.rigs.centrifuge.estimators import KINDS, run_estimator
+from platcal.study.collect import collect_job
 
 BASE = {
     "seed": 7,
@@ -83,8 +84,8 @@ def compared(tmp_path_factory):
         compare_cells.compare_cell_job(c, compare_cells.compare_levels(c)[label], est, d)
         dirs.append(d)
     out = {"coef": root / "coef.parquet", "runs": root / "runs.parquet", "timing": root / "timing.csv"}
-    compare_cells.collect_job([d / "coef.parquet" for d in dirs], [d / "runs.parquet" for d in dirs],
-                        [d / "timing.json" for d in dirs], out)
+    collect_job([d / "coef.parquet" for d in dirs], [d / "runs.parquet" for d in dirs],
+                [d / "timing.json" for d in dirs], out)
     figs = {"tables": root, "cost": root / "cost.png", "nees": root / "nees.png"}
     compare.compare_job(c, out["coef"], out["runs"], figs)
     return c, root

@@ -4,6 +4,7 @@ Each test copies the workflow (Snakefile, workflow/, config/) into a temporary f
 repository's results/ is never touched. The tiny study is ``config/test.yaml``.
 """
 
+import re
 import textwrap
 from pathlib import Path
 
@@ -136,3 +137,26 @@ def test_cluster_generic_executor_runs_jobs_locally(tmp_path):
     assert "external jobid 'local-" in r.stdout + r.stderr
     assert (d / "results/report.md").exists()
     assert len(pd.read_parquet(d / "results/centrifuge/montecarlo/runs.parquet")) == 2 * 2  # estimators x replicates
+
+
+def test_every_job_that_runs_an_estimator_waits_for_its_rigs_kernels_job(tmp_path):
+    """The default study's job list (``snakemake -n``): the centrifuge's, the sled's and the
+    low-precision centrifuge's kernels are compiled by one job each (rule kernels), which every job
+    running that rig's estimators waits for, so no two of them compile the kernels side by side on
+    a cold numba cache (issue 22 item 4)."""
+    d = workdir(tmp_path)
+    r = smk(d, "--cores", "1", "-n", timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    jobs = [(m[1], m[2]) for m in re.finditer(r"^rule (\w+):\n((?:    .*\n)+)", r.stdout + r.stderr, re.M)]
+    rules = [rule for rule, _ in jobs]
+    warmed = ("centrifuge", "sled", "lowprec_centrifuge")
+    assert sorted(re.search(r"rig=(\w+)", body)[1] for rule, body in jobs if rule == "kernels") == sorted(warmed)
+    waiting = {"centrifuge_compare_cell": "centrifuge", "centrifuge_single_run": "centrifuge", "sled_series": "sled"}
+    checked = 0
+    for rule, body in jobs:
+        rig = waiting.get(rule) or (re.search(r"rig=(\w+)", body)[1] if rule == "montecarlo_cell" else None)
+        if rig in warmed:
+            inputs = re.search(r"^    input: (.*)$", body, re.M)
+            assert inputs and f"results/{rig}/kernels.json" in inputs[1], (rule, body)
+            checked += 1
+    assert checked == 16 + 1 + 7 + 36 + 7 + 22  # comparison cells, single run, series, three rigs' Monte Carlo cells

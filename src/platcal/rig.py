@@ -106,6 +106,8 @@ import numpy as np
 if TYPE_CHECKING:  # annotations only: importing the rig registry (every command) does not load pandas
     import pandas as pd
 
+    from .lighttable import Table
+
 from . import rigs as _rigs_package
 from .errors import InputError
 from .io import normalise_numbers, read_config
@@ -238,7 +240,8 @@ class ReplicateBatch:
     """Estimates of B replicates of one cell, as a rig's ``run_batch`` returns them.
 
     ``quantities``: the n identified quantities, one row each with ``name``, ``group``, ``unit``
-    and ``truth`` (as in ``Rig.catalogue()``); ``estimate`` and ``sigma`` (B, n) in their units;
+    and ``truth`` (as in ``Rig.catalogue()``; a :class:`platcal.lighttable.Table`, so that a cell
+    job loads no pandas, or a DataFrame); ``estimate`` and ``sigma`` (B, n) in their units;
     ``truth`` (B, n), optional: the truth of each replicate, for a rig that draws its truth per
     replicate (per seed, per platform); None: every replicate has ``quantities["truth"]``;
     ``nees`` (B,) of the n errors (``nees_dof`` = n), ``mean_nis`` (B,), ``failed_updates``
@@ -248,7 +251,7 @@ class ReplicateBatch:
     NaN by design), so that only its estimates are checked for failure.
     """
 
-    quantities: pd.DataFrame
+    quantities: Table | pd.DataFrame
     estimate: np.ndarray
     sigma: np.ndarray
     nees: np.ndarray

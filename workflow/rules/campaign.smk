@@ -10,8 +10,8 @@ CAMPAIGN_TARGETS = (
 )
 
 
-# What every Monte Carlo cell of a rig the campaign names waits for (the rig's optional hook
-# `requires`: the multi-position rig's kernels job). The plan's Monte Carlo check runs those rigs'
+# What every Monte Carlo cell of a rig the campaign names waits for (rig_requires: the rig's
+# kernels job, rule kernels or the multi-position rig's own). The plan's Monte Carlo check runs those rigs'
 # filters: after that job they load from numba's cache, beside it they are compiled a second time
 # (29 s of CPU on a cold cache; issue 22 item 4).
 CAMPAIGN_REQUIRES = [f for r in ((CAMPAIGN or {}).get("rigs") or {}) for f in rig_requires(r)]

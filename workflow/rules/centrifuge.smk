@@ -61,6 +61,8 @@ wildcard_constraints:
 
 
 rule centrifuge_single_run:
+    input:
+        rig_requires("centrifuge"),
     output:
         estimates="results/centrifuge/single/estimates.csv",
         covariance="results/centrifuge/single/covariance.csv",
@@ -185,6 +187,8 @@ CEN_COMPARE_DIRS = [f"results/centrifuge/compare/noise{n}/{e}" for n, e in CEN_C
 
 
 rule centrifuge_compare_cell:
+    input:
+        rig_requires("centrifuge"),
     output:
         coef="results/centrifuge/compare/noise{noise}/{estimator}/coef.parquet",
         runs="results/centrifuge/compare/noise{noise}/{estimator}/runs.parquet",

@@ -81,11 +81,19 @@ def mc_case_input(w):
     return f"results/{w.rig}/{f}" if f else []
 
 
+# the rigs whose hooks compile their kernels in one job (optional hook ``warm_kernels``, rule kernels)
+WARM_RIGS = [r for r, h in MC_HOOKS.items() if callable(getattr(h, "warm_kernels", None))]
+
+
 def rig_requires(rig):
-    """Files of the rig's own rules that its Monte Carlo runs wait for (optional hook
-    ``requires``; none for a rig without Monte Carlo hooks)."""
-    req = getattr(MC_HOOKS[rig], "requires", None) if rig in MC_HOOKS else None
-    return [f"results/{rig}/{f}" for f in req(MC_CONFIG[rig])] if req else []
+    """Files that the rig's Monte Carlo runs (and its other jobs running its estimators) wait for:
+    results/<rig>/kernels.json of rule kernels when the hooks have ``warm_kernels``, and the files
+    of the rig's own rules of the optional hook ``requires``; none for a rig without Monte Carlo hooks."""
+    if rig not in MC_HOOKS:
+        return []
+    req = getattr(MC_HOOKS[rig], "requires", None)
+    own = [f"results/{rig}/{f}" for f in req(MC_CONFIG[rig])] if req else []
+    return ([f"results/{rig}/kernels.json"] if rig in WARM_RIGS else []) + own
 
 
 def mc_requires_input(w):

@@ -1,5 +1,6 @@
 # The generic Monte Carlo stage of every rig with Monte Carlo hooks (platcal.rig.MonteCarloHooks):
-# one job per (case, noise level, estimator) cell, then the rig's tidy tables.
+# one job per (case, noise level, estimator) cell, then the rig's tidy tables; before them, for a
+# rig whose hooks have ``warm_kernels``, one job compiling its numba kernels (rule kernels).
 #   results/<rig>/runs/<case>/noise<level>/<estimator>/{coef,runs}.parquet, timing.json
 #   results/<rig>/montecarlo/{coef,runs}.parquet, timing.csv
 
@@ -10,6 +11,26 @@ wildcard_constraints:
     scheme=r"[A-Za-z0-9_.-]+",
     noise=r"[0-9][0-9.e+-]*",
     estimator=r"[A-Za-z0-9_-]+",
+
+
+rule kernels:
+    output:
+        "results/{rig}/kernels.json",
+    wildcard_constraints:
+        rig="|".join(WARM_RIGS) or "(?!)",
+    priority: 20  # every job running the rig's estimators waits for it (rig_requires)
+    params:
+        # compiling depends on the code only: a config change reruns no cell through this file
+        code=lambda w: CODE_COMPUTE[w.rig],
+    threads: 1
+    conda:
+        "../envs/platcal.yaml"
+    benchmark:
+        bench("{rig}", "kernels"),
+    log:
+        "results/{rig}/logs/kernels.log",
+    script:
+        "../scripts/kernels.py"
 
 
 rule montecarlo_cell:

@@ -3,9 +3,10 @@
 # (MC_CONFIG["sled"]); defines SLED_TARGETS (results/sled/..., ending with results/sled/report.md),
 # or an empty list when the rig is not in the index.
 # The cases' replicates run as generic Monte Carlo cells (montecarlo.smk; hooks in
-# platcal.rigs.sled.montecarlo) collected into results/sled/montecarlo/{coef,runs}.parquet. Here:
-# the rank table, each case's replicate 0 as time series for the figures, and the summary
-# (Table-1 analogue, checks, figures, report.md). Each rule's params are the config it reads.
+# platcal.rigs.sled.montecarlo) collected into results/sled/montecarlo/{coef,runs}.parquet; they and
+# the series wait for the rig's kernels job (the generic rule kernels). Here: the rank table, each
+# case's replicate 0 as time series for the figures, and the summary (Table-1 analogue, checks,
+# figures, report.md). Each rule's params are the config it reads.
 
 from platcal.rigs.sled.montecarlo import case_params as _sled_case_params
 from platcal.study.montecarlo import package_code_hash as _sled_code_hash
@@ -27,6 +28,8 @@ if "sled" in MC_CONFIG:
     SLED_EVIDENCE = ["results/sled/montecarlo/runs.parquet"]
 
     rule sled_series:
+        input:
+            rig_requires("sled"),
         output:
             "results/sled/series/{case}.csv",
         params:

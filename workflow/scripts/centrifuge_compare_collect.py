@@ -1,5 +1,5 @@
 """Snakemake wrapper: the estimator comparison's cells into results/centrifuge/compare/."""
-from platcal.rigs.centrifuge.compare_cells import collect_job
+from platcal.study.collect import collect_job
 
 sm = snakemake  # noqa: F821
 collect_job(sm.input.coef, sm.input.runs, sm.input.timing, dict(sm.output), log_path=sm.log[0])

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..io import atomic_files
+from ..log import job_logger
 from .montecarlo import CELL
 
 
@@ -25,3 +27,16 @@ def collect(coef_files, runs_files, timing_files) -> tuple[pd.DataFrame, pd.Data
     timing = pd.DataFrame([json.loads(Path(f).read_text()) for f in timing_files])
     timing = timing.sort_values(CELL, kind="stable").reset_index(drop=True)
     return coef, runs, timing
+
+
+def collect_job(coef_files, runs_files, timing_files, out: dict, log_path=None) -> None:
+    """Rule body: cells' files into ``out["coef"]``, ``out["runs"]`` (Parquet) and ``out["timing"]``
+    (CSV), written together (a rig's Monte Carlo collect and the centrifuge's comparison collect)."""
+    lg = job_logger(log_path)
+    lg.info("collecting %d cells", len(coef_files))
+    coef, runs, timing = collect(coef_files, runs_files, timing_files)
+    with atomic_files(Path(out["coef"]).parent) as tmp:  # the three land together or not at all
+        coef.to_parquet(tmp(Path(out["coef"]).name), index=False)
+        runs.to_parquet(tmp(Path(out["runs"]).name), index=False)
+        timing.to_csv(tmp(Path(out["timing"]).name), index=False)
+    lg.info("done: %d rows, %d runs -> %s", len(coef), len(runs), Path(out["coef"]).parent)

@@ -4,7 +4,9 @@ what each depends on, and the job that runs one (docs/centrifuge-model.md §10-1
 Apart from :mod:`platcal.rigs.centrifuge.compare` (the comparison's tables, figures and report
 section) because a cell job and the workflow's master process need none of what those need
 (matplotlib, scipy.stats: about 1.5 s of CPU to import, in each of the comparison's cell jobs
-and its collect job).
+and its collect job). A cell's tables are numpy columns (:class:`platcal.lighttable.Table`,
+written to Parquet through pyarrow), so a cell job loads no pandas either (issue 22 item 4); the
+comparison's collect is the generic :func:`platcal.study.collect.collect_job`.
 The cells, their seeds and their outputs are described in :mod:`platcal.rigs.centrifuge.compare`.
 """
 
@@ -17,11 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
-from ...io import atomic_files
 from ...log import job_logger
 from ...rig import get_rig
-from ...study.collect import collect
-from ...study.montecarlo import run_cell, write_cell
+from ...study.montecarlo import cell_tables, write_cell
 from ...study.sweep import noise_label
 from .study import builtin_scheme, check_study
 
@@ -89,6 +89,26 @@ def passes_of(cfg: dict, name: str) -> int:
     return int(entry.get("passes", cfg["filter"]["passes"]))
 
 
+def warm_estimator(cfg: dict, scheme, level: float, estimator: str) -> None:
+    """Run ``estimator`` (a name of ``study.estimators`` of the checked ``cfg``) once on a 2-period
+    version of ``scheme`` at ``level`` (ug), one replicate: its numba kernels compiled, or loaded
+    from numba's cache, and nothing written (docs/centrifuge-model.md §10-11)."""
+    short = replace(scheme, dwell_s=2 * float(cfg["filter"]["period_ms"]) / 1000.0)
+    get_rig("centrifuge").montecarlo.run_batch(cfg, short, level, estimator, [np.random.SeedSequence(0)])
+
+
+def warm_kernels(cfg: dict) -> None:
+    """Compile (or load) the kernels of every estimator of the sweep and of the comparison once
+    (:func:`warm_estimator` on the comparison's scheme), so that the cells, the comparison's cells
+    and the single run that follow load them from numba's cache instead of compiling them side by
+    side (issue 22 item 4). ``cfg``: the raw or checked centrifuge config."""
+    cfg = with_compare_estimators(check_study(cfg))
+    scheme = builtin_scheme(cfg, compare_settings(cfg)["scheme"])
+    level = float(cfg["study"]["sigma_a_ug"][0])
+    for name in cfg["study"]["estimators"]:  # the sweep's and the comparison's own, in order
+        warm_estimator(cfg, scheme, level, name)
+
+
 def compare_cell_job(cfg: dict, level: float, estimator: str, out_dir, threads: int = 1, log_path=None) -> None:
     """Rule body: one (noise level, estimator) cell of the comparison."""
     lg = job_logger(log_path)
@@ -98,30 +118,19 @@ def compare_cell_job(cfg: dict, level: float, estimator: str, out_dir, threads: 
     scheme = builtin_scheme(cfg, c["scheme"])
     lg.info("comparison cell %s, sigma_a = %g ug, estimator %s: %d replicates", scheme.name, level, estimator,
             c["replicates"])
-    # load the compiled kernels before the clock starts (a 2-period run of this estimator), so the
-    # cost per run is the runs', not the process's start-up
-    short = replace(scheme, dwell_s=2 * float(cfg["filter"]["period_ms"]) / 1000.0)
-    rig.montecarlo.run_batch(cfg, short, level, estimator, [np.random.SeedSequence(0)])
+    # load the compiled kernels before the clock starts, so the cost per run is the runs', not the
+    # process's start-up
+    warm_estimator(cfg, scheme, level, estimator)
     t0, c0 = time.perf_counter(), time.process_time()
-    coef, runs, timing = run_cell(rig, cfg, scheme, level, estimator, replicates=int(c["replicates"]),
-                                  threads=threads)
+    coef, runs, timing = cell_tables(rig, cfg, scheme, level, estimator, replicates=int(c["replicates"]),
+                                     threads=threads)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     # the cost per run (cell mean, simulation and filter, every thread of the process): the
     # comparison's runs table is machine-dependent in these two columns only
     R = max(len(runs), 1)
-    runs["wall_s"] = wall / R
-    runs["cpu_s"] = cpu / R
+    runs["wall_s"] = np.full(len(runs), wall / R)
+    runs["cpu_s"] = np.full(len(runs), cpu / R)
     timing["cpu_s"] = cpu
     write_cell(out_dir, coef, runs, timing)
     lg.info("done: mean NEES %.1f, %.3f s CPU per run -> %s", runs["nees"].mean(), runs["cpu_s"].mean(), out_dir)
 
-
-def collect_job(coef_files, runs_files, timing_files, out: dict, log_path=None) -> None:
-    """Rule body: the comparison's cells into ``compare/{coef,runs}.parquet, timing.csv``."""
-    lg = job_logger(log_path)
-    coef, runs, timing = collect(coef_files, runs_files, timing_files)
-    with atomic_files(Path(out["coef"]).parent) as tmp:
-        coef.to_parquet(tmp(Path(out["coef"]).name), index=False)
-        runs.to_parquet(tmp(Path(out["runs"]).name), index=False)
-        timing.to_csv(tmp(Path(out["timing"]).name), index=False)
-    lg.info("collected %d runs -> %s", len(runs), Path(out["coef"]).parent)

@@ -33,7 +33,7 @@ from ...logs.calibration import write_covariance
 from ...log import job_logger
 from ...model.instruments import group_of, unit_of
 from ...parallel import set_threads
-from ...rig import NoiseAxis, ReplicateBatch
+from ...rig import NoiseAxis, ReplicateBatch, resolve
 from ...seeding import stable_key
 from ...study.sweep import StudySectionHooks, noise_key, noise_label, replicate_seed
 from .config import check_filter, study_from_config, validate_config
@@ -230,9 +230,9 @@ def replicate_batch(study, est) -> ReplicateBatch:
     nc = est.n_coef
     names = tuple(est.names[:nc])
     truth = study.truth[study.filter.coef_index]
-    # the runner's tables are pandas; through Table.to_pandas this module loads none for identify
+    # numpy columns, as the runner's tidy tables take them: a cell job loads no pandas (issue 22 item 4)
     quantities = Table({"name": list(names), "group": [group_of(n) for n in names],
-                        "unit": [unit_of(n) for n in names], "truth": truth}).to_pandas()
+                        "unit": [unit_of(n) for n in names], "truth": truth})
     return ReplicateBatch(
         quantities=quantities, estimate=est.coef, sigma=est.coef_sigma,
         nees=nees(est.coef, est.P[:, :nc, :nc], truth[None]), nees_dof=nc, mean_nis=est.mean_nis,
@@ -272,6 +272,13 @@ class CentrifugeMonteCarlo(StudySectionHooks):
 
     def case_file(self, cfg: dict, name: str) -> str | None:
         return f"design/{name}.yaml" if is_generated(name, cfg["study"]) else None
+
+    def warm_kernels(self, cfg: dict) -> None:
+        """Compile (or load) every estimator's kernels once, for the workflow's rule ``kernels``
+        that the cells, the comparison's cells and the single run wait for
+        (:func:`platcal.rigs.centrifuge.compare_cells.warm_kernels`, named by path: it imports
+        this module)."""
+        resolve("platcal.rigs.centrifuge.compare_cells:warm_kernels")(cfg)
 
     def cell_params(self, cfg: dict, case: str, noise: float, estimator: str) -> dict:
         p = {k: cfg[k] for k in MODEL_KEYS}

@@ -31,6 +31,7 @@ collected into the tidy tables ``results/lowprec_centrifuge/montecarlo/``.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import re
 from dataclasses import dataclass
@@ -224,6 +225,26 @@ def check_study(raw) -> dict:
     return study.raw
 
 
+WARM_SETTINGS = {"profile": {"rest_first_s": 1.0, "rest_between_s": 1.0}, "traditional": {"hold_s": 1.0, "rest_last_s": 1.0}}
+"""The warm-up's shorter rests and holds (s): every segment of the profiles still runs, and the
+compiled kernels do not depend on the record's length."""
+
+
+def warm_kernels(cfg: dict) -> None:
+    """Compile (or load from numba's cache) the kernels of both estimators once, on two short
+    replicates of the first scenario (:data:`WARM_SETTINGS`), so that the Monte Carlo cells that
+    follow load them from numba's cache instead of compiling them side by side
+    (docs/lowprec-centrifuge.md §2; issue 22 item 4). ``cfg``: the checked config; nothing is written."""
+    short = copy.deepcopy(cfg)
+    for section, values in WARM_SETTINGS.items():
+        short[section].update(values)
+    hooks = LowprecMonteCarlo()
+    case = hooks.case(short, hooks.cases(short)[0])
+    for estimator in ESTIMATORS:
+        hooks.run_batch(short, case, hooks.noise_levels(short)[0], estimator,
+                        [replicate_seed(int(short["seed"]), case.name, hooks.noise_levels(short)[0], r) for r in (0, 1)])
+
+
 class LowprecMonteCarlo:
     """The low-precision centrifuge's :class:`~platcal.rig.MonteCarloHooks` (module docstring)."""
 
@@ -255,6 +276,10 @@ class LowprecMonteCarlo:
 
     def case_file(self, cfg: dict, name: str) -> str | None:
         return None
+
+    def warm_kernels(self, cfg: dict) -> None:
+        """The workflow's rule ``kernels``, which the cells wait for (:func:`warm_kernels`)."""
+        warm_kernels(cfg)
 
     def cell_params(self, cfg: dict, case: str, noise: float, estimator: str) -> dict:
         p = {k: cfg[k] for k in MODEL_KEYS}

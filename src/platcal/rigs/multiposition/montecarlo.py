@@ -91,11 +91,11 @@ def check_study(raw) -> dict:
 
 def quantities(cfg):
     """The 24 identified coefficients of a config: name, group (gyro / accel), unit, truth (a
-    pandas DataFrame for the runner's tables, :meth:`platcal.lighttable.Table.to_pandas`: the
-    rig's identify, which imports this module for its hooks, loads no pandas)."""
+    :class:`platcal.lighttable.Table`, as the runner's tidy tables take it: neither the rig's
+    identify nor a Monte Carlo cell job loads pandas, issue 22 item 4)."""
     names = coef_names()
     return Table({"name": names, "group": [group_of(n) for n in names],
-                  "unit": [unit_of(n) for n in names], "truth": cfg.truth()}).to_pandas()
+                  "unit": [unit_of(n) for n in names], "truth": cfg.truth()})
 
 
 def run_cell_batch(cfg, scheme: Scheme, sigma_a_ug: float, estimator: str, seeds, threads: int = 1) -> ReplicateBatch:

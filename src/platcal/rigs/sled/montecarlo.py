@@ -33,7 +33,7 @@ from ...lighttable import Table
 from ...rig import NoiseAxis, ReplicateBatch, RunSettings
 from ...study.sweep import replicate_seed
 from .config import ARCSEC, SledConfig, load_config
-from .identify import Identification, effective_phi, identify, metrics, phi_columns, run_problems
+from .identify import Identification, effective_phi, identify, metric_columns, phi_columns, run_problems
 from .simulate import SimBatch, simulate
 
 CASES = {
@@ -120,14 +120,33 @@ def run_replicates(cfg: SledConfig, seeds) -> tuple[SimBatch, Identification]:
     return sb, identify(cfg, sb.traj, sb.f, sb.w)
 
 
+WARM_TRAJECTORY = {"static_after_s": 10.0}
+"""The warm-up's trajectory override: 10 s at rest after the stop instead of the config's (every
+phase and both filters still run; the compiled kernels do not depend on the record's length)."""
+
+
+def warm_kernels(raw: dict) -> None:
+    """Compile (or load from numba's cache) the kernels of every study case once, on one short
+    replicate each (:data:`WARM_TRAJECTORY`), so that the series and Monte Carlo jobs that follow
+    load them from the cache instead of compiling them side by side (docs/rocket-sled.md §11;
+    issue 22 item 4). ``raw``: the checked config (:func:`check`); nothing is written."""
+    short = merge(raw, {"trajectory": WARM_TRAJECTORY})
+    for i, case in enumerate(raw["study"]["cases"]):
+        # one replicate (the series jobs) and, once, two: the navigation kernel is compiled apart
+        # for a batch of one, whose broadcast rate samples numpy hands over read-only
+        for seeds in ([0], [0, 1]) if i == 0 else ([0],):
+            sb, idn = run_replicates(case_config(short, case), replicate_seeds(short, case, seeds))
+            replicate_batch(idn, sb)  # the cells' tables: their metrics' kernels too
+
+
 def quantities(states: int):
     """The run filter's attitude estimates (φ_x only with 7 states), arcsec; truth drawn per seed
-    (a pandas DataFrame for the runner's tables, :meth:`platcal.lighttable.Table.to_pandas`: the
-    rig's identify imports this module and loads no pandas)."""
+    (a :class:`platcal.lighttable.Table`, as the runner's tidy tables take it: a cell job loads no
+    pandas, issue 22 item 4)."""
     names = ["phi_x", "phi_y", "phi_z"] if states == 7 else ["phi_y", "phi_z"]
     n = len(names)
     return Table({"name": names, "group": ["attitude"] * n, "unit": ["arcsec"] * n,
-                  "truth": np.full(n, np.nan)}).to_pandas()
+                  "truth": np.full(n, np.nan)})
 
 
 def failed_updates(idn: Identification) -> np.ndarray:
@@ -145,12 +164,12 @@ def replicate_batch(idn: Identification, sb: SimBatch) -> ReplicateBatch:
     est = idn.phi_run[:, cols] / ARCSEC
     sig = idn.sig_run[:, cols] / ARCSEC
     truth = effective_phi(sb.truth)[:, cols] / ARCSEC
-    met = metrics(idn, sb.truth)
+    met = metric_columns(idn, sb.truth)  # numpy columns: no pandas in a cell job
     return ReplicateBatch(
         quantities=quantities(idn.cfg.states), estimate=est, sigma=sig, truth=truth,
         nees=np.sum(((est - truth) / sig) ** 2, axis=1), nees_dof=len(cols), mean_nis=idn.run.mean_nis,
         failed_updates=failed_updates(idn), passes=1,
-        extra={c: met[c].to_numpy(float) for c in met.columns})
+        extra={c: np.asarray(v, dtype=float) for c, v in met.items()})
 
 
 @dataclass(frozen=True)
@@ -189,6 +208,10 @@ class SledMonteCarlo:
 
     def case_file(self, cfg: dict, name: str) -> str | None:
         return None
+
+    def warm_kernels(self, cfg: dict) -> None:
+        """The workflow's rule ``kernels``, which the series and the cells wait for (:func:`warm_kernels`)."""
+        warm_kernels(cfg)
 
     def cell_params(self, cfg: dict, case: str, noise: float, estimator: str) -> dict:
         return {**case_params(cfg, case, noise), "replicates": int(cfg["study"]["seeds"])}

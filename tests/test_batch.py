@@ -50,8 +50,11 @@ def _close(a, b):
 def batch():
     scheme = _scheme(2.0)
     settings = FilterSettings(passes=2, history_every_s=0.5)
-    sim = _sim(scheme, range(4))
-    return scheme, settings, sim, _ekf(scheme, sim, settings)
+    # on every thread of numba's pool (not the one a pytest-xdist worker's kernels are given,
+    # tests/conftest.py): test_thread_count_changes_nothing compares one thread against it
+    with threads(max_threads()):
+        sim = _sim(scheme, range(4))
+        return scheme, settings, sim, _ekf(scheme, sim, settings)
 
 
 def test_simulation_batch_equals_runs_of_one(batch):

@@ -340,7 +340,8 @@ def _run_blocks(nblk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, par
                 seg_last, seg_nis, pidx):
     """Every block of one pass, one block per ``prange`` iteration (threads)."""
     for blk in prange(nblk):
-        _run_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
+        # prange's index is unsigned: int64 as the serial loop's, so the block kernels compile once
+        _run_block(np.int64(blk), x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
                    hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k,
                    seg_t0, seg_last, seg_nis, pidx)
 

@@ -140,18 +140,19 @@ def test_cluster_generic_executor_runs_jobs_locally(tmp_path):
 
 
 def test_every_job_that_runs_an_estimator_waits_for_its_rigs_kernels_job(tmp_path):
-    """The default study's job list (``snakemake -n``): the centrifuge's, the sled's and the
-    low-precision centrifuge's kernels are compiled by one job each (rule kernels), which every job
-    running that rig's estimators waits for, so no two of them compile the kernels side by side on
-    a cold numba cache (issue 22 item 4)."""
+    """The default study's job list (``snakemake -n``): every rig's kernels are compiled by one job
+    each (the one rule kernels), which every job running that rig's estimators waits for, so no
+    two of them compile the kernels side by side on a cold numba cache (issue 22 item 4)."""
     d = workdir(tmp_path)
     r = smk(d, "--cores", "1", "-n", timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     jobs = [(m[1], m[2]) for m in re.finditer(r"^rule (\w+):\n((?:    .*\n)+)", r.stdout + r.stderr, re.M)]
     rules = [rule for rule, _ in jobs]
-    warmed = ("centrifuge", "sled", "lowprec_centrifuge")
+    warmed = ("centrifuge", "sled", "lowprec_centrifuge", "multiposition")
     assert sorted(re.search(r"rig=(\w+)", body)[1] for rule, body in jobs if rule == "kernels") == sorted(warmed)
-    waiting = {"centrifuge_compare_cell": "centrifuge", "centrifuge_single_run": "centrifuge", "sled_series": "sled"}
+    waiting = {"centrifuge_compare_cell": "centrifuge", "centrifuge_single_run": "centrifuge", "sled_series": "sled",
+               "multiposition_observability": "multiposition", "multiposition_design": "multiposition",
+               "multiposition_extension": "multiposition"}
     checked = 0
     for rule, body in jobs:
         rig = waiting.get(rule) or (re.search(r"rig=(\w+)", body)[1] if rule == "montecarlo_cell" else None)
@@ -159,4 +160,8 @@ def test_every_job_that_runs_an_estimator_waits_for_its_rigs_kernels_job(tmp_pat
             inputs = re.search(r"^    input: (.*)$", body, re.M)
             assert inputs and f"results/{rig}/kernels.json" in inputs[1], (rule, body)
             checked += 1
-    assert checked == 16 + 1 + 7 + 36 + 7 + 22  # comparison cells, single run, series, three rigs' Monte Carlo cells
+    n_mp_cov = sum(rule in ("multiposition_observability", "multiposition_design", "multiposition_extension")
+                   for rule in rules)
+    assert n_mp_cov >= 3
+    # comparison cells, single run, series, the multi-position covariance jobs, four rigs' Monte Carlo cells
+    assert checked == 16 + 1 + 7 + n_mp_cov + 36 + 7 + 22 + 30

@@ -25,23 +25,6 @@ MULTIPOSITION_EVIDENCE = (
 )
 
 
-rule multiposition_kernels:
-    output:
-        "results/multiposition/kernels.json",
-    priority: 20  # every Monte Carlo cell waits for it (MultipositionMonteCarlo.requires)
-    params:
-        config=MP_SETUP.rule_config("kernels"),
-        code=MP_SETUP.compute_code,
-    conda:
-        "../envs/platcal.yaml"
-    benchmark:
-        bench("multiposition", "multiposition_kernels"),
-    log:
-        "results/multiposition/logs/kernels.log",
-    script:
-        "../scripts/multiposition_kernels.py"
-
-
 rule multiposition_lie_cache:
     output:
         "results/multiposition/lie_cache.json",

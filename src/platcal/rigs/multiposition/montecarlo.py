@@ -32,7 +32,7 @@ from ...errors import InputError
 from ...io import read_yaml
 from ...lighttable import Table
 from ...parallel import get_threads
-from ...rig import NoiseAxis, ReplicateBatch
+from ...rig import NoiseAxis, ReplicateBatch, resolve
 from ...scheme import Scheme
 from ...study.sweep import StudySectionHooks, noise_key, noise_label
 from .config import load_config, make_scheme, scheme_table
@@ -145,10 +145,12 @@ class MultipositionMonteCarlo(StudySectionHooks):
     def case_file(self, cfg: dict, name: str) -> str | None:
         return None if name in scheme_table(cfg) else f"design/{name}.yaml"
 
-    def requires(self, cfg: dict) -> list[str]:
-        """Every cell waits for the rule ``multiposition_kernels``, which compiles (or loads) the
-        numba kernels once: with a cold cache the first cells would compile them side by side."""
-        return ["kernels.json"]
+    def warm_kernels(self, cfg: dict) -> None:
+        """Compile (or load) the numba kernels once, for the workflow's rule ``kernels`` that every
+        cell and covariance job waits for: with a cold cache the first cells would compile them
+        side by side (:func:`platcal.rigs.multiposition.study.warm_kernels`, named by path: it
+        imports this module)."""
+        resolve("platcal.rigs.multiposition.study:warm_kernels")(load_config(cfg))
 
     def cell_params(self, cfg: dict, case: str, noise: float, estimator: str) -> dict:
         choice = raw_variant_choice(cfg, estimator, field=f"study.estimators.{estimator}")

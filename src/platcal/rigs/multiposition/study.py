@@ -17,9 +17,8 @@ import pandas as pd
 from scipy import stats as sps
 
 from ...io import atomic_write_text
-from ...rig import get_rig
 from ...study.claims import ledger_section, read_ledger
-from ...study.montecarlo import compute_code_hash, package_code_hash
+from ...study.montecarlo import package_code_hash
 from ...study.plots import finish, nees_histogram, plt, save as save_figure
 from ...study.stats import CELL, select_cell, with_timing
 from ...study.tables import frame_markdown, write_table
@@ -386,7 +385,6 @@ def report_job(inp, out_report, config: dict, log=print) -> None:
 # ------------------------------------------------------------------ workflow set-up
 
 RULE_SECTIONS = {
-    "kernels": ("rig", "filter", "study", "schemes"),
     "lie_cache": ("rig", "observability"),
     "observability": ("rig", "site", "gimbal", "sampling", "noise", "truth", "filter", "observability", "schemes"),
     "design": ("rig", "seed", "site", "gimbal", "sampling", "noise", "truth", "filter", "observability", "design",
@@ -396,7 +394,7 @@ RULE_SECTIONS = {
 }
 """The config sections each of the rig's own rules reads (its Snakemake param, the rest left to the
 schema's defaults): an edit elsewhere leaves the rule's outputs alone. The report reads everything."""
-RULE_SCHEMES = {"kernels": ("TET4",), "design": ("S8", "TET4"), "extension": ("S8",)}
+RULE_SCHEMES = {"design": ("S8", "TET4"), "extension": ("S8",)}
 """The named schemes a rule uses (the rank-table rule: ``study.rank_schemes``)."""
 
 
@@ -418,15 +416,11 @@ class WorkflowSetup:
         if not self.active:
             self.cfg, self.study = None, {"schemes": [], "rank_schemes": [], "sigma_a_ug": []}
             self.design_k = []
-            self.compute_code = ""
             return
         self.cfg = load(raw)
         check_scheme_names(self.cfg)
         self.study = self.cfg.raw["study"]
         self.design_k = list(self.cfg.raw["design"]["positions"])
-        self.compute_code = compute_code_hash(get_rig("multiposition"))
-        """Code hash of what the Monte Carlo cells compute (the generic rule's ``code`` param):
-        the kernels' warm-up job reruns exactly when the cells do."""
 
     @property
     def config(self) -> dict:
@@ -443,8 +437,6 @@ class WorkflowSetup:
         if "schemes" in out:
             used = RULE_SCHEMES.get(rule, self.study["rank_schemes"])
             out["schemes"] = {k: v for k, v in raw["schemes"].items() if k in used}
-        if rule == "kernels":  # compiling depends on the estimators, not on the rest of the study
-            out["study"] = {"estimators": raw["study"]["estimators"]}
         return out
 
     def observability(self) -> list[str]:

@@ -42,6 +42,7 @@ def _tree(tmp_path: Path) -> Path:
     shutil.copytree(ROOT / "workflow/report", d / "workflow/report")
     shutil.copytree(ROOT / "workflow/schemas", d / "workflow/schemas")
     for p in [*(ROOT / "workflow/scripts").glob("multiposition_*.py"), ROOT / "workflow/scripts/montecarlo_cell.py",
+              ROOT / "workflow/scripts/kernels.py",
               ROOT / "workflow/scripts/collect.py", ROOT / "workflow/scripts/claims.py"]:
         shutil.copy(p, d / "workflow/scripts")
     (d / "Snakefile").write_text(SNAKEFILE)

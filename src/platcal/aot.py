@@ -45,6 +45,7 @@ import numpy as np
 from .errors import InputError
 from .io import atomic_files
 from .jit import load_numba
+from .parallel import get_threads
 from .rig import resolve
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -147,6 +148,17 @@ def kernel(kset: KernelSet, name: str):
         return fn(*args)
 
     return call
+
+
+def pick(kset: KernelSet, name: str, serial, threaded, batch: int):
+    """The kernel a batch of ``batch`` replicates runs: at a batch of one the ahead-of-time
+    kernel ``name`` of ``kset`` when enabled and current (:func:`kernel`), else the JIT's
+    ``serial``; a larger batch ``serial`` on one numba thread, else ``threaded`` (its ``prange``
+    over replicates). A batch of one asks no thread count, so numba stays unloaded with the
+    ahead-of-time kernel."""
+    if batch == 1:
+        return kernel(kset, name) or serial
+    return serial if get_threads() == 1 else threaded
 
 
 def in_use() -> tuple[str, ...]:

@@ -36,17 +36,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from ...jit import njit, parallel_chunksize, prange
-from ...parallel import get_threads
 
+from ...aot import pick as aot_pick
 from ...estimation.kalman import (cholesky_inverse, innovation_covariance, joseph_update_sparse, propagate_sparse,
                                  update_scratch)
 from .attitude import GYRO_COLS, MEAS_COLS, P_G, make_step_scratch, measure_jac_sc, rk4_jac_sc
+from ...jit import njit, parallel_chunksize, prange
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import FULL_NAMES, I_DOO, N_FULL, N_IDENTIFIED, term_of
 from .aot_kernels import KERNELS
 from .base import broadcast_params, specific_force_into
-from ...aot import kernel as aot_kernel
 
 ANGLE_NAMES = ("alpha", "beta", "gamma")
 
@@ -742,12 +741,8 @@ def run_ekf(
         # kernels were compiled ahead of time does not load (platcal.aot)
         from .ekf_lanes import run_pass_lanes
         kernel = run_pass_lanes
-    elif B == 1:
-        # a batch of one: the ahead-of-time kernel when a command enabled it and it is built from
-        # these sources (the JIT's numbers), else the JIT's serial kernel
-        kernel = aot_kernel(KERNELS, "run_pass_serial") or _run_pass_serial
     else:
-        kernel = _run_pass_serial if get_threads() == 1 else _run_pass
+        kernel = aot_pick(KERNELS, "run_pass_serial", _run_pass_serial, _run_pass, B)
     keep = settings.innovations and not cov_only
     # every full pass overwrites it, so it ends holding the last pass's innovations
     rec = np.zeros((B, sum(len(tk) for tk in t) if keep and z_source is None else 0, 6))

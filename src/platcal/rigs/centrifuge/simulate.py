@@ -22,16 +22,16 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
-from ...jit import njit, parallel_chunksize, prange
-from ...parallel import get_threads
 
-from .attitude import P_G, measure_scalar, rk4_scalar_sc
+from ...aot import pick as aot_pick
+from ...jit import njit, parallel_chunksize, prange
 from ...model.frames import ARCSEC, DEG
 from ...model.instruments import N_FULL
-from .aot_kernels import KERNELS
-from .base import broadcast_params
-from ...aot import kernel as aot_kernel
+from ...parallel import get_threads
 from ...scheme import Scheme, whole_periods
+from .aot_kernels import KERNELS
+from .attitude import P_G, measure_scalar, rk4_scalar_sc
+from .base import broadcast_params
 
 
 @dataclass(frozen=True)
@@ -246,9 +246,7 @@ def simulate_chunks(truth: np.ndarray, scheme: Scheme, centrifuge_params: np.nda
         for b, (g_set, _, _) in enumerate(streams):
             set_err[b] = g_set.standard_normal((K, 3)) * noise.sigma_set_arcsec * ARCSEC
     arw_step = noise.arw_deg_rth * DEG / 60.0 * np.sqrt(sample_s)  # rad per step
-    # a batch of one: the ahead-of-time kernel when a command enabled it (platcal.aot), else the JIT's
-    kernel = ((aot_kernel(KERNELS, "simulate_position_serial") or _simulate_position_serial) if B == 1
-              else _simulate_position_serial if get_threads() == 1 else _simulate_position)
+    kernel = aot_pick(KERNELS, "simulate_position_serial", _simulate_position_serial, _simulate_position, B)
     use_acc = streams is not None and noise.sigma_a_ug > 0
     use_arw = streams is not None and arw_step > 0
     n_workers = 1 if B == 1 else min(B, get_threads())  # B = 1 asks no thread count: numba stays unloaded

@@ -97,39 +97,51 @@ def cases(max_minutes: float, folder: Path, rigs: tuple[str, ...] = RIGS):
             yield case
 
 
+LOWPREC_RUN = ["--platform", "P1", "--run", "run1"]
+"""The low-precision run every case simulates and identifies (P1/run1)."""
+
+
+def scaled_case(rig: str, minutes: float, folder: Path):
+    """(config, simulate options, identify options) of a ``minutes``-long streamed record of
+    ``rig``, or None where the rig's config cannot make one that short (the sled under its run and
+    a minute of rest, the low-precision centrifuge under its natural run)."""
+    if rig == "centrifuge":
+        cfg = scaled_config("centrifuge.yaml", ("schemes", "table1", "dwell_s"), minutes * 60 / 6, folder)
+        return cfg, ["--scheme", "table1"], ["--scheme", "table1"]
+    if rig == "multiposition":
+        cfg = scaled_config("multiposition.yaml", ("schemes", "S8", "dwell_s"), minutes * 60 / 8, folder)
+        return cfg, ["--scheme", "S8"], ["--scheme", "S8"]
+    if rig == "sled" and minutes * 60 > SLED_RUN_S + 60:
+        return scaled_config("sled.yaml", ("trajectory", "static_after_s"), minutes * 60 - SLED_RUN_S, folder), [], []
+    if rig == "lowprec_centrifuge" and minutes * 60 > LOWPREC_NATURAL_S:
+        cfg = scaled_config("lowprec_centrifuge.yaml", ("profile", "rest_between_s"),
+                            LOWPREC_REST_S + (minutes * 60 - LOWPREC_NATURAL_S) / 2, folder)
+        return cfg, LOWPREC_RUN, []
+    return None
+
+
 def all_cases(max_minutes: float, folder: Path):
     """:func:`cases` of every rig."""
     for rig in RIGS:
         cfg = ROOT / "config" / f"{rig}.yaml"
         yield rig, None, "import", cfg, None, ["--help"]
     yield "sled", None, "whole", ROOT / "config" / "sled.yaml", [], []
-    lowprec_run = ["--platform", "P1", "--run", "run1"]
-    yield "lowprec_centrifuge", None, "streamed", ROOT / "config" / "lowprec_centrifuge.yaml", lowprec_run, []
+    yield "lowprec_centrifuge", None, "streamed", ROOT / "config" / "lowprec_centrifuge.yaml", LOWPREC_RUN, []
     yield ("lowprec_centrifuge", None, "whole", ROOT / "config" / "lowprec_centrifuge.yaml",
-           lowprec_run + ["--chunk-rows", "0"], ["--chunk-rows", "0"])
+           LOWPREC_RUN + ["--chunk-rows", "0"], ["--chunk-rows", "0"])
+    whole = ["--chunk-rows", "0"]
     for minutes in MINUTES:
         if minutes > max_minutes:
             continue
-        cfg = scaled_config("centrifuge.yaml", ("schemes", "table1", "dwell_s"), minutes * 60 / 6, folder)
-        yield "centrifuge", minutes, "streamed", cfg, ["--scheme", "table1"], ["--scheme", "table1"]
-        if minutes <= 60:
-            yield ("centrifuge", minutes, "whole", cfg, ["--scheme", "table1", "--chunk-rows", "0"],
-                   ["--scheme", "table1", "--chunk-rows", "0"])
-        cfg = scaled_config("multiposition.yaml", ("schemes", "S8", "dwell_s"), minutes * 60 / 8, folder)
-        yield "multiposition", minutes, "streamed", cfg, ["--scheme", "S8"], ["--scheme", "S8"]
-        if minutes <= 60:
-            yield "multiposition", minutes, "whole", cfg, ["--scheme", "S8"], ["--scheme", "S8", "--chunk-rows", "0"]
-        if minutes * 60 > SLED_RUN_S + 60:
-            cfg = scaled_config("sled.yaml", ("trajectory", "static_after_s"), minutes * 60 - SLED_RUN_S, folder)
-            yield "sled", minutes, "streamed", cfg, [], []
+        for rig in RIGS:
+            case = scaled_case(rig, minutes, folder)
+            if case is None:
+                continue
+            cfg, sim_opts, id_opts = case
+            yield rig, minutes, "streamed", cfg, sim_opts, id_opts
             if minutes <= 60:
-                yield "sled", minutes, "whole", cfg, ["--chunk-rows", "0"], ["--chunk-rows", "0"]
-        if minutes * 60 > LOWPREC_NATURAL_S:
-            cfg = scaled_config("lowprec_centrifuge.yaml", ("profile", "rest_between_s"),
-                                LOWPREC_REST_S + (minutes * 60 - LOWPREC_NATURAL_S) / 2, folder)
-            yield "lowprec_centrifuge", minutes, "streamed", cfg, lowprec_run, []
-            if minutes <= 60:
-                yield "lowprec_centrifuge", minutes, "whole", cfg, lowprec_run + ["--chunk-rows", "0"], ["--chunk-rows", "0"]
+                # the multi-position rig's simulate has no --chunk-rows (one position at a time in both)
+                yield rig, minutes, "whole", cfg, sim_opts + ([] if rig == "multiposition" else whole), id_opts + whole
 
 
 def warm_up(base: list[str], todo, folder: Path, env: dict) -> None:

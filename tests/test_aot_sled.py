@@ -41,15 +41,14 @@ def keep(idn, *args, **kw):  # the run's arrays, before the files round them
     return fit(idn, *args, **kw)
 
 commands.record_fit = keep
-code = main(sys.argv[2:])
-print(json.dumps({"code": code, "numba": "numba" in sys.modules, "llvmlite": "llvmlite" in sys.modules}))
+print(json.dumps({"code": main(sys.argv[2:]), **{m: m in sys.modules for m in ("numba", "llvmlite")}}))
 """
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """A folder holding the sled's kernel sets built from these sources (in one process)."""
-    folder = tmp_path_factory.mktemp("aot")
+    folder = tmp_path_factory.mktemp("sled_aot")
     for kset in SETS:
         path, _ = aot.build(kset, folder)
         assert path == aot.module_path(kset, folder) and path.is_file()

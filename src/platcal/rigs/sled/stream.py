@@ -56,8 +56,9 @@ from .trajectory import Timeline
 
 
 class EpochStream:
-    """The filter epochs of a spilled ``t`` (s; ``origin`` taken off): the samples nearest the
-    multiples of ``period_s`` within ``tol_s`` (:class:`platcal.records.NearestSamples`), epoch 0
+    """The filter epochs of a spilled ``t`` (s; ``origin`` taken off; docs/rocket-sled.md §12,
+    recorded times): the samples nearest the multiples of ``period_s`` (s) within ``tol_s`` (s)
+    (:class:`platcal.records.NearestSamples`), epoch 0
     the first sample (at ``first``), as the whole record's :func:`platcal.records.nearest_samples`
     gives them, produced from the spill in order as far as they are asked for (:meth:`below`):
     held, the epochs of one spill block at most (16 bytes an epoch)."""

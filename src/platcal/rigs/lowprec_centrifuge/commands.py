@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from ... import aot
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
@@ -81,6 +82,11 @@ def run_samples(study: Study, platform: str, run: str) -> int:
 
 
 def identify(study: Study, args) -> int:
+    """``platcal identify``: the proposed filter (§7) or eq. (2) (§6) over a record read once,
+    ``--chunk-rows`` rows at a time (:mod:`.stream`). The filter's kernel is the one compiled ahead
+    of time when it is built and current (``platcal kernels``, :mod:`platcal.aot`: numba is then
+    not loaded), else the JIT's."""
+    aot.enable()
     method = args.method or "proposed"
     if method not in METHODS:
         raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
@@ -136,7 +142,8 @@ def identify(study: Study, args) -> int:
         write_calibration_files(tmp, cal)
         tmp("summary.json").write_text(json_text(summary))
     print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {seconds:.2f} s -> {args.out}; "
-          + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est)), file=sys.stderr)
+          + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est))
+          + (" (kernels compiled ahead of time)" if aot.in_use() else ""), file=sys.stderr)
     return fit_exit_status(fit, args.data, args.out)
 
 

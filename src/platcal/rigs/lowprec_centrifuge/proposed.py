@@ -23,9 +23,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...aot import pick as aot_pick
 from ...errors import InputError
 from ...estimation.kalman import joseph_update_sparse
 from ...jit import njit
+from .aot_kernels import KERNELS
 from .config import G0, OMEGA_IE, R_EARTH
 from .profile import STATIC
 from .truth import ARCSEC, DEG_H
@@ -436,7 +438,10 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     nis = np.zeros(nb)
     skipped = np.zeros(nb, dtype=np.int64)
     innovations = np.full((nb if keep_innovations else 0, nw, 8), np.nan)
-    filter_windows(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(z, dtype=float),
+    # one kernel for every batch (its loop over seeds is serial): at a batch of one the kernel
+    # compiled ahead of time when an identify enabled it and it is built (numba then not loaded)
+    kernel = aot_pick(KERNELS, "filter_windows", filter_windows, filter_windows, nb)
+    kernel(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(z, dtype=float),
                    np.ascontiguousarray(m, dtype=float), np.ascontiguousarray(valid, dtype=np.bool_),
                    f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis, skipped, innovations)
     n_upd = valid.sum(axis=1)

@@ -20,7 +20,7 @@ from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed
 from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option, whole
-from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, record_writer
+from ...records import CHUNK_OPTION, chunk_rows_of, record_writer
 from ...io import atomic_files, check_writable, json_text, write_csv
 from ...study.sweep import replicate_seed
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
@@ -34,7 +34,7 @@ from .profile import profile_grid, run_duration
 from .proposed import K_SLICE, run_filter
 from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, block_frame, check_against_config, check_out_path,
                      check_plausible, compensated_frame, estimate_columns, read_record, truth_side)
-from .stream import scan_record
+from .stream import WORK_ROWS, scan_record
 from .traditional import plateau_estimates
 from .truth import RecordRun
 
@@ -93,9 +93,10 @@ def identify(study: Study, args) -> int:
     check_writable(args.out, "--out", folder=True)
     max_gap = float(study.raw["record"]["max_gap_s"])
     arm = study.centrifuge.arm_m
-    chunk = chunk_rows_of(args)
-    # one pass over the record, chunk_rows rows at a time: what the identification needs is kept
-    # as sums and per-window integrals, not the record (issue 22 item 3, :mod:`.stream`)
+    # one pass over the record, chunk_rows rows at a time (by default WORK_ROWS: its working set,
+    # not the reader's larger default, sets the peak): what the identification needs is kept as
+    # sums and per-window integrals, not the record (issue 22 item 3, :mod:`.stream`)
+    chunk = WORK_ROWS if getattr(args, "chunk_rows", None) is None else chunk_rows_of(args)
     scan = scan_record(args.data, arm, study.rate_hz, max_gap, RecordMapping.from_config(study.raw["record"], g=G0),
                        chunk or None, windows=method == "proposed", use_truth=not args.no_truth)
     found = check_against_config(scan, study, method, max_gap)
@@ -238,7 +239,7 @@ OPTIONS = {
                  CHUNK_OPTION),
     "identify": (option("--method", default=None, help="proposed (default) or traditional"),
                  option("--chunk-rows", type=whole(0), default=None,
-                        help=f"rows read and processed at a time (default {CHUNK_ROWS}; 0: the whole record at "
+                        help=f"rows read and processed at a time (default {WORK_ROWS}; 0: the whole record at "
                              "once); the identification keeps sums and per-window integrals, not the record")),
 }
 """The rig's own options (``--seed`` of simulate: seed N of the study)."""

@@ -20,7 +20,7 @@ from platcal.rigs.lowprec_centrifuge.aot_kernels import KERNELS
 pytestmark = pytest.mark.slow  # the build compiles the filter's kernel with pycc and a C compiler
 
 SMALL = {"rig": "lowprec_centrifuge", "profile": {"rest_first_s": 10, "rest_between_s": 30},
-         "runs": {"P1": {"run1": [5, 8]}}}
+         "runs": {"P1": {"run1": [5, 8]}, "P2": {"run1": [5, 8]}}}
 """A short P1 run 1 (two spins, 5 and 8 g): a few thousand rows, some hundred windows."""
 
 PROBE = """

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from platcal import aot
+from aot_helpers import REPORT, build_into
 from platcal.cli import main
 from platcal.rigs.lowprec_centrifuge.aot_kernels import KERNELS
 
@@ -39,17 +39,13 @@ def keep(*args, **kw):  # the filter's arrays, before the tables round them
 
 commands.run_filter = keep
 code = main(sys.argv[2:])
-print(json.dumps({"code": code, "numba": "numba" in sys.modules, "llvmlite": "llvmlite" in sys.modules}))
-"""
+""" + REPORT
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """A folder holding the rig's kernel set built from these sources."""
-    folder = tmp_path_factory.mktemp("aot")
-    path, _ = aot.build(KERNELS, folder)
-    assert path == aot.module_path(KERNELS, folder) and path.is_file()
-    return folder
+    return build_into(KERNELS, tmp_path_factory.mktemp("aot"))
 
 
 @pytest.fixture(scope="module")

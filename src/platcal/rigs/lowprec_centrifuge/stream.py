@@ -19,11 +19,13 @@ that spans samples is carried from chunk to chunk so that the numbers are the wh
 * a window boundary's integral reads the two samples around it
   (:func:`.proposed.boundary_integrals`) and is evaluated when they are both read.
 
-Held, besides two chunks and their context: per filter window its ends' integrals (about 200
-bytes a window: 1 s windows while static, one per revolution), per spin its times and, with
-recorded fE, fN, its specific force and velocity derivative (40 bytes a spinning sample, for the
-spin's median step and the specific-force check), per traditional plateau its heading rates.
-None of these grows with the static parts of a record.
+Held, besides two chunks and their context (:data:`WORK_ROWS` rows each by default): per filter
+window its ends' integrals and times in doubling arrays (:class:`_Rows`: 112 bytes a window, up to
+twice that as they double; 1 s windows while static, one per revolution: 2.4 MB for the 21 578
+windows of a 6 h record), per spin its times and, with recorded fE, fN, its specific force and
+velocity derivative (40 bytes a spinning sample, for the spin's median step and the
+specific-force check), per traditional plateau its heading rates. Only the windows grow with the
+static parts of a record; nothing is kept per sample.
 
 The specific-force check (:func:`.record.check_plausible`) takes the median of fE / (dVE/dt) over
 each spin's samples where the derivative exceeds half the spin's own 99th percentile (the whole

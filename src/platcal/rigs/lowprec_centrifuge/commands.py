@@ -211,7 +211,9 @@ COSTS = Costs(values={"simulate": 160}, seconds={"simulate": 5e-5},
 STREAMED_IDENTIFY_VALUES = 0.02
 """float64 values a streamed identify (``--chunk-rows`` not 0, :mod:`.stream`) holds per byte of its
 record as CSV: its peak RSS grew 342 -> 387 MB from the 1 h to the 6 h record (116 -> 691 MB of
-CSV, benchmarks/bench_memory.md), 0.078 bytes a byte, rounded up about 2x as :data:`COSTS`."""
+CSV, benchmarks/bench_memory.md), 0.078 bytes a byte, rounded up about 2x as :data:`COSTS`. Kept
+as a bound since the windows went into arrays and the default block to :data:`.stream.WORK_ROWS`
+rows (150 -> 156 MB on ahead-of-time kernels, 0.01 bytes a byte)."""
 
 
 def sizes(command: str, study: Study, args) -> list[Size]:

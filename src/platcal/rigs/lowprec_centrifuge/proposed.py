@@ -442,8 +442,8 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     # compiled ahead of time when an identify enabled it and it is built (numba then not loaded)
     kernel = aot_pick(KERNELS, "filter_windows", filter_windows, filter_windows, nb)
     kernel(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(z, dtype=float),
-                   np.ascontiguousarray(m, dtype=float), np.ascontiguousarray(valid, dtype=np.bool_),
-                   f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis, skipped, innovations)
+           np.ascontiguousarray(m, dtype=float), np.ascontiguousarray(valid, dtype=np.bool_),
+           f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis, skipped, innovations)
     n_upd = valid.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_nis = nis / (n_upd - skipped)

@@ -151,7 +151,7 @@ def _chunks(path, rate_hz: float, max_gap_s: float, mapping, chunk_rows: int | N
     last_t, row = None, 0
     for df in iter_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
                          text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping,
-                         units=UNITS, positions=POSITIONS, chunk_rows=chunk_rows):
+                         units=UNITS, positions=POSITIONS, chunk_rows=chunk_rows, unused=TRUTH_COLUMNS):
         if row == 0:
             has_f = ("fE" in df.columns, "fN" in df.columns)
             if any(has_f) and not all(has_f):

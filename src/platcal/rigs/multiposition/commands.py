@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ... import aot
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, fit_exit_status, gross_errors_moments
 from ...errors import InputError
@@ -181,7 +182,7 @@ def identify_streamed(cfg, choice, path, scheme, mapping, max_gap_s: float, rows
                 if i1 < rk.size:  # the position goes on in the next chunk
                     break
                 held["z"] = np.concatenate(parts)
-                yield scan.t[k], held["z"]
+                yield [(scan.t[k], held["z"])]
                 k, parts = k + 1, []
             r0 = r1
 
@@ -287,6 +288,8 @@ def cmd_identify(cfg, args) -> int:
     if use_truth:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.3f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.4f} %, NEES {summary['nees']:.1f} (dof 24)")
+    if aot.in_use():
+        msg += " (kernels compiled ahead of time)"
     print(msg, file=sys.stderr)
     return fit_exit_status(fit, args.data, out)
 
@@ -314,7 +317,8 @@ def cmd_compensate(cfg, args) -> int:
 
 COMMANDS = {"inspect": f"{__name__}:cmd_inspect", "compensate": f"{__name__}:cmd_compensate",
             "simulate": f"{__name__}:cmd_simulate", "identify": f"{__name__}:cmd_identify",
-            "observability": f"{__package__}.study_commands:cmd_observability"}
+            "observability": f"{__package__}.study_commands:cmd_observability",
+            "kernels": f"{__package__}.aot_kernels:kernels_command"}
 """Each sub-command by module path (:func:`platcal.rig.resolve`): ``observability`` (the exact
 Lie-derivative rank, sympy) in :mod:`.study_commands`, imported only when it is chosen."""
 

@@ -29,13 +29,13 @@ from ...logs.dwells import DWELL_FIGURE, dwells_found, lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import clock_rate_tolerance, refuse_clock_rate, refuse_recognised, refuse_recognised_moments
-from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, chunks_beyond_one, record_writer
+from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one, record_writer
 from ...sizes import Costs, Size, one_at_a_time, samples_in
 from .estimators import estimate, estimate_positions, variant_choice
 from .filter import nees, replicate_seeds, simulate_blocks, simulate_positions
 from .model import coef_names, group_of, unit_of
-from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
-                     compensate_frame, position_frame, read_chunks, read_record, scan_record)
+from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, FILTER_BLOCK, GYRO_COLUMNS, TRUTH_COLUMNS,
+                     UG, UNITS, compensate_frame, position_frame, read_chunks, read_record, scan_record)
 
 
 
@@ -98,7 +98,7 @@ class NominalPosition:
     simulator restarts each position, so these are the same numbers while one block of samples
     is held; ``block`` samples at a time)."""
 
-    def __init__(self, cfg, cmd_deg: np.ndarray, dwell_s: float, block: int = CHUNK_ROWS):
+    def __init__(self, cfg, cmd_deg: np.ndarray, dwell_s: float, block: int = FILTER_BLOCK):
         self.ts = cfg.ts
         self.n = int(round(dwell_s / cfg.ts)) + 1
         self._blocks = simulate_blocks(cfg, cmd_deg, dwell_s, truth=np.zeros_like(cfg.truth()), block=block)

@@ -44,6 +44,12 @@ UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": 
 """The record's columns and their units (§12), for a config's ``record:`` mapping; g is standard
 gravity, 9.80665 m/s^2 (:data:`platcal.mapping.STANDARD_GRAVITY`)."""
 
+FILTER_BLOCK = 8192
+"""Filter instants a streamed identify takes at a time (docs/multiposition-1g.md §9, §16): a block
+of the filter's pass, of the fit and plausibility sums and of the nominal output's simulation.
+Their temporaries (about 300 bytes an instant, 2.5 MB) are then the same whatever the record's
+length; smaller blocks only add calls (the numbers do not depend on the block)."""
+
 
 @dataclass
 class Record:
@@ -213,9 +219,11 @@ class StreamScan:
 
     def blocks(self, k: int):
         """Position ``k``'s (0-based) filter instants and outputs from disk, a block at a time
-        (:data:`platcal.records.SPILL_BLOCK` instants): ``(t (m,) s, z (m, 6) ug, arcsec)``."""
+        (:data:`FILTER_BLOCK` instants): ``(t (m,) s, z (m, 6) ug, arcsec)``."""
         for _, v in self.instants[k].blocks():
-            yield v[:, 0], v[:, 1:]
+            for i in range(0, len(v), FILTER_BLOCK):
+                w = v[i:i + FILTER_BLOCK]
+                yield w[:, 0], w[:, 1:]
 
 
 def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, ts: float = 0.02,
@@ -233,7 +241,7 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
     and taken by passes over them (:func:`instants_spilled`); its instants' times and outputs go
     to a file of their own (:attr:`StreamScan.instants`, 56 bytes an instant on disk), which the
     filter's passes read block by block. Held: the longest position's instant indices and times
-    (16 bytes an instant) and one block. ``each(k, cmd, last, t, a)``, when given, receives each
+    (16 bytes an instant) and one block (:data:`FILTER_BLOCK` instants). ``each(k, cmd, last, t, a)``, when given, receives each
     position's number, commanded angles (3,) deg and last instant's time (s), then block by block
     its instants (s) and ``Ax, Ay, Az`` there (g), in time order (the plausibility sums). The
     caller closes the scan (its files): ``with scan_record(...) as scan``."""
@@ -249,15 +257,17 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
         # the instants' outputs, block by block: the spilled rows of Ax, Ay, Az and the angle
         # sensors side by side, as outputs() takes them from the table (the same numbers)
         for (i0, acc), (_, ang) in zip(a.blocks(), held["angles"].blocks()):
-            lo, hi = np.searchsorted(keep, [i0, i0 + len(acc)])
-            sel = keep[lo:hi] - i0
-            block = np.empty((sel.size, 7))
-            block[:, 0] = tk[lo:hi]
-            block[:, 1:4] = acc[sel] / UG
-            block[:, 4:] = ang[sel] * 3600.0
-            out.write(block)
-            if each is not None:
-                each(k, held["cmd"], float(tk[-1]), tk[lo:hi], acc[sel])
+            first, end = np.searchsorted(keep, [i0, i0 + len(acc)])
+            for lo in range(first, end, FILTER_BLOCK):
+                hi = min(lo + FILTER_BLOCK, end)
+                sel = keep[lo:hi] - i0
+                block = np.empty((sel.size, 7))
+                block[:, 0] = tk[lo:hi]
+                block[:, 1:4] = acc[sel] / UG
+                block[:, 4:] = ang[sel] * 3600.0
+                out.write(block)
+                if each is not None:
+                    each(k, held["cmd"], float(tk[-1]), tk[lo:hi], acc[sel])
         held["angles"].close()
         positions.append(k)
         cmds.append(held["cmd"])

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from aot_build import built_folder
 from platcal import aot
 from platcal.cli import main
 from platcal.rigs.multiposition.aot_kernels import KERNELS
@@ -24,6 +25,7 @@ CONFIG = Path(__file__).resolve().parents[1] / "config" / "multiposition.yaml"
 PROBE = """
 import json, sys
 import numpy as np
+from aot_build import built_folder
 from platcal import aot
 from platcal.cli import main
 from platcal.rigs.multiposition import commands
@@ -44,10 +46,7 @@ print(json.dumps({"code": code, "numba": "numba" in sys.modules, "llvmlite": "ll
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """A folder holding the multi-position rig's kernel set built from these sources."""
-    folder = tmp_path_factory.mktemp("aot")
-    path, _ = aot.build(KERNELS, folder)
-    assert path == aot.module_path(KERNELS, folder) and path.is_file()
-    return folder
+    return built_folder(tmp_path_factory, KERNELS)
 
 
 @pytest.fixture(scope="module")

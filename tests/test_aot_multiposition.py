@@ -25,7 +25,6 @@ CONFIG = Path(__file__).resolve().parents[1] / "config" / "multiposition.yaml"
 PROBE = """
 import json, sys
 import numpy as np
-from aot_build import built_folder
 from platcal import aot
 from platcal.cli import main
 from platcal.rigs.multiposition import commands

@@ -23,7 +23,7 @@ recomputed from the updated state (wrapped to +-180 deg). With R diagonal this e
 6-D update exactly. At each position phi is reset to 0 with variance sigma_set^2 and no cross
 covariance; ``passes`` restart from the previous estimate with P0 = 100 x its coefficient
 covariance. Replicates run in blocks of :data:`platcal.estimation.lanes.LANES` with the replicates
-in SIMD lanes (:func:`_ekf_block`: P packed, every covariance operation one vector instruction over
+in SIMD lanes (:func:`.filter_lanes._ekf_block`: P packed, every covariance operation one vector instruction over
 the block; issue 22 item 2), the same operations in the same order as the one-replicate reference
 kernel :func:`_ekf_one`, so the numbers are its numbers bit for bit and a replicate's numbers do not
 depend on its lane, the batch or the thread count; blocks run in ``nogil`` compiled loops on a

@@ -11,6 +11,7 @@ import sys
 import numpy as np
 import pytest
 
+from aot_build import built_folder
 from centrifuge_short import short_config
 from platcal import aot
 from platcal.cli import main
@@ -40,10 +41,7 @@ print(json.dumps({"code": code, "numba": "numba" in sys.modules, "llvmlite": "ll
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """A folder holding the centrifuge's kernel set built from these sources."""
-    folder = tmp_path_factory.mktemp("aot")
-    path, _ = aot.build(KERNELS, folder)
-    assert path == aot.module_path(KERNELS, folder) and path.is_file()
-    return folder
+    return built_folder(tmp_path_factory, KERNELS)
 
 
 @pytest.fixture(scope="module")

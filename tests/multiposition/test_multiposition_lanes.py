@@ -88,21 +88,31 @@ def test_covariance_only_lanes_bit_identical(cfg):
 
 
 def test_lane_batch_and_threads_change_nothing(cfg, case):
-    """Replicate b alone (lane 0 of a block of fillers), in a permuted batch (another lane and
-    block) and on 2 threads: bit-identical numbers; and the streamed record's position-by-position
-    run (run_filter_positions) is the whole record's run."""
+    """Replicate b alone (one replicate: the reference kernel), in a permuted batch (another lane
+    and block) and on 2 threads: bit-identical numbers; and the streamed record's run, fed one
+    position at a time in uneven blocks (run_filter_positions: a later block goes on from the
+    previous one's last instant), is the whole record's run, innovations too."""
     s, t, Z = case
     whole = fl.run_filter(cfg, s.angles_deg, t, Z, passes=2, threads=1)
     perm = np.array([4, 2, 0, 3, 1])
     moved = fl.run_filter(cfg, s.angles_deg, t, Z[perm], passes=2, threads=2)
     for a, b in zip(moved, whole):
         assert np.array_equal(a, b[perm])
+    cuts = [0, 50, 51, 51, 120, t.size]  # an empty block and a block of one instant among them
     for b in (0, 3):
-        alone = fl.run_filter(cfg, s.angles_deg, t, Z[b:b + 1], passes=2, threads=1)
+        rec = np.zeros((1,) + Z.shape[1:3] + (12,))
+        alone = fl.run_filter(cfg, s.angles_deg, t, Z[b:b + 1], passes=2, threads=1, innovations=rec)
         for a, w in zip(alone, whole):
             assert np.array_equal(a[0], w[b])
         seen = {}
-        streamed = fl.run_filter_positions(cfg, s.angles_deg, lambda: ((t, Z[b, k]) for k in range(s.n_positions)),
-                                           passes=2, on_innovations=lambda k, r: seen.setdefault(k, r.copy()))
+
+        def source():
+            return ([(t[i:j], Z[b, k, i:j]) for i, j in zip(cuts[:-1], cuts[1:])] for k in range(s.n_positions))
+
+        streamed = fl.run_filter_positions(cfg, s.angles_deg, source, passes=2,
+                                           on_innovations=lambda k, r: seen.setdefault(k, []).append(r.copy()))
         assert np.array_equal(streamed[0][0], whole[0][b]) and np.array_equal(streamed[1][0], whole[1][b])
+        assert np.isclose(streamed[2][0], whole[2][b], rtol=1e-12, atol=0) and streamed[4][0] == whole[4][b]
         assert sorted(seen) == list(range(s.n_positions))
+        for k, parts in seen.items():
+            assert np.array_equal(np.concatenate(parts), rec[0, k])

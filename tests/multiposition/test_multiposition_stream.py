@@ -14,7 +14,9 @@ import pandas as pd
 import pytest
 
 from platcal.cli import main
+from platcal import records
 from platcal.io import read_yaml
+from platcal.rigs.multiposition.commands import NominalPosition
 from platcal.rigs.multiposition.config import load_config
 from platcal.rigs.multiposition.filter import simulate
 from platcal.rigs.multiposition.record import to_frame
@@ -42,8 +44,14 @@ def _fit_numbers(fit):
     return [fit["nis_per_dof"]] + [c[k] for c in fit["channels"] for k in ("mean", "rms", "nis_per_dof", "lag1")]
 
 
-@pytest.mark.parametrize("passes,estimator,suffix,scheme", [(1, "ekf", ".csv", True), (2, "iekf", ".parquet", False)])
-def test_identify_in_chunks_equals_whole(tmp_path, passes, estimator, suffix, scheme):
+@pytest.mark.parametrize("passes,estimator,suffix,scheme,spill_block",
+                         [(1, "ekf", ".csv", True, None), (2, "iekf", ".parquet", False, None), (2, "ekf", ".csv", True, 23)])
+def test_identify_in_chunks_equals_whole(tmp_path, monkeypatch, passes, estimator, suffix, scheme, spill_block):
+    """``spill_block``: the spilled columns and instants read back 23 rows at a time, so the
+    filter is fed each position in blocks (a later block going on from the previous one's last
+    instant) and the fit's and plausibility sums add block by block."""
+    if spill_block:
+        monkeypatch.setattr(records, "SPILL_BLOCK", spill_block)
     cfg = _config(tmp_path, passes)
     data = tmp_path / ("rec" + suffix)
     assert main(["simulate", "--config", cfg, "--scheme", "odd", "--seed", "3", "--out", str(data)]) == 0
@@ -91,3 +99,16 @@ def test_simulate_position_by_position_writes_the_whole_record(tmp_path, noise_f
     scheme = c.scheme("odd")
     t, phi, z = simulate(c, scheme, [5], noise_free=noise_free)
     assert out.read_text() == to_frame(scheme, t, phi[0], z[0]).to_csv(index=False)
+
+
+def test_nominal_position_in_blocks():
+    """The nominal output taken at increasing instants in pieces, from a simulation in blocks of 7
+    samples, is the one-call output of one block (the simulator restarts from the block's last
+    attitude; docs/multiposition-1g.md §7, §12)."""
+    cfg = load_config(read_yaml(CONFIG.replace("PASSES", "1")))
+    cmd = np.array([250.0, -29.0, 41.0])
+    tk = np.arange(101) * cfg.ts + 0.003 * np.sin(np.arange(101))  # jittered instants
+    whole = NominalPosition(cfg, cmd, 2.0, block=1000).at(tk)
+    pieces = NominalPosition(cfg, cmd, 2.0, block=7)
+    got = np.concatenate([pieces.at(tk[i:j]) for i, j in [(0, 5), (5, 5), (5, 40), (40, 101)]])
+    assert np.array_equal(got, whole) and np.ptp(whole[:, 0]) > 0

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ... import aot
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, fit_exit_status, gross_errors_moments
 from ...errors import InputError
@@ -28,13 +29,13 @@ from ...logs.dwells import DWELL_FIGURE, dwells_found, lacks_position
 from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import clock_rate_tolerance, refuse_clock_rate, refuse_recognised, refuse_recognised_moments
-from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, chunks_beyond_one, record_writer
+from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one, record_writer
 from ...sizes import Costs, Size, one_at_a_time, samples_in
 from .estimators import estimate, estimate_positions, variant_choice
 from .filter import nees, replicate_seeds, simulate_blocks, simulate_positions
 from .model import coef_names, group_of, unit_of
-from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, TRUTH_COLUMNS, UG, UNITS,
-                     compensate_frame, outputs, position_frame, read_chunks, read_record, scan_record)
+from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, FILTER_BLOCK, GYRO_COLUMNS, TRUTH_COLUMNS,
+                     UG, UNITS, compensate_frame, position_frame, read_chunks, read_record, scan_record)
 
 
 
@@ -85,16 +86,37 @@ def nominal_output(cfg, scheme, rec) -> np.ndarray:
 def nominal_position(cfg, cmd_deg: np.ndarray, dwell_s: float, tk: np.ndarray) -> np.ndarray:
     """(m, 6) ug, arcsec: :func:`nominal_output` of one position (commanded angles ``cmd_deg`` (3,)
     deg, the scheme's dwell ``dwell_s`` s) at its instants ``tk`` (s) (docs/multiposition-1g.md §7,
-    §12), from a simulation of that
-    position alone in blocks (:func:`.filter.simulate_blocks`: the simulator restarts each
-    position, so these are the same numbers while one block of samples is held)."""
-    n = int(round(dwell_s / cfg.ts)) + 1
-    idx = np.clip(np.rint(tk / cfg.ts).astype(int), 0, n - 1)
-    out = np.empty((tk.size, 6))
-    for j0, z in simulate_blocks(cfg, cmd_deg, dwell_s, truth=np.zeros_like(cfg.truth()), block=CHUNK_ROWS):
-        sel = (idx >= j0) & (idx < j0 + len(z))
-        out[sel] = z[idx[sel] - j0]
-    return out
+    §12): :class:`NominalPosition` in one call."""
+    return NominalPosition(cfg, cmd_deg, dwell_s).at(tk)
+
+
+class NominalPosition:
+    """The noise-free output of the nominal instrument (every coefficient 0) over one position
+    (commanded angles ``cmd_deg`` (3,) deg, the scheme's dwell ``dwell_s`` s;
+    docs/multiposition-1g.md §7, §12), taken at increasing instants block by block (:meth:`at`):
+    a simulation of that position alone in blocks (:func:`.filter.simulate_blocks`: the
+    simulator restarts each position, so these are the same numbers while one block of samples
+    is held; ``block`` samples at a time)."""
+
+    def __init__(self, cfg, cmd_deg: np.ndarray, dwell_s: float, block: int = FILTER_BLOCK):
+        self.ts = cfg.ts
+        self.n = int(round(dwell_s / cfg.ts)) + 1
+        self._blocks = simulate_blocks(cfg, cmd_deg, dwell_s, truth=np.zeros_like(cfg.truth()), block=block)
+        self._j0, self._z = 0, np.empty((0, 6))
+
+    def at(self, tk: np.ndarray) -> np.ndarray:
+        """(m, 6) ug, arcsec at the instants ``tk`` (s, increasing, none before the previous
+        call's): each instant takes the simulated sample nearest it."""
+        idx = np.clip(np.rint(np.asarray(tk, float) / self.ts).astype(int), 0, self.n - 1)
+        out = np.empty((idx.size, 6))
+        i = 0
+        while i < idx.size:
+            while idx[i] >= self._j0 + len(self._z):  # the next block of the simulation
+                self._j0, self._z = next(self._blocks)
+            hi = int(np.searchsorted(idx, self._j0 + len(self._z)))
+            out[i:hi] = self._z[idx[i:hi] - self._j0]
+            i = hi
+        return out
 
 
 def check_plausible(cfg, scheme, rec) -> None:
@@ -145,57 +167,55 @@ def record_fit(cfg, scheme, rec, innovations: np.ndarray) -> FitCheck:
 
 def identify_streamed(cfg, choice, path, scheme, mapping, max_gap_s: float, rows_at_once: int):
     """Identify a record read in chunks of ``rows_at_once`` rows (docs/multiposition-1g.md §9, §16):
-    a first read checks it and selects its filter instants (:func:`.record.scan_record`) and sums
-    its accelerometers against the nominal output (the plausibility check, as
-    :func:`check_plausible`); each filter pass reads it again and filters it one position at a
-    time (:func:`.estimators.estimate_positions`), the last pass's innovations going into the fit
-    check's running sums (:class:`~platcal.estimation.fit.FitSums`) and the diagnosis's sums
-    (:class:`~platcal.estimation.fit.Moments`). Memory holds one position, not the record.
-    Estimate and covariance are bit-identical to the whole read's, the mean NIS and the fit's
-    figures equal to rounding; the streamed diagnosis names units, signs and swaps, not a clock
-    (which the whole read finds in the innovations' time derivative). Returns ``(estimate,
-    covariance, mean NIS, skipped updates, scan, fit)``."""
+    a first read checks it, selects its filter instants and spills their times and outputs to
+    temporary files (:func:`.record.scan_record`), summing its accelerometers against the nominal
+    output (the plausibility check, as :func:`check_plausible`); each filter pass reads those
+    files a block at a time (:func:`.estimators.estimate_positions`), the last pass's innovations
+    going into the fit check's running sums (:class:`~platcal.estimation.fit.FitSums`) and the
+    diagnosis's sums (:class:`~platcal.estimation.fit.Moments`) block by block. Memory holds a
+    block and the longest position's instant indices, not the record. Estimate and covariance are
+    bit-identical to the whole read's, the mean NIS and the fit's figures equal to rounding; the
+    streamed diagnosis names units, signs and swaps, not a clock (which the whole read finds in
+    the innovations' time derivative). Returns ``(estimate, covariance, mean NIS, skipped updates,
+    scan, fit)``; the scan's files are gone."""
     plaus = Moments.zero(3)
+    nominal: dict = {}
 
-    def dwell(tk):  # the scheme's, else the position's own (the same nominal numbers: see nominal_position)
-        return scheme.dwell_s if scheme is not None else float(tk[-1])
+    def dwell(last):  # the scheme's, else the position's own (the same nominal numbers: see NominalPosition)
+        return scheme.dwell_s if scheme is not None else last
 
-    def each(k, cmd, tk, a):
-        plaus.add(a, nominal_position(cfg, cmd, dwell(tk), tk)[:, :3] * UG)
+    def nominal_of(k, cmd, last):
+        """Position k's NominalPosition, made at its first block (one position held)."""
+        if nominal.get("k") != k:
+            nominal.update(k=k, at=NominalPosition(cfg, cmd, dwell(last)).at)
+        return nominal["at"]
 
-    scan = scan_record(read_chunks(path, mapping, rows_at_once), path, scheme, cfg.ts, max_gap_s, each=each)
-    refuse_recognised_moments(plaus, FIT_CHANNELS[:3], "g",
-                              "Ax, Ay, Az must be the x, y, z accelerometers in g (a static platform reads |f| = 1 g)")
-    held: dict = {}
+    def each(k, cmd, last, tk, a):
+        plaus.add(a, nominal_of(k, cmd, last)(tk)[:, :3] * UG)
 
-    def source():
-        """Each position's (t, z), read afresh in chunks; the last pass keeps its z for the fit."""
-        k, parts, r0 = 0, [], 0
-        for df in read_chunks(path, mapping, rows_at_once):
-            r1 = r0 + len(df)
-            while k < len(scan.positions):
-                rk = scan.rows[k]
-                i0, i1 = np.searchsorted(rk, r0), np.searchsorted(rk, r1)
-                if i1 > i0:
-                    parts.append(outputs(df, rk[i0:i1] - r0))
-                if i1 < rk.size:  # the position goes on in the next chunk
-                    break
-                held["z"] = np.concatenate(parts)
-                yield scan.t[k], held["z"]
-                k, parts = k + 1, []
-            r0 = r1
+    with scan_record(read_chunks(path, mapping, rows_at_once), path, scheme, cfg.ts, max_gap_s, each=each) as scan:
+        refuse_recognised_moments(plaus, FIT_CHANNELS[:3], "g", "Ax, Ay, Az must be the x, y, z accelerometers in g "
+                                  "(a static platform reads |f| = 1 g)")
+        held: dict = {}
 
-    sums, diag = FitSums(6), Moments.zero(6)
+        def blocks(k):
+            for t, z in scan.blocks(k):
+                held["t"], held["z"] = t, z  # the block on_innovations is called for, after the filter's step
+                yield t, z
 
-    def on_innovations(k, rec):
-        innov, z, tk = rec[:, :6], held["z"], scan.t[k]
-        ok = sums.add(innov, rec[:, 6:], np.full(tk.size, k))
-        nominal = nominal_position(cfg, scan.cmd_deg[k], dwell(tk), tk)
-        # the angle sensors against the filter's own (wrapped) prediction, as record_fit does
-        nominal[:, 3:] = z[:, 3:] - innov[:, 3:]
-        diag.add(z[ok], nominal[ok])
+        sums, diag = FitSums(6), Moments.zero(6)
+        nominal.clear()
 
-    r = estimate_positions(cfg, choice, scan.cmd_deg, source, on_innovations)
+        def on_innovations(k, rec):
+            innov, z = rec[:, :6], held["z"]
+            ok = sums.add(innov, rec[:, 6:], np.full(len(rec), k))
+            nom = nominal_of(k, scan.cmd_deg[k], scan.last_t[k])(held["t"])
+            # the angle sensors against the filter's own (wrapped) prediction, as record_fit does
+            nom[:, 3:] = z[:, 3:] - innov[:, 3:]
+            diag.add(z[ok], nom[ok])
+
+        r = estimate_positions(cfg, choice, scan.cmd_deg, lambda: (blocks(k) for k in range(len(scan.positions))),
+                               on_innovations)
     fit = sums.check(FIT_CHANNELS, diagnosis=tuple(text for _, text in gross_errors_moments(diag, FIT_CHANNELS)))
     return r.coef[0], r.cov[0], float(r.mean_nis[0]), int(r.failed_updates[0]), scan, fit
 
@@ -215,6 +235,10 @@ def run_problems(est: np.ndarray, P: np.ndarray, nis: float, failed_updates: int
 
 
 def cmd_identify(cfg, args) -> int:
+    """``platcal identify``: the coefficients of one record (docs/multiposition-1g.md §9, §16). Its
+    kernels are the ones compiled ahead of time when they are built and current (``platcal
+    kernels``, :mod:`.aot_kernels`: numba is then not loaded), else the JIT's."""
+    aot.enable()
     choice = cfg.filter_choice() if args.estimator is None else variant_choice(cfg, args.estimator)
     scheme = cfg.scheme(args.scheme) if args.scheme else None
     check_writable(args.out, "--out", folder=True)
@@ -256,7 +280,7 @@ def cmd_identify(cfg, args) -> int:
     table = {"name": names, "unit": units, "group": groups, "estimate": est, "sigma": sig}
     summary = {"rig": "multiposition", "scheme": scheme.name, "n_states": len(names) + 3,
                "estimator": choice.estimator, "passes": choice.passes, "estimator_options": choice.options,
-               "positions": int(len(rec.t)), "samples": int(sum(used.values())),
+               "positions": len(used), "samples": int(sum(used.values())),
                "samples_used_per_position": {str(k): v for k, v in used.items()}, "mean_nis": nis,
                "seconds": seconds, "clock": clock}
     segmentation = None if streamed else rec.segmentation
@@ -287,6 +311,8 @@ def cmd_identify(cfg, args) -> int:
     if use_truth:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.3f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.4f} %, NEES {summary['nees']:.1f} (dof 24)")
+    if aot.in_use():
+        msg += " (kernels compiled ahead of time)"
     print(msg, file=sys.stderr)
     return fit_exit_status(fit, args.data, out)
 
@@ -314,7 +340,8 @@ def cmd_compensate(cfg, args) -> int:
 
 COMMANDS = {"inspect": f"{__name__}:cmd_inspect", "compensate": f"{__name__}:cmd_compensate",
             "simulate": f"{__name__}:cmd_simulate", "identify": f"{__name__}:cmd_identify",
-            "observability": f"{__package__}.study_commands:cmd_observability"}
+            "observability": f"{__package__}.study_commands:cmd_observability",
+            "kernels": f"{__package__}.aot_kernels:kernels_command"}
 """Each sub-command by module path (:func:`platcal.rig.resolve`): ``observability`` (the exact
 Lie-derivative rank, sympy) in :mod:`.study_commands`, imported only when it is chosen."""
 
@@ -331,9 +358,12 @@ def sizes(command: str, cfg, args) -> list[Size]:
     propagates a covariance over the same samples (or
     fewer, at a coarser step) holding one matrix per position, so it is timed at identify's cost per
     sample (an upper bound: the covariance step is a part of the filter's) and holds nothing per
-    sample; inspect and compensate the record file's bytes x :data:`COSTS`."""
+    sample; inspect and compensate the record file's bytes x :data:`COSTS`; kernels builds a fixed
+    set of kernels (no input to size)."""
     if command in COSTS.per_byte:
         return COSTS.record(command, args.data)
+    if command == "kernels":
+        return []
     scheme = cfg.scheme(args.scheme)
     kind = "simulate" if command == "simulate" else "identify"
     field = f"schemes.{scheme.name}.dwell_s" if scheme.name in cfg.raw["schemes"] else "--scheme (its dwell_s)"

@@ -23,7 +23,7 @@ recomputed from the updated state (wrapped to +-180 deg). With R diagonal this e
 6-D update exactly. At each position phi is reset to 0 with variance sigma_set^2 and no cross
 covariance; ``passes`` restart from the previous estimate with P0 = 100 x its coefficient
 covariance. Replicates run in blocks of :data:`platcal.estimation.lanes.LANES` with the replicates
-in SIMD lanes (:func:`_ekf_block`: P packed, every covariance operation one vector instruction over
+in SIMD lanes (:func:`.filter_lanes._ekf_block`: P packed, every covariance operation one vector instruction over
 the block; issue 22 item 2), the same operations in the same order as the one-replicate reference
 kernel :func:`_ekf_one`, so the numbers are its numbers bit for bit and a replicate's numbers do not
 depend on its lane, the batch or the thread count; blocks run in ``nogil`` compiled loops on a
@@ -39,17 +39,21 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ...errors import InputError
 from ...estimation.iterated import gauss_newton_point, make_iterated_scratch
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse, update_scratch
-from ...estimation.lanes import (LANES, NoAliasCompiler, cholesky_inverse_lanes, innovation_covariance_lanes,
-                                 joseph_correct_lanes, packed_index, propagate_rows_lanes, slp_vectorize)
+from ...jit import njit
 from ...model.frames import ARCSEC, DEG
 from ...parallel import run_threaded
+from ...rig import resolve
 from ...study.sweep import replicate_seed
+from .aot_kernels import one_replicate
 from .model import gyro_coefs, layout_index, make_scratch, meas_k, rate_k, rk4_k, rk4_s
+
+EKF_LANES = f"{__package__}.filter_lanes:ekf_lanes"
+"""The JIT's pass of a batch, replicates in SIMD lanes (:func:`.filter_lanes.ekf_lanes`), by path:
+its module imports numba, which an identify on kernels compiled ahead of time does not load."""
 
 
 # ------------------------------------------------------------------ simulator
@@ -225,8 +229,9 @@ def simulate_blocks(cfg, cmd_deg, dwell_s: float, truth=None, block: int = 100_0
         m = min(block, ns - j0) + (1 if j0 else 0)  # a later block repeats the sample it starts from
         phi = np.empty((1, 1, m, 3))
         z = np.empty((1, 1, m, 6))
-        _simulate_range(0, 1, phi0s, coef, lay, wn, wu, cfg.ts, cfg.n_sub, phi_start, np.zeros((1, 1, m - 1, 3)),
-                        phi, z)
+        # one replicate: the kernel compiled ahead of time when an identify enabled it (.aot_kernels)
+        one_replicate("simulate_range", _simulate_range)(0, 1, phi0s, coef, lay, wn, wu, float(cfg.ts), int(cfg.n_sub),
+                                                         phi_start, np.zeros((1, 1, m - 1, 3)), phi, z)
         phi_start = phi[:, :, -1].copy()
         skip = 1 if j0 else 0
         yield j0, z[0, 0, skip:]
@@ -276,11 +281,11 @@ def transition_rows(F, T, cols, dt, arw2, phi, q):
 
 
 @njit(cache=True, error_model="numpy")  # numpy errors: no raise paths, see model.py's kernels
-def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, rec):
+def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, rec, s0=0):
     """One pass over K positions for one replicate; x (n,), P (n, n) updated in place. The
-    reference kernel: the filter runs :func:`_ekf_block` (the same numbers, replicates in lanes);
-    this one is kept as its test oracle and for the per-part profile
-    (``benchmarks/profile_multiposition.py``).
+    reference kernel: a batch runs :func:`.filter_lanes._ekf_block` (the same numbers, replicates
+    in lanes), one replicate runs this one (:func:`_ekf_pass`, the kernel compiled ahead of time);
+    also the lanes' test oracle and the per-part profile (``benchmarks/profile_multiposition.py``).
 
     ``tk`` (K, m) sample times, ``zk`` (K, m, 6) outputs (ug, arcsec), ``nk`` (K,) samples used.
     ``iters`` 0: the EKF update (two 3-D Joseph updates); >= 1: the Gauss-Newton iterated update
@@ -288,6 +293,9 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     (prior sigmas): :func:`platcal.estimation.iterated.gauss_newton_point` finds the last
     linearisation point, then the same two 3-D Joseph updates apply its Jacobian and innovation
     (``iters = 1`` is the EKF, bit for bit).
+    ``s0`` 1: position 0 goes on from a previous call (a block of a position fed in blocks,
+    :func:`run_filter_positions`): no reset at its start, and its instant 0 (the previous block's
+    last, ``tk[0, 0]`` its time) is not updated again, the pass starts by propagating from it.
     ``rec`` (K, m, 12), when it is not empty, receives at each update the innovation of the six
     channels (ug, arcsec) and the diagonal of their predicted covariance S (NaN: update skipped).
     Returns the sum of squared standardised innovations (NIS), the number of updates and the
@@ -327,14 +335,16 @@ def _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, u
     nbad = 0
     keep = rec.shape[0] > 0
     for k in range(K):
-        x[:3] = 0.0
-        for i in range(3):
-            for j in range(n):
-                P[i, j] = 0.0
-                P[j, i] = 0.0
-            P[i, i] = set_var
+        first = s0 if k == 0 else 0
+        if first == 0:
+            x[:3] = 0.0
+            for i in range(3):
+                for j in range(n):
+                    P[i, j] = 0.0
+                    P[j, i] = 0.0
+                P[i, i] = set_var
         ctx = (phi0s[k], lay, zp, Hs, hc, nn, C, dC)
-        for s in range(nk[k]):
+        for s in range(first, nk[k]):
             if s > 0:
                 dt = tk[k, s] - tk[k, s - 1]
                 rate_k(phi0s[k], x, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
@@ -406,238 +416,44 @@ def _ekf_range(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_va
         nbad[b] += nb  # updates skipped because S was not positive definite
 
 
-# ------------------------------------------------------------------ EKF kernel, replicates in lanes
-
-@njit(cache=True, inline="always")
-def _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var, U, Kg, D, S, Sinv, nu, ok, acc, live, update_x):
-    """:func:`platcal.estimation.kalman.joseph_update_sparse` for m = 3 on every lane of a block
-    (``xl`` (n, LANES), packed ``Pl`` (n (n + 1) / 2, LANES); H's sparse rows ``hc``, ``nn`` shared
-    by the lanes, values ``hval`` (3, w, LANES)), the same operations in the same order, so each
-    lane's numbers are the reference kernel's bit for bit. A lane whose S is not positive definite
-    gets ``ok = 0`` and a zero gain: x and P stay as they were (the reference skips the update);
-    so does a lane with ``live = 0`` (its step skipped: the iterated update's S failed)."""
-    innovation_covariance_lanes(Pl, pidx, hc, nn, hval, r_var, U, S, acc)
-    cholesky_inverse_lanes(S, Sinv, innov, nu, ok)
-    for l in range(LANES):
-        if live[l] == 0.0:
-            ok[l] = 0.0
-            for r in range(3):
-                innov[r, l] = 0.0  # a skipped step's innovation may be anything: 0 * inf is no zero
-                for c in range(3):
-                    Sinv[r, c, l] = 0.0
-    joseph_correct_lanes(xl, Pl, U, Kg, D, S, Sinv, innov, update_x)
+@njit(cache=True, error_model="numpy")
+def _ekf_pass_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, s0, sums,
+                  rec):
+    """:func:`_ekf_one` of one replicate (``s0`` as there), its returns added into ``sums`` (4,):
+    the NIS sum, the updates, the linearisations and the skipped updates, as
+    :func:`.filter_lanes.ekf_lanes` gives them per replicate. The kernel an identify runs
+    (compiled ahead of time: :mod:`.aot_kernels`)."""
+    s, u, nl, nb = _ekf_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol,
+                            rec, s0)
+    sums[0] += s
+    sums[1] += u
+    sums[2] += nl
+    sums[3] += nb
 
 
-@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler)
-def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
-               rec, pidx, xl, Pl, xm, Pm, W, U, Kg, D, phiL, qL, hval, hvala, innov, S, Sinv, nu, ok, acc, cnt, gn,
-               nu6L, F, nxt, C, dC, T, dT, f, eps, deps, greg, phi1, q1, zp, Hs, hc, nn, hca, nna, zero3,
-               scr, nu6):
-    """:func:`_ekf_one` for the replicates ``blk * LANES ..`` of the batch, replicates in SIMD
-    lanes (:mod:`platcal.estimation.lanes`; docs/multiposition-1g.md §9): the covariance work
-    (propagation, both 3-row Joseph updates) is one vector operation over the lanes on the
-    packed lower triangle ``Pl``; the model (§4 rate and RK4, §7 measurement; with ``iters >= 1``
-    the iterated update's Gauss-Newton point, on the lane's P unpacked) is the reference's
-    scalar code once per live lane. Lanes past the batch repeat the block's first replicate and
-    are not written back. Every sum runs in the reference kernel's order without fused
-    multiply-adds, so x, P, the NIS and the innovations record are bit-identical to
-    :func:`_ekf_one`'s and a replicate's numbers depend neither on its lane nor on the batch.
-
-    ``phi0s`` (1, K, 3) commanded angles (rad) shared by the batch, or (R, K, 3) per replicate
-    (the covariance-only run of one position per batch entry). ``sums`` (R, 4) receives per
-    replicate the NIS sum, the updates, the linearisations and the skipped updates
-    (``_ekf_one``'s return values); the arguments from ``pidx`` on are the block's lane-layout
-    state and scratch (:func:`_ekf_blocks`), distinct arrays as the ``noalias`` compile requires.
-    """
-    B, n = X.shape
-    L = LANES
-    K = phi0s.shape[1]
-    m = cols.shape[0]
-    b0 = blk * L
-    nact = min(L, B - b0)
-    keep = rec.shape[1] > 0
-    own = phi0s.shape[0] > 1  # angles per replicate
-    for l in range(L):
-        src = b0 + l if l < nact else b0
-        for i in range(n):
-            xl[i, l] = X[src, i]
-            for j in range(i + 1):
-                Pl[pidx[i, j], l] = Ps[src, i, j]
-        for i in range(4):
-            cnt[i, l] = 0.0
-    for k in range(K):
-        # the position's start (§9): phi = 0 with variance sigma_set^2, no cross covariance
-        for r in range(3):
-            for l in range(L):
-                xl[r, l] = 0.0
-            for i in range(n):
-                e = pidx[r, i]
-                for l in range(L):
-                    Pl[e, l] = 0.0
-            e = pidx[r, r]
-            for l in range(L):
-                Pl[e, l] = set_var
-        for s in range(nk[k]):
-            if s > 0:
-                dt = tk[k, s] - tk[k, s - 1]
-                for l in range(nact):
-                    a0 = phi0s[b0 + l if own else 0, k]
-                    for i in range(n):
-                        xm[i] = xl[i, l]
-                    rate_k(a0, xm, lay, wn, wu, zero3, nxt, F, True, C, dC, T, dT, f, eps, deps, greg)
-                    transition_rows(F, T, cols, dt, arw2, phi1, q1)
-                    # RK4 from the rate at x (its first stage), without noise
-                    g0, g1, g2, on = gyro_coefs(xm, lay)
-                    xl[0, l], xl[1, l], xl[2, l] = rk4_s(a0[0], a0[1], a0[2], xm[0], xm[1], xm[2], g0, g1, g2, on,
-                                                         wn, wu, 0.0, 0.0, 0.0, dt, nxt[0], nxt[1], nxt[2])
-                    for r in range(3):
-                        for c in range(m):
-                            phiL[r, c, l] = phi1[r, c]
-                        for c in range(3):
-                            qL[r, c, l] = q1[r, c]
-                for l in range(nact, L):
-                    for r in range(3):
-                        xl[r, l] = xl[r, 0]
-                        for c in range(m):
-                            phiL[r, c, l] = phiL[r, c, 0]
-                        for c in range(3):
-                            qL[r, c, l] = qL[r, c, 0]
-                # P <- Phi P Phi^T + Q on phi's rows (propagate_sparse): the rows through the
-                # packed index, then the 3 x 3 block with Q (kalman._block3's sums)
-                propagate_rows_lanes(Pl, pidx, cols, phiL, W, acc, 0)
-                e00, e10, e11, e20, e21, e22 = pidx[0, 0], pidx[1, 0], pidx[1, 1], pidx[2, 0], pidx[2, 1], pidx[2, 2]
-                for l in range(L):
-                    Pl[e00, l] = acc[0, l] + 0.5 * (qL[0, 0, l] + qL[0, 0, l])
-                    Pl[e11, l] = acc[2, l] + 0.5 * (qL[1, 1, l] + qL[1, 1, l])
-                    Pl[e22, l] = acc[5, l] + 0.5 * (qL[2, 2, l] + qL[2, 2, l])
-                    Pl[e10, l] = acc[1, l] + 0.5 * (qL[1, 0, l] + qL[0, 1, l])
-                    Pl[e20, l] = acc[3, l] + 0.5 * (qL[2, 0, l] + qL[0, 2, l])
-                    Pl[e21, l] = acc[4, l] + 0.5 * (qL[2, 1, l] + qL[1, 2, l])
-            # the accelerometer outputs and H at the predicted state (iters >= 1: at the
-            # Gauss-Newton point, with its innovation), lane by lane
-            for l in range(nact):
-                a0 = phi0s[b0 + l if own else 0, k]
-                for i in range(n):
-                    xm[i] = xl[i, l]
-                gn[0, l] = 1.0  # linearisations; 0: the step is skipped (_ekf_one's continue)
-                gn[1, l] = 0.0  # a gain step ran: NIS from the first linearisation (nu6L)
-                if iters > 0:
-                    for i in range(n):
-                        for j in range(n):
-                            Pm[i, j] = Pl[pidx[i, j], l]
-                    used, gained = gauss_newton_point(xm, Pm, Z[b0 + l, k, s], r_var, resid6_k,
-                                                      (a0, lay, zp, Hs, hc, nn, C, dC), iters, tol, scr, nu6)
-                    gn[0, l] = used
-                    gn[1, l] = 1.0 if gained else 0.0
-                    hv6, hc6, nn6, in6 = scr[5], scr[6], scr[7], scr[4]
-                    for r in range(3):
-                        nn[r] = nn6[r]
-                        innov[r, l] = in6[r]
-                        for t in range(nn6[r]):
-                            hval[r, t, l] = hv6[r, t]
-                            hc[r, t] = hc6[r, t]
-                    for i in range(6):
-                        nu6L[i, l] = nu6[i]
-                else:
-                    meas_k(a0, xm, lay, zp, Hs, hc, nn, C, dC)
-                    for r in range(3):
-                        for t in range(nn[r]):
-                            hval[r, t, l] = Hs[r, t]
-                        innov[r, l] = Z[b0 + l, k, s, r] - zp[r]
-            for l in range(nact, L):
-                gn[0, l] = gn[0, 0]
-                for r in range(3):
-                    for t in range(nn[r]):
-                        hval[r, t, l] = hval[r, t, 0]
-                    innov[r, l] = innov[r, 0]
-            _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var[:3], U, Kg, D, S, Sinv, nu, ok, acc[0], gn[0],
-                          update_x)
-            for l in range(nact):
-                if gn[0, l] == 0.0:
-                    continue
-                cnt[2, l] += gn[0, l]
-                if ok[l] > 0.0:
-                    if gn[1, l] == 0.0:
-                        cnt[0, l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
-                    cnt[1, l] += 1.0
-                else:
-                    cnt[3, l] += 1.0
-                if keep:
-                    for i in range(3):
-                        rec[b0 + l, k, s, i] = innov[i, l]
-                        rec[b0 + l, k, s, 6 + i] = S[i, i, l] if ok[l] > 0.0 else np.nan
-            # the angle sensors (H = 1/arcsec on phi), innovation from the updated state
-            for l in range(L):
-                src = b0 + l if l < nact else b0
-                for i in range(3):
-                    d = Z[src, k, s, 3 + i] - (phi0s[src if own else 0, k, i] + xl[i, l]) / ARCSEC
-                    innov[i, l] = (d + 648000.0) % 1296000.0 - 648000.0
-            _update_lanes(xl, Pl, pidx, hca, nna, hvala, innov, r_var[3:], U, Kg, D, S, Sinv, nu, ok, acc[0], gn[0],
-                          update_x)
-            for l in range(nact):
-                if gn[0, l] == 0.0:
-                    continue
-                if ok[l] > 0.0:
-                    if gn[1, l] == 0.0:
-                        cnt[0, l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
-                else:
-                    cnt[3, l] += 1.0
-                if keep:
-                    for i in range(3):
-                        rec[b0 + l, k, s, 3 + i] = innov[i, l]
-                        rec[b0 + l, k, s, 9 + i] = S[i, i, l] if ok[l] > 0.0 else np.nan
-                if gn[1, l] > 0.0:
-                    for i in range(6):
-                        cnt[0, l] += nu6L[i, l] * nu6L[i, l]
-    for l in range(nact):
-        b = b0 + l
-        for i in range(n):
-            X[b, i] = xl[i, l]
-            for j in range(n):
-                Ps[b, i, j] = Pl[pidx[i, j], l]
-        for i in range(4):
-            sums[b, i] = cnt[i, l]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _ekf_blocks(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
-                rec, pidx):
-    """Blocks ``lo .. hi - 1`` of the batch through :func:`_ekf_block`, with their scratch."""
-    n = X.shape[1]
-    L = LANES
-    m = cols.shape[0]
-    C, dC, T, dT, f, eps, deps, greg = make_scratch(n)
-    hvala = np.full((3, 1, L), 1.0 / ARCSEC)
-    hca = np.empty((3, 1), dtype=np.int64)
-    for i in range(3):
-        hca[i, 0] = i
-    e = np.empty
-    for blk in range(lo, hi):
-        _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
-                   rec, pidx, e((n, L)), e((n * (n + 1) // 2, L)), e(n), e((n, n)), e((3, n, L)), e((3, n, L)),
-                   e((3, n, L)), e((3, n, L)), e((3, m, L)), e((3, 3, L)), np.zeros((3, 10, L)), hvala, e((3, L)),
-                   e((3, 3, L)), e((3, 3, L)), e((3, L)), e(L), e((6, L)), e((4, L)), e((2, L)), e((6, L)),
-                   np.zeros((3, n)), e(3), C, dC, T, dT, f, eps, deps, greg, e((3, m)), e((3, 3)), e(6),
-                   e((3, 10)), np.empty((3, 10), dtype=np.int64), np.empty(3, dtype=np.int64), hca,
-                   np.ones(3, dtype=np.int64), np.zeros(3), make_iterated_scratch(n, 6, 10), e(6))
-
-
-def _ekf_lanes(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x=True, iters=0, tol=0.0,
-               rec=None, threads=1):
-    """One pass (§9) of the batch ``X`` (R, n), ``Ps`` (R, n, n) in place, replicates in lanes
-    (:func:`_ekf_block`; arguments as :func:`_ekf_one`'s, ``phi0s`` (K, 3) rad shared or
-    (R, K, 3) per replicate); returns ``sums`` (R, 4): per replicate the NIS sum, the updates,
-    the linearisations and the skipped updates. ``rec`` (R, K, m, 12) or None (none kept)."""
+def _ekf_pass(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x=True, iters=0, tol=0.0,
+              rec=None, threads=None, s0: int = 0):
+    """One pass (docs/multiposition-1g.md §9) of the batch ``X`` (R, n), ``Ps`` (R, n, n) in place;
+    returns ``sums`` (R, 4) (:func:`.filter_lanes.ekf_lanes`: arguments and returns as there). One
+    replicate runs :func:`_ekf_pass_one` (compiled ahead of time when an identify enabled it and it
+    is built, :func:`.aot_kernels.one_replicate`), a batch the lanes kernel on the JIT; the same
+    numbers bit for bit (``tests/multiposition/test_multiposition_lanes.py``). ``s0`` (one
+    replicate only): see :func:`_ekf_one`."""
     R = X.shape[0]
-    sums = np.zeros((R, 4))
-    nblk = -(-R // LANES)
     phi0s = np.ascontiguousarray(phi0s, dtype=float).reshape(-1, tk.shape[0], 3)
-    if phi0s.shape[0] not in (1, R) or Z.shape[:2] != (R, tk.shape[0]):  # the kernel does not check bounds
-        raise ValueError(f"angles {phi0s.shape}, outputs {Z.shape} and times {tk.shape} do not match {R} replicates")
+    if R > 1 or phi0s.shape[0] > 1:
+        if s0:
+            raise ValueError("a pass fed in blocks (s0 = 1) runs one replicate")
+        return resolve(EKF_LANES)(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters,
+                                  tol, rec, threads)
+    if Z.shape[:2] != (1, tk.shape[0]):  # the kernel does not check bounds
+        raise ValueError(f"outputs {Z.shape} and times {tk.shape} do not match one replicate")
+    sums = np.zeros((1, 4))
     rec = np.zeros((1, 0, 0, 12)) if rec is None else rec
-    with slp_vectorize():  # a first compile (or a cache miss) compiles the lanes as vectors
-        run_threaded(_ekf_blocks, nblk, threads, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols,
-                  bool(update_x), int(iters), float(tol), sums, rec, packed_index(X.shape[1]))
+    one_replicate("ekf_pass_one", _ekf_pass_one)(
+        X[0], Ps[0], phi0s[0], np.ascontiguousarray(tk, dtype=float), Z[0], np.ascontiguousarray(nk, dtype=np.int64),
+        lay, wn, wu, r_var, float(arw2), float(set_var), cols, bool(update_x), int(iters), float(tol), int(s0), sums[0],
+        rec[0])
     return sums
 
 
@@ -679,9 +495,9 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     for p in range(npass):
         if p > 0:
             st.next_pass()
-        # replicates in lanes: the numbers of _ekf_one (_ekf_range) bit for bit
-        sums = _ekf_lanes(X, Ps, phi0s, tk, Z, nk, st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2,
-                          cfg.sigma_set_rad**2, st.cols, True, iterations, tolerance, innovations, threads)
+        # a batch in lanes, one replicate on the reference kernel: the same numbers bit for bit
+        sums = _ekf_pass(X, Ps, phi0s, tk, Z, nk, st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2,
+                         cfg.sigma_set_rad**2, st.cols, True, iterations, tolerance, innovations, threads)
         nis[:] = sums[:, 0] / np.maximum(sums[:, 1], 1) / 6.0
         nlin += sums[:, 2]
         nbad += sums[:, 3].astype(np.int64)
@@ -733,45 +549,57 @@ class FilterStart:
 def run_filter_positions(cfg, positions_deg, source, passes: int | None = None, iterations: int = 0,
                          tolerance: float = 0.0, on_innovations=None):
     """:func:`run_filter` (docs/multiposition-1g.md §9) of one record (R = 1) fed one position at a
-    time, so only one position's
-    samples are held: ``source()`` is called once per pass and yields, per position in the order of
-    ``positions_deg`` (K, 3) deg, its filter instants ``t`` (m,) s and outputs ``z`` (m, 6) ug,
-    arcsec; ``on_innovations(k, rec)`` (last pass only) receives position k's innovations and S
-    diagonals (m, 12) (:func:`_ekf_one`). x and P carry from position to position exactly as in
-    the whole record's kernel call (the same kernel, the same operations), so the estimate and
-    covariance are bit-identical; the mean NIS is summed per position (equal to rounding).
-    Returns run_filter's tuple for R = 1."""
+    time and each position in blocks, so only one block of instants is held: ``source()`` is
+    called once per pass and yields, per position in the order of ``positions_deg`` (K, 3) deg,
+    an iterable of its blocks ``(t (m,) s, z (m, 6) ug, arcsec)`` in time order (the filter
+    instants and outputs); ``on_innovations(k, rec)`` (last pass only) receives each block's
+    innovations and S diagonals (m, 12) of position k (:func:`_ekf_one`). x and P carry from
+    block to block and position to position exactly as in the whole record's kernel call (the
+    same kernel, the same operations: a later block of a position starts from the previous
+    block's last instant, ``s0 = 1``), so the estimate and covariance are bit-identical; the mean
+    NIS is summed per block (equal to rounding). Returns run_filter's tuple for R = 1."""
     st = FilterStart.of(cfg, 1)
     phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
     npass = int(passes or cfg.passes)
-    nlin = nbad = 0
+    args = (st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, st.cols, True, iterations,
+            tolerance)
+    totals = np.zeros(4)  # over the passes: the linearisations and skipped updates
     count = 0
     for p in range(npass):
         if p > 0:
             st.next_pass()
-        nis = nup = 0.0
+        sums = np.zeros(4)
         last = p == npass - 1 and on_innovations is not None
         k = -1
-        for k, (t, z) in enumerate(source()):
+        for k, blocks in enumerate(source()):
             if k >= phi0s.shape[0]:
                 raise ValueError(f"the record's source gave more positions than {phi0s.shape[0]}")
-            m = t.size
-            rec = np.zeros((1, 1, m, 12)) if last else None
-            s, u, nl, nb = _ekf_lanes(st.X, st.Ps, phi0s[k:k + 1], np.ascontiguousarray(t, float)[None],
-                                      np.ascontiguousarray(z, float)[None, None], np.array([m], dtype=np.int64),
-                                      st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2, cfg.sigma_set_rad**2, st.cols,
-                                      True, iterations, tolerance, rec)[0]
-            nis += s
-            nup += u
-            nlin += nl
-            nbad += nb
-            count += m
-            if last:
-                on_innovations(k, rec[0, 0])
+            t_prev = None
+            for t, z in blocks:
+                m = t.size
+                if m == 0:
+                    continue
+                s0 = 0 if t_prev is None else 1
+                # a later block leads with the previous block's last instant: the kernel propagates from it
+                tk = np.empty((1, m + s0))
+                tk[0, s0:] = t
+                zk = np.zeros((1, 1, m + s0, 6))
+                zk[0, 0, s0:] = z
+                if s0:
+                    tk[0, 0] = t_prev
+                rec = np.zeros((1, 1, m + s0, 12)) if last else None
+                blk = _ekf_pass(st.X, st.Ps, phi0s[k:k + 1], tk, zk, np.array([m + s0], dtype=np.int64), *args,
+                                rec=rec, s0=s0)[0]
+                sums += blk
+                count += m
+                t_prev = float(t[-1])
+                if last:
+                    on_innovations(k, rec[0, 0, s0:])
         if k + 1 != phi0s.shape[0]:
             raise ValueError(f"the record's source gave {k + 1} positions, not {phi0s.shape[0]}")
-    return (st.X[:, 3:].copy(), st.Ps[:, 3:, 3:].copy(), np.array([nis / max(nup, 1) / 6.0]),
-            np.array([nlin / max(count, 1)]), np.array([nbad], dtype=np.int64))
+        totals += sums
+    return (st.X[:, 3:].copy(), st.Ps[:, 3:, 3:].copy(), np.array([sums[0] / max(sums[1], 1) / 6.0]),
+            np.array([totals[2] / max(count, 1)]), np.array([int(totals[3])], dtype=np.int64))
 
 
 def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
@@ -809,14 +637,14 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
     Pinit[3:, 3:] = np.diag(p0**2)
     if sequential:
         X, Ps = x0[None].copy(), Pinit[None].copy()
-        _ekf_lanes(X, Ps, phi0s, tk, np.zeros((1, K, ns, 6)), nk, lay, wn, wu, r_var, cfg.arw_rad**2,
-                   cfg.sigma_set_rad**2, cols, update_x=False)
+        resolve(EKF_LANES)(X, Ps, phi0s, tk, np.zeros((1, K, ns, 6)), nk, lay, wn, wu, r_var, cfg.arw_rad**2,
+                           cfg.sigma_set_rad**2, cols, update_x=False)
         return Ps[0, 3:, 3:]
     # one run per position: position k is batch entry k with its own commanded angles
     X = np.repeat(x0[None], K, axis=0)
     Ps = np.repeat(Pinit[None], K, axis=0)
-    _ekf_lanes(X, Ps, phi0s[:, None], tk[:1], np.zeros((K, 1, ns, 6)), nk[:1], lay, wn, wu, r_var, cfg.arw_rad**2,
-               cfg.sigma_set_rad**2, cols, update_x=False, threads=threads)
+    resolve(EKF_LANES)(X, Ps, phi0s[:, None], tk[:1], np.zeros((K, 1, ns, 6)), nk[:1], lay, wn, wu, r_var,
+                       cfg.arw_rad**2, cfg.sigma_set_rad**2, cols, update_x=False, threads=threads)
     return Ps[:, 3:, 3:].copy()
 
 

@@ -24,8 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from ...jit import njit
 from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into, c_rp_sc_into, euler_t_sc_into
 from ...model.instruments import GYRO_AXES, gyro_axis_components, gyro_regressors_into
 from ...model.platform import default_platform

@@ -44,6 +44,12 @@ UNITS = {"position": "dimensionless", "t": "s", "alpha_cmd": "deg", "beta_cmd": 
 """The record's columns and their units (§12), for a config's ``record:`` mapping; g is standard
 gravity, 9.80665 m/s^2 (:data:`platcal.mapping.STANDARD_GRAVITY`)."""
 
+FILTER_BLOCK = 8192
+"""Filter instants a streamed identify takes at a time (docs/multiposition-1g.md §9, §16): a block
+of the filter's pass, of the fit and plausibility sums and of the nominal output's simulation.
+Their temporaries (about 300 bytes an instant, 2.5 MB) are then the same whatever the record's
+length; smaller blocks only add calls (the numbers do not depend on the block)."""
+
 
 @dataclass
 class Record:
@@ -180,22 +186,44 @@ def read_chunks(path: str | os.PathLike, mapping: RecordMapping | None = None, c
 @dataclass
 class StreamScan:
     """What the first read of a streamed record gives (:func:`scan_record`): per position (in
-    order) its number, commanded angles (deg), filter instants ``t`` (s from its start) and the
-    record's row of each instant ``rows`` (0-based data rows of the file); whether the true angles
-    are there; the scheme (given, or taken from the record as :func:`read_record` does)."""
+    order) its number, commanded angles (deg), its filter instants and outputs on disk
+    (``instants``: one :class:`platcal.records.ColumnSpill` of 7 columns per position, the
+    instant's time t (s from the position's start) and z (6,) in ug and arcsec, :func:`outputs`'s
+    numbers), their count and the last instant's time (s); whether the true angles are there; the
+    scheme (given, or taken from the record as :func:`read_record` does). A context manager: the
+    files go at its end (:meth:`close`)."""
 
     positions: list[int]
     cmd_deg: np.ndarray
-    t: list[np.ndarray]
-    rows: list[np.ndarray]
+    instants: list[ColumnSpill]
+    counts: list[int]
+    last_t: list[float]
     has_truth: bool
     scheme: Scheme
     clock: ClockRate
     """Every sample's stamps against ``sampling.ts_ms``, as :attr:`Record.clock`."""
 
+    def __enter__(self) -> StreamScan:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        for spill in self.instants:
+            spill.close()
+
     def samples_used(self) -> dict[int, int]:
         """Samples the EKF uses, per position number."""
-        return {int(k): int(t.size) for k, t in zip(self.positions, self.t)}
+        return {int(k): int(n) for k, n in zip(self.positions, self.counts)}
+
+    def blocks(self, k: int):
+        """Position ``k``'s (0-based) filter instants and outputs from disk, a block at a time
+        (:data:`FILTER_BLOCK` instants): ``(t (m,) s, z (m, 6) ug, arcsec)``."""
+        for _, v in self.instants[k].blocks():
+            for i in range(0, len(v), FILTER_BLOCK):
+                w = v[i:i + FILTER_BLOCK]
+                yield w[:, 0], w[:, 1:]
 
 
 def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, ts: float = 0.02,
@@ -208,24 +236,43 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
     logger's order; any other order is read whole, ``--chunk-rows 0``). Position numbers and
     commanded angles are checked chunk by chunk; a position's time checks, clock rate and instants
     need its times whole (medians, :func:`platcal.records.check_times`,
-    :func:`~platcal.records.grid_origin`), so its ``t`` and ``Ax, Ay, Az`` are spilled to
-    temporary files (32 bytes a sample on disk, :class:`platcal.records.ColumnSpill`) and taken by
-    passes over them (:func:`instants_spilled`); held are the position's instants, their rows and
-    outputs (40 bytes per instant of the longest position). ``each(k, cmd, t, a)``, when given, receives each position's number, commanded
-    angles (3,) deg, instants (s) and its ``Ax, Ay, Az`` there (g) as it ends (the plausibility sums)."""
-    positions, cmds, ts_used, rows, rates = [], [], [], [], []
+    :func:`~platcal.records.grid_origin`), so its ``t``, ``Ax, Ay, Az`` and angle sensors are
+    spilled to temporary files (56 bytes a sample on disk, :class:`platcal.records.ColumnSpill`)
+    and taken by passes over them (:func:`instants_spilled`); its instants' times and outputs go
+    to a file of their own (:attr:`StreamScan.instants`, 56 bytes an instant on disk), which the
+    filter's passes read block by block. Held: the longest position's instant indices and times
+    (16 bytes an instant) and one block (:data:`FILTER_BLOCK` instants). ``each(k, cmd, last, t, a)``, when given, receives each
+    position's number, commanded angles (3,) deg and last instant's time (s), then block by block
+    its instants (s) and ``Ax, Ay, Az`` there (g), in time order (the plausibility sums). The
+    caller closes the scan (its files): ``with scan_record(...) as scan``."""
+    positions, cmds, spills, counts, last_t, rates = [], [], [], [], [], []
     has_truth = None
-    held: dict = {"cmd": None}
+    held: dict = {"cmd": None, "angles": None}
 
     def finish(k: int, row0: int, t: ColumnSpill, a: ColumnSpill) -> None:
         keep, tk, rate = instants_spilled(k, t, scheme, ts, max_gap_s)
         rates.append(rate)
-        if each is not None:
-            each(k, held["cmd"], tk, a.take(keep))
+        out = ColumnSpill(7)
+        spills.append(out)
+        # the instants' outputs, block by block: the spilled rows of Ax, Ay, Az and the angle
+        # sensors side by side, as outputs() takes them from the table (the same numbers)
+        for (i0, acc), (_, ang) in zip(a.blocks(), held["angles"].blocks()):
+            first, end = np.searchsorted(keep, [i0, i0 + len(acc)])
+            for lo in range(first, end, FILTER_BLOCK):
+                hi = min(lo + FILTER_BLOCK, end)
+                sel = keep[lo:hi] - i0
+                block = np.empty((sel.size, 7))
+                block[:, 0] = tk[lo:hi]
+                block[:, 1:4] = acc[sel] / UG
+                block[:, 4:] = ang[sel] * 3600.0
+                out.write(block)
+                if each is not None:
+                    each(k, held["cmd"], float(tk[-1]), tk[lo:hi], acc[sel])
+        held["angles"].close()
         positions.append(k)
         cmds.append(held["cmd"])
-        ts_used.append(tk)
-        rows.append(row0 + keep)
+        counts.append(int(keep.size))
+        last_t.append(float(tk[-1]))
 
     def check(df) -> None:
         nonlocal has_truth
@@ -237,17 +284,25 @@ def scan_record(chunks, path: str | os.PathLike, scheme: Scheme | None = None, t
         cmd = df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float)[i0:i1]
         if starts:
             held["cmd"] = check_commanded(k, cmd, scheme)
+            held["angles"] = ColumnSpill(3)  # the previous position's went in its finish
         elif np.ptp(np.vstack([held["cmd"][None], cmd]), axis=0).max() > 1e-9:
             raise InputError(f"--data position {k}", "commanded angles change within the position")
+        held["angles"].write(df[list(ANGLE_COLUMNS)].to_numpy(float)[i0:i1])
 
-    for position in spilled_positions(chunks, check, commanded):
-        finish(*position)
-    if scheme is not None:
-        check_every_position(positions, scheme)
-    cmd = np.array(cmds)
-    if scheme is None:
-        scheme = record_scheme(path, cmd, ts_used)
-    return StreamScan(positions, cmd, ts_used, rows, bool(has_truth), scheme, ClockRate.combine(rates))
+    try:
+        for position in spilled_positions(chunks, check, commanded):
+            finish(*position)
+        if scheme is not None:
+            check_every_position(positions, scheme)
+        cmd = np.array(cmds)
+        if scheme is None:
+            scheme = record_scheme(path, cmd, [np.array([t]) for t in last_t])
+    except BaseException:  # a refused record leaves no file behind
+        for spill in spills + [held["angles"]]:
+            if spill is not None:
+                spill.close()
+        raise
+    return StreamScan(positions, cmd, spills, counts, last_t, bool(has_truth), scheme, ClockRate.combine(rates))
 
 
 def check_position_numbers(pos: np.ndarray, scheme: Scheme | None) -> None:

@@ -229,11 +229,15 @@ def _rank_reading(rf: pd.DataFrame) -> str:
 
 def warm_kernels(cfg) -> None:
     """Compile (or load) every numba kernel of the study once, on a tiny run, so that the jobs
-    that follow load them from numba's cache instead of compiling them side by side."""
+    that follow load them from numba's cache instead of compiling them side by side: each
+    estimator on a batch of two (the replicates in lanes, :mod:`.filter_lanes`) and on one
+    replicate (the reference kernel, :func:`.filter._ekf_pass`)."""
     s = cfg.scheme("TET4")
-    t, _, z = simulate(cfg, s, [0])
+    t, _, z = simulate(cfg, s, [0, 1])
     for name in cfg.raw["study"]["estimators"]:
-        estimate(cfg, variant_choice(cfg, name, field=f"study.estimators.{name}"), s.angles_deg, t[:5], z[:, :, :5])
+        choice = variant_choice(cfg, name, field=f"study.estimators.{name}")
+        for batch in (z, z[:1]):
+            estimate(cfg, choice, s.angles_deg, t[:5], batch[:, :, :5])
     covariance_only(cfg, s.angles_deg, 1.0)
     covariance_only(cfg, s.angles_deg, 1.0, sequential=False)
 

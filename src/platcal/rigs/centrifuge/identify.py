@@ -11,7 +11,7 @@ import numpy as np
 
 from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
-from ...io import atomic_files, json_text, write_csv
+from ...io import atomic_files, json_text, write_csv, write_csv_blocks
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files, write_covariance
 from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...model.instruments import unit_of
@@ -21,7 +21,7 @@ from ...records import CHUNK_ROWS, ColumnSpill
 from ...rig import resolve
 from .catalogue import load_catalogue
 from .config import Study
-from .ekf import Estimate, EstimatorInput, FilterSettings, first_instant
+from .ekf import Estimate, EstimatorInput, FilterSettings, StreamedInstants, first_instant
 from .estimators import check_kind, run_estimator
 from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
                      check_every_position, check_position_numbers, check_position_spilled, check_record,
@@ -225,20 +225,52 @@ the ML estimate needs the whole record at once: they read it whole)."""
 @dataclass
 class StreamScan:
     """What the first read of a streamed record gives (:func:`scan_record`): per position (in
-    order) the filter instants ``t`` (s since its start), the record's row of every instant end
-    to end ``rows``, whether the true angles are there, the largest timestamp jitter (s), and
-    the sums of Ax, Ay, Az at the instants against the nominal output (the plausibility check and
-    the fit's diagnosis)."""
+    order) the number of filter instants ``counts`` and the last one ``last`` (s since its
+    start), the record's row and instant (s since its position's start) of every filter
+    instant end to end spilled to a temporary file ``instants`` (two columns; 16 bytes an
+    instant on disk, none held: :meth:`close` removes it), whether the true angles are there,
+    the largest timestamp jitter (s), and the sums of Ax, Ay, Az at the instants against the
+    nominal output (the plausibility check and the fit's diagnosis)."""
 
     positions: list[int]
-    t: list[np.ndarray]
-    rows: np.ndarray
+    counts: list[int]
+    last: list[float]
+    instants: ColumnSpill
     truth: bool
     jitter_s: float
     moments: Moments
     cmd_deg: np.ndarray
     clock: ClockRate
     """The clock-rate error of every sample's stamp against ``sampling.sample_ms`` (:func:`record_clock`)."""
+
+    def close(self) -> None:
+        """Remove the spilled instants."""
+        self.instants.close()
+
+
+class InstantCursor:
+    """The spilled filter instants of a :class:`StreamScan` read back in order, a chunk of the
+    record at a time (:meth:`below`), :data:`platcal.records.SPILL_BLOCK` of them held at most."""
+
+    def __init__(self, spill: ColumnSpill):
+        self._blocks = (v for _, v in spill.blocks())
+        self._buf = np.zeros((0, 2))
+
+    def below(self, row: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(rows, t)`` of the instants not yet taken whose record row is below ``row``."""
+        parts = []
+        while True:
+            j = int(np.searchsorted(self._buf[:, 0], row))
+            parts.append(self._buf[:j])
+            if j < len(self._buf):
+                self._buf = self._buf[j:]
+                break
+            nxt = next(self._blocks, None)
+            self._buf = np.zeros((0, 2)) if nxt is None else nxt
+            if nxt is None:
+                break
+        got = np.concatenate(parts) if len(parts) > 1 else parts[0]
+        return got[:, 0].astype(np.int64), np.ascontiguousarray(got[:, 1])
 
 
 def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
@@ -255,13 +287,16 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     (:func:`~.record.check_position_spilled`, :func:`platcal.plausibility.spilled_segment_rate`,
     :func:`~.record.select_instants_spilled`): held are the position's instants, their rows and
     outputs (64 bytes per instant of the longest position, with the nominal output); the nominal output at its
-    instants comes from a noise-free simulation of that position in chunks.
+    instants comes from a noise-free simulation of that position in chunks. Each position's
+    instants and their rows then go to a temporary file (:attr:`StreamScan.instants`), so that
+    what the scan keeps does not grow with the record's length.
     """
     cmd = scheme.angles_deg
     max_gap = float(study.config["record"]["max_gap_s"])
     want = expected_g(study, scheme)
     params = study.centrifuge.scheme_params(scheme)
-    positions, ts, rows, jit, rates = [], [], [], 0.0, []
+    positions, counts, last, jit, rates = [], [], [], 0.0, []
+    instants = ColumnSpill(2)
     moments = Moments.zero(3)
     truth = None
 
@@ -273,8 +308,10 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         keep, tk = select_instants_spilled(k, t, med, origin, study.filter.period_s, study.filter.update_at_reset)
         moments.add(a.take(keep), nominal_at(study, scheme, params, k, tk))
         positions.append(k)
-        ts.append(tk)
-        rows.append(row0 + keep)
+        counts.append(int(tk.size))
+        last.append(float(tk[-1]))
+        # rows as float64: exact below 2**53
+        instants.write(np.column_stack([(row0 + keep).astype(float), tk]))
 
     def check(df) -> None:
         nonlocal truth
@@ -284,10 +321,14 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         check_position_numbers(pos, scheme)
         check_commanded(pos, df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float), scheme)
 
-    for position in spilled_positions(chunks, check):
-        finish(*position)
-    check_every_position(positions, scheme)
-    return StreamScan(positions, ts, np.concatenate(rows), bool(truth), jit, moments, cmd[np.array(positions) - 1],
+    try:
+        for position in spilled_positions(chunks, check):
+            finish(*position)
+        check_every_position(positions, scheme)
+    except BaseException:
+        instants.close()
+        raise
+    return StreamScan(positions, counts, last, instants, bool(truth), jit, moments, cmd[np.array(positions) - 1],
                       ClockRate.combine(rates))
 
 
@@ -305,7 +346,8 @@ def nominal_at(study: Study, scheme: Scheme, params: np.ndarray, k: int, tk: np.
     return out
 
 
-def identify_streamed(study: Study, scheme: Scheme, read_chunks) -> tuple[Estimate, StreamScan, FitCheck | None]:
+def identify_streamed(study: Study, scheme: Scheme,
+                      read_chunks) -> tuple[Estimate, StreamScan, FitCheck | None, ColumnSpill]:
     """Identify a record read in chunks, twice or more (``read_chunks()`` yields the record's
     checked tables in file order, afresh at each call): a first read checks it
     (:func:`scan_record`, then the plausibility of Ax, Ay, Az as :func:`record_input`), each
@@ -316,23 +358,48 @@ def identify_streamed(study: Study, scheme: Scheme, read_chunks) -> tuple[Estima
     diagnosis of a record that does not fit names units, signs, swaps (from the sums) and the
     clock jitter of :func:`clock_finding`, not the clock offset that :func:`record_fit` finds in
     the innovations' time derivative. ``filter.estimator`` one of :data:`STREAMED_KINDS`,
-    without warm-up."""
+    without warm-up.
+
+    Nothing held grows with the record (issue 22 item 3): each pass reads the instants and their
+    rows back from the scan's file chunk by chunk (:class:`InstantCursor`), and the history goes
+    to a temporary file as each block is filtered, returned as the fourth item (columns ``t``,
+    the states, their sigmas: :func:`history_columns`' order; the Estimate's history is then
+    empty) for :func:`write_identification` ``history``; the caller closes it."""
     scan = scan_record(read_chunks(), study, scheme)
+    history = ColumnSpill(1 + 2 * len(study.filter.state_names))
+    try:
+        est, fit = filter_streamed(study, scheme, read_chunks, scan, history)
+    except BaseException:
+        history.close()
+        raise
+    finally:
+        scan.close()
+    return est, scan, fit, history
+
+
+def filter_streamed(study: Study, scheme: Scheme, read_chunks, scan: StreamScan,
+                    history: ColumnSpill) -> tuple[Estimate, FitCheck]:
+    """The filter passes and the fit check of :func:`identify_streamed` over a scanned record
+    (its instants read back from ``scan.instants``), the history's rows written to ``history``."""
     refuse_recognised_moments(scan.moments, FIT_CHANNELS, "g",
                               "the record's Ax, Ay, Az must be the platform's x, y, z accelerometers in g")
     settings = replace(study.filter, innovations=True)
     params = study.centrifuge.scheme_params(scheme)[np.array(scan.positions) - 1]
-    offs = np.r_[0, np.cumsum([tk.size for tk in scan.t])]
-    rows = scan.rows
+    offs = np.r_[0, np.cumsum(scan.counts)]
     state = {}
 
     def z_source():
-        r0 = 0
+        cursor = InstantCursor(scan.instants)
+        i0 = r0 = 0
         for df in read_chunks():
             r1 = r0 + len(df)
-            i0, i1 = np.searchsorted(rows, r0), np.searchsorted(rows, r1)
-            yield int(i0), int(i1), df[["Ax", "Ay", "Az"]].to_numpy(float)[rows[i0:i1] - r0][None]
+            rows, tb = cursor.below(r1)
+            yield i0, i0 + rows.size, df[["Ax", "Ay", "Az"]].to_numpy(float)[rows - r0][None], tb
+            i0 += rows.size
             r0 = r1
+
+    def on_history(ht, hx, hs):
+        history.write(np.column_stack([ht, hx, hs]))
 
     def on_innovations(i0, i1, zb, rb):
         if i0 == 0:  # a new pass: the fit judges the last one
@@ -341,13 +408,14 @@ def identify_streamed(study: Study, scheme: Scheme, read_chunks) -> tuple[Estima
         state["sums"].add(rb[0, :, :3], rb[0, :, 3:], segment)
 
     kind = check_kind(settings.estimator)
-    est = kind.run(EstimatorInput(None, scan.t, scan.cmd_deg, params), settings, z_source=z_source,
-                   on_innovations=on_innovations, **dict(settings.estimator_options))
+    instants = StreamedInstants(tuple(scan.counts), tuple(scan.last))
+    est = kind.run(EstimatorInput(None, instants, scan.cmd_deg, params), settings, z_source=z_source,
+                   on_innovations=on_innovations, on_history=on_history, **dict(settings.estimator_options))
     diagnosis = [text for _, text in gross_errors_moments(scan.moments, FIT_CHANNELS)]
     clock = clock_text(study, scheme, scan.jitter_s)
     if not diagnosis and clock is not None:
         diagnosis.append(clock)
-    return est, scan, state["sums"].check(FIT_CHANNELS, diagnosis=tuple(diagnosis))
+    return est, state["sums"].check(FIT_CHANNELS, diagnosis=tuple(diagnosis))
 
 
 def streamable(settings: FilterSettings) -> bool:
@@ -395,7 +463,8 @@ def consistency_warning(summary: dict) -> str | None:
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
                          seconds: float | None = None, samples_used: dict[int, int] | None = None,
                          calibration: Calibration | None = None, fit: FitCheck | None = None,
-                         segmentation: tuple | None = None, clock: dict | None = None) -> dict:
+                         segmentation: tuple | None = None, clock: dict | None = None,
+                         history: ColumnSpill | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
@@ -407,7 +476,9 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`);
     with ``segmentation`` (a continuous log's ``(t, |A|, dwells)``, :func:`continuous_input`) the
     summary's ``dwells_found`` and ``dwells.png``, the log's ``|A|`` with the dwells shaded; with
-    ``clock`` (:func:`check_clock_rate`) the summary's ``clock`` block.
+    ``clock`` (:func:`check_clock_rate`) the summary's ``clock`` block; with ``history`` (a
+    streamed identify's spilled history, :func:`identify_streamed`) ``history.csv`` from it,
+    block by block, instead of from ``est``.
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
@@ -437,7 +508,11 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     with atomic_files(out_dir) as tmp:
         write_csv(tmp("estimates.csv"), table)
         write_covariance(tmp("covariance.csv"), est.names, est.P[0])
-        write_csv(tmp("history.csv"), history_columns(est))
+        if history is None:
+            write_csv(tmp("history.csv"), history_columns(est))
+        else:
+            write_csv_blocks(tmp("history.csv"), history_names(est), ([v[:, j] for j in range(v.shape[1])]
+                                                                      for _, v in history.blocks()))
         tmp("table2.md").write_text(table2_markdown(table))
         if calibration is not None:
             write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state
@@ -450,12 +525,14 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
 def history_columns(est: Estimate, replicate: int = 0) -> dict:
     """The decimated estimate and 1-sigma history of one run as a wide table's columns: ``t``
     (s), each state's estimate and ``<name>_sigma`` (the state's unit; angles in rad)."""
-    cols = {"t": est.history_t}
-    for i, name in enumerate(est.names):
-        cols[name] = est.history_x[replicate, :, i]
-    for i, name in enumerate(est.names):
-        cols[f"{name}_sigma"] = est.history_sigma[replicate, :, i]
-    return cols
+    values = [est.history_t] + [est.history_x[replicate, :, i] for i in range(len(est.names))] + \
+        [est.history_sigma[replicate, :, i] for i in range(len(est.names))]
+    return dict(zip(history_names(est), values))
+
+
+def history_names(est: Estimate) -> list[str]:
+    """The columns of :func:`history_columns`, in order."""
+    return ["t", *est.names, *(f"{name}_sigma" for name in est.names)]
 
 
 def truth_known(df: pd.DataFrame) -> bool:

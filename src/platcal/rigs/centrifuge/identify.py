@@ -17,7 +17,7 @@ from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...model.instruments import unit_of
 from ...plausibility import (ClockRate, clock_rate, clock_rate_tolerance, refuse_clock_rate, refuse_recognised,
                              refuse_recognised_moments, spilled_jitter, spilled_segment_rate, timestamp_jitter)
-from ...records import CHUNK_ROWS, ColumnSpill
+from ...records import CHUNK_ROWS, ColumnSpill, RowsAt
 from ...rig import resolve
 from .catalogue import load_catalogue
 from .config import Study
@@ -25,7 +25,7 @@ from .ekf import Estimate, EstimatorInput, FilterSettings, StreamedInstants, fir
 from .estimators import check_kind, run_estimator
 from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
                      check_every_position, check_position_numbers, check_position_spilled, check_record,
-                     continuous_record, filter_input, has_truth_columns, select_instants_spilled)
+                     continuous_record, filter_input, has_truth_columns, instants_spilled_blocks)
 from ...records import read_table, spilled_positions
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
@@ -285,11 +285,13 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     the position's ``t`` and ``Ax, Ay, Az`` are spilled to temporary files (32 bytes a sample on
     disk, :class:`platcal.records.ColumnSpill`) and taken by passes over them
     (:func:`~.record.check_position_spilled`, :func:`platcal.plausibility.spilled_segment_rate`,
-    :func:`~.record.select_instants_spilled`): held are the position's instants, their rows and
-    outputs (64 bytes per instant of the longest position, with the nominal output); the nominal output at its
-    instants comes from a noise-free simulation of that position in chunks. Each position's
-    instants and their rows then go to a temporary file (:attr:`StreamScan.instants`), so that
-    what the scan keeps does not grow with the record's length.
+    :func:`~.record.instants_spilled_blocks`), and the position's filter instants and their
+    rows go to a temporary file as they are found (:attr:`StreamScan.instants`, 16 bytes an
+    instant on disk); one more pass over them, the spilled outputs and a noise-free simulation
+    of the position in chunks (the nominal output, :func:`nominal_blocks`) adds the sums of the
+    plausibility check block by block. Held: a chunk or a spill block, whatever the record's
+    length (issue 22 item 3). The sums are added per block, so they may differ from one sum
+    over the position in the last bits (they decide refusals and diagnoses, not the estimate).
     """
     cmd = scheme.angles_deg
     max_gap = float(study.config["record"]["max_gap_s"])
@@ -305,13 +307,21 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         med, origin = check_position_spilled(k, t, a, scheme, study.sample_s, max_gap, float(want[k - 1]))
         jit = max(jit, spilled_jitter(t, study.sample_s))
         rates.append(spilled_segment_rate(t, study.sample_s, med))
-        keep, tk = select_instants_spilled(k, t, med, origin, study.filter.period_s, study.filter.update_at_reset)
-        moments.add(a.take(keep), nominal_at(study, scheme, params, k, tk))
+        n, t_last = 0, np.nan
+        with ColumnSpill(2) as mine:  # this position's (sample, instant): its sums' pass reads them back
+            for keep, tk in instants_spilled_blocks(k, t, med, origin, study.filter.period_s,
+                                                    study.filter.update_at_reset):
+                if keep.size:
+                    mine.write(np.column_stack([keep.astype(float), tk]))  # indices as float64: exact below 2**53
+                    n, t_last = n + keep.size, float(tk[-1])
+            z, nominal = RowsAt(a.blocks()), RowsAt(nominal_blocks(study, scheme, params, k))
+            for _, v in mine.blocks():
+                keep, tk = v[:, 0].astype(np.int64), v[:, 1]
+                moments.add(z.take(keep), nominal.take(nominal_index(study, scheme, tk)))
+                instants.write(np.column_stack([row0 + v[:, 0], tk]))
         positions.append(k)
-        counts.append(int(tk.size))
-        last.append(float(tk[-1]))
-        # rows as float64: exact below 2**53
-        instants.write(np.column_stack([(row0 + keep).astype(float), tk]))
+        counts.append(n)
+        last.append(t_last)
 
     def check(df) -> None:
         nonlocal truth
@@ -332,18 +342,19 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
                       ClockRate.combine(rates))
 
 
-def nominal_at(study: Study, scheme: Scheme, params: np.ndarray, k: int, tk: np.ndarray,
-               chunk_samples: int = CHUNK_ROWS) -> np.ndarray:
-    """(M, 3) g: :func:`nominal_output` of position ``k`` (1-based) at its instants ``tk`` (s),
-    from a noise-free simulation of that position alone in chunks (the same numbers)."""
+def nominal_index(study: Study, scheme: Scheme, tk: np.ndarray) -> np.ndarray:
+    """The sample of the nominal output (:func:`nominal_output`) at each instant ``tk`` (s since
+    its position's start): the nearest, within the dwell."""
     n = whole_periods(scheme.dwell_s, study.sample_s, f"schemes.{scheme.name}.dwell_s")
-    idx = np.clip(np.rint(tk / study.sample_s).astype(int), 0, n - 1)
-    out = np.empty((tk.size, 3))
+    return np.clip(np.rint(tk / study.sample_s).astype(int), 0, n - 1)
+
+
+def nominal_blocks(study: Study, scheme: Scheme, params: np.ndarray, k: int, chunk_samples: int = CHUNK_ROWS):
+    """``(j0, A (n, 3) g)``: the noise-free output of the nominal instrument over position ``k``
+    (1-based) from its sample ``j0``, a chunk at a time (docs/centrifuge-model.md §2)."""
     for ch in simulate_chunks(np.zeros_like(study.truth), scheme, params, study.noise, None, sample_s=study.sample_s,
                               chunk_samples=chunk_samples, positions=[k - 1]):
-        sel = (idx >= ch.j0) & (idx < ch.j0 + ch.t.size)
-        out[sel] = ch.A[0, idx[sel] - ch.j0]
-    return out
+        yield ch.j0, ch.A[0]
 
 
 def identify_streamed(study: Study, scheme: Scheme,

@@ -939,8 +939,10 @@ class RowsAt:
             b = a + int(np.searchsorted(idx[a:], self._i0 + len(self._v)))
             parts.append(self._v[idx[a:b] - self._i0])
             a = b
-        if not parts:
-            return np.zeros((0,) + (self._v.shape[1:] if self._v is not None else ()))
+        if not parts:  # nothing asked: no rows, of the column's width (the first block's)
+            if self._v is None:
+                self._i0, self._v = next(self._blocks, (0, np.zeros(0)))
+            return self._v[:0]
         return np.concatenate(parts) if len(parts) > 1 else parts[0]
 
 

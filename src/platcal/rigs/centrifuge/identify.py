@@ -349,11 +349,12 @@ def nominal_index(study: Study, scheme: Scheme, tk: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(tk / study.sample_s).astype(int), 0, n - 1)
 
 
-def nominal_blocks(study: Study, scheme: Scheme, params: np.ndarray, k: int, chunk_samples: int = CHUNK_ROWS):
+def nominal_blocks(study: Study, scheme: Scheme, params: np.ndarray, k: int, chunk_samples: int | None = None):
     """``(j0, A (n, 3) g)``: the noise-free output of the nominal instrument over position ``k``
-    (1-based) from its sample ``j0``, a chunk at a time (docs/centrifuge-model.md §2)."""
+    (1-based) from its sample ``j0``, a chunk at a time (``chunk_samples``, default
+    :data:`platcal.records.CHUNK_ROWS`; docs/centrifuge-model.md §2)."""
     for ch in simulate_chunks(np.zeros_like(study.truth), scheme, params, study.noise, None, sample_s=study.sample_s,
-                              chunk_samples=chunk_samples, positions=[k - 1]):
+                              chunk_samples=chunk_samples or CHUNK_ROWS, positions=[k - 1]):
         yield ch.j0, ch.A[0]
 
 

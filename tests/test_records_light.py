@@ -56,3 +56,21 @@ def test_a_bad_value_in_a_late_chunk_is_named_by_its_line(tmp_path, value, shown
             list(iter_table(path, ("t", "a", "k"), ("s",), text=("s",), chunk_rows=chunk))
         assert e.value.field == "--data column a, row 4322"
         assert f"value {shown} is not a finite number" in str(e.value)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_unused_columns_are_allowed_but_neither_read_nor_checked(tmp_path, suffix):
+    n = 3000
+    df = pd.DataFrame({"t": np.arange(n) * 0.01, "a": np.linspace(0.0, 1.0, n), "truth_a": np.linspace(0.0, 1.0, n)})
+    df.loc[1234, "truth_a"] = np.nan  # a command that does not use truth_a does not refuse it
+    path = tmp_path / f"log{suffix}"
+    df.to_parquet(path) if suffix == ".parquet" else df.to_csv(path, index=False)
+    parts = list(iter_table(path, ("t", "a"), ("truth_a",), chunk_rows=1000, unused=("truth_a",)))
+    assert [p.columns for p in parts] == [["t", "a"]] * 3
+    assert np.array_equal(np.concatenate([p["a"].to_numpy(float) for p in parts]), df["a"].to_numpy())
+    with pytest.raises(InputError, match="truth_a, row 1236"):  # a command that uses it still does
+        list(iter_table(path, ("t", "a"), ("truth_a",), chunk_rows=1000))
+    df["extra"] = 1.0
+    df.to_parquet(path) if suffix == ".parquet" else df.to_csv(path, index=False)
+    with pytest.raises(InputError, match="column extra"):  # a column outside the record's is still refused
+        list(iter_table(path, ("t", "a"), ("truth_a",), chunk_rows=1000, unused=("truth_a",)))

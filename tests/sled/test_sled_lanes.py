@@ -1,5 +1,5 @@
 """The sled's filters with the seeds in SIMD lanes (issue 22 item 2,
-:func:`platcal.rigs.sled.filters._kalman_block`) against the one-seed-at-a-time reference kernel
+:func:`platcal.rigs.sled.filter_lanes._kalman_block`) against the one-seed-at-a-time reference kernel
 (:func:`platcal.rigs.sled.filters._kalman`, the dense F of :func:`.errmodel.run_F` /
 :func:`.errmodel.stop_F`): the same operations in the same order, so the estimates, sigmas,
 covariances, NIS, skipped updates and innovation histories are bit-identical for every seed,

@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 import yaml
 
+from platcal import records
 from platcal.cli import main
 from platcal.rigs.sled import stream
 from platcal.rigs.sled.config import load_config
@@ -139,3 +140,37 @@ def test_streamed_read_refuses_as_the_whole_one(tmp_path, record, capsys, column
         assert field in err
         messages.append(err)
     assert messages[0] == messages[1]   # the same verdict and figures (the sums round as the whole arrays do, to the digits shown)
+
+
+@pytest.mark.parametrize("t0, jitter, block", [(0.0, 0.0, 1000), (5000.003, 4e-4, 997), (0.0, 2e-3, 64)])
+def test_epochs_from_the_spill_are_the_whole_records(monkeypatch, t0, jitter, block):
+    """:class:`.stream.EpochStream` over a spilled t (blocks that cut filter periods, a clock with
+    jitter and a gap) gives, piece by piece as asked, the whole record's epochs: the samples
+    nearest the filter period's multiples (:func:`platcal.records.nearest_samples`) with sample 0
+    first, their times, and the stop epoch where :func:`.identify.identify` puts it."""
+    monkeypatch.setattr(records, "SPILL_BLOCK", block)
+    rng = np.random.default_rng(np.random.SeedSequence(7))
+    t = t0 + np.arange(9000) * 0.005 + rng.uniform(-jitter, jitter, 9000)
+    t = np.delete(t, np.arange(4000, 4011))             # a gap of 11 samples
+    origin, tol = t0, 0.5 * float(np.median(np.diff(t - t0)))
+    want = records.nearest_samples(t - origin, 0.02, tol)
+    if want.size == 0 or want[0] != 0:
+        want = np.r_[0, want]
+    n_stop = 5123
+    with records.ColumnSpill() as spill:
+        spill.write(t)
+        stream_ = stream.EpochStream(spill, origin, t[0] - origin, t[-1] - origin, 0.02, tol)
+        k, at = stream_.below(n_stop, one_more=True)
+        assert k.size - 1 == min(np.searchsorted(want, n_stop), want.size - 1) and k[-1] >= n_stop
+        parts = [(k, at)]
+        for limit in (5200, 5200, 7001, 8990, 10 ** 6):
+            parts.append(stream_.below(limit))
+            assert parts[-1][0].size == 0 or parts[-1][0][-1] < limit
+        assert stream_.count_rest() == 0
+        again = stream.EpochStream(spill, origin, t[0] - origin, t[-1] - origin, 0.02, tol)
+        again.below(100)
+        assert again.count_rest() == want.size - np.searchsorted(want, 100)
+    got_k = np.concatenate([p[0] for p in parts])
+    got_at = np.concatenate([p[1] for p in parts])
+    assert got_k.dtype == np.int64 and np.array_equal(got_k, want)
+    assert np.array_equal(got_at, (t - origin)[want])

@@ -273,9 +273,12 @@ def rate_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g, wn, wu):
     cosines of the angles and the base specific force (m/s^2). Same model as :func:`attitude_rate_into`."""
     c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_rp_sc(sa, ca, sb, cb, sg, cg)
     f0, f1, f2 = _force_p(c00, c01, c02, c10, c11, c12, c20, c21, c22, fr0, fr1, fr2, g)
-    u0 = _drift(coef, 0, f0, f1, f2) * DEG_PER_HOUR + c01 * wn + c02 * wu
-    u1 = _drift(coef, 1, f0, f1, f2) * DEG_PER_HOUR + c11 * wn + c12 * wu
-    u2 = _drift(coef, 2, f0, f1, f2) * DEG_PER_HOUR + c21 * wn + c22 * wu
+    # the axis as an int64, not a literal 0, 1, 2: a literal argument makes numba compile the
+    # callee (and what it calls) once per value, on top of the int64 version other callers use
+    j0, j1, j2 = np.int64(0), np.int64(1), np.int64(2)
+    u0 = _drift(coef, j0, f0, f1, f2) * DEG_PER_HOUR + c01 * wn + c02 * wu
+    u1 = _drift(coef, j1, f0, f1, f2) * DEG_PER_HOUR + c11 * wn + c12 * wu
+    u2 = _drift(coef, j2, f0, f1, f2) * DEG_PER_HOUR + c21 * wn + c22 * wu
     ib = 1.0 / cb
     tb = sb * ib
     r0 = -(cg * ib * u0 - sg * ib * u1)
@@ -494,10 +497,11 @@ def measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g):
     angles and the base specific force (m/s^2): the simulator's measurement (eq. 13)."""
     c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_rp_sc(sa, ca, sb, cb, sg, cg)
     f0, f1, f2 = _force_p(c00, c01, c02, c10, c11, c12, c20, c21, c22, fr0, fr1, fr2, g)
-    aI0, aP0 = accel_axes(coef, 0, f0, f1, f2)
-    aI1, aP1 = accel_axes(coef, 1, f0, f1, f2)
-    aI2, aP2 = accel_axes(coef, 2, f0, f1, f2)
-    return accel_one(coef, 0, aI0, aP0), accel_one(coef, 1, aI1, aP1), accel_one(coef, 2, aI2, aP2)
+    j0, j1, j2 = np.int64(0), np.int64(1), np.int64(2)  # int64, not literals (see rate_scalar)
+    aI0, aP0 = accel_axes(coef, j0, f0, f1, f2)
+    aI1, aP1 = accel_axes(coef, j1, f0, f1, f2)
+    aI2, aP2 = accel_axes(coef, j2, f0, f1, f2)
+    return accel_one(coef, j0, aI0, aP0), accel_one(coef, j1, aI1, aP1), accel_one(coef, j2, aI2, aP2)
 
 
 @njit(cache=True, inline="always")

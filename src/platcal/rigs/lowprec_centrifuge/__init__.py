@@ -28,9 +28,11 @@ def catalogue():
                   "unit": [UNITS[c[:2]] for c in COEFFS], "truth": [np.nan] * 4}).to_pandas()
 
 
-COMMANDS = {name: f"{__name__}.commands:{name}" for name in ("inspect", "simulate", "identify", "compensate")}
+COMMANDS = {**{name: f"{__name__}.commands:{name}" for name in ("inspect", "simulate", "identify", "compensate")},
+            "kernels": f"{__name__}.aot_kernels:kernels_command"}
 """The sub-commands by module path (:func:`platcal.rig.resolve`): a Monte Carlo cell registers the
-rig and does not import the command line's module (issue 22 item 4)."""
+rig and does not import the command line's module (issue 22 item 4); ``kernels`` builds the
+identify's kernels ahead of time (:mod:`.aot_kernels`)."""
 
 RIG = Rig(name="lowprec_centrifuge",
           title="low-precision centrifuge: accelerometer nonlinearity by a variable-period Kalman filter",

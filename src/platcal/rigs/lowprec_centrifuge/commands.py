@@ -15,11 +15,12 @@ import time
 
 import numpy as np
 
+from ... import aot
 from ...estimation.consistency import EXIT_RUN_FAILED, estimate_problems, failed_run_status
 from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check, fit_exit_status
 from ...rig import option, whole
-from ...records import CHUNK_OPTION, CHUNK_ROWS, chunk_rows_of, record_writer
+from ...records import CHUNK_OPTION, chunk_rows_of, record_writer
 from ...io import atomic_files, check_writable, json_text, write_csv
 from ...study.sweep import replicate_seed
 from ...logs.calibration import calibration_of, calibration_values, read_calibration, write_calibration_files
@@ -33,7 +34,7 @@ from .profile import profile_grid, run_duration
 from .proposed import K_SLICE, run_filter
 from .record import (NUMERIC, POSITIONS, REQUIRED, TRUTH_COLUMNS, UNITS, block_frame, check_against_config, check_out_path,
                      check_plausible, compensated_frame, estimate_columns, read_record, truth_side)
-from .stream import scan_record
+from .stream import WORK_ROWS, scan_record
 from .traditional import plateau_estimates
 from .truth import RecordRun
 
@@ -81,15 +82,21 @@ def run_samples(study: Study, platform: str, run: str) -> int:
 
 
 def identify(study: Study, args) -> int:
+    """``platcal identify``: the proposed filter (§7) or eq. (2) (§6) over a record read once,
+    ``--chunk-rows`` rows at a time (:mod:`.stream`). The filter's kernel is the one compiled ahead
+    of time when it is built and current (``platcal kernels``, :mod:`platcal.aot`: numba is then
+    not loaded), else the JIT's."""
+    aot.enable()
     method = args.method or "proposed"
     if method not in METHODS:
         raise InputError("--method", f"unknown method {method!r}; use one of {list(METHODS)}")
     check_writable(args.out, "--out", folder=True)
     max_gap = float(study.raw["record"]["max_gap_s"])
     arm = study.centrifuge.arm_m
-    chunk = chunk_rows_of(args)
-    # one pass over the record, chunk_rows rows at a time: what the identification needs is kept
-    # as sums and per-window integrals, not the record (issue 22 item 3, :mod:`.stream`)
+    # one pass over the record, chunk_rows rows at a time (by default WORK_ROWS: its working set,
+    # not the reader's larger default, sets the peak): what the identification needs is kept as
+    # sums and per-window integrals, not the record (issue 22 item 3, :mod:`.stream`)
+    chunk = WORK_ROWS if getattr(args, "chunk_rows", None) is None else chunk_rows_of(args)
     scan = scan_record(args.data, arm, study.rate_hz, max_gap, RecordMapping.from_config(study.raw["record"], g=G0),
                        chunk or None, windows=method == "proposed", use_truth=not args.no_truth)
     found = check_against_config(scan, study, method, max_gap)
@@ -136,7 +143,8 @@ def identify(study: Study, args) -> int:
         write_calibration_files(tmp, cal)
         tmp("summary.json").write_text(json_text(summary))
     print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {seconds:.2f} s -> {args.out}; "
-          + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est)), file=sys.stderr)
+          + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est))
+          + (" (kernels compiled ahead of time)" if aot.in_use() else ""), file=sys.stderr)
     return fit_exit_status(fit, args.data, args.out)
 
 
@@ -203,7 +211,9 @@ COSTS = Costs(values={"simulate": 160}, seconds={"simulate": 5e-5},
 STREAMED_IDENTIFY_VALUES = 0.02
 """float64 values a streamed identify (``--chunk-rows`` not 0, :mod:`.stream`) holds per byte of its
 record as CSV: its peak RSS grew 342 -> 387 MB from the 1 h to the 6 h record (116 -> 691 MB of
-CSV, benchmarks/bench_memory.md), 0.078 bytes a byte, rounded up about 2x as :data:`COSTS`."""
+CSV, benchmarks/bench_memory.md), 0.078 bytes a byte, rounded up about 2x as :data:`COSTS`. Kept
+as a bound since the windows went into arrays and the default block to :data:`.stream.WORK_ROWS`
+rows (150 -> 156 MB on ahead-of-time kernels, 0.01 bytes a byte)."""
 
 
 def sizes(command: str, study: Study, args) -> list[Size]:
@@ -231,7 +241,7 @@ OPTIONS = {
                  CHUNK_OPTION),
     "identify": (option("--method", default=None, help="proposed (default) or traditional"),
                  option("--chunk-rows", type=whole(0), default=None,
-                        help=f"rows read and processed at a time (default {CHUNK_ROWS}; 0: the whole record at "
+                        help=f"rows read and processed at a time (default {WORK_ROWS}; 0: the whole record at "
                              "once); the identification keeps sums and per-window integrals, not the record")),
 }
 """The rig's own options (``--seed`` of simulate: seed N of the study)."""

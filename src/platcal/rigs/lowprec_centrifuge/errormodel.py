@@ -5,12 +5,11 @@ specific force). Not the truth: the study's truth is the nonlinear INS of :mod:`
 
 from __future__ import annotations
 
-import numba
-
+from ...jit import njit
 from .config import G0, OMEGA_IE, R_EARTH
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def integrate_error_model(dt, f, coef, eps, x0, acc_w, gyro_w, sin_l, cos_l, tan_l, out, phi_out):
     """Euler integration of the §5 error model for one trajectory (f (N, 2) m/s^2 at step dt s).
 

@@ -28,9 +28,9 @@ integration tolerance (tested).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ...jit import njit
 from ...model.frames import DEG_PER_HOUR
 from ...model.instruments import I_DOO, N_FULL, gyro_axis_components, gyro_drift_terms
 from .config import G0, OMEGA_IE, R_EARTH
@@ -48,7 +48,7 @@ row offsets are compile-time constants, so the compiler sees that the rows do no
 vectorises the loop over a block's lanes without run-time alias checks."""
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _stage(L, nb, tr, dy, fm):
     """Every lane's INS state derivative at one instant into ``dy`` (8, K) and its measured
     horizontal specific force into ``fm`` (2, K), m/s^2, K = nb W lanes in nb blocks, each array
@@ -142,7 +142,7 @@ def _stage(L, nb, tr, dy, fm):
             fm[of + W * 1 + i] = fn + en
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _navigate(h, m, tr, cos_lat0, coef, gcoef, eps, q0, acc_w, gyro_w, noise_of, out_err, out_phi, out_f):
     """RK4 navigation of K INSs (lanes) in lock-step through one run; each lane's numbers are
     those of navigating it alone (the same operations in the same order).
@@ -161,7 +161,7 @@ def _navigate(h, m, tr, cos_lat0, coef, gcoef, eps, q0, acc_w, gyro_w, noise_of,
     _navigate_block(h, m, tr, cos_lat0, lanes, y, acc_w, gyro_w, noise_of, out_err, out_phi, out_f, True)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _lanes_init(coef, gcoef, eps, q0):
     """The lanes' input L and state y (flat arrays of blocks, :func:`_navigate`) at the run's start:
     coef (8, K) g/g, gcoef (48, K), eps (3, K) rad/s, q0 (4, K) the initial attitude quaternion."""
@@ -186,7 +186,7 @@ def _lanes_init(coef, gcoef, eps, q0):
     return L, y
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _navigate_block(h, m, tr, cos_lat0, L, y, acc_w, gyro_w, noise_of, out_err, out_phi, out_f, last):
     """The lanes (input L, state y: :func:`_lanes_init`, y carried from block to block) through the
     ``n = out_err.shape[1]`` data samples of one block: outputs at each, then the RK4 steps to the
@@ -252,7 +252,7 @@ def _navigate_block(h, m, tr, cos_lat0, L, y, acc_w, gyro_w, noise_of, out_err, 
                         y[p + W * s] /= qn
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _stage_input(L, nb, y, k, c):
     """The state rows of the lanes' input ``L`` set to y + c k (c = 0: y itself, copied exactly:
     the RK4 stages' arguments, in the scalar kernel's operation order)."""

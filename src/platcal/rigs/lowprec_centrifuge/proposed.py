@@ -21,11 +21,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from ...aot import pick as aot_pick
 from ...errors import InputError
 from ...estimation.kalman import joseph_update_sparse
+from ...jit import njit
+from .aot_kernels import KERNELS
 from .config import G0, OMEGA_IE, R_EARTH
 from .profile import STATIC
 from .truth import ARCSEC, DEG_H
@@ -130,7 +132,7 @@ def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return c
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _cumtrap(t, y, c):
     """c (N, m) = the cumulative trapezoid of y (N, m) over t (N,) s from 0, in one pass: the
     operations of numpy's ``cumsum(0.5 * diff(t)[:, None] * (y[1:] + y[:-1]))`` (the first
@@ -145,7 +147,7 @@ def _cumtrap(t, y, c):
             c[k, j] = term if k == 1 else c[k - 1, j] + term
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _window_integrands(t, v, p_rel, cos_psi, sin_psi, u0, arm_m, f, y, c, yf, cf):
     """One pass over a record of N samples: y (N, 4) = (VE, VN, :func:`arm_offset`) and, unless f
     has no rows, yf (N, 4) = :func:`force_integrand` of f (N, 2) m/s^2, with their cumulative
@@ -314,7 +316,7 @@ def predict(F: np.ndarray, T: np.ndarray, x: np.ndarray, P: np.ndarray, q: np.nd
     return phi, H, xp, Pp
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations):
     """The Kalman filter of docs/lowprec-centrifuge.md §7 over windows, compiled; the state is carried in place, so windows
     can come in blocks. Per seed s (leading axis, independent: batched over replicates) and
@@ -403,7 +405,7 @@ def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations
                     P[s, i, j] = Pp[i, j]
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _matmul(a, b, out):
     """out = a b for square matrices, each sum in index order with a's zeros skipped (F T and its
     powers are sparse: 22 of 196 entries of F; adding an exact 0 changes no sum, so the result is
@@ -436,9 +438,12 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     nis = np.zeros(nb)
     skipped = np.zeros(nb, dtype=np.int64)
     innovations = np.full((nb if keep_innovations else 0, nw, 8), np.nan)
-    filter_windows(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(z, dtype=float),
-                   np.ascontiguousarray(m, dtype=float), np.ascontiguousarray(valid, dtype=np.bool_),
-                   f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis, skipped, innovations)
+    # one kernel for every batch (its loop over seeds is serial): at a batch of one the kernel
+    # compiled ahead of time when an identify enabled it and it is built (numba then not loaded)
+    kernel = aot_pick(KERNELS, "filter_windows", filter_windows, filter_windows, nb)
+    kernel(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(z, dtype=float),
+           np.ascontiguousarray(m, dtype=float), np.ascontiguousarray(valid, dtype=np.bool_),
+           f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis, skipped, innovations)
     n_upd = valid.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_nis = nis / (n_upd - skipped)
@@ -459,7 +464,7 @@ def unwrap_heading(psi: np.ndarray) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _unwrap_small_steps(p, out):
     """numpy.unwrap of p (N,) into out when every step |p[k] - p[k-1]| < pi (True), else False
     (out partly written): numpy then adds a correction of +0.0 to every sample after the first

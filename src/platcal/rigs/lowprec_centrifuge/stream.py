@@ -19,11 +19,13 @@ that spans samples is carried from chunk to chunk so that the numbers are the wh
 * a window boundary's integral reads the two samples around it
   (:func:`.proposed.boundary_integrals`) and is evaluated when they are both read.
 
-Held, besides two chunks and their context: per filter window its ends' integrals (about 200
-bytes a window: 1 s windows while static, one per revolution), per spin its times and, with
-recorded fE, fN, its specific force and velocity derivative (40 bytes a spinning sample, for the
-spin's median step and the specific-force check), per traditional plateau its heading rates.
-None of these grows with the static parts of a record.
+Held, besides two chunks and their context (:data:`WORK_ROWS` rows each by default): per filter
+window its ends' integrals and times in doubling arrays (:class:`_Rows`: 112 bytes a window, up to
+twice that as they double; 1 s windows while static, one per revolution: 2.4 MB for the 21 578
+windows of a 6 h record), per spin its times and, with recorded fE, fN, its specific force and
+velocity derivative (40 bytes a spinning sample, for the spin's median step and the
+specific-force check), per traditional plateau its heading rates. Only the windows grow with the
+static parts of a record; nothing is kept per sample.
 
 The specific-force check (:func:`.record.check_plausible`) takes the median of fE / (dVE/dt) over
 each spin's samples where the derivative exceeds half the spin's own 99th percentile (the whole
@@ -57,6 +59,37 @@ covers the heading rate's 5 and the gradient's 1)."""
 CARRY = ("t", "y", "c", "yf", "cf", "psi_u")
 """The per-sample arrays whose last two samples are carried to the next chunk (window boundaries
 between chunks and at the record's end)."""
+WORK_ROWS = 10_000
+"""Rows a streamed identify reads and processes at a time when ``--chunk-rows`` is not given: its
+working set (the block with its context, the integrands, their integrals, the spline) is about
+1.1 kB a row (tracemalloc around :func:`scan_record`: 13 MB at 10 000 rows, 115 MB at
+:data:`platcal.records.CHUNK_ROWS`, 100 000; 1 h record). A 6 h record on ahead-of-time kernels
+peaks at 150-156 MB of RSS against 292. Every output is the same: the integrals are running
+sums and the spline's context decays below round-off (:data:`.record.SPLINE_OVERLAP`)."""
+
+
+class _Rows:
+    """A float64 (or ``dtype``) table of ``width`` columns grown by doubling: per-window values
+    held in one array of 8 bytes a value, not as Python tuples of small arrays (some 400 bytes a
+    window), so what a long record's windows hold stays small."""
+
+    def __init__(self, width: int, dtype=float):
+        self.data = np.empty((64, width), dtype)
+        self.n = 0
+
+    def append(self, row) -> int:
+        """Add ``row`` (NaN-filled when None, float tables only); returns its index."""
+        if self.n == self.data.shape[0]:
+            grown = np.empty((2 * self.n, self.data.shape[1]), self.data.dtype)
+            grown[:self.n] = self.data
+            self.data = grown
+        self.data[self.n] = np.nan if row is None else row
+        self.n += 1
+        return self.n - 1
+
+    def view(self) -> np.ndarray:
+        """The rows added so far (a view)."""
+        return self.data[:self.n]
 
 
 @dataclass
@@ -118,7 +151,7 @@ def _chunks(path, rate_hz: float, max_gap_s: float, mapping, chunk_rows: int | N
     last_t, row = None, 0
     for df in iter_table(path, REQUIRED, tuple(c for c in NUMERIC if c not in REQUIRED) + TRUTH_COLUMNS,
                          text=("schedule",), what="a lowprec_centrifuge record", min_rows=3, mapping=mapping,
-                         units=UNITS, positions=POSITIONS, chunk_rows=chunk_rows):
+                         units=UNITS, positions=POSITIONS, chunk_rows=chunk_rows, unused=TRUTH_COLUMNS):
         if row == 0:
             has_f = ("fE" in df.columns, "fN" in df.columns)
             if any(has_f) and not all(has_f):
@@ -215,18 +248,19 @@ class _State:
         self.first_moving = None
         self.spin = None          # the spin being read
         self.hold = None          # the plateau being read
-        self.stretch = None       # the static stretch being read: [a, next candidate index, slots]
+        self.stretch = None       # the static stretch being read: [a, next candidate index, first slot]
         self.pending = []         # (instant, slot) of window boundaries not evaluated yet
-        self.values = []          # per slot: (integral of y (4,), of the force terms (4,), heading)
-        self.win = []             # (slot start, slot end, spinning, ts, te)
+        self.values = _Rows(9)    # per slot: integral of y (4), of the force terms (4), heading
+        self.win = _Rows(2, np.int64)   # per window: slot of its start, of its end
+        self.win_t = _Rows(3)     # per window: ts, te (s), spinning (1.0) or not (0.0)
         self.ratios = ([], [])
         self.any_moving = False
 
     # -- boundaries ---------------------------------------------------------------------------
     def boundary(self, tb: float) -> int:
-        self.values.append(None)
-        self.pending.append((tb, len(self.values) - 1))
-        return len(self.values) - 1
+        slot = self.values.append(None)
+        self.pending.append((tb, slot))
+        return slot
 
     def resolve(self, loc: dict, final: bool = False) -> None:
         """Evaluate the pending boundaries the samples ``loc`` bracket (all of them at the end)."""
@@ -241,32 +275,36 @@ class _State:
         iy = boundary_integrals(t, loc["y"], loc["c"], tb)
         if_ = boundary_integrals(t, loc["yf"], loc["cf"], tb)
         ps = np.interp(tb, t, loc["psi_u"])
+        vals = self.values.data
         for j, (_, s) in enumerate(ready):
-            self.values[s] = (iy[j], if_[j], ps[j])
+            vals[s, 0:4], vals[s, 4:8], vals[s, 8] = iy[j], if_[j], ps[j]
 
     # -- static stretches and spins -----------------------------------------------------------
     def static_candidates(self, upto: float) -> None:
         """Queue the 1 s window edges a + i delta (numpy.arange's values) of the static stretch up to ``upto``."""
-        a, i, slots = self.stretch
+        a, i, first = self.stretch
         delta = (a + STATIC_WINDOW_S) - a
         while a + i * delta <= upto:
-            slots.append(self.boundary(a + i * delta))
+            slot = self.boundary(a + i * delta)
+            # a stretch's candidates take consecutive slots (nothing else is cut while static)
+            first = slot if first is None else first
             i += 1
-        self.stretch[1] = i
+        self.stretch[1:] = [i, first]
 
     def close_stretch(self, b: float) -> None:
         """The static stretch's windows (:func:`.proposed._static_windows`) from its end ``b`` (s)."""
-        a, _, slots = self.stretch
+        a, _, first = self.stretch
         self.stretch = None
         if b - a <= 1e-9:
             return
         edges = np.arange(a, b - 1e-9, STATIC_WINDOW_S)
-        ids = slots[:edges.size] + [self.boundary(b)]
+        ids = ([] if first is None else list(range(first, first + edges.size))) + [self.boundary(b)]
         times = list(edges) + [b]
         if len(times) > 2 and times[-1] - times[-2] < MIN_STATIC_TAIL_S:
             del times[-2], ids[-2]
         for k in range(len(ids) - 1):
-            self.win.append((ids[k], ids[k + 1], False, times[k], times[k + 1]))
+            self.win.append((ids[k], ids[k + 1]))
+            self.win_t.append((times[k], times[k + 1], 0.0))
 
     def spin_samples(self, t, psi_u) -> None:
         """Running max of the heading from the spin's start and its crossings of g0 + 2 pi k
@@ -305,7 +343,8 @@ class _State:
         else:
             edges.append(ib)
         for (ta, sa), (tb, sb) in zip(edges[:-1], edges[1:]):
-            self.win.append((sa, sb, True, ta, tb))
+            self.win.append((sa, sb))
+            self.win_t.append((ta, tb, 1.0))
 
     # -- a chunk ------------------------------------------------------------------------------
     def chunk(self, blk: dict, a: int, b: int) -> None:
@@ -395,7 +434,7 @@ class _State:
                     else:
                         self.spin = None
                 if self.stretch is None and self.want_windows:
-                    self.stretch = [float(t[r0]), 0, []]
+                    self.stretch = [float(t[r0]), 0, None]
                 if self.stretch is not None:
                     self.static_candidates(float(t[r1 - 1]))
             prev = {"t": float(t[r1 - 1]), "psi_u": float(psi_u[r1 - 1])}
@@ -456,12 +495,9 @@ class _State:
             return
         self.close_stretch(float(self.tail["t"][-1]))
         self.resolve(self.tail, final=True)
-        ia = np.array([w[0] for w in self.win], dtype=np.int64)
-        ib = np.array([w[1] for w in self.win], dtype=np.int64)
-        iy = np.array([v[0] for v in self.values])
-        if_ = np.array([v[1] for v in self.values])
-        ps = np.array([v[2] for v in self.values])
-        ts = np.array([w[3] for w in self.win])
-        te = np.array([w[4] for w in self.win])
-        tt, z, m = window_means(ts, te, iy[ia], iy[ib], if_[ia], if_[ib], ps[ia], ps[ib], self.arm)
-        scan.windows = (tt, z, m, np.array([w[2] for w in self.win]))
+        ia, ib = self.win.view().T
+        vals, wt = self.values.view(), self.win_t.view()
+        iy, if_, ps = vals[:, 0:4], vals[:, 4:8], vals[:, 8]
+        tt, z, m = window_means(wt[:, 0].copy(), wt[:, 1].copy(), iy[ia], iy[ib], if_[ia], if_[ib], ps[ia], ps[ib],
+                                self.arm)
+        scan.windows = (tt, z, m, wt[:, 2] == 1.0)

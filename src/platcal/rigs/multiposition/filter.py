@@ -61,22 +61,30 @@ def _simulate_one(phi0s, coef, lay, wn, wu, h, n_sub, phi_init, wnoise, out_phi,
     n = 3 + coef.shape[0]
     C, dC, T, dT, f, eps, deps, greg = make_scratch(n)
     x = np.empty(n)
-    x[3:] = coef
+    # element copies, not slice assignments: a slice assignment brings numba's shape-mismatch
+    # error (its message formatting: str, repr, unicode) into the kernel, about 5 s of CPU of
+    # cold compile per study for the same copies (issue 22 item 4)
+    for i in range(n - 3):
+        x[3 + i] = coef[i]
     nxt = np.empty(3)
     z = np.empty(6)
     Hs = np.empty((3, 10))
     hc = np.empty((3, 10), dtype=np.int64)
     nn = np.empty(3, dtype=np.int64)
     for k in range(K):
-        x[:3] = phi_init[k]
+        for i in range(3):
+            x[i] = phi_init[k, i]
         for s in range(ns):
             if s > 0:
                 for _ in range(n_sub):
                     rk4_k(phi0s[k], x, lay, wn, wu, wnoise[k, s - 1], h / n_sub, nxt)
-                    x[:3] = nxt
-            out_phi[k, s] = x[:3]
+                    for i in range(3):
+                        x[i] = nxt[i]
+            for i in range(3):
+                out_phi[k, s, i] = x[i]
             meas_k(phi0s[k], x, lay, z, Hs, hc, nn, C, dC)
-            out_z[k, s] = z
+            for i in range(6):
+                out_z[k, s, i] = z[i]
 
 
 @njit(cache=True, nogil=True)

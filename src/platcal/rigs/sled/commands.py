@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ... import aot
 from ...errors import InputError
 from ...estimation.consistency import EXIT_RUN_FAILED, failed_run_status
 from ...estimation.fit import fit_exit_status
@@ -52,7 +53,10 @@ def cmd_simulate(cfg: SledConfig, args) -> int:
 
 
 def cmd_identify(cfg: SledConfig, args) -> int:
-    """INS, run and stop filters and X compensation of a record -> estimates.csv, metrics.json."""
+    """INS, run and stop filters and X compensation of a record -> estimates.csv, metrics.json, on
+    the kernels compiled ahead of time where they are built (``platcal kernels``, :mod:`.aot_kernels`:
+    numba is then not loaded), else the JIT's."""
+    aot.enable()
     check_writable(args.out, "--out", folder=True)
     chunk_rows = chunk_rows_of(args)
     t0 = [time.perf_counter()]
@@ -110,6 +114,8 @@ def cmd_identify(cfg: SledConfig, args) -> int:
                 f"rest move {name} by up to {max(w_est['shift_at_tolerance_sigmas']):.1f} sigma: its sigma with "
                 f"the gyros' own errors is {w_est['sigma_with_gyro_arcsec']:.3g} arcsec (metrics.json "
                 "gyro_rate_error)")
+    if aot.in_use():
+        msg += " (kernels compiled ahead of time)"
     print(msg, file=sys.stderr)
     return fit_exit_status(fit, args.data, out, "metrics.json")
 
@@ -181,4 +187,5 @@ identified block by block, :mod:`.stream`)."""
 
 COMMANDS = {"compensate": cmd_compensate, "inspect": cmd_inspect, "simulate": cmd_simulate, "identify": cmd_identify,
             # by module path: the rank table's pandas loads only for this command (issue 22 item 3)
-            "observability": "platcal.rigs.sled.observability:cmd_observability"}
+            "observability": "platcal.rigs.sled.observability:cmd_observability",
+            "kernels": f"{__package__}.aot_kernels:kernels_command"}

@@ -13,8 +13,10 @@ modelled as a rotation of the error frame, [D1]). All builders are batched: ``f`
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
+
+from ...jit import njit
+from .aot_kernels import seed_kernel
 
 RUN7 = ("dv_y", "dr_y", "dv_z", "dr_z", "phi_x", "phi_y", "phi_z")
 RUN6 = ("dv_y", "dr_y", "dv_z", "dr_z", "phi_y", "phi_z")
@@ -34,7 +36,7 @@ RUN7_KIND, RUN6_KIND, STOP_KIND = 0, 1, 2
 """The system matrices of :func:`fill_F`: the 7- and 6-state run filters (§6.1), the stop filter (§6.2)."""
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def fill_F(kind, f0, f1, f2, w, wc, F, i):
     """The nonzero entries of one system matrix into ``F[i]`` (its other entries must be 0): run
     (§5, §6.1; ``kind`` RUN7_KIND or RUN6_KIND) or stop (§6.2, STOP_KIND) at the computed specific
@@ -77,7 +79,7 @@ def fill_F(kind, f0, f1, f2, w, wc, F, i):
         F[i, 5, 4] = -w[0]
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _fill_all(kind, f, w, wc, F):
     for i in range(F.shape[0]):
         fill_F(kind, f[i, 0], f[i, 1], f[i, 2], w[i], wc[i], F, i)
@@ -96,7 +98,9 @@ def system_matrices(kind: int, f: np.ndarray, w: np.ndarray, wc: np.ndarray | No
     wc = w if wc is None else np.broadcast_to(np.asarray(wc, dtype=float), f.shape)
     n = kind_states(kind)
     F = np.zeros((int(np.prod(f.shape[:-1], dtype=np.int64)), n, n))
-    _fill_all(kind, np.ascontiguousarray(f.reshape(-1, 3)), np.ascontiguousarray(w.reshape(-1, 3)),
+    # one row of F per force: rows, not seeds, so one call (ahead of time when the identify's
+    # kernels are, .aot_kernels)
+    (seed_kernel("fill_all", _fill_all) or _fill_all)(kind, np.ascontiguousarray(f.reshape(-1, 3)), np.ascontiguousarray(w.reshape(-1, 3)),
               np.ascontiguousarray(wc.reshape(-1, 3)), F)
     return F.reshape(f.shape[:-1] + (n, n))
 
@@ -142,7 +146,7 @@ def propagate_full(fl: np.ndarray, omega_ie: np.ndarray, phi0: np.ndarray, nabla
     return dv, dr, phi
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _run_model(fl, w, x0, has_phix, dts, out):
     S, N = fl.shape[0], fl.shape[1]
     for s in range(S):
@@ -185,6 +189,11 @@ def propagate_run_model(fl: np.ndarray, omega_ie: np.ndarray, phi: np.ndarray, s
     fl = np.ascontiguousarray(fl, dtype=np.float64)
     dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (fl.shape[1],)))
     out = np.empty((fl.shape[0], fl.shape[1] + 1, 2))
-    _run_model(fl, np.asarray(omega_ie, dtype=np.float64), np.ascontiguousarray(phi, dtype=np.float64),
-               states == 7, dts, out)
+    w, phi = np.ascontiguousarray(omega_ie, dtype=np.float64), np.ascontiguousarray(phi, dtype=np.float64)
+    one = seed_kernel("run_model", _run_model)
+    if one is None:
+        _run_model(fl, w, phi, states == 7, dts, out)
+    else:  # ahead of time, a seed at a time (.aot_kernels)
+        for s in range(fl.shape[0]):
+            one(fl[s:s + 1], w, phi[s:s + 1], states == 7, dts, out[s:s + 1])
     return out

@@ -15,15 +15,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import numba as nb
 import numpy as np
 
 from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check
+from ...jit import njit
 from ...lighttable import Table
 from ...logs.calibration import Calibration, calibration_of
 from ...logs.increments import sample_intervals
-from ...parallel import run_threaded
+from .aot_kernels import run_seeds
 from .config import ARCSEC, DEG_H, G, SledConfig
 from .errmodel import propagate_run_model
 from ...records import nearest_samples
@@ -119,7 +119,7 @@ def x_corrections(fl: np.ndarray, phi_hat: np.ndarray, dt, start: tuple | None =
     return x_corrections_held(fl, phi_hat, np.arange(N), dt, start)
 
 
-@nb.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def _x_corrections(lo, hi, fl, est, hold, dts, dv0, dr0, dv, dr):
     """:func:`x_corrections_held` for seeds ``lo .. hi - 1``: the cumulative sums of numpy's
     ``cumsum`` (sequential), each term formed as there, so the same numbers."""
@@ -149,8 +149,8 @@ def x_corrections_held(fl: np.ndarray, est: np.ndarray, hold: np.ndarray, dt,
     dv0, dr0 = (np.zeros(S), np.zeros(S)) if start is None else (
         np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=np.float64), (S,))) for v in start)
     dv, dr = np.empty((S, N + 1)), np.empty((S, N + 1))
-    run_threaded(_x_corrections, S, None, fl, np.ascontiguousarray(est, dtype=np.float64),
-                 np.ascontiguousarray(hold, dtype=np.int64), dts, dv0, dr0, dv, dr)
+    run_seeds("x_corrections", _x_corrections, S, fl, np.ascontiguousarray(est, dtype=np.float64),
+              np.ascontiguousarray(hold, dtype=np.int64), dts, dv0, dr0, dv, dr)
     return dv, dr
 
 

@@ -18,14 +18,14 @@ threads set (:func:`platcal.parallel.set_threads`; the numbers do not depend on 
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
-from ...parallel import run_threaded
+from ...jit import njit
+from .aot_kernels import run_seeds, seed_kernel
 from .config import G
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _rodrigues(ax, ay, az, out):
     """exp([a×]) into ``out`` (3×3); series for tiny angles."""
     th2 = ax * ax + ay * ay + az * az
@@ -48,14 +48,14 @@ def _rodrigues(ax, ay, az, out):
     out[2, 1] = s * ax + c * ay * az
 
 
-@nb.njit(cache=True)
+@njit(cache=True)
 def _initial_attitude(phi0, C):
     """Ĉ_0 = exp(−[φ0×]) per seed into ``C`` (S,3,3)."""
     for s in range(phi0.shape[0]):
         _rodrigues(-phi0[s, 0], -phi0[s, 1], -phi0[s, 2], C[s])
 
 
-@nb.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def _mechanise(lo, hi, f, w, C, vr, wie, g, dts, v_out, r_out, fl_out):
     """Navigate the samples f, w (S,N,3) of seeds ``lo .. hi - 1`` from the state ``C`` (S,3,3)
     attitude and ``vr`` (S,6) [v, r], both updated in place to the state after the last sample
@@ -116,7 +116,12 @@ class Navigator:
     def __init__(self, phi0: np.ndarray, omega_ie: np.ndarray):
         phi0 = np.ascontiguousarray(np.atleast_2d(phi0), dtype=np.float64)
         self.C = np.empty((phi0.shape[0], 3, 3))
-        _initial_attitude(phi0, self.C)
+        one = seed_kernel("initial_attitude", _initial_attitude)
+        if one is None:
+            _initial_attitude(phi0, self.C)
+        else:  # ahead of time, a seed at a time (.aot_kernels)
+            for s in range(phi0.shape[0]):
+                one(phi0[s:s + 1], self.C[s:s + 1])
         self.vr = np.zeros((phi0.shape[0], 6))
         self.wie = np.asarray(omega_ie, dtype=np.float64)
 
@@ -130,7 +135,7 @@ class Navigator:
         r = np.empty((S, N + 1, 3))
         fl = np.empty((S, N, 3))
         dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
-        run_threaded(_mechanise, S, None, f, w, self.C, self.vr, self.wie, G, dts, v, r, fl)
+        run_seeds("mechanise", _mechanise, S, f, w, self.C, self.vr, self.wie, G, dts, v, r, fl)
         return v, r, fl
 
 

@@ -7,9 +7,11 @@ item 3; docs/rocket-sled.md §4-8, §10, §12).
 1. the times: the read's time checks, the clock's origin, the filter epochs and the stop take
    medians and nearest samples over the whole record, so ``t`` is spilled to a temporary file
    (8 bytes a sample on disk) and those are taken by passes over it (exact medians by radix
-   selection, :class:`platcal.records.PassMedian`; nearest samples block by block); after it
-   only the epochs' sample indices and intervals are held (16 bytes an epoch, one per filter
-   period: 17 MB for 6 h at 20 ms, what still grows with the record);
+   selection, :class:`platcal.records.PassMedian`; nearest samples block by block); the spill
+   is kept to the end, and the filter epochs are taken from it again as pass 3 reaches them
+   (:class:`EpochStream`): only those up to the stop are held (the run filter's, fixed by the
+   trajectory), so nothing held grows with the record (issue 22 item 3; the whole record's
+   epochs were 16 bytes an epoch, 17 MB for 6 h at 20 ms);
 2. the checks (:mod:`.record`) from sums: the median ``fz`` and each phase's median ``fx`` are
    judged by counting the samples below and above the tolerance (a median is inside when its
    middle samples are: exact), the nominal output's regression (:class:`Moments`), the gyros'
@@ -29,6 +31,7 @@ four lanes of one batch. Estimates and metrics equal the whole read's
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -52,68 +55,150 @@ from .simulate import Truth, record_rotation
 from .trajectory import Timeline
 
 
+class EpochStream:
+    """The filter epochs of a spilled ``t`` (s; ``origin`` taken off; docs/rocket-sled.md §12,
+    recorded times): the samples nearest the multiples of ``period_s`` (s) within ``tol_s`` (s)
+    (:class:`platcal.records.NearestSamples`), epoch 0
+    the first sample (at ``first``), as the whole record's :func:`platcal.records.nearest_samples`
+    gives them, produced from the spill in order as far as they are asked for (:meth:`below`):
+    held, the epochs of one spill block at most (16 bytes an epoch)."""
+
+    def __init__(self, spill: ColumnSpill, origin: float, first: float, last: float, period_s: float, tol_s: float):
+        self._pieces = self._generate(spill, origin, first, last, period_s, tol_s)
+        self._k, self._at = np.zeros(0, np.int64), np.zeros(0)     # produced, not yet taken
+        self._done = False
+
+    @staticmethod
+    def _generate(spill, origin, first, last, period_s, tol_s) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        near = NearestSamples(first, last, period_s, tol_s)
+        prev = None                      # the last index given
+
+        def fresh(final: bool = False):
+            nonlocal prev
+            if final:                    # after the last sample (the lists are empty but for it)
+                idx, at = near.result()
+            else:
+                idx = np.concatenate(near.idx) if near.idx else np.zeros(0, np.int64)
+                at = np.concatenate(near.at) if near.at else np.zeros(0)
+                near.idx, near.at = [], []
+            # the indices never decrease: the whole record's np.unique keeps the first of each run
+            keep = idx != np.r_[-1 if prev is None else prev, idx[:-1]]
+            idx, at = idx[keep].astype(np.int64), at[keep]
+            if prev is None and idx.size and idx[0] != 0:   # epoch 0 (the prior) is the first sample
+                idx, at = np.r_[0, idx], np.r_[first, at]
+            if idx.size:
+                prev = int(idx[-1])
+            return idx, at
+
+        for g, ahead, _ in spill.steps(origin):
+            near.add(g, ahead)
+            yield fresh()
+        yield fresh(final=True)
+        if prev is None:                 # no sample near a multiple: the first sample alone
+            yield np.zeros(1, np.int64), np.array([first])
+
+    def _fill(self, limit: int) -> None:
+        """Produce epochs until one at sample ``limit`` or later is held, or there are no more."""
+        while not self._done and (self._k.size == 0 or self._k[-1] < limit):
+            piece = next(self._pieces, None)
+            if piece is None:
+                self._done = True
+            else:
+                self._k, self._at = np.r_[self._k, piece[0]], np.r_[self._at, piece[1]]
+
+    def below(self, limit: int, one_more: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """The next epochs ``(k, at)`` (sample indices, times s) at samples before ``limit``
+        (``one_more``: and the first one after them, if there is one); they are taken."""
+        self._fill(limit)
+        n = int(np.searchsorted(self._k, limit))
+        n += int(one_more and n < self._k.size)
+        out = self._k[:n], self._at[:n]
+        self._k, self._at = self._k[n:], self._at[n:]
+        return out
+
+    def count_rest(self) -> int:
+        """The number of epochs not taken yet (all of them produced and dropped)."""
+        n = self._k.size
+        self._k, self._at = np.zeros(0, np.int64), np.zeros(0)
+        for k, _ in self._pieces:
+            n += k.size
+        self._done = True
+        return n
+
+
 @dataclass(frozen=True)
 class Times:
     """What the first pass keeps of a record's times: rows, the clock's origin taken off (s), the
     median step of the time check ``med`` and of the record's own intervals ``med_t`` (s), the
-    filter epochs ``k`` (J+1,) and their intervals ``T`` (J,) s, the stop's sample and epoch,
-    the samples per phase, the seconds at rest and whether the truth columns are there."""
+    first and last times from the origin (s), the filter epochs up to the stop's ``k`` (j_stop+1,),
+    their intervals ``T`` (j_stop,) s and the stop epoch's time ``at_stop`` (s; the later epochs:
+    :meth:`epochs`), the stop's sample and
+    epoch, the last epoch ``j_end``, the samples per phase, the seconds at rest and whether the
+    truth columns are there."""
 
     rows: int
     origin: float
     med: float
     med_t: float
+    first: float
+    last: float
     k: np.ndarray
     T: np.ndarray
+    at_stop: float
     n_stop: int
     j_stop: int
+    j_end: int
     per_phase: dict
     rest_s: float
     tolerance: np.ndarray
     truth_columns: bool
+
+    def epochs(self, spill: ColumnSpill, period_s: float) -> EpochStream:
+        """The record's filter epochs from the spilled ``t`` (:class:`EpochStream`), from epoch 0."""
+        return EpochStream(spill, self.origin, self.first, self.last, period_s, 0.5 * self.med_t)
 
 
 def _chunks(path, cfg: SledConfig, chunk_rows: int):
     return iter_table(path, **table_options(cfg), chunk_rows=chunk_rows)
 
 
-def scan_times(path, cfg: SledConfig, tl: Timeline, chunk_rows: int) -> Times:
-    """Pass 1: the record's ``t`` spilled to a temporary file (:class:`platcal.records.ColumnSpill`,
+def scan_times(path, cfg: SledConfig, tl: Timeline, chunk_rows: int, spill: ColumnSpill) -> Times:
+    """Pass 1: the record's ``t`` spilled to ``spill`` (:class:`platcal.records.ColumnSpill`,
     the rows' own checks as each chunk is read), checked and counted from its start as
     :func:`.record.read_record` does (:func:`platcal.records.spilled_times`, the same medians by
     passes over the spilled ``t``: :class:`platcal.records.PassMedian`), then reduced to
-    :class:`Times` in one more pass (the epochs by :class:`platcal.records.NearestSamples`, the
-    stop, the rest and the samples per phase by counts). Held: the epochs (16 bytes an epoch)."""
+    :class:`Times` in two more passes (the stop, the rest and the samples per phase by counts;
+    the epochs by :class:`EpochStream`, those up to the stop's kept and the rest counted). Held:
+    the epochs up to the stop (16 bytes an epoch), whatever the record's length."""
     max_gap = float(cfg.raw["record"]["max_gap_s"])
     has_truth = None
-    with ColumnSpill() as spill:
-        for df in _chunks(path, cfg, chunk_rows):
-            has_truth = all(c in df.columns for c in TRUTH_COLUMNS) if has_truth is None else has_truth
-            spill.write(df["t"].to_numpy(dtype=float))
-        med = spilled_times(spill, cfg.dt, max_gap, "--data column t",
-                            f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
-        origin = 0.0 if abs(spill.first) <= max_gap else spilled_grid_origin(spill, med)
-        first, last = spill.first - origin, spill.last - origin
-        check_span(cfg, tl.n, first, last, spill.rows, med)
-        # the median step of t - origin: that of t when the origin is 0 (the same numbers)
-        med_t = med if origin == 0.0 else spilled_median_step(spill, origin)
-        near = NearestSamples(first, last, cfg.period_ms / 1000.0, 0.5 * med_t)
-        before_stop, rest_n, per_phase = 0, 0, dict.fromkeys(tl.phase_names, 0)
-        for g, ahead, _ in spill.steps(origin):
-            near.add(g, ahead)
-            t = ahead if g == 0 else ahead[1:]          # this block's own samples
-            before_stop += int(np.count_nonzero(t < tl.stop_time_s - 0.5 * med_t))
-            rest_n += int(rest_samples(cfg, tl, t, med_t).sum())
-            for name, count in samples_per_phase(tl, t, cfg.dt).items():
-                per_phase[name] += count
-    idx, at = near.result()
-    if idx.size == 0 or idx[0] != 0:       # epoch 0 (the prior) is the first sample
-        idx, at = np.r_[0, idx], np.r_[first, at]
+    for df in _chunks(path, cfg, chunk_rows):
+        has_truth = all(c in df.columns for c in TRUTH_COLUMNS) if has_truth is None else has_truth
+        spill.write(df["t"].to_numpy(dtype=float))
+    med = spilled_times(spill, cfg.dt, max_gap, "--data column t",
+                        f"imu.rate_hz = {cfg.rate_hz:g} Hz, a step of {cfg.dt:g} s")
+    origin = 0.0 if abs(spill.first) <= max_gap else spilled_grid_origin(spill, med)
+    first, last = spill.first - origin, spill.last - origin
+    check_span(cfg, tl.n, first, last, spill.rows, med)
+    # the median step of t - origin: that of t when the origin is 0 (the same numbers)
+    med_t = med if origin == 0.0 else spilled_median_step(spill, origin)
+    before_stop, rest_n, per_phase = 0, 0, dict.fromkeys(tl.phase_names, 0)
+    for g, ahead, _ in spill.steps(origin):
+        t = ahead if g == 0 else ahead[1:]          # this block's own samples
+        before_stop += int(np.count_nonzero(t < tl.stop_time_s - 0.5 * med_t))
+        rest_n += int(rest_samples(cfg, tl, t, med_t).sum())
+        for name, count in samples_per_phase(tl, t, cfg.dt).items():
+            per_phase[name] += count
     n_stop = min(before_stop, spill.rows - 1)  # :func:`.identify.stop_index`
     rest_s = float(rest_n) * med_t
-    return Times(rows=spill.rows, origin=origin, med=med, med_t=med_t, k=idx, T=np.diff(at), n_stop=n_stop,
-                 j_stop=int(min(np.searchsorted(idx, n_stop), idx.size - 1)), per_phase=per_phase,
-                 rest_s=rest_s, tolerance=rest_tolerance(cfg, rest_s), truth_columns=bool(has_truth))
+    tm = Times(rows=spill.rows, origin=origin, med=med, med_t=med_t, first=first, last=last, k=np.zeros(0, np.int64),
+               T=np.zeros(0), at_stop=first, n_stop=n_stop, j_stop=0, j_end=0, per_phase=per_phase, rest_s=rest_s,
+               tolerance=rest_tolerance(cfg, rest_s), truth_columns=bool(has_truth))
+    # the stop epoch: the first at or after the stop's sample, else the last (:func:`.identify.identify`)
+    ep = tm.epochs(spill, cfg.period_ms / 1000.0)
+    k, at = ep.below(n_stop, one_more=True)
+    return replace(tm, k=k, T=np.diff(at), at_stop=float(at[-1]), j_stop=k.size - 1,
+                   j_end=k.size - 1 + ep.count_rest())
 
 
 BLOCK = 16384
@@ -254,19 +339,21 @@ def identify_streamed(path, cfg: SledConfig, chunk_rows: int, with_truth: bool =
     simulation's truth when the record has it. ``checked(times)`` is called after the checks,
     before the filters (the command's clock)."""
     tl = Timeline.of(cfg)
-    tm = scan_times(path, cfg, tl, chunk_rows)
-    check_streamed(path, cfg, tl, tm, chunk_rows)
-    drawn = truth_params(path, TRUTH_COLUMNS if tm.truth_columns else ()) if with_truth else None
-    if checked is not None:
-        checked(tm)
-    return _filters(path, cfg, tl, tm, chunk_rows, drawn)
+    with ColumnSpill() as spill:   # the record's t, on disk until the filters have taken their epochs
+        tm = scan_times(path, cfg, tl, chunk_rows, spill)
+        check_streamed(path, cfg, tl, tm, chunk_rows)
+        drawn = truth_params(path, TRUTH_COLUMNS if tm.truth_columns else ()) if with_truth else None
+        if checked is not None:
+            checked(tm)
+        return _filters(path, cfg, tl, tm, chunk_rows, drawn, spill)
 
 
-def _filters(path, cfg: SledConfig, tl: Timeline, tm: Times, chunk_rows: int, drawn) -> Streamed:
+def _filters(path, cfg: SledConfig, tl: Timeline, tm: Times, chunk_rows: int, drawn, spill: ColumnSpill) -> Streamed:
     """Pass 3 (the module's docstring)."""
     lanes = 4 if gyro_rate_sigma(cfg) > 0 else 1
-    k, T, j_stop, n_stop = tm.k, tm.T, tm.j_stop, tm.n_stop
-    j_end = k.size - 1
+    k, T, j_stop, n_stop, j_end = tm.k, tm.T, tm.j_stop, tm.n_stop, tm.j_end
+    later = tm.epochs(spill, cfg.period_ms / 1000.0)
+    later.below(int(k[j_stop]) + 1)         # the run part's epochs, held in tm: the stop part takes the rest
     ks = int(k[j_stop])
     K = max(ks, n_stop) + 1                    # the held run part: samples 0 … K-1
     states = cfg.states
@@ -295,14 +382,15 @@ def _filters(path, cfg: SledConfig, tl: Timeline, tm: Times, chunk_rows: int, dr
                 held[c].append(arr[:a].copy())
             if row0 + nb >= K:
                 st = _run_part(cfg, held, k, T, j_stop, n_stop, K, lanes)
+                st["epochs"], st["at_done"] = later, tm.at_stop
                 held = {}
         if st and a < nb:
-            _stop_part(cfg, st, k, T, j_end, row0 + a, fl[:, a:], v[:, a:], r[:, a:], dts[a:])
+            _stop_part(cfg, st, row0 + a, fl[:, a:], v[:, a:], r[:, a:], dts[a:])
         # the last sample's along-track position and truths (metrics' "end"): the last block's win
         end = {"x_nav": r[:, -1, 0].copy(), **{c: arr[-1:] for c, arr in truth_cols.items()}}
     if st["j_done"] < j_end:   # stop epochs inside the held part of a record that ends there
         z3 = np.zeros((lanes, 0, 3))
-        _stop_part(cfg, st, k, T, j_end, tm.rows, z3, z3, z3, np.zeros(0))
+        _stop_part(cfg, st, tm.rows, z3, z3, z3, np.zeros(0))
     end["con"] = {mode: end["x_nav"] - st["dr_last"][mode] for mode in ("realtime", "post")}
     other = "post" if cfg.compensation == "realtime" else "realtime"
     run = st["run"]
@@ -361,9 +449,10 @@ def _run_part(cfg: SledConfig, held: dict, k, T, j_stop: int, n_stop: int, K: in
     return st
 
 
-def _stop_part(cfg: SledConfig, st: dict, k, T, j_end: int, s0: int, fl, v, r, dts) -> None:
+def _stop_part(cfg: SledConfig, st: dict, s0: int, fl, v, r, dts) -> None:
     """Samples ``s0`` … of a block beyond the held run part: the X compensation continued with
-    the final run estimate, the stop filter stepped over the epochs whose samples are in."""
+    the final run estimate, the stop filter stepped over the epochs whose samples are in (taken
+    from the record's :class:`EpochStream` as they come)."""
     n = dts.size
     phi = np.broadcast_to(st["phi_post"], (fl.shape[0], n, 3))
     for mode in ("realtime", "post") if n else ():
@@ -374,20 +463,21 @@ def _stop_part(cfg: SledConfig, st: dict, k, T, j_end: int, s0: int, fl, v, r, d
     bfl, bv, br, bd = (np.concatenate([bfl, fl], 1), np.concatenate([bv, v], 1), np.concatenate([br, r], 1),
                        np.r_[bd, dts])
     base, j0 = st["base"], st["j_done"]
-    j1 = int(np.searchsorted(k, s0 + n, side="left")) - 1       # the last epoch whose sample is in
-    j1 = min(j1, j_end)
-    if j1 > j0:
-        ep = Epochs(k=k[j0:j1 + 1] - base, T=T[j0:j1], dts=bd)
+    new_k, new_at = st["epochs"].below(s0 + n)                   # the epochs whose samples are in
+    if new_k.size:
+        j1 = j0 + new_k.size
+        T = np.diff(np.r_[st["at_done"], new_at])                 # the whole record's np.diff(at)[j0:j1]
+        ep = Epochs(k=np.r_[base, new_k] - base, T=T, dts=bd)
         Fs = Dynamics.stop(epoch_mean(bfl, ep, 0, j1 - j0), cfg.omega_ie)
         kk = ep.k[1:]
         z = np.stack([bv[:, kk, 1], br[:, kk, 1], bv[:, kk, 0], br[:, kk, 0] - st["rx_stop"][:, None]], axis=-1)
-        xs, sig, _, _ = st["kf"].step(Fs, z, T[j0:j1])
+        xs, sig, _, _ = st["kf"].step(Fs, z, T)
         st["y_static_max"] = np.maximum(st["y_static_max"], np.abs(br[:, kk, 1] - xs[:, :, 1]).max(axis=1))
         st["stop_finite"] &= np.isfinite(xs).all(axis=(1, 2)) & np.isfinite(sig).all(axis=(1, 2))
         st["x_last"], st["s_last"] = xs[:, -1], sig[:, -1]
-        cut = int(k[j1]) - base
+        cut = int(new_k[-1]) - base
         bfl, bv, br, bd = bfl[:, cut:].copy(), bv[:, cut:].copy(), br[:, cut:].copy(), bd[cut:].copy()
-        st["base"], st["j_done"] = int(k[j1]), j1
+        st["base"], st["j_done"], st["at_done"] = int(new_k[-1]), j1, float(new_at[-1])
     st["buf"] = (bfl, bv, br, bd)
 
 

@@ -74,7 +74,9 @@ def identify(record, folder, out, chunk_rows: str, aot_on: bool) -> tuple[dict, 
 def test_aot_identify_loads_no_numba_and_equals_the_jit(built, record, tmp_path, chunk_rows):
     """Whole (``--chunk-rows 0``) and streamed (500 rows: the kernel runs chunk by chunk), the
     identify on the built module imports neither numba nor llvmlite; with ``PLATCAL_AOT=0`` the JIT
-    runs (numba loaded) and the estimate, covariance, history and NIS are equal bit for bit."""
+    runs (numba loaded) and the estimate, covariance, history and NIS are equal bit for bit. A
+    streamed identify writes its history to history.csv block by block (the Estimate holds none):
+    there the files are compared, and with the whole read's."""
     info_a, a = identify(record, built, tmp_path / "aot", chunk_rows, True)
     info_j, j = identify(record, built, tmp_path / "jit", chunk_rows, False)
     assert not info_a["numba"] and not info_a["llvmlite"]
@@ -82,7 +84,17 @@ def test_aot_identify_loads_no_numba_and_equals_the_jit(built, record, tmp_path,
     assert a.keys() == j.keys()
     for k in a:
         assert np.array_equal(a[k], j[k]), k
-    assert a["history_x"].shape[1] > 0
+    history = (tmp_path / "aot" / "history.csv").read_bytes()
+    assert history == (tmp_path / "jit" / "history.csv").read_bytes()
+    # the header and a row at each whole second of each 4 s position (1, 2, 3 s; one pass)
+    assert history.count(b"\n") == 1 + 3 * 3
+    if chunk_rows == "0":
+        assert a["history_x"].shape[1] > 0
+    else:
+        _, w = identify(record, built, tmp_path / "whole", "0", True)
+        assert history == (tmp_path / "whole" / "history.csv").read_bytes()
+        for k in ("x", "P", "nis"):
+            assert np.array_equal(a[k], w[k]), k
 
 
 def test_a_module_built_from_other_sources_is_not_loaded(built, record, tmp_path):

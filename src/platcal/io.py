@@ -192,16 +192,25 @@ def write_csv(path: str | os.PathLike, columns: dict, index: tuple[str, list] | 
     Not atomic by itself: call it on a path of :func:`atomic_files` or use :func:`atomic_write_csv`."""
     names = ([index[0]] if index else []) + [str(c) for c in columns]
     cols = ([list(index[1])] if index else []) + list(columns.values())
-    rows = len(cols[0]) if cols else 0
+    write_csv_blocks(path, names, [cols], float_format)
+
+
+def write_csv_blocks(path: str | os.PathLike, names: list[str], blocks, float_format: str | None = None) -> None:
+    """:func:`write_csv` of a table that comes in blocks of rows: ``names`` the header,
+    ``blocks`` an iterable of lists of columns (in ``names``' order, equal lengths within a
+    block), written as they come, so a long table (a streamed identify's history, issue 22 item 3)
+    is never held whole. The same text as :func:`write_csv` of the blocks joined."""
     with open(path, "w", encoding="utf-8", newline="") as fh:
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(names)
-        for a in range(0, rows, CSV_BLOCK_ROWS):
-            block = [c[a:a + CSV_BLOCK_ROWS].tolist() if isinstance(c, np.ndarray) else list(c[a:a + CSV_BLOCK_ROWS])
-                     for c in cols]
-            writer.writerows(["" if v is None or (isinstance(v, float) and math.isnan(v))
-                              else float_format % v if float_format and isinstance(v, float) else v for v in row]
-                             for row in zip(*block))
+        for cols in blocks:
+            rows = len(cols[0]) if cols else 0
+            for a in range(0, rows, CSV_BLOCK_ROWS):
+                block = [c[a:a + CSV_BLOCK_ROWS].tolist() if isinstance(c, np.ndarray)
+                         else list(c[a:a + CSV_BLOCK_ROWS]) for c in cols]
+                writer.writerows(["" if v is None or (isinstance(v, float) and math.isnan(v))
+                                  else float_format % v if float_format and isinstance(v, float) else v for v in row]
+                                 for row in zip(*block))
 
 
 def atomic_write_csv(path: str | os.PathLike, columns: dict, index: tuple[str, list] | None = None,

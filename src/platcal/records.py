@@ -876,6 +876,7 @@ class NearestSamples:
         self.at: list[np.ndarray] = []
         self.tail: tuple | None = None      # the row of the last two samples seen, their times
         self.started = False
+        self.last_found = -1                # the last index :meth:`found` handed out
 
     def _wants(self, lo: float, hi: float) -> np.ndarray:
         """The multiples ``m period`` in (lo, hi] (lo = -inf: every one up to hi), as the whole
@@ -906,18 +907,63 @@ class NearestSamples:
         if ahead.size > 1:
             self.tail = (g + ahead.size - 2, ahead[-2:].copy())
 
-    def result(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(indices, times)``: the samples nearest each multiple, increasing, without repeats."""
-        if self.tail is not None:   # after the last sample: the nearer of the last two, as the whole record's clip
+    def _after_last(self) -> None:
+        """After the last sample: the nearer of the last two, as the whole record's clip."""
+        if self.tail is not None:
             g, two = self.tail
             want = self._wants(float(two[1]), np.inf)
             j = np.where(np.abs(two[0] - want) <= np.abs(two[1] - want), 0, 1)
             self._keep(g + j, two[j], want)
+
+    def found(self, final: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`result` in pieces, so that a long record's indices need not be held: the
+        ``(indices, times)`` found since the last call (and after the last sample when
+        ``final``), increasing and without repeats of each other or of earlier pieces. The
+        blocks' multiples come in order, so the indices found never decrease and dropping an
+        index equal to the one before gives ``np.unique``'s (its first time)."""
+        if final:
+            self._after_last()
+        idx = np.concatenate(self.idx).astype(np.int64) if self.idx else np.zeros(0, np.int64)
+        at = np.concatenate(self.at) if self.at else np.zeros(0)
+        self.idx, self.at = [], []
+        new = idx != np.r_[self.last_found, idx[:-1]]
+        if idx.size:
+            self.last_found = int(idx[-1])
+        return idx[new], at[new]
+
+    def result(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(indices, times)``: the samples nearest each multiple, increasing, without repeats."""
+        self._after_last()
         idx = np.concatenate(self.idx) if self.idx else np.zeros(0, np.int64)
         at = np.concatenate(self.at) if self.at else np.zeros(0)
         self.idx, self.at = [], []
         idx, first = np.unique(idx, return_index=True)
         return idx.astype(np.int64), at[first]
+
+
+class RowsAt:
+    """``values[idx]`` of a column that comes in blocks ``(i0, values)`` in order
+    (:meth:`ColumnSpill.blocks`, a simulation's chunks), for indices asked in increasing order
+    across calls (:meth:`take`): one pass over the blocks, one block held."""
+
+    def __init__(self, blocks):
+        self._blocks = iter(blocks)
+        self._i0, self._v = 0, None
+
+    def take(self, idx: np.ndarray) -> np.ndarray:
+        """The rows ``idx`` (non-decreasing, none below an earlier call's)."""
+        parts, a = [], 0
+        while a < idx.size:
+            while self._v is None or idx[a] >= self._i0 + len(self._v):
+                self._i0, self._v = next(self._blocks)
+            b = a + int(np.searchsorted(idx[a:], self._i0 + len(self._v)))
+            parts.append(self._v[idx[a:b] - self._i0])
+            a = b
+        if not parts:  # nothing asked: no rows, of the column's width (the first block's)
+            if self._v is None:
+                self._i0, self._v = next(self._blocks, (0, np.zeros(0)))
+            return self._v[:0]
+        return np.concatenate(parts) if len(parts) > 1 else parts[0]
 
 
 def grid_origin(t: np.ndarray, step: float) -> float:

@@ -34,7 +34,7 @@ from .identify import (calibration, check_clock_rate, clock_finding, consistency
                        identify_input, identify_streamed, record_clock, record_fit, record_input, run_problems,
                        streamable, timed, truth_known, write_identification)
 from .record import (COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, GYRO_COLUMNS, LOG_COLUMNS, OPTIONAL_COLUMNS, UNITS,
-                     FilterInput, chunk_to_frame, compensate_frame, full_coefficients, read_record)
+                     chunk_to_frame, compensate_frame, full_coefficients, read_record)
 from ...records import CHUNK_OPTION, chunk_rows_of, iter_table, record_writer
 from .simulate import simulate_chunks
 from .study import CentrifugeMonteCarlo
@@ -115,28 +115,43 @@ def identify_command(study: Study, args: argparse.Namespace) -> int:
             raise
         streamed = False
         df, segmentation = continuous_input(study, scheme, args.data, mapping)
+    history = fin = None  # a streamed identify's history, spilled to a temporary file as it was filtered
     if streamed:
         chunks.close()
         t0 = time.perf_counter()
-        est, scan, fit = identify_streamed(study, scheme, read_chunks)
+        est, scan, fit, history = identify_streamed(study, scheme, read_chunks)
         seconds = time.perf_counter() - t0
-        fin = FilterInput(scan.positions, scan.t, [], scan.cmd_deg)
+        used = {k: int(n) for k, n in zip(scan.positions, scan.counts)}
         known = scan.truth
     else:
         fin = record_input(study, scheme, df)
         est, seconds = timed(identify_input, study, scheme, fin)
+        used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
         fit = None
         known = truth_known(df)
+    try:
+        return identified(study, args, scheme, est, fit, used, known, seconds, segmentation, history,
+                          scan.clock if streamed else None, df, fin)
+    finally:
+        if history is not None:
+            history.close()
+
+
+def identified(study: Study, args: argparse.Namespace, scheme, est, fit, used: dict, known: bool, seconds: float,
+               segmentation, history, clock_rate, df, fin) -> int:
+    """The end of :func:`identify_command` once the filter has run: the run's and the clock's
+    checks, the fit check of a record read whole (``fit`` None; ``df`` the record, ``fin`` its
+    filter input; ``clock_rate`` a streamed record's clock, else taken from ``df``), the outputs
+    (``history`` a streamed run's spilled history) and the message; the exit status."""
     if failed_run_status(run_problems(est), "the filter run", args.data, args.out,
                          "the record's units (Ax, Ay, Az in g) and the config's noise and filter settings"):
         return EXIT_RUN_FAILED
-    clock = check_clock_rate(study, scheme, est, scan.clock if streamed else record_clock(study, df))
-    used = {k: int(t.size) for k, t in zip(fin.positions, fin.t)}
+    clock = check_clock_rate(study, scheme, est, clock_rate if clock_rate is not None else record_clock(study, df))
     if fit is None:
         fit = record_fit(est, fin, study, scheme, clock_finding(study, scheme, df))
     summary = write_identification(args.out, est, study, known and not args.no_truth, seconds,
                                    samples_used=used, calibration=calibration(est, study, args.data), fit=fit,
-                                   segmentation=segmentation, clock=clock)
+                                   segmentation=segmentation, clock=clock, history=history)
     msg = (f"platcal identify: {len(est.names)}-state {study.filter.estimator.upper()}, {study.filter.passes} pass(es), "
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if segmentation is not None:

@@ -556,11 +556,19 @@ def chunk_segments(offs: np.ndarray, t_all: np.ndarray, i0: int, i1: int, carry:
     ``offs``, instants ``t_all``): one segment per position they touch, which starts with the
     position's reset when it holds the position's first instant and otherwise continues from the
     instant before; ``carry`` (B,) the NIS sums the kernel carries between segments."""
+    return block_segments(offs, i0, i1, float(t_all[i0 - 1]) if i0 > 0 else np.nan, carry)
+
+
+def block_segments(offs: np.ndarray, i0: int, i1: int, t_before: float, carry: np.ndarray) -> tuple:
+    """:func:`chunk_segments` given only ``t_before``, the instant ``i0 - 1`` (s since its
+    position's start; used when the block continues a position), so that a streamed pass need not
+    hold every instant."""
     ks = [k for k in range(offs.shape[0] - 1) if offs[k] < i1 and offs[k + 1] > i0]
     starts = [max(i0, int(offs[k])) for k in ks]
     ends = [min(i1, int(offs[k + 1])) for k in ks]
     local = np.array([a - i0 for a in starts] + [i1 - i0], dtype=np.int64)
-    t0 = np.array([np.nan if a == offs[k] else t_all[a - 1] for k, a in zip(ks, starts)], float)
+    # a segment that does not start its position starts at i0 (only the first can), after t_before
+    t0 = np.array([np.nan if a == offs[k] else t_before for k, a in zip(ks, starts)], float)
     last = np.array([b == offs[k + 1] for k, b in zip(ks, ends)], dtype=np.bool_)
     return local, (np.array(ks, dtype=np.int64), t0, last, carry)
 
@@ -669,6 +677,26 @@ class EstimatorInput:
     centrifuge_params: np.ndarray
 
 
+@dataclass(frozen=True)
+class StreamedInstants:
+    """The ``t`` of an :class:`EstimatorInput` of a streamed record whose instants are not held
+    (:func:`run_ekf` ``z_source`` then yields each block's instants with its outputs): per
+    position, in order, the number of filter instants ``counts`` and the last instant ``last``
+    (s since the position's start; what the history's clock needs, docs/centrifuge-model.md §9).
+    Memory: O(K), whatever the record's length (issue 22 item 3)."""
+
+    counts: tuple
+    last: tuple
+
+    def __len__(self) -> int:
+        return len(self.counts)
+
+    @classmethod
+    def of(cls, t: list) -> StreamedInstants:
+        """The counts and last instants of K arrays of instants (s)."""
+        return cls(tuple(len(tk) for tk in t), tuple(float(tk[-1]) if len(tk) else 0.0 for tk in t))
+
+
 def run_ekf(
     data: EstimatorInput,
     settings: FilterSettings,
@@ -678,6 +706,7 @@ def run_ekf(
     warmup_s: float | None = None,
     z_source=None,
     on_innovations=None,
+    on_history=None,
     lanes: bool = False,
 ) -> Estimate:
     """Run the EKF over every position of a scheme, for a batch of B runs.
@@ -700,12 +729,17 @@ def run_ekf(
         passes only. None: no warm-up (the paper's EKF).
     z_source : a streamed record (one run, ``z`` None): called once per pass, it yields
         ``(i0, i1, z_block (1, i1 - i0, 3))``, the outputs of the instants ``i0 .. i1 - 1`` of all
-        positions end to end, in order; the filter runs block by block with its state carried
-        (:func:`chunk_segments`), the same operations as over the whole record, so memory holds
+        positions end to end, in order, or, when ``data.t`` is a :class:`StreamedInstants`,
+        ``(i0, i1, z_block, t_block (i1 - i0,))`` with those instants (s since their position's
+        start); the filter runs block by block with its state carried (:func:`block_segments`,
+        :func:`drive_stream`), the same operations as over the whole record, so memory holds
         one block. No warm-up.
     on_innovations : with ``z_source`` and ``settings.innovations``, called with ``(i0, i1,
         z_block, rec_block (1, i1 - i0, 6))`` after each block (every pass; the last pass's are
         the run's), instead of keeping them in ``Estimate.innovations``.
+    on_history : with ``z_source``, called with ``(t (h,), x (h, n), sigma (h, n))`` for the
+        history rows of each block, in order (every pass), instead of keeping them in the
+        Estimate (whose history is then empty): a 6 h history is 17 MB (issue 22 item 3).
     lanes : run the state-major kernel (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in
         SIMD lanes of 4; the same filter, x and P equal to round-off, about 25 % less CPU per
         replicate at B >= 8, 2.2x more at B = 1; issue 22) instead of the default kernel
@@ -745,23 +779,21 @@ def run_ekf(
         kernel = aot_pick(KERNELS, "run_pass_serial", _run_pass_serial, _run_pass, B)
     keep = settings.innovations and not cov_only
     # every full pass overwrites it, so it ends holding the last pass's innovations
-    rec = np.zeros((B, sum(len(tk) for tk in t) if keep and z_source is None else 0, 6))
-    carry = np.zeros(B)
+    if z_source is not None:
+        streamed = t if isinstance(t, StreamedInstants) else StreamedInstants.of(t)
+        source = z_source if isinstance(t, StreamedInstants) else _with_instants(z_source, t)
+
+        def run_block(x, P, zb, tb, local, hidx, hist_x, hist_s, nis, n_bad, rb, seg):
+            kernel(x, P, zb, tb, local, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params, st.r_var,
+                   st.q_rate, True, hidx, hist_x, hist_s, nis, n_bad, *structure, it_ctl, rb, seg)
+
+        return drive_stream(run_block, x, P, source, streamed, settings, keep, on_innovations, on_history)
+    rec = np.zeros((B, sum(len(tk) for tk in t) if keep else 0, 6))
 
     def run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad, update_x=not cov_only, rec=rec):
-        if z_source is None:
-            kernel(x, P, z_all, t_all, offs, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params,
-                   st.r_var, st.q_rate, update_x, hidx, hist_x, hist_s, nis, n_bad, *structure, it_ctl, rec,
-                   whole_segments(offs, B))
-            return
-        for i0, i1, zb in z_source():
-            local, seg = chunk_segments(offs, t_all, i0, i1, carry)
-            rb = np.zeros((B, i1 - i0 if keep else 0, 6))
-            kernel(x, P, np.ascontiguousarray(zb, float), t_all[i0:i1], local, st.cmd_rad, st.reset_var, est_idx,
-                   coef_fixed, st.params, st.r_var, st.q_rate, True, hidx[i0:i1], hist_x, hist_s, nis, n_bad,
-                   *structure, it_ctl, rb, seg)
-            if keep and on_innovations is not None:
-                on_innovations(i0, i1, zb, rb)
+        kernel(x, P, z_all, t_all, offs, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params,
+               st.r_var, st.q_rate, update_x, hidx, hist_x, hist_s, nis, n_bad, *structure, it_ctl, rec,
+               whole_segments(offs, B))
 
     nis = np.zeros(B)
     n_bad = np.zeros(B, dtype=np.int64)
@@ -776,7 +808,88 @@ def run_ekf(
         P = restart_covariance(P, nc)
         nis[:] = 0.0
     est = drive_passes(run_pass, x, P, None if cov_only else z, t, settings, passes, nis, n_bad)
-    return replace(est, innovations=rec) if keep and z_source is None else est
+    return replace(est, innovations=rec) if keep else est
+
+
+def _with_instants(z_source, t: list):
+    """``z_source`` whose blocks also carry their instants (s), cut from the held ``t`` (K arrays)."""
+    t_all = np.ascontiguousarray(np.concatenate([np.asarray(tk, float) for tk in t]))
+
+    def source():
+        for i0, i1, zb in z_source():
+            yield i0, i1, zb, t_all[i0:i1]
+
+    return source
+
+
+def drive_stream(run_block, x: np.ndarray, P: np.ndarray, z_source, instants: StreamedInstants,
+                 settings: FilterSettings, keep: bool, on_innovations=None, on_history=None) -> Estimate:
+    """:func:`drive_passes` of a streamed record (one run), block by block (docs/centrifuge-model.md
+    §9, §11): ``z_source()`` yields ``(i0, i1, z_block (1, m, 3), t_block (m,))`` once per pass;
+    ``run_block(x, P, z, t, offsets, hist_idx, hist_x, hist_s, nis, n_bad, rec, seg)`` runs the
+    kernel over one block in place. The history rows (``history_every_s``) and the innovations
+    (``keep``) of each block go to ``on_history`` and ``on_innovations`` as they come (the
+    history is kept in the Estimate only without ``on_history``), so that nothing held grows
+    with the record: the positions' counts and last instants, one block, x and P. The same
+    kernel calls on the same blocks as the held record's run: x, P, NIS and history are
+    bit-identical to it (slots and clock as :func:`history_slots` and :func:`pass_history_index`)."""
+    B, n = x.shape
+    nc = settings.coef_index.size
+    passes = settings.passes
+    every = settings.history_every_s
+    counts = [int(c) for c in instants.counts]
+    offs = np.zeros(len(counts) + 1, dtype=np.int64)
+    offs[1:] = np.cumsum(counts)
+    durations = [float(last) + settings.period_s if c else 0.0 for c, last in zip(counts, instants.last)]
+    starts, offset = [], 0.0
+    for d in durations:  # each position's start on the history's clock, summed as pass_history_index does
+        starts.append(offset)
+        offset += d
+    pass_x = np.zeros((passes, B, nc))
+    pass_P = np.zeros((passes, B, nc, nc))
+    nis = np.zeros(B)
+    n_bad = np.zeros(B, dtype=np.int64)
+    carry = np.zeros(B)
+    held = []
+    for p in range(passes):
+        if p > 0:
+            P = restart_covariance(P, nc)
+            nis[:] = 0.0
+        t_before = np.nan
+        for i0, i1, zb, tb in z_source():
+            zb = np.ascontiguousarray(zb, float)
+            tb = np.ascontiguousarray(tb, float)
+            local, seg = block_segments(offs, i0, i1, t_before, carry)
+            hidx = np.full(i1 - i0, -1, dtype=np.int64)
+            ht = np.zeros(0)
+            if every is not None:
+                sel = np.abs(tb - np.round(tb / every) * every) < 1e-9  # as _history_index
+                hidx[sel] = np.arange(int(sel.sum()))
+                # each instant's position's start on the history's clock, as pass_history_index adds it
+                base = np.repeat([p * sum(durations) + starts[k] for k in seg[0]], np.diff(local))
+                ht = base[sel] + tb[sel]
+            hist_x = np.zeros((B, ht.size, n))
+            hist_s = np.zeros((B, ht.size, n))
+            rb = np.zeros((B, i1 - i0 if keep else 0, 6))
+            with parallel_chunksize(1):
+                run_block(x, P, zb, tb, local, hidx, hist_x, hist_s, nis, n_bad, rb, seg)
+            if ht.size:
+                if on_history is not None:
+                    on_history(ht, hist_x[0], hist_s[0])
+                else:
+                    held.append((ht, hist_x, hist_s))
+            if keep and on_innovations is not None:
+                on_innovations(i0, i1, zb, rb)
+            if tb.size:
+                t_before = float(tb[-1])
+        pass_x[p] = x[:, :nc]
+        pass_P[p] = P[:, :nc, :nc]
+    hist_t = np.concatenate([h[0] for h in held]) if held else np.zeros(0)
+    hist_x = np.concatenate([h[1] for h in held], axis=1) if held else np.zeros((B, 0, n))
+    hist_s = np.concatenate([h[2] for h in held], axis=1) if held else np.zeros((B, 0, n))
+    return Estimate(names=settings.state_names, x=x, P=P, history_t=hist_t, history_x=hist_x,
+                    history_sigma=hist_s, pass_x=pass_x, pass_P=pass_P,
+                    mean_nis=nis / max(int(offs[-1]), 1), failed_updates=n_bad)
 
 
 def run_iekf(

@@ -11,21 +11,21 @@ import numpy as np
 
 from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
-from ...io import atomic_files, json_text, write_csv
+from ...io import atomic_files, json_text, write_csv, write_csv_blocks
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files, write_covariance
 from ...logs.dwells import DWELL_FIGURE, dwells_found
 from ...model.instruments import unit_of
 from ...plausibility import (ClockRate, clock_rate, clock_rate_tolerance, refuse_clock_rate, refuse_recognised,
                              refuse_recognised_moments, spilled_jitter, spilled_segment_rate, timestamp_jitter)
-from ...records import CHUNK_ROWS, ColumnSpill
+from ...records import CHUNK_ROWS, ColumnSpill, RowsAt
 from ...rig import resolve
 from .catalogue import load_catalogue
 from .config import Study
-from .ekf import Estimate, EstimatorInput, FilterSettings, first_instant
+from .ekf import Estimate, EstimatorInput, FilterSettings, StreamedInstants, first_instant
 from .estimators import check_kind, run_estimator
 from .record import (COMMANDED_COLUMNS, CONTINUOUS_COLUMNS, OPTIONAL_COLUMNS, UNITS, FilterInput, check_commanded,
                      check_every_position, check_position_numbers, check_position_spilled, check_record,
-                     continuous_record, filter_input, has_truth_columns, select_instants_spilled)
+                     continuous_record, filter_input, has_truth_columns, instants_spilled_blocks)
 from ...records import read_table, spilled_positions
 from ...scheme import Scheme, whole_periods
 from .simulate import simulate, simulate_chunks
@@ -225,20 +225,52 @@ the ML estimate needs the whole record at once: they read it whole)."""
 @dataclass
 class StreamScan:
     """What the first read of a streamed record gives (:func:`scan_record`): per position (in
-    order) the filter instants ``t`` (s since its start), the record's row of every instant end
-    to end ``rows``, whether the true angles are there, the largest timestamp jitter (s), and
-    the sums of Ax, Ay, Az at the instants against the nominal output (the plausibility check and
-    the fit's diagnosis)."""
+    order) the number of filter instants ``counts`` and the last one ``last`` (s since its
+    start), the record's row and instant (s since its position's start) of every filter
+    instant end to end spilled to a temporary file ``instants`` (two columns; 16 bytes an
+    instant on disk, none held: :meth:`close` removes it), whether the true angles are there,
+    the largest timestamp jitter (s), and the sums of Ax, Ay, Az at the instants against the
+    nominal output (the plausibility check and the fit's diagnosis)."""
 
     positions: list[int]
-    t: list[np.ndarray]
-    rows: np.ndarray
+    counts: list[int]
+    last: list[float]
+    instants: ColumnSpill
     truth: bool
     jitter_s: float
     moments: Moments
     cmd_deg: np.ndarray
     clock: ClockRate
     """The clock-rate error of every sample's stamp against ``sampling.sample_ms`` (:func:`record_clock`)."""
+
+    def close(self) -> None:
+        """Remove the spilled instants."""
+        self.instants.close()
+
+
+class InstantCursor:
+    """The spilled filter instants of a :class:`StreamScan` read back in order, a chunk of the
+    record at a time (:meth:`below`), :data:`platcal.records.SPILL_BLOCK` of them held at most."""
+
+    def __init__(self, spill: ColumnSpill):
+        self._blocks = (v for _, v in spill.blocks())
+        self._buf = np.zeros((0, 2))
+
+    def below(self, row: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(rows, t)`` of the instants not yet taken whose record row is below ``row``."""
+        parts = []
+        while True:
+            j = int(np.searchsorted(self._buf[:, 0], row))
+            parts.append(self._buf[:j])
+            if j < len(self._buf):
+                self._buf = self._buf[j:]
+                break
+            nxt = next(self._blocks, None)
+            self._buf = np.zeros((0, 2)) if nxt is None else nxt
+            if nxt is None:
+                break
+        got = np.concatenate(parts) if len(parts) > 1 else parts[0]
+        return got[:, 0].astype(np.int64), np.ascontiguousarray(got[:, 1])
 
 
 def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
@@ -253,15 +285,20 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
     the position's ``t`` and ``Ax, Ay, Az`` are spilled to temporary files (32 bytes a sample on
     disk, :class:`platcal.records.ColumnSpill`) and taken by passes over them
     (:func:`~.record.check_position_spilled`, :func:`platcal.plausibility.spilled_segment_rate`,
-    :func:`~.record.select_instants_spilled`): held are the position's instants, their rows and
-    outputs (64 bytes per instant of the longest position, with the nominal output); the nominal output at its
-    instants comes from a noise-free simulation of that position in chunks.
+    :func:`~.record.instants_spilled_blocks`), and the position's filter instants and their
+    rows go to a temporary file as they are found (:attr:`StreamScan.instants`, 16 bytes an
+    instant on disk); one more pass over them, the spilled outputs and a noise-free simulation
+    of the position in chunks (the nominal output, :func:`nominal_blocks`) adds the sums of the
+    plausibility check block by block. Held: a chunk or a spill block, whatever the record's
+    length (issue 22 item 3). The sums are added per block, so they may differ from one sum
+    over the position in the last bits (they decide refusals and diagnoses, not the estimate).
     """
     cmd = scheme.angles_deg
     max_gap = float(study.config["record"]["max_gap_s"])
     want = expected_g(study, scheme)
     params = study.centrifuge.scheme_params(scheme)
-    positions, ts, rows, jit, rates = [], [], [], 0.0, []
+    positions, counts, last, jit, rates = [], [], [], 0.0, []
+    instants = ColumnSpill(2)
     moments = Moments.zero(3)
     truth = None
 
@@ -270,11 +307,21 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         med, origin = check_position_spilled(k, t, a, scheme, study.sample_s, max_gap, float(want[k - 1]))
         jit = max(jit, spilled_jitter(t, study.sample_s))
         rates.append(spilled_segment_rate(t, study.sample_s, med))
-        keep, tk = select_instants_spilled(k, t, med, origin, study.filter.period_s, study.filter.update_at_reset)
-        moments.add(a.take(keep), nominal_at(study, scheme, params, k, tk))
+        n, t_last = 0, np.nan
+        with ColumnSpill(2) as mine:  # this position's (sample, instant): its sums' pass reads them back
+            for keep, tk in instants_spilled_blocks(k, t, med, origin, study.filter.period_s,
+                                                    study.filter.update_at_reset):
+                if keep.size:
+                    mine.write(np.column_stack([keep.astype(float), tk]))  # indices as float64: exact below 2**53
+                    n, t_last = n + keep.size, float(tk[-1])
+            z, nominal = RowsAt(a.blocks()), RowsAt(nominal_blocks(study, scheme, params, k))
+            for _, v in mine.blocks():
+                keep, tk = v[:, 0].astype(np.int64), v[:, 1]
+                moments.add(z.take(keep), nominal.take(nominal_index(study, scheme, tk)))
+                instants.write(np.column_stack([row0 + v[:, 0], tk]))
         positions.append(k)
-        ts.append(tk)
-        rows.append(row0 + keep)
+        counts.append(n)
+        last.append(t_last)
 
     def check(df) -> None:
         nonlocal truth
@@ -284,28 +331,35 @@ def scan_record(chunks, study: Study, scheme: Scheme) -> StreamScan:
         check_position_numbers(pos, scheme)
         check_commanded(pos, df[["alpha_cmd", "beta_cmd", "gamma_cmd"]].to_numpy(float), scheme)
 
-    for position in spilled_positions(chunks, check):
-        finish(*position)
-    check_every_position(positions, scheme)
-    return StreamScan(positions, ts, np.concatenate(rows), bool(truth), jit, moments, cmd[np.array(positions) - 1],
+    try:
+        for position in spilled_positions(chunks, check):
+            finish(*position)
+        check_every_position(positions, scheme)
+    except BaseException:
+        instants.close()
+        raise
+    return StreamScan(positions, counts, last, instants, bool(truth), jit, moments, cmd[np.array(positions) - 1],
                       ClockRate.combine(rates))
 
 
-def nominal_at(study: Study, scheme: Scheme, params: np.ndarray, k: int, tk: np.ndarray,
-               chunk_samples: int = CHUNK_ROWS) -> np.ndarray:
-    """(M, 3) g: :func:`nominal_output` of position ``k`` (1-based) at its instants ``tk`` (s),
-    from a noise-free simulation of that position alone in chunks (the same numbers)."""
+def nominal_index(study: Study, scheme: Scheme, tk: np.ndarray) -> np.ndarray:
+    """The sample of the nominal output (:func:`nominal_output`) at each instant ``tk`` (s since
+    its position's start): the nearest, within the dwell."""
     n = whole_periods(scheme.dwell_s, study.sample_s, f"schemes.{scheme.name}.dwell_s")
-    idx = np.clip(np.rint(tk / study.sample_s).astype(int), 0, n - 1)
-    out = np.empty((tk.size, 3))
+    return np.clip(np.rint(tk / study.sample_s).astype(int), 0, n - 1)
+
+
+def nominal_blocks(study: Study, scheme: Scheme, params: np.ndarray, k: int, chunk_samples: int | None = None):
+    """``(j0, A (n, 3) g)``: the noise-free output of the nominal instrument over position ``k``
+    (1-based) from its sample ``j0``, a chunk at a time (``chunk_samples``, default
+    :data:`platcal.records.CHUNK_ROWS`; docs/centrifuge-model.md §2)."""
     for ch in simulate_chunks(np.zeros_like(study.truth), scheme, params, study.noise, None, sample_s=study.sample_s,
-                              chunk_samples=chunk_samples, positions=[k - 1]):
-        sel = (idx >= ch.j0) & (idx < ch.j0 + ch.t.size)
-        out[sel] = ch.A[0, idx[sel] - ch.j0]
-    return out
+                              chunk_samples=chunk_samples or CHUNK_ROWS, positions=[k - 1]):
+        yield ch.j0, ch.A[0]
 
 
-def identify_streamed(study: Study, scheme: Scheme, read_chunks) -> tuple[Estimate, StreamScan, FitCheck | None]:
+def identify_streamed(study: Study, scheme: Scheme,
+                      read_chunks) -> tuple[Estimate, StreamScan, FitCheck | None, ColumnSpill]:
     """Identify a record read in chunks, twice or more (``read_chunks()`` yields the record's
     checked tables in file order, afresh at each call): a first read checks it
     (:func:`scan_record`, then the plausibility of Ax, Ay, Az as :func:`record_input`), each
@@ -316,23 +370,48 @@ def identify_streamed(study: Study, scheme: Scheme, read_chunks) -> tuple[Estima
     diagnosis of a record that does not fit names units, signs, swaps (from the sums) and the
     clock jitter of :func:`clock_finding`, not the clock offset that :func:`record_fit` finds in
     the innovations' time derivative. ``filter.estimator`` one of :data:`STREAMED_KINDS`,
-    without warm-up."""
+    without warm-up.
+
+    Nothing held grows with the record (issue 22 item 3): each pass reads the instants and their
+    rows back from the scan's file chunk by chunk (:class:`InstantCursor`), and the history goes
+    to a temporary file as each block is filtered, returned as the fourth item (columns ``t``,
+    the states, their sigmas: :func:`history_columns`' order; the Estimate's history is then
+    empty) for :func:`write_identification` ``history``; the caller closes it."""
     scan = scan_record(read_chunks(), study, scheme)
+    history = ColumnSpill(1 + 2 * len(study.filter.state_names))
+    try:
+        est, fit = filter_streamed(study, scheme, read_chunks, scan, history)
+    except BaseException:
+        history.close()
+        raise
+    finally:
+        scan.close()
+    return est, scan, fit, history
+
+
+def filter_streamed(study: Study, scheme: Scheme, read_chunks, scan: StreamScan,
+                    history: ColumnSpill) -> tuple[Estimate, FitCheck]:
+    """The filter passes and the fit check of :func:`identify_streamed` over a scanned record
+    (its instants read back from ``scan.instants``), the history's rows written to ``history``."""
     refuse_recognised_moments(scan.moments, FIT_CHANNELS, "g",
                               "the record's Ax, Ay, Az must be the platform's x, y, z accelerometers in g")
     settings = replace(study.filter, innovations=True)
     params = study.centrifuge.scheme_params(scheme)[np.array(scan.positions) - 1]
-    offs = np.r_[0, np.cumsum([tk.size for tk in scan.t])]
-    rows = scan.rows
+    offs = np.r_[0, np.cumsum(scan.counts)]
     state = {}
 
     def z_source():
-        r0 = 0
+        cursor = InstantCursor(scan.instants)
+        i0 = r0 = 0
         for df in read_chunks():
             r1 = r0 + len(df)
-            i0, i1 = np.searchsorted(rows, r0), np.searchsorted(rows, r1)
-            yield int(i0), int(i1), df[["Ax", "Ay", "Az"]].to_numpy(float)[rows[i0:i1] - r0][None]
+            rows, tb = cursor.below(r1)
+            yield i0, i0 + rows.size, df[["Ax", "Ay", "Az"]].to_numpy(float)[rows - r0][None], tb
+            i0 += rows.size
             r0 = r1
+
+    def on_history(ht, hx, hs):
+        history.write(np.column_stack([ht, hx, hs]))
 
     def on_innovations(i0, i1, zb, rb):
         if i0 == 0:  # a new pass: the fit judges the last one
@@ -341,13 +420,14 @@ def identify_streamed(study: Study, scheme: Scheme, read_chunks) -> tuple[Estima
         state["sums"].add(rb[0, :, :3], rb[0, :, 3:], segment)
 
     kind = check_kind(settings.estimator)
-    est = kind.run(EstimatorInput(None, scan.t, scan.cmd_deg, params), settings, z_source=z_source,
-                   on_innovations=on_innovations, **dict(settings.estimator_options))
+    instants = StreamedInstants(tuple(scan.counts), tuple(scan.last))
+    est = kind.run(EstimatorInput(None, instants, scan.cmd_deg, params), settings, z_source=z_source,
+                   on_innovations=on_innovations, on_history=on_history, **dict(settings.estimator_options))
     diagnosis = [text for _, text in gross_errors_moments(scan.moments, FIT_CHANNELS)]
     clock = clock_text(study, scheme, scan.jitter_s)
     if not diagnosis and clock is not None:
         diagnosis.append(clock)
-    return est, scan, state["sums"].check(FIT_CHANNELS, diagnosis=tuple(diagnosis))
+    return est, state["sums"].check(FIT_CHANNELS, diagnosis=tuple(diagnosis))
 
 
 def streamable(settings: FilterSettings) -> bool:
@@ -395,7 +475,8 @@ def consistency_warning(summary: dict) -> str | None:
 def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study, truth_known: bool,
                          seconds: float | None = None, samples_used: dict[int, int] | None = None,
                          calibration: Calibration | None = None, fit: FitCheck | None = None,
-                         segmentation: tuple | None = None, clock: dict | None = None) -> dict:
+                         segmentation: tuple | None = None, clock: dict | None = None,
+                         history: ColumnSpill | None = None) -> dict:
     """Write ``estimates.csv``, ``covariance.csv``, ``history.csv``, ``table2.md`` and ``summary.json``.
 
     ``history.csv`` is the decimated history of every pass: ``t`` (s from the start of the
@@ -407,7 +488,9 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     With ``calibration``, ``calibration.yaml`` lands with them (:mod:`platcal.logs.calibration`);
     with ``segmentation`` (a continuous log's ``(t, |A|, dwells)``, :func:`continuous_input`) the
     summary's ``dwells_found`` and ``dwells.png``, the log's ``|A|`` with the dwells shaded; with
-    ``clock`` (:func:`check_clock_rate`) the summary's ``clock`` block.
+    ``clock`` (:func:`check_clock_rate`) the summary's ``clock`` block; with ``history`` (a
+    streamed identify's spilled history, :func:`identify_streamed`) ``history.csv`` from it,
+    block by block, instead of from ``est``.
     """
     nc = est.n_coef
     truth = study.truth if truth_known else None
@@ -437,7 +520,11 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
     with atomic_files(out_dir) as tmp:
         write_csv(tmp("estimates.csv"), table)
         write_covariance(tmp("covariance.csv"), est.names, est.P[0])
-        write_csv(tmp("history.csv"), history_columns(est))
+        if history is None:
+            write_csv(tmp("history.csv"), history_columns(est))
+        else:
+            write_csv_blocks(tmp("history.csv"), history_names(est), ([v[:, j] for j in range(v.shape[1])]
+                                                                      for _, v in history.blocks()))
         tmp("table2.md").write_text(table2_markdown(table))
         if calibration is not None:
             write_calibration_files(tmp, calibration, covariance=False)  # covariance.csv above has every state
@@ -450,12 +537,14 @@ def write_identification(out_dir: str | os.PathLike, est: Estimate, study: Study
 def history_columns(est: Estimate, replicate: int = 0) -> dict:
     """The decimated estimate and 1-sigma history of one run as a wide table's columns: ``t``
     (s), each state's estimate and ``<name>_sigma`` (the state's unit; angles in rad)."""
-    cols = {"t": est.history_t}
-    for i, name in enumerate(est.names):
-        cols[name] = est.history_x[replicate, :, i]
-    for i, name in enumerate(est.names):
-        cols[f"{name}_sigma"] = est.history_sigma[replicate, :, i]
-    return cols
+    values = [est.history_t] + [est.history_x[replicate, :, i] for i in range(len(est.names))] + \
+        [est.history_sigma[replicate, :, i] for i in range(len(est.names))]
+    return dict(zip(history_names(est), values))
+
+
+def history_names(est: Estimate) -> list[str]:
+    """The columns of :func:`history_columns`, in order."""
+    return ["t", *est.names, *(f"{name}_sigma" for name in est.names)]
 
 
 def truth_known(df: pd.DataFrame) -> bool:

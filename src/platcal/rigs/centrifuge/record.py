@@ -334,18 +334,23 @@ def refuse_no_instant(k: int, keep: np.ndarray, period_s: float) -> None:
         raise InputError(f"--data column t, position {k}", f"no sample falls on a {period_s * 1e3:g} ms filter instant")
 
 
-def select_instants_spilled(k: int, t: ColumnSpill, med: float, origin: float, period_s: float,
-                            update_at_reset: bool) -> tuple[np.ndarray, np.ndarray]:
+def instants_spilled_blocks(k: int, t: ColumnSpill, med: float, origin: float, period_s: float,
+                            update_at_reset: bool):
     """:func:`select_instants` of position ``k``'s times spilled to a file (``med``, ``origin``:
-    its median step and origin from :func:`check_position_spilled`, s): ``(keep, t[keep] -
-    origin)``, the samples nearest the filter instants block by block
-    (:class:`platcal.records.NearestSamples`)."""
+    its median step and origin from :func:`check_position_spilled`, s), in pieces: yields
+    ``(keep, t[keep] - origin)``, the samples nearest the filter instants, block by block (:meth:`platcal.records.NearestSamples.found`; the same indices and times end to end),
+    so that a long position's instants need not be held (issue 22 item 3); refuses a position
+    without any instant (:func:`refuse_no_instant`) after its last block."""
     near = NearestSamples(t.first - origin, t.last - origin, period_s, 0.5 * med, first=0 if update_at_reset else 1)
+    n = 0
     for g, ahead, _ in t.steps(origin):
         near.add(g, ahead)
-    keep, tk = near.result()
-    refuse_no_instant(k, keep, period_s)
-    return keep, tk
+        keep, tk = near.found()
+        n += keep.size
+        yield keep, tk
+    keep, tk = near.found(final=True)
+    refuse_no_instant(k, np.zeros(n + keep.size), period_s)
+    yield keep, tk
 
 
 COMMANDED_COLUMNS = ("alpha_cmd", "beta_cmd", "gamma_cmd")

@@ -109,7 +109,8 @@ def load_numba():
                 k._dispatcher = numba.njit(**k.options)(k.py_func)
         prange = numba.prange
         for name, mod in list(sys.modules.items()):
-            if mod is None or not (name == PACKAGE or name.startswith(PACKAGE + ".")):
+            # not this module: its own _PRANGE must stay the placeholder the others are compared with
+            if mod is None or name == __name__ or not (name == PACKAGE or name.startswith(PACKAGE + ".")):
                 continue
             space = vars(mod)
             for attr, value in list(space.items()):

@@ -30,9 +30,14 @@ import numpy as np
 
 from ...estimation.kalman import joseph_update_sparse, propagate_sparse
 from ...jit import njit
+from ...rig import resolve
 from .aot_kernels import run_seeds, seed_kernel
 from .config import SledConfig
 from .errmodel import RUN6_KIND, RUN7_KIND, STOP_KIND, kind_states, system_matrices
+
+KALMAN_LANES = f"{__package__}.filter_lanes:kalman_lanes"
+"""The JIT's filter of the seeds in SIMD lanes (:func:`.filter_lanes.kalman_lanes`), by path:
+imported only when a batch runs on the JIT."""
 
 Q_VEL = 2e-3   # m/s/sqrt(s): absorbs the unmodelled accelerometer bias and noise (§6.1, D4)
 Q_ATT = 1e-7   # rad/sqrt(s)
@@ -298,9 +303,9 @@ class KalmanRun:
         z = np.ascontiguousarray(z, dtype=np.float64)
         one = seed_kernel("kalman", _kalman)
         if isinstance(Fs, Dynamics) and one is None:   # the seeds in lanes: the reference's numbers
-            # imported here: the lanes kernel's compiler pipeline subclasses numba's, which an
-            # identify on kernels compiled ahead of time does not load
-            from .filter_lanes import kalman_lanes
+            # by path: the lanes kernel's compiler pipeline subclasses numba's, which an identify
+            # on kernels compiled ahead of time does not load
+            kalman_lanes = resolve(KALMAN_LANES)
             off = int(with_prior)      # the kernel writes the posteriors after the prior's slot
             xs, sig = np.empty((S, J + off, n)), np.empty((S, J + off, n))
             if with_prior:

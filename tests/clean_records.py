@@ -2,6 +2,7 @@
 
 import pandas as pd
 
+from platcal import records
 from platcal.cli import main
 
 
@@ -17,3 +18,12 @@ def simulated_records(folder, configs: dict, simulate_args: dict, seed: int) -> 
         assert main(["simulate", "--config", str(cfg), *simulate_args[rig], "--seed", str(seed), "--out", str(rec)]) == 0
         out[rig] = (cfg, pd.read_csv(rec))
     return out
+
+
+def spilled(t, block: int) -> records.ColumnSpill:
+    """``t`` written to a :class:`platcal.records.ColumnSpill` ``block`` values at a time, as a
+    streamed read spills a column chunk by chunk."""
+    spill = records.ColumnSpill()
+    for i in range(0, t.size, block):
+        spill.write(t[i:i + block])
+    return spill

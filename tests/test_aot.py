@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from aot_build import built_folder
+from aot_helpers import built_folder
 from centrifuge_short import short_config
 from platcal import aot
 from platcal.cli import main

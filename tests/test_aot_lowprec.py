@@ -4,16 +4,13 @@ loads neither numba nor llvmlite and gives the JIT's numbers and files bit for b
 streamed, CSV and Parquet (docs/lowprec-centrifuge.md §7, §10)."""
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
 
-from aot_helpers import REPORT, build_into
+from aot_helpers import REPORT, built_folder, run_probe
 from platcal.cli import main
 from platcal.rigs.lowprec_centrifuge.aot_kernels import KERNELS
 
@@ -45,7 +42,7 @@ code = main(sys.argv[2:])
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """A folder holding the rig's kernel set built from these sources."""
-    return build_into(KERNELS, tmp_path_factory.mktemp("aot"))
+    return built_folder(tmp_path_factory, KERNELS)
 
 
 @pytest.fixture(scope="module")
@@ -65,17 +62,7 @@ def record(tmp_path_factory):
 
 def identify(cfg, data, folder, out, chunk_rows: str, aot_on: bool) -> tuple[dict, dict]:
     """Run identify in a fresh interpreter with the kernels of ``folder``; its modules and arrays."""
-    env = {**os.environ, "PLATCAL_AOT_DIR": str(folder), "PLATCAL_AOT": "1" if aot_on else "0"}
-    arrays = out.with_name(out.name + ".npz")
-    res = subprocess.run([sys.executable, "-c", PROBE, str(arrays), "identify", "--config", str(cfg),
-                          "--data", str(data), "--chunk-rows", chunk_rows, "--out", str(out)],
-                         capture_output=True, text=True, env=env)
-    assert res.returncode == 0, res.stderr
-    info = json.loads(res.stdout.splitlines()[-1])
-    assert info["code"] == 0, res.stderr
-    info["message"] = res.stderr
-    with np.load(arrays) as z:
-        return info, {k: z[k] for k in z.files}
+    return run_probe(PROBE, folder, cfg, data, out, chunk_rows, aot_on)
 
 
 @pytest.mark.parametrize("fmt,chunk_rows", [("csv", "0"), ("csv", "500"), ("parquet", "700")])
@@ -88,9 +75,9 @@ def test_aot_identify_loads_no_numba_and_equals_the_jit(built, record, tmp_path,
     info_a, a = identify(cfg, data[fmt], built, tmp_path / "aot", chunk_rows, True)
     info_j, j = identify(cfg, data[fmt], built, tmp_path / "jit", chunk_rows, False)
     assert not info_a["numba"] and not info_a["llvmlite"]
-    assert "(kernels compiled ahead of time)" in info_a["message"]
+    assert "(kernels compiled ahead of time)" in info_a["stderr"]
     assert info_j["numba"] and info_j["llvmlite"]
-    assert "ahead of time" not in info_j["message"]
+    assert "ahead of time" not in info_j["stderr"]
     assert a.keys() == j.keys()
     for k in a:
         assert np.array_equal(a[k], j[k], equal_nan=True), k

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aot_build import built_folder
+from aot_helpers import built_folder
 from platcal import aot
 from platcal.cli import main
 from platcal.rigs.multiposition.aot_kernels import KERNELS

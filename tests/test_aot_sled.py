@@ -5,15 +5,13 @@ seeds in SIMD lanes, the ahead-of-time build the one-seed kernel, a seed at a ti
 default record and on a jittered clock, read whole and streamed."""
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
 
+from aot_helpers import REPORT, run_probe
 from platcal import aot
 from platcal.cli import main
 from platcal.rigs.sled.aot_kernels import SETS
@@ -41,8 +39,8 @@ def keep(idn, *args, **kw):  # the run's arrays, before the files round them
     return fit(idn, *args, **kw)
 
 commands.record_fit = keep
-print(json.dumps({"code": main(sys.argv[2:]), **{m: m in sys.modules for m in ("numba", "llvmlite")}}))
-"""
+code = main(sys.argv[2:])
+""" + REPORT
 
 
 @pytest.fixture(scope="module")
@@ -77,17 +75,7 @@ def records(tmp_path_factory):
 def identify(case, folder, out, chunk_rows: str, aot_on: bool) -> tuple[dict, dict]:
     """Run identify in a fresh interpreter with the kernels of ``folder``; its modules and arrays."""
     cfg, rec = case
-    env = {**os.environ, "PLATCAL_AOT_DIR": str(folder), "PLATCAL_AOT": "1" if aot_on else "0"}
-    arrays = out.with_name(out.name + ".npz")
-    res = subprocess.run([sys.executable, "-c", PROBE, str(arrays), "identify", "--config", str(cfg), "--data",
-                          str(rec), "--chunk-rows", chunk_rows, "--out", str(out)],
-                         capture_output=True, text=True, env=env)
-    assert res.returncode == 0, res.stderr
-    info = json.loads(res.stdout.splitlines()[-1])
-    assert info["code"] == 0, res.stderr
-    info["stderr"] = res.stderr
-    with np.load(arrays) as z:
-        return info, {k: z[k] for k in z.files}
+    return run_probe(PROBE, folder, cfg, rec, out, chunk_rows, aot_on)
 
 
 @pytest.mark.parametrize("which", ["default", "jittered"])

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from platcal import records
+from clean_records import spilled
 from platcal.cli import main
 from platcal.rigs.centrifuge.record import instants_spilled_blocks, select_instants
 
@@ -24,13 +25,6 @@ schemes:
 """
 
 
-def _spill(t):
-    spill = records.ColumnSpill()
-    for i in range(0, t.size, 777):
-        spill.write(t[i:i + 777])
-    return spill
-
-
 @pytest.mark.parametrize("period", [0.02, 0.003])
 def test_nearest_samples_found_in_pieces_is_the_result(period, monkeypatch):
     """NearestSamples.found, called after every block, gives result()'s indices and times end to
@@ -38,7 +32,7 @@ def test_nearest_samples_found_in_pieces_is_the_result(period, monkeypatch):
     monkeypatch.setattr(records, "SPILL_BLOCK", 1000)
     rng = np.random.default_rng(3)
     t = 0.005 * np.arange(9876) + 4e-4 * rng.standard_normal(9876)
-    with _spill(t) as spill:
+    with spilled(t, 777) as spill:
         whole = records.NearestSamples(spill.first, spill.last, period, 0.0025, first=1)
         parts = records.NearestSamples(spill.first, spill.last, period, 0.0025, first=1)
         got = []
@@ -76,7 +70,7 @@ def test_instants_in_blocks_equal_the_whole_selection(monkeypatch):
     keep, tk = select_instants(1, t, 0.02, 0.05, False)
     step = float(np.median(np.diff(t)))
     origin = records.grid_origin(t, step)
-    with _spill(t) as spill:
+    with spilled(t, 777) as spill:
         parts = list(instants_spilled_blocks(1, spill, step, origin, 0.02, False))
     assert len(parts) > 5
     assert np.array_equal(np.concatenate([p[0] for p in parts]), keep)

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from clean_records import spilled
 from platcal.cli import main
 from platcal.errors import InputError
 from platcal.mapping import RecordMapping
@@ -243,13 +244,6 @@ def test_pass_median_radix_when_values_are_many_distinct(monkeypatch):
     assert passes >= 3
 
 
-def _spill(t):
-    spill = records.ColumnSpill()
-    for i in range(0, t.size, 1001):
-        spill.write(t[i:i + 1001])
-    return spill
-
-
 @pytest.mark.parametrize("origin", [0.0, 36512.25])
 def test_spilled_times_equal_the_whole_checks(origin, monkeypatch):
     """check_times, grid_origin, the median step of the shifted t and nearest_samples over a
@@ -259,7 +253,7 @@ def test_spilled_times_equal_the_whole_checks(origin, monkeypatch):
     rng = np.random.default_rng(7)
     t = origin + 0.005 * np.arange(12345) + 2e-4 * rng.standard_normal(12345)
     args = (0.005, 0.05, "--data column t", "a step of 0.005 s")
-    with _spill(t) as spill:
+    with spilled(t, 1001) as spill:
         med = records.spilled_times(spill, *args)
         assert med == records.check_times(t, *args)
         o = records.spilled_grid_origin(spill, med)
@@ -288,6 +282,6 @@ def test_spilled_times_refuse_as_the_whole_check(bad, message, monkeypatch):
     args = (0.005, 0.05, "--data column t", "a step of 0.005 s")
     with pytest.raises(InputError, match=message) as whole:
         records.check_times(t, *args)
-    with _spill(t) as spill, pytest.raises(InputError, match=message) as streamed:
+    with spilled(t, 1001) as spill, pytest.raises(InputError, match=message) as streamed:
         records.spilled_times(spill, *args)
     assert str(streamed.value) == str(whole.value)

@@ -33,6 +33,7 @@ import importlib.machinery
 import importlib.util
 import json
 import os
+import re
 import sys
 import tempfile
 import time
@@ -264,6 +265,8 @@ def build(kset: KernelSet, folder: Path | None = None) -> tuple[Path, float]:
             tmp(checks_path(kset, folder).name).write_text(json.dumps(checks))
             os.replace(built, tmp(target.name))
     for old in folder.glob(f"_platcal_aot_{kset.name}_*"):
-        if old.name.split(".")[0] != name:
+        stem = old.name.split(".")[0]
+        # an older build of this set only: its name and another key (a set named "<name>_<more>" is another set's)
+        if stem != name and re.fullmatch(r"[0-9a-f]{20}", stem[len(f"_platcal_aot_{kset.name}_"):]):
             old.unlink(missing_ok=True)
     return target, time.perf_counter() - t0

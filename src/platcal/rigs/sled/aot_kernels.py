@@ -47,7 +47,7 @@ KERNELS = KernelSet("sled", (
 ))
 """The kernels of the sled's identify, each run one seed at a time (a batch of one)."""
 
-DYNAMICS = KernelSet("sledsystem", (  # not "sled_...": platcal.aot.build clears "sled_*" as older builds of KERNELS
+DYNAMICS = KernelSet("sled_system", (
     # kind, f, w, wc (M,3), F (M,n,n)
     AotKernel("fill_all", f"{__package__}.errmodel:_fill_all", f"none(i8, {_F2}, {_F2}, {_F2}, {_F3})"),
 ))

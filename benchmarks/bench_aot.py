@@ -74,6 +74,13 @@ def has_kernels_command(rig: str, env: dict) -> bool:
     return subprocess.run([sys.executable, "-c", probe], env=env).returncode == 0
 
 
+def source_key(env: dict) -> str:
+    """:func:`platcal.aot.source_key` as the children see it (their sources, their environment)."""
+    probe = "from platcal import aot; print(aot.source_key())"
+    return subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True,
+                          check=True).stdout.strip()
+
+
 def bench_rig(rig: str, minutes_list: list[float], fmt: str, folder: Path, env: dict) -> list[dict]:
     """The rows of one rig: its two builds, then AOT and JIT identifies per record length."""
     base = [sys.executable, "-m", "platcal.cli"]
@@ -81,6 +88,7 @@ def bench_rig(rig: str, minutes_list: list[float], fmt: str, folder: Path, env: 
     jit = dict(env, PLATCAL_AOT="0")
     default = ROOT / "config" / f"{rig}.yaml"
     aot = has_kernels_command(rig, env)
+    key = source_key(env)
     if aot:
         cache = dict(env, NUMBA_CACHE_DIR=str(folder / f"numba_cache_{rig}"))
         for label in ("build, empty numba cache", "build, numba cache filled"):
@@ -109,6 +117,9 @@ def bench_rig(rig: str, minutes_list: list[float], fmt: str, folder: Path, env: 
         if warm:  # the JIT's kernels into numba's cache, so that its rows measure identify, not the compiler
             run(ident + ["--out", str(folder / f"warm_{rig}")], jit)
             warm = False
+        if aot and source_key(env) != key:
+            # an AOT row measured on a stale build would be the JIT's fallback, silently
+            raise SystemExit(f"{rig}: the platcal sources changed since the build ({key}); run again on a quiet tree")
         outs = {}
         for kernels, e in (("aot", env), ("jit", jit)) if aot else (("jit", jit),):
             outs[kernels] = folder / f"id_{rig}_{minutes:g}_{kernels}"

@@ -527,11 +527,17 @@ def end_to_end(z: list | None, t: list, B: int) -> tuple[np.ndarray, np.ndarray,
     return offs, t_all, np.ascontiguousarray(np.concatenate([np.asarray(zk, float) for zk in z], axis=1))
 
 
+def position_durations(counts, lasts, period_s: float) -> list[float]:
+    """Each position's length on the history's clock, s: its last filter instant plus one filter
+    period (0 for a position without instants)."""
+    return [float(last) + period_s if c else 0.0 for c, last in zip(counts, lasts)]
+
+
 def pass_history_index(t: list, slots: list, total: int, p: int, period_s: float, keep: bool,
                        hist_t: np.ndarray) -> np.ndarray:
     """The history slot of every instant of pass ``p`` end to end; fills ``hist_t`` (s from the
     start of the first pass; a position lasts to its last instant plus one filter period)."""
-    durations = [float(tk[-1]) + period_s if len(tk) else 0.0 for tk in t]
+    durations = position_durations([len(tk) for tk in t], [tk[-1] if len(tk) else 0.0 for tk in t], period_s)
     out, offset = [], 0.0
     for k, tk in enumerate(t):
         tk = np.asarray(tk, float)
@@ -840,7 +846,7 @@ def drive_stream(run_block, x: np.ndarray, P: np.ndarray, z_source, instants: St
     counts = [int(c) for c in instants.counts]
     offs = np.zeros(len(counts) + 1, dtype=np.int64)
     offs[1:] = np.cumsum(counts)
-    durations = [float(last) + settings.period_s if c else 0.0 for c, last in zip(counts, instants.last)]
+    durations = position_durations(counts, instants.last, settings.period_s)
     starts, offset = [], 0.0
     for d in durations:  # each position's start on the history's clock, summed as pass_history_index does
         starts.append(offset)
@@ -860,11 +866,10 @@ def drive_stream(run_block, x: np.ndarray, P: np.ndarray, z_source, instants: St
             zb = np.ascontiguousarray(zb, float)
             tb = np.ascontiguousarray(tb, float)
             local, seg = block_segments(offs, i0, i1, t_before, carry)
-            hidx = np.full(i1 - i0, -1, dtype=np.int64)
+            hidx, _ = _history_index(tb, every, 0)
             ht = np.zeros(0)
             if every is not None:
-                sel = np.abs(tb - np.round(tb / every) * every) < 1e-9  # as _history_index
-                hidx[sel] = np.arange(int(sel.sum()))
+                sel = hidx >= 0
                 # each instant's position's start on the history's clock, as pass_history_index adds it
                 base = np.repeat([p * sum(durations) + starts[k] for k in seg[0]], np.diff(local))
                 ht = base[sel] + tb[sel]

@@ -174,7 +174,10 @@ def time_child(dwell: float, seed: int) -> None:
 
 
 def _child(src: str, args: list[str]) -> str:
-    env = dict(os.environ, PYTHONPATH=src, NUMBA_NUM_THREADS="2")
+    # one BLAS thread, as the study's cell jobs run (workflow/scripts): the ML's solves otherwise
+    # count the busy-waiting of OpenBLAS's threads in the process's CPU time
+    env = dict(os.environ, PYTHONPATH=src, NUMBA_NUM_THREADS="2", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               MKL_NUM_THREADS="1")
     return subprocess.run([sys.executable, __file__, *args], env=env, check=True, capture_output=True,
                           text=True, cwd=HERE).stdout.strip().splitlines()[-1]
 

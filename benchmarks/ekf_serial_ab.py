@@ -10,13 +10,16 @@ time) of
 - ``ekf B=1`` and ``ekf B=8``: ``run_ekf`` (1 pass, history every 1 s) on the Table 1 scheme,
   6 x ``--dwell`` s, simulated with seeds ``[2017, i]`` (:func:`bench_filter.table1_case`);
 - ``covonly B=8``: the covariance-only run of the GA design job (``linearise_about`` the truth,
-  no history, ``update_x=False``) over 8 random 6-position schemes (seed ``--seed``).
+  no history, ``update_x=False``) over 8 random 6-position schemes (seed ``--seed``);
+- ``ml B=8``: the batch ML of the study's comparison (``run_ml``, ``coarse=16``,
+  ``final='one-step'``) on the ``ekf B=8`` record.
 
 ``--check`` instead runs, in one process per tree, every path of the kernel on short records and
 compares every output with ``np.array_equal``: x, P, history, pass_x, pass_P, innovations, NIS and
 failed updates of the EKF (1 and 2 passes, with a warm-up, with DOO, updating at the reset), the
-IEKF (always and with ``until_s``/``ratio``), the covariance-only run (also with DOO) and a
-streamed record, at B = 1 and 3, on 1 and 2 numba threads, for several seeds.
+IEKF (always and with ``until_s``/``ratio``), the covariance-only run (also with DOO), the batch
+ML (converged, and coarse with one step) and a streamed record, at B = 1 and 3, on 1 and 2 numba
+threads, for several seeds.
 
     python benchmarks/ekf_serial_ab.py [--before main] [--rounds 3] [--dwell 60]
     python benchmarks/ekf_serial_ab.py --check [--before main] [--dwell 4]
@@ -55,6 +58,7 @@ def _cases(dwell: float, seed: int):
     from bench_filter import table1_case
     from platcal.rigs.centrifuge.catalogue import full_truth
     from platcal.rigs.centrifuge.ekf import EstimatorInput, run_ekf, run_iekf
+    from platcal.rigs.centrifuge.ml import run_ml
 
     scheme, params, settings, z, t = table1_case(3, dwell)
     truth = full_truth()
@@ -74,6 +78,8 @@ def _cases(dwell: float, seed: int):
                 (pre + "iekf", threads, lambda d=data: run_iekf(d, inn, iterations=3, tol=0.01)),
                 (pre + "iekf_until", threads, lambda d=data: run_iekf(d, inn, iterations=2, until_s=0.3 * dwell,
                                                                       ratio=0.01)),
+                (pre + "ml", threads, lambda d=data: run_ml(d, settings)),
+                (pre + "ml_coarse", threads, lambda d=data: run_ml(d, settings, coarse=4, final="one-step")),
             ]
         cov = _random_schemes(B, 6, seed)
         lin = truth[None] * (1.0 + 0.1 * np.random.default_rng(seed).standard_normal((B, truth.size)))
@@ -139,6 +145,7 @@ def time_child(dwell: float, seed: int) -> None:
     from bench_filter import table1_case
     from platcal.rigs.centrifuge.catalogue import full_truth
     from platcal.rigs.centrifuge.ekf import EstimatorInput, run_ekf
+    from platcal.rigs.centrifuge.ml import run_ml
 
     numba.set_num_threads(1)
     B = 8
@@ -151,6 +158,8 @@ def time_child(dwell: float, seed: int) -> None:
         "ekf B=8": (B, lambda: run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), settings)),
         "covonly B=8": (B, lambda: run_ekf(EstimatorInput([np.zeros((B, 0, 3))] * 6, t, cov, params[:1]),
                                            cov_settings, linearise_about=lin)),
+        "ml B=8": (B, lambda: run_ml(EstimatorInput(z, t, scheme.angles_deg, params), settings, coarse=16,
+                                     final="one-step")),
     }
     res = {}
     for name, (nb, run) in runs.items():
@@ -165,7 +174,10 @@ def time_child(dwell: float, seed: int) -> None:
 
 
 def _child(src: str, args: list[str]) -> str:
-    env = dict(os.environ, PYTHONPATH=src, NUMBA_NUM_THREADS="2")
+    # one BLAS thread, as the study's cell jobs run (workflow/scripts): the ML's solves otherwise
+    # count the busy-waiting of OpenBLAS's threads in the process's CPU time
+    env = dict(os.environ, PYTHONPATH=src, NUMBA_NUM_THREADS="2", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               MKL_NUM_THREADS="1")
     return subprocess.run([sys.executable, __file__, *args], env=env, check=True, capture_output=True,
                           text=True, cwd=HERE).stdout.strip().splitlines()[-1]
 

@@ -747,10 +747,10 @@ def run_ekf(
         history rows of each block, in order (every pass), instead of keeping them in the
         Estimate (whose history is then empty): a 6 h history is 17 MB (issue 22 item 3).
     lanes : run the state-major kernel (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in
-        SIMD lanes of 4; the same filter, x and P equal to round-off, about 25 % less CPU per
-        replicate at B >= 8, 2.2x more at B = 1; issue 22) instead of the default kernel
-        (:func:`_run_pass`: one replicate per thread). Opt-in: the default keeps the study's and
-        ``identify``'s numbers as they were and a lone record fast.
+        SIMD lanes of 4; the same numbers bit for bit, about 25 % less CPU per replicate at
+        B >= 8, 2.2x more at B = 1; issue 22) instead of the default kernel (:func:`_run_pass`:
+        one replicate per thread). Opt-in: a lone record is fast on the default kernel, which
+        is the one compiled ahead of time, and its own cold compile is shorter.
 
     Returns
     -------

@@ -190,6 +190,7 @@ def _replicate(theta, z, t, offs, est_idx, coef_fixed, params, r_var, q_rate, gs
     IKH = np.empty((3, 3))
     fr3 = np.empty((3, 3))
     fr_now = np.empty(3)
+    fr_mid = np.empty(3)
     out = np.empty(3)
     hm = np.zeros((3, MEAS_COLS.shape[1]))
     ha = np.empty((3, 3))
@@ -212,16 +213,21 @@ def _replicate(theta, z, t, offs, est_idx, coef_fixed, params, r_var, q_rate, gs
             for j in range(nl + 1):
                 X[i, j] = 0.0
         t_prev = 0.0
+        specific_force_into(t_prev, pb, fr_now)
         for m in range(o0, o1):
             tm = t[m]
             h = tm - t_prev
             if h > 0.0:
-                # the end-of-step force is the one measured at tm
-                specific_force_into(t_prev, pb, fr3[0])
-                specific_force_into(t_prev + 0.5 * h, pb, fr3[1])
-                specific_force_into(tm, pb, fr3[2])
+                # the start-of-step force is fr_now, the one at t_prev (the previous instant or the
+                # reset), computed once; the end-of-step force is the one measured at tm; scratch
+                # vectors, not row views of fr3 (reference counts, issue 22)
+                specific_force_into(t_prev + 0.5 * h, pb, fr_mid)
                 for r in range(3):
-                    fr_now[r] = fr3[2, r]
+                    fr3[0, r] = fr_now[r]
+                    fr3[1, r] = fr_mid[r]
+                specific_force_into(tm, pb, fr_now)
+                for r in range(3):
+                    fr3[2, r] = fr_now[r]
                 rk4_jac_sc(ang, coef, fr3, h, pb, ang_new, pa, pgyro, scratch)
                 # chain the sensitivities: Phi_g <- pa Phi_g + phi_g, Phi_a <- pa Phi_a
                 for q in range(ng):
@@ -328,9 +334,14 @@ def _replicate(theta, z, t, offs, est_idx, coef_fixed, params, r_var, q_rate, gs
                     continue
                 gi = loc[i]
                 gv[gi] += a0 * W[0, nl] + a1 * W[1, nl] + a2 * W[2, nl]
-                Ni = N[gi]
-                for j in range(i + 1):
-                    Ni[loc[j]] += a0 * W[0, j] + a1 * W[1, j] + a2 * W[2, j]
+                # the coefficient columns (loc[j] = j) as one contiguous run, which LLVM
+                # vectorises, then the position's 3 angle columns through loc; 2-D indexing, not a
+                # row view (a view per row costs two atomic reference counts; issue 22); each
+                # entry the same operations, so the same numbers
+                for j in range(min(i + 1, nc)):
+                    N[gi, j] += a0 * W[0, j] + a1 * W[1, j] + a2 * W[2, j]
+                for j in range(nc, i + 1):
+                    N[gi, loc[j]] += a0 * W[0, j] + a1 * W[1, j] + a2 * W[2, j]
     for i in range(n):
         for j in range(i):
             N[j, i] = N[i, j]

@@ -9,11 +9,13 @@ import pytest
 
 from platcal.cli import main
 from platcal.errors import InputError
+from platcal.io import read_yaml
 from platcal.rig import get_rig
 from platcal.rigs.multiposition.config import load_config
 from platcal.rigs.multiposition.filter import simulate
 from platcal.rigs.multiposition.record import to_frame
-from platcal.study.montecarlo import replicate_seed, run_cell
+from platcal.rigs.multiposition.study import warm_batches
+from platcal.study.montecarlo import chunks, replicate_seed, run_cell
 
 SHORT = """rig: multiposition
 seed: 7
@@ -26,8 +28,6 @@ study: {seeds: 8, schemes: [TET4, GA], sigma_a_ug: [5, 20]}
 
 @pytest.fixture(scope="module")
 def mc():
-    from platcal.io import read_yaml
-
     rig = get_rig("multiposition")
     return rig, rig.montecarlo.check(read_yaml(SHORT))
 
@@ -173,3 +173,20 @@ def test_report_summary_from_the_tidy_tables(mc):
     assert "not checked" in st.item4_lines(pd.DataFrame([row]), ("S8", 5.0, None))[0]
     assert "not checked" in st.item4_lines(pd.DataFrame([row]), ("S8", 10.0, "ekf1"))[0]
     assert st.spec_cell(load_config(cfg)) == ("S8", 5.0, "ekf1")
+
+
+@pytest.mark.parametrize("seeds, batch", [(20, 20), (20, 8), (21, 10), (1, 20), (3, 1), (2, 2)])
+def test_warm_up_covers_every_batch_size_a_cell_runs(seeds, batch):
+    """The kernels job warms the lanes kernel (any batch above one: one specialisation) when a cell
+    runs a batch, and the one-replicate reference kernel only when a cell runs one replicate
+    (issue 22 item 4): a cell never compiles what the warm-up missed, and the default study
+    (20 seeds, batch 20) does not compile the reference kernel no job calls."""
+    warmed = warm_batches({"seeds": seeds, "batch": batch})
+    runs = {len(c) for c in chunks(seeds, batch)}
+    assert (1 in warmed) == (1 in runs)
+    assert (2 in warmed) == any(n > 1 for n in runs)
+
+
+def test_default_study_warms_no_one_replicate_kernel():
+    study = get_rig("multiposition").montecarlo.check(read_yaml(open("config/multiposition.yaml").read()))["study"]
+    assert warm_batches(study) == [2]

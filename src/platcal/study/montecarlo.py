@@ -63,6 +63,12 @@ def chunks(n: int, size: int) -> list[list[int]]:
     return [list(range(a, min(a + size, n))) for a in range(0, n, size)]
 
 
+def chunk_sizes(n: int, size: int) -> set[int]:
+    """The distinct lengths of :func:`chunks` ``(n, size)``: the batch sizes a cell of ``n``
+    replicates runs, so a warm-up compiles the one-replicate kernels only when a cell needs them."""
+    return {len(c) for c in chunks(n, size)}
+
+
 def tidy_tables(batch, case: str, level: float, estimator: str, replicates) -> tuple[Table, Table]:
     """The tidy ``coef`` and ``runs`` rows of a :class:`~platcal.rig.ReplicateBatch` as numpy
     columns (:class:`platcal.lighttable.Table`): a cell job never imports pandas."""

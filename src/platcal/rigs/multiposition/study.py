@@ -18,7 +18,7 @@ from scipy import stats as sps
 
 from ...io import atomic_write_text
 from ...study.claims import ledger_section, read_ledger
-from ...study.montecarlo import package_code_hash
+from ...study.montecarlo import chunk_sizes, package_code_hash
 from ...study.plots import finish, nees_histogram, plt, save as save_figure
 from ...study.stats import CELL, select_cell, with_timing
 from ...study.tables import frame_markdown, write_table
@@ -227,17 +227,29 @@ def _rank_reading(rf: pd.DataFrame) -> str:
     return text
 
 
+def warm_batches(study: dict) -> list[int]:
+    """The replicates per kernel call to warm up (docs/multiposition-1g.md §9): 2 when a cell runs
+    a batch (the lanes kernel, :mod:`.filter_lanes`; one specialisation for every batch size), 1
+    when a cell runs one replicate (the reference kernel, :func:`.filter._ekf_pass_one`). ``study``:
+    the checked config's ``study`` section (``seeds``, ``batch``)."""
+    sizes = chunk_sizes(int(study["seeds"]), int(study["batch"]))
+    return [b for b, needed in ((2, max(sizes) > 1), (1, 1 in sizes)) if needed]
+
+
 def warm_kernels(cfg) -> None:
     """Compile (or load) every numba kernel of the study once, on a tiny run, so that the jobs
     that follow load them from numba's cache instead of compiling them side by side: each
-    estimator on a batch of two (the replicates in lanes, :mod:`.filter_lanes`) and on one
-    replicate (the reference kernel, :func:`.filter._ekf_pass`)."""
+    estimator at the batch sizes the cells run (:func:`warm_batches`). The one-replicate
+    reference kernel (an identify's) is warmed only when a cell runs one replicate: with the
+    default 20 seeds in one batch no study job calls it (issue 22 item 4; the campaign's checks
+    call the rig in batches of 10 replicates)."""
     s = cfg.scheme("TET4")
     t, _, z = simulate(cfg, s, [0, 1])
+    batches = warm_batches(cfg.raw["study"])
     for name in cfg.raw["study"]["estimators"]:
         choice = variant_choice(cfg, name, field=f"study.estimators.{name}")
-        for batch in (z, z[:1]):
-            estimate(cfg, choice, s.angles_deg, t[:5], batch[:, :, :5])
+        for b in batches:
+            estimate(cfg, choice, s.angles_deg, t[:5], z[:b, :, :5])
     covariance_only(cfg, s.angles_deg, 1.0)
     covariance_only(cfg, s.angles_deg, 1.0, sequential=False)
 

@@ -176,9 +176,11 @@ def atomic_to_csv(df, path: str | os.PathLike, **kw) -> None:
         df.to_csv(tmp, index=kw.pop("index", False), **kw)
 
 
-CSV_BLOCK_ROWS = 10_000
-"""Rows converted to Python values and written at a time by :func:`write_csv`: a long table (a 6 h
-history) is not held as Python floats and text beside its arrays."""
+CSV_BLOCK_VALUES = 100_000
+"""Values converted to Python and written at a time by :func:`write_csv` (a block of rows of the
+table's width, about 3 MB of Python floats): a long table (a 6 h history) is not held as Python
+floats and text beside its arrays. Blocks of 10 000 rows held 31 MB for the centrifuge's 97-column
+history (issue 22 item 3)."""
 
 
 def write_csv(path: str | os.PathLike, columns: dict, index: tuple[str, list] | None = None,
@@ -205,9 +207,9 @@ def write_csv_blocks(path: str | os.PathLike, names: list[str], blocks, float_fo
         writer.writerow(names)
         for cols in blocks:
             rows = len(cols[0]) if cols else 0
-            for a in range(0, rows, CSV_BLOCK_ROWS):
-                block = [c[a:a + CSV_BLOCK_ROWS].tolist() if isinstance(c, np.ndarray)
-                         else list(c[a:a + CSV_BLOCK_ROWS]) for c in cols]
+            step = max(1, CSV_BLOCK_VALUES // max(1, len(cols)))
+            for a in range(0, rows, step):
+                block = [c[a:a + step].tolist() if isinstance(c, np.ndarray) else list(c[a:a + step]) for c in cols]
                 writer.writerows(["" if v is None or (isinstance(v, float) and math.isnan(v))
                                   else float_format % v if float_format and isinstance(v, float) else v for v in row]
                                  for row in zip(*block))

@@ -2,11 +2,10 @@
 item 3): the scan reads the record a block of rows at a time and spills each position's instants,
 and the filter's passes read them back block by block."""
 
-import tracemalloc
-
 from platcal import records
 from platcal.cli import main
 from platcal.rigs.multiposition import commands, record
+from traced_peak import traced_peak
 
 CONFIG = """rig: multiposition
 filter: {passes: 2}
@@ -18,7 +17,7 @@ BLOCK = 100
 
 
 def _peak_identify(tmp_path, dwell_s: float) -> int:
-    """tracemalloc's peak (bytes) of a streamed identify of a record of 3 positions of ``dwell_s``
+    """The traced peak (bytes) of a streamed identify of a record of 3 positions of ``dwell_s``
     s (the kernels compiled or loaded by a first, untraced run)."""
     cfg = tmp_path / f"c{dwell_s}.yaml"
     cfg.write_text(CONFIG.replace("DWELL", str(dwell_s)))
@@ -26,13 +25,7 @@ def _peak_identify(tmp_path, dwell_s: float) -> int:
     assert main(["simulate", "--config", str(cfg), "--scheme", "odd", "--out", str(rec)]) == 0
     args = ["identify", "--config", str(cfg), "--scheme", "odd", "--data", str(rec), "--chunk-rows", "200",
             "--out", str(tmp_path / f"o{dwell_s}")]
-    assert main(args) == 0
-    tracemalloc.start()
-    try:
-        assert main(args) == 0
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
+    return traced_peak(args)
 
 
 def test_streamed_identify_does_not_grow_with_the_record(tmp_path, monkeypatch):

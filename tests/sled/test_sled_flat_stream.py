@@ -2,11 +2,10 @@
 three passes read the record a block of rows at a time, and what the filters hold is the run up to
 the stop, whatever the rest after it."""
 
-import tracemalloc
-
 from platcal import records
 from platcal.cli import main
 from platcal.rigs.sled import stream
+from traced_peak import traced_peak
 
 CONFIG = "rig: sled\ntrajectory: {static_after_s: AFTER}\n"
 BLOCK = 500
@@ -14,7 +13,7 @@ BLOCK = 500
 
 
 def _peak_identify(tmp_path, after_s: float) -> int:
-    """tracemalloc's peak (bytes) of a streamed identify of a record with ``after_s`` s of rest
+    """The traced peak (bytes) of a streamed identify of a record with ``after_s`` s of rest
     after the stop (the kernels compiled or loaded by a first, untraced run)."""
     cfg = tmp_path / f"c{after_s}.yaml"
     cfg.write_text(CONFIG.replace("AFTER", str(after_s)))
@@ -22,13 +21,7 @@ def _peak_identify(tmp_path, after_s: float) -> int:
     assert main(["simulate", "--config", str(cfg), "--out", str(rec)]) == 0
     args = ["identify", "--config", str(cfg), "--data", str(rec), "--chunk-rows", "1000",
             "--out", str(tmp_path / f"o{after_s}")]
-    assert main(args) == 0
-    tracemalloc.start()
-    try:
-        assert main(args) == 0
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
+    return traced_peak(args)
 
 
 def test_streamed_identify_does_not_grow_with_the_record(tmp_path, monkeypatch):

@@ -269,6 +269,7 @@ def _csv_chunks(path: Path, skip: int, chunk_rows: int | None, numbers) -> Itera
         for cols in _rechunked(_csv_batches(path, skip, types), chunk_rows):
             yield cols
             done += 1
+            del cols  # not held while the next chunk is read
     except pa.ArrowInvalid as exc:
         if "conversion error" not in str(exc):
             raise
@@ -277,6 +278,7 @@ def _csv_chunks(path: Path, skip: int, chunk_rows: int | None, numbers) -> Itera
             if i >= done:
                 yield cols
                 done += 1
+            del cols
     if not done:  # a header without rows: the columns, for the checks that name a missing one
         yield {n: np.zeros(0) for n in names}
 
@@ -337,11 +339,11 @@ def iter_frames(path: str | os.PathLike, field: str = "--data", what: str = "a t
                 # ParquetFile.read, not pq.read_table: the latter loads pyarrow.dataset, which loads pandas
                 yield Table(_numpy_columns(pf.read(columns=names)))
             else:
-                for batch in pf.iter_batches(batch_size=chunk_rows, columns=names):
-                    yield Table(_numpy_columns(batch))
+                # map, not a loop: no reference to a chunk is kept while the next one is read
+                yield from map(lambda batch: Table(_numpy_columns(batch)),
+                               pf.iter_batches(batch_size=chunk_rows, columns=names))
         else:
-            for cols in _csv_chunks(path, skip, chunk_rows, None if numbers is None else set(numbers)):
-                yield Table(cols)
+            yield from map(Table, _csv_chunks(path, skip, chunk_rows, None if numbers is None else set(numbers)))
     except (OSError, ValueError, pa.ArrowException) as exc:
         raise InputError(field, f"cannot read {path} as {what}: {exc}") from None
 
@@ -359,8 +361,9 @@ def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     """:func:`read_table` in chunks of at most ``chunk_rows`` rows (None: one chunk): every chunk
     is mapped, converted and checked as the whole file is (a row named by its line in the file;
     ISO times and geodetic positions count from the log's first sample, not the chunk's), so
-    memory does not grow with the record. ``min_rows`` is checked when the last chunk is read
-    (before it is yielded, so a record that is too short yields nothing). Checks that span rows
+    memory does not grow with the record. ``min_rows`` is checked before a chunk is yielded (a
+    record that is too short yields nothing): a chunk is held back only while the rows read are
+    fewer, so no chunk is held while the next is read (issue 22 item 3). Checks that span rows
     (time increasing, gaps) are the rig's, on the chunks it is handed (:class:`TimeCheck`).
     The chunks are :class:`platcal.lighttable.Table` (numpy columns; pandas is not imported).
     ``unused``: ``optional`` columns the command does not use (a record's truth columns for an
@@ -374,7 +377,7 @@ def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
     carry: dict = {"row0": skip}
     chunks = iter_frames(path, field, what, chunk_rows, skip, numbers=_file_numbers(required + optional, text, mapping),
                          unread=unread)
-    pending = None
+    held: list[Table] = []   # the chunks read while they are fewer than min_rows rows
     rows = 0
     for df in chunks:
         if mapping is not None:
@@ -384,12 +387,13 @@ def iter_table(path: str | os.PathLike, required: tuple[str, ...], optional: tup
         df = _checked(df, required, optional, text, field, what, carry["row0"])
         carry["row0"] += len(df)
         rows += len(df)
-        if pending is not None:
-            yield pending
-        pending = df
+        held.append(df)
+        del df  # the caller's chunk only: not one more held while the next is read
+        if rows >= min_rows:
+            while held:
+                yield held.pop(0)
     if rows < min_rows:
         raise InputError(field, f"the record has {rows or 'no'} rows; {what} needs at least {min_rows}")
-    yield pending
 
 
 def position_blocks(chunks, check: Callable[[Table], None] | None = None) -> Iterator[tuple]:

@@ -193,7 +193,11 @@ def identify_streamed(cfg, choice, path, scheme, mapping, max_gap_s: float, rows
     def each(k, cmd, last, tk, a):
         plaus.add(a, nominal_of(k, cmd, last)(tk)[:, :3] * UG)
 
-    with scan_record(read_chunks(path, mapping, rows_at_once), path, scheme, cfg.ts, max_gap_s, each=each) as scan:
+    # read FILTER_BLOCK rows at a time (fewer with a smaller --chunk-rows, which decides whether the
+    # record streams): the scan spills and sums block by block, and chunks of the default 100 000 rows
+    # (11 MB each) made the peak grow with the record's chunks (issue 22 item 3)
+    reading = min(rows_at_once, FILTER_BLOCK)
+    with scan_record(read_chunks(path, mapping, reading), path, scheme, cfg.ts, max_gap_s, each=each) as scan:
         refuse_recognised_moments(plaus, FIT_CHANNELS[:3], "g", "Ax, Ay, Az must be the x, y, z accelerometers in g "
                                   "(a static platform reads |f| = 1 g)")
         held: dict = {}

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from platcal.rigs.lowprec_centrifuge.config import load_config
-from platcal.rigs.lowprec_centrifuge.proposed import (arm_offset, boundary_integrals, cumtrap, find_windows,
-                                                      force_integrand, force_terms, unwrap_heading, window_data,
-                                                      window_means)
+from platcal.rigs.lowprec_centrifuge.proposed import (MIN_STATIC_TAIL_S, STATIC_WINDOW_S, arm_offset,
+                                                      boundary_integrals, cumtrap, find_windows, force_integrand,
+                                                      force_terms, revolution_crossings, segments_of,
+                                                      unwrap_heading, window_data, window_means)
 from platcal.rigs.lowprec_centrifuge.truth import TruthCache, simulate_batch
 from platcal.study.montecarlo import replicate_seed
 
@@ -105,3 +106,40 @@ def test_block_buffers_reused_across_blocks_change_no_replicate():
         for f in ("err", "v_ind", "p_ind", "f_meas", "psi", "final_floor"):
             assert np.array_equal(getattr(many, f)[r], getattr(one, f)[0]), (r, f)
         assert np.array_equal(many.sens, one.sens)
+
+
+def loop_find_windows(t, psi_u, schedule):
+    """:func:`find_windows` as a Python loop per window, as it was before (the oracle)."""
+    def static(a, b):
+        if b - a <= 1e-9:
+            return []
+        edges = list(np.arange(a, b - 1e-9, STATIC_WINDOW_S)) + [b]
+        if len(edges) > 2 and edges[-1] - edges[-2] < MIN_STATIC_TAIL_S:
+            del edges[-2]
+        return [(a, b, False) for a, b in zip(edges[:-1], edges[1:])]
+    out, last = [], 0
+    for ia, ib in segments_of(schedule):
+        out += static(t[last], t[ia])
+        edges = [t[ia], *revolution_crossings(t, psi_u, ia, ib).tolist()]
+        if t[ib] - edges[-1] < 0.5 * float(np.median(np.diff(t[ia:ib + 1]))):
+            edges[-1] = t[ib]
+        else:
+            edges.append(t[ib])
+        out += [(a, b, True) for a, b in zip(edges[:-1], edges[1:])]
+        last = ib
+    out += static(t[last], t[-1])
+    return [np.array(c) for c in zip(*out)]
+
+
+@pytest.mark.parametrize("run, rest", [("run1", 20), ("run2", 20.05), ("run1", 3.5)])
+def test_find_windows_is_the_per_window_loops(run, rest):
+    """The windows from one array per stretch equal the per-window loop's, values and dtypes, with a
+    tail under MIN_STATIC_TAIL_S merged (rests of 20.05 s) or kept (3.5 s)."""
+    cfg = dict(SHARED, profile={"rest_first_s": 10, "rest_between_s": rest})
+    rb = simulate_batch(load_config(cfg), "P2", run, [replicate_seed(0, "cellspeed", 10, 1)])
+    t, psi_u = rb.prof.t, np.unwrap(rb.psi[0])
+    got = find_windows(t, psi_u, rb.prof.schedule)
+    want = loop_find_windows(t, psi_u, rb.prof.schedule)
+    assert got.spinning.any() and not got.spinning.all()
+    for a, b in zip((got.ts, got.te, got.spinning), want):
+        assert a.dtype == b.dtype and np.array_equal(a, b)

@@ -78,13 +78,16 @@ def segments_of(schedule: np.ndarray, field: str = "schedule"):
     return list(zip(starts.tolist(), stops.tolist()))
 
 
-def _static_windows(a: float, b: float):
+def _static_windows(a: float, b: float) -> np.ndarray:
+    """The edges (s) of the static windows from ``a`` to ``b`` (§7): every STATIC_WINDOW_S from
+    ``a``, then ``b``, a last window shorter than MIN_STATIC_TAIL_S merged into the one before;
+    no edges if the stretch is empty."""
     if b - a <= 1e-9:
-        return []
-    edges = list(np.arange(a, b - 1e-9, STATIC_WINDOW_S)) + [b]
-    if len(edges) > 2 and edges[-1] - edges[-2] < MIN_STATIC_TAIL_S:
-        del edges[-2]
-    return list(zip(edges[:-1], edges[1:]))
+        return np.empty(0)
+    edges = np.append(np.arange(a, b - 1e-9, STATIC_WINDOW_S), b)
+    if edges.size > 2 and edges[-1] - edges[-2] < MIN_STATIC_TAIL_S:
+        edges = np.delete(edges, -2)
+    return edges
 
 
 def revolution_crossings(t: np.ndarray, psi_u: np.ndarray, ia: int, ib: int) -> np.ndarray:
@@ -105,23 +108,23 @@ def revolution_crossings(t: np.ndarray, psi_u: np.ndarray, ia: int, ib: int) -> 
 
 def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray) -> Windows:
     """The variable-period windows of one record (§7)."""
-    ts, te, spin = [], [], []
+    # each stretch's window edges as one array (thousands of windows per record: a Python
+    # loop per window was a tenth of a low-precision cell's CPU time, issue 22 item 4)
+    parts = []
     last = 0
     for ia, ib in segments_of(schedule):
-        for a, b in _static_windows(t[last], t[ia]):
-            ts.append(a), te.append(b), spin.append(False)
-        c = revolution_crossings(t, psi_u, ia, ib)
-        edges = [t[ia], *c.tolist()]
+        parts.append((_static_windows(t[last], t[ia]), False))
+        edges = np.append(t[ia], revolution_crossings(t, psi_u, ia, ib))
         if t[ib] - edges[-1] < 0.5 * float(np.median(np.diff(t[ia:ib + 1]))):  # half a sample (jitter-proof)
             edges[-1] = t[ib]
         else:
-            edges.append(t[ib])
-        for a, b in zip(edges[:-1], edges[1:]):
-            ts.append(a), te.append(b), spin.append(True)
+            edges = np.append(edges, t[ib])
+        parts.append((edges, True))
         last = ib
-    for a, b in _static_windows(t[last], t[-1]):
-        ts.append(a), te.append(b), spin.append(False)
-    return Windows(np.array(ts), np.array(te), np.array(spin))
+    parts.append((_static_windows(t[last], t[-1]), False))
+    parts = [(e, s) for e, s in parts if e.size > 1]
+    return Windows(np.concatenate([e[:-1] for e, _ in parts]), np.concatenate([e[1:] for e, _ in parts]),
+                   np.concatenate([np.full(e.size - 1, s) for e, s in parts]))
 
 
 def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:

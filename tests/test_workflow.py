@@ -150,7 +150,8 @@ def test_every_job_that_runs_an_estimator_waits_for_its_rigs_kernels_job(tmp_pat
     rules = [rule for rule, _ in jobs]
     warmed = ("centrifuge", "sled", "lowprec_centrifuge", "multiposition")
     assert sorted(re.search(r"rig=(\w+)", body)[1] for rule, body in jobs if rule == "kernels") == sorted(warmed)
-    waiting = {"centrifuge_compare_cell": "centrifuge", "centrifuge_single_run": "centrifuge", "sled_series": "sled",
+    waiting = {"centrifuge_compare_cell": "centrifuge", "centrifuge_single_run": "centrifuge",
+               "centrifuge_design_scheme": "centrifuge", "sled_series": "sled",
                "multiposition_observability": "multiposition", "multiposition_design": "multiposition",
                "multiposition_extension": "multiposition"}
     checked = 0
@@ -163,5 +164,5 @@ def test_every_job_that_runs_an_estimator_waits_for_its_rigs_kernels_job(tmp_pat
     n_mp_cov = sum(rule in ("multiposition_observability", "multiposition_design", "multiposition_extension")
                    for rule in rules)
     assert n_mp_cov >= 3
-    # comparison cells, single run, series, the multi-position covariance jobs, four rigs' Monte Carlo cells
-    assert checked == 16 + 1 + 7 + n_mp_cov + 36 + 7 + 22 + 30
+    # comparison cells, single run, GA design, series, the multi-position covariance jobs, four rigs' Monte Carlo cells
+    assert checked == 16 + 1 + 1 + 7 + n_mp_cov + 36 + 7 + 22 + 30

@@ -291,6 +291,10 @@ rule centrifuge_design_all:
 
 
 rule centrifuge_design_scheme:
+    input:
+        # the GA runs the centrifuge's EKF kernel: started before the kernels job had compiled it,
+        # it compiled the kernel a second time beside it (50 s of its 101 s in one study run)
+        rig_requires("centrifuge"),
     output:
         scheme="results/centrifuge/design/{design}.yaml",
         history="results/centrifuge/design/{design}.history.csv",

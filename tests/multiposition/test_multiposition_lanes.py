@@ -57,6 +57,17 @@ def test_lanes_bit_identical_to_the_reference_kernel(cfg, case, ext, iters):
         assert np.all(new[3] > 1.0)
 
 
+def test_one_replicate_on_the_lanes_kernel(cfg, case):
+    """``lanes=True`` runs one replicate in the batch kernel (the claims' noise-free check, which
+    then compiles no second EKF): the reference kernel's numbers bit for bit."""
+    s, t, Z = case
+    one = fl.run_filter(cfg, s.angles_deg, t, Z[:1], passes=2, threads=1)
+    lanes = fl.run_filter(cfg, s.angles_deg, t, Z[:1], passes=2, threads=1, lanes=True)
+    for a, b in zip(lanes, one):
+        assert np.array_equal(a, b)
+    assert np.max(np.abs(one[0])) > 1.0
+
+
 def test_covariance_only_lanes_bit_identical(cfg):
     """The covariance-only runs (§8, §14): one run through the positions, and one run per
     position from P0 (each position a batch entry with its own angles), against the scalar

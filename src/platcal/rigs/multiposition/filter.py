@@ -432,16 +432,17 @@ def _ekf_pass_one(x, P, phi0s, tk, zk, nk, lay, wn, wu, r_var, arw2, set_var, co
 
 
 def _ekf_pass(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x=True, iters=0, tol=0.0,
-              rec=None, threads=None, s0: int = 0):
+              rec=None, threads=None, s0: int = 0, lanes: bool = False):
     """One pass (docs/multiposition-1g.md §9) of the batch ``X`` (R, n), ``Ps`` (R, n, n) in place;
     returns ``sums`` (R, 4) (:func:`.filter_lanes.ekf_lanes`: arguments and returns as there). One
     replicate runs :func:`_ekf_pass_one` (compiled ahead of time when an identify enabled it and it
     is built, :func:`.aot_kernels.one_replicate`), a batch the lanes kernel on the JIT; the same
-    numbers bit for bit (``tests/multiposition/test_multiposition_lanes.py``). ``s0`` (one
-    replicate only): see :func:`_ekf_one`."""
+    numbers bit for bit (``tests/multiposition/test_multiposition_lanes.py``). ``lanes``: one
+    replicate in the lanes kernel too (a job whose cells compiled it then compiles no second EKF).
+    ``s0`` (one replicate only, not with ``lanes``): see :func:`_ekf_one`."""
     R = X.shape[0]
     phi0s = np.ascontiguousarray(phi0s, dtype=float).reshape(-1, tk.shape[0], 3)
-    if R > 1 or phi0s.shape[0] > 1:
+    if R > 1 or phi0s.shape[0] > 1 or lanes:
         if s0:
             raise ValueError("a pass fed in blocks (s0 = 1) runs one replicate")
         return resolve(EKF_LANES)(X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters,
@@ -466,7 +467,8 @@ def dynamic_cols(ext: int) -> np.ndarray:
 
 def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
                threads: int | None = None, sigma_a_ug: float | None = None, iterations: int = 0,
-               tolerance: float = 0.0, innovations: np.ndarray | None = None, prior_x=None, prior_P=None):
+               tolerance: float = 0.0, innovations: np.ndarray | None = None, prior_x=None, prior_P=None,
+               lanes: bool = False):
     """Identify the coefficients from outputs ``Z`` (R, K, n, 6) (ug, arcsec) at times ``t``.
 
     ``positions_deg`` (K, 3) commanded angles; ``t`` is (n,) shared by all positions, or (K, n)
@@ -479,7 +481,8 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     (R, K, n, 12), when given, receives the last pass's innovations and S diagonals
     (:func:`_ekf_one`; the fit check, issue 25). ``prior_x`` ((nc,) or (R, nc)) and ``prior_P``
     ((nc, nc) or (R, nc, nc)), engineering units: the start of the coefficient states (a previous
-    test's posterior handed on); None: 0 and diag(P0^2) (§9).
+    test's posterior handed on); None: 0 and diag(P0^2) (§9). ``lanes``: one replicate on the batch
+    kernel as well (:func:`_ekf_pass`; the same numbers).
     """
     Z = np.ascontiguousarray(Z, dtype=float)
     R, K, ns, _ = Z.shape
@@ -497,7 +500,8 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
             st.next_pass()
         # a batch in lanes, one replicate on the reference kernel: the same numbers bit for bit
         sums = _ekf_pass(X, Ps, phi0s, tk, Z, nk, st.lay, st.wn, st.wu, st.r_var, cfg.arw_rad**2,
-                         cfg.sigma_set_rad**2, st.cols, True, iterations, tolerance, innovations, threads)
+                         cfg.sigma_set_rad**2, st.cols, True, iterations, tolerance, innovations, threads,
+                         lanes=lanes)
         nis[:] = sums[:, 0] / np.maximum(sums[:, 1], 1) / 6.0
         nlin += sums[:, 2]
         nbad += sums[:, 3].astype(np.int64)
@@ -603,9 +607,9 @@ def run_filter_positions(cfg, positions_deg, source, passes: int | None = None, 
 
 
 def run_ekf(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
-            threads: int | None = None, sigma_a_ug: float | None = None):
+            threads: int | None = None, sigma_a_ug: float | None = None, lanes: bool = False):
     """The EKF of §9 (:func:`run_filter` with ``iterations = 0``): ``(coef, cov, mean NIS)``."""
-    return run_filter(cfg, positions_deg, t, Z, nk, passes, ext, threads, sigma_a_ug)[:3]
+    return run_filter(cfg, positions_deg, t, Z, nk, passes, ext, threads, sigma_a_ug, lanes=lanes)[:3]
 
 
 def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: float | None = None,

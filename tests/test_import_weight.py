@@ -231,3 +231,14 @@ def test_registering_a_rig_imports_its_commands_only_when_read():
              "print(json.dumps([before, m in sys.modules, 'platcal.rigs.multiposition.campaign' in sys.modules]))")
     out = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True, text=True)
     assert json.loads(out.stdout) == [False, True, False]
+
+
+def test_validating_a_campaign_loads_no_optimiser_or_figures():
+    """The workflow's start (workflow/rules/common.smk) validates the campaign before any job:
+    through :mod:`platcal.study.campaign_file`, without the planner's pymoo, matplotlib and
+    scipy.stats (about 1.5 s of every ``snakemake`` start)."""
+    probe = ("import json, sys\nfrom platcal.study.campaign_file import campaign_content, load_campaign\n"
+             f"load_campaign(campaign_content({str(ROOT / 'config' / 'campaign.yaml')!r}))\n"
+             f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))")
+    out = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True, text=True, cwd=ROOT)
+    assert json.loads(out.stdout) == []

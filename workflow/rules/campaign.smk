@@ -1,6 +1,6 @@
 # The default calibration campaign (issue 23): `platcal plan` on the index's `campaign:` entry
 # (config/campaign.yaml), written to results/campaign/. The rule's param is the campaign's content
-# with each rig's config read in (platcal.study.campaign.campaign_content), never a path. Planned
+# with each rig's config read in (platcal.study.campaign_file.campaign_content), never a path. Planned
 # only when every rig the campaign names is in the study.
 CAMPAIGN = campaign_param(config.get("campaign"), RIGS)
 CAMPAIGN_TARGETS = (

@@ -8,7 +8,7 @@ from snakemake.utils import validate
 
 from platcal.errors import InputError
 from platcal.rig import get_rig, rig_config
-from platcal.study.campaign import campaign_content, load_campaign
+from platcal.study.campaign_file import campaign_content, load_campaign
 from platcal.study.montecarlo import code_hash, compute_code_hash
 from platcal.study.sweep import noise_label
 

@@ -335,6 +335,18 @@ def test_noise_free_record_converges_to_the_truth():
     assert np.abs(err[27:42] / truth[27:42]).max() < 0.01  # accelerometer terms within 1 %
 
 
+def test_each_variant_its_own_kernels_cached_by_value():
+    # one filter kernel and two pass kernels per sigma-point variant (issue 22 item 4), so that a
+    # process compiles only the variant it runs; each holds its mode alone in its closure, an int
+    # numba's cache keys by value (a kernel held there pickles with a per-process id: never a hit)
+    filters = (ukf._filter_nonlinear, ukf._filter_update, ukf._filter_all)
+    assert len(filters) == len(ukf._PASS_KERNELS) == len(ukf.SIGMA_POINT_MODES)
+    for mode in range(len(ukf.SIGMA_POINT_MODES)):
+        for kernel in (filters[mode], *ukf._PASS_KERNELS[mode]):
+            assert [cell.cell_contents for cell in kernel.py_func.__closure__] == [mode]
+            assert kernel.py_func.__code__.co_freevars == ("mode",)
+
+
 def test_batch_and_threads_bit_identical(short):
     scheme, z, t, both = short
     for b in range(2):

@@ -300,12 +300,15 @@ def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, mstates, est_idx, 
     return True, nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
 
 
-@njit(cache=True)
+# inlined into each variant's kernel (_variant_filter), where ``mode`` is a constant: numba prunes
+# the branches of the other variants before typing, so their callees are not compiled
+@njit(cache=True, inline="always")
 def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
                 hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm):
     """One replicate through one position; returns (sum of NIS, number of failed steps).
-    ``mode``: 0 sigma points over the nonlinear states, 1 over all states in the update only,
-    2 over all states in the propagation and the update."""
+    ``mode`` (an index of :data:`SIGMA_POINT_MODES`): 0 sigma points over the nonlinear states,
+    1 over all states in the update only, 2 over all states in the propagation and the update.
+    Every test of ``mode`` compares it with a constant (numba prunes only such branches)."""
     full_prop = mode == 2
     full = mode >= 1
     n = xb.shape[0]
@@ -390,43 +393,71 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     return nis, bad
 
 
+def _variant_filter(mode: int):
+    """:func:`_filter_one` of one sigma-point variant (``mode``, an index of
+    :data:`SIGMA_POINT_MODES`) as a kernel of its own: ``mode`` is a constant of its closure, so
+    numba compiles only that variant's propagation and update (issue 22 item 4). The closure holds
+    the int alone, which numba's cache keys by value (a kernel in a closure would defeat the cache)."""
+
+    @njit(cache=True)
+    def filter_variant(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
+                       hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, mstates, h, w2, perm):
+        return _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
+                           hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm)
+
+    return filter_variant
+
+
+_filter_nonlinear, _filter_update, _filter_all = (_variant_filter(m) for m in range(len(SIGMA_POINT_MODES)))
+
+
 # inlined into the two pass kernels (a few lines of numba IR): otherwise a third compiled
-# function whose own LLVM module links, optimises and emits _filter_one's whole code once more
+# function whose own LLVM module links, optimises and emits the filter's whole code once more
 @njit(cache=True, inline="always")
 def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                       q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl,
                       nl_full, lin, mstates, h, w2, mode, perm):
-    """Replicate b through every position of one pass."""
+    """Replicate b through every position of one pass (``mode``: a constant of the pass kernel,
+    which picks the variant's filter kernel; numba prunes the other two)."""
+    filter_one = _filter_nonlinear if mode == 0 else _filter_update if mode == 1 else _filter_all
     for k in range(offs.shape[0] - 1):
         o0, o1 = offs[k], offs[k + 1]
         zb = z[b, o0:o1] if update_x else z[b]
-        stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx, coef_fixed[b],
-                            params[b, k], r_var, q_rate, update_x, hist_idx[o0:o1], hist_x[b],
-                            hist_s[b], pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm)
+        stats = filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx, coef_fixed[b],
+                           params[b, k], r_var, q_rate, update_x, hist_idx[o0:o1], hist_x[b],
+                           hist_s[b], pcols, pg, nl, nl_full, lin, mstates, h, w2, perm)
         nis_sum[b] += stats[0]
         n_bad[b] += int(stats[1])
 
 
-@njit(parallel=True, cache=True)
-def _run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-              update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full, lin, mstates,
-              h, w2, mode, perm):
-    """Every replicate of the batch through one pass, one replicate per ``prange`` iteration."""
-    for b in prange(x.shape[0]):
-        _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
-                          q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          nl, nl_full, lin, mstates, h, w2, mode, perm)
+def _pass_kernels(mode: int):
+    """``(threaded, serial)`` pass kernels of one sigma-point variant (``mode``, a constant of
+    their closure, as in :func:`_variant_filter`): every replicate of the batch through one pass."""
+
+    @njit(parallel=True, cache=True)
+    def run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+                 update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full, lin,
+                 mstates, h, w2, perm):
+        """One replicate per ``prange`` iteration."""
+        for b in prange(x.shape[0]):
+            _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                              q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
+                              nl, nl_full, lin, mstates, h, w2, mode, perm)
+
+    @njit(cache=True)
+    def run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+                        update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full,
+                        lin, mstates, h, w2, perm):
+        """``run_pass`` without threads (a batch of one, or one thread): the same kernel."""
+        for b in range(x.shape[0]):
+            _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
+                              q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
+                              nl, nl_full, lin, mstates, h, w2, mode, perm)
+
+    return run_pass, run_pass_serial
 
 
-@njit(cache=True)
-def _run_pass_serial(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-                     update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl, nl_full,
-                     lin, mstates, h, w2, mode, perm):
-    """:func:`_run_pass` without threads (a batch of one, or one thread): the same kernel."""
-    for b in range(x.shape[0]):
-        _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
-                          q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg,
-                          nl, nl_full, lin, mstates, h, w2, mode, perm)
+_PASS_KERNELS = tuple(_pass_kernels(m) for m in range(len(SIGMA_POINT_MODES)))
 
 
 def propagation_structure(est_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -526,11 +557,12 @@ def run_ukf(
     pcols, pg = propagation_structure(est_idx)
     nl, nl_full, lin = measurement_structure(est_idx)
     mstates = np.array([k for k, f in enumerate(est_idx) if I_K0 <= f < I_THETA + 3], dtype=np.int64)
-    kernel = _run_pass_serial if B == 1 or get_threads() == 1 else _run_pass
+    threaded, serial = _PASS_KERNELS[mode]
+    kernel = serial if B == 1 or get_threads() == 1 else threaded
 
     def run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad):
         kernel(x, P, z_all, t_all, offs, st.cmd_rad, st.reset_var, est_idx, coef_fixed, st.params, st.r_var,
                st.q_rate, True, hidx, hist_x, hist_s, nis, n_bad, pcols, pg, nl, nl_full, lin,
-               mstates, h, w2, mode, perm)
+               mstates, h, w2, perm)
 
     return drive_passes(run_pass, st.x, st.P, z, t, settings, settings.passes)

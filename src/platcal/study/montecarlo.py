@@ -30,7 +30,6 @@ import hashlib
 import importlib.util
 import json
 import os
-import re
 import time
 from functools import lru_cache
 from typing import TYPE_CHECKING
@@ -264,24 +263,15 @@ def _module_file(module: str) -> Path | None:
     return None
 
 
-RESOLVED_PATH = re.compile(r"(platcal(?:\.[A-Za-z_]\w*)+):[A-Za-z_]\w*")
-"""A ``"platcal.module:attribute"`` text: a module imported when used (:func:`platcal.rig.resolve`,
-e.g. an estimator's run function), part of the importing file's closure as an import is."""
-
-
 @lru_cache(maxsize=None)
 def _platcal_imports(path: Path, pkg: str, stamp: tuple[int, int]) -> tuple[str, ...]:
     """The dotted platcal names that the file ``path`` (a module of package ``pkg``) imports,
-    relative ones resolved, and the modules it names by path for :func:`platcal.rig.resolve`
-    (:data:`RESOLVED_PATH`). Cached per (file, mtime, size) ``stamp``: the workflow's master hashes
+    relative ones resolved. Cached per (file, mtime, size) ``stamp``: the workflow's master hashes
     every rig's import closure (one parse of each file instead of one per closure, about 0.5 s of
     its start-up), and an edited file is read again."""
     out: list[str] = []
     for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Constant) and isinstance(node.value, str):
-            if m := RESOLVED_PATH.fullmatch(node.value):
-                out.append(m.group(1))
-        elif isinstance(node, ast.ImportFrom):
+        if isinstance(node, ast.ImportFrom):
             if node.level:
                 parts = pkg.split(".")
                 target = ".".join(parts[:len(parts) - node.level + 1] + ([node.module] if node.module else []))
@@ -297,8 +287,7 @@ def _platcal_imports(path: Path, pkg: str, stamp: tuple[int, int]) -> tuple[str,
 
 def module_closure(roots) -> list[str]:
     """Dotted platcal modules imported (anywhere in the file) by ``roots``, recursively: a static
-    reading of the import statements, relative ones resolved, and of the modules named by path
-    for :func:`platcal.rig.resolve`."""
+    reading of the import statements, relative ones resolved."""
     seen: set[str] = set()
     todo = list(roots)
     while todo:

@@ -36,9 +36,6 @@ The covariance-only runs of ``observability`` and ``design`` stay the EKF's
 (:func:`platcal.rigs.centrifuge.ekf.run_ekf` with ``linearise_about``) whatever the kind.
 Add a kind: its run function, an :class:`EstimatorKind` in :data:`KINDS`, its option keys in the
 ``filter`` section of ``data/config.schema.yaml`` (and in the ``study.estimators`` entries).
-The UKF's and the ML's run functions are named by path (:func:`platcal.rig.resolve`): their
-modules (the ML's Gauss-Newton with ``scipy.linalg``) are imported when such a kind runs, not by
-every EKF cell job (issue 22 item 4).
 """
 
 from __future__ import annotations
@@ -47,23 +44,20 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from ...errors import InputError
-from ...rig import resolve
 from .ekf import Estimate, EstimatorInput, FilterSettings, run_ekf, run_iekf
+from .ml import run_ml
+from .ukf import run_ukf
 
 
 @dataclass(frozen=True)
 class EstimatorKind:
-    """One kind of estimator: its name, run function (or its ``"package.module:function"`` path),
-    the ``filter:`` keys of its keyword options (``{config key: keyword}``) and one line for people."""
+    """One kind of estimator: its name, run function, the ``filter:`` keys of its keyword options
+    (``{config key: keyword}``) and one line for people."""
 
     name: str
-    run: Callable[..., Estimate] | str
+    run: Callable[..., Estimate]
     config_keys: dict = field(default_factory=dict)
     description: str = ""
-
-    def function(self) -> Callable[..., Estimate]:
-        """The run function (its module imported now when given by path)."""
-        return resolve(self.run)
 
 
 KINDS: dict[str, EstimatorKind] = {
@@ -73,13 +67,11 @@ KINDS: dict[str, EstimatorKind] = {
     "iekf": EstimatorKind("iekf", run_iekf, {"iterations": "iterations", "iterate_tol": "tol",
                                              "iterate_s": "until_s", "iterate_ratio": "ratio"},
                           "iterated EKF: each update relinearised (Gauss-Newton)"),
-    "ukf": EstimatorKind("ukf", "platcal.rigs.centrifuge.ukf:run_ukf",
-                         {"ukf_sigma_points": "sigma_points", "ukf_alpha": "alpha", "ukf_beta": "beta",
-                          "ukf_kappa": "kappa"},
+    "ukf": EstimatorKind("ukf", run_ukf, {"ukf_sigma_points": "sigma_points", "ukf_alpha": "alpha",
+                                          "ukf_beta": "beta", "ukf_kappa": "kappa"},
                          "unscented Kalman filter, filter.passes passes"),
-    "ml": EstimatorKind("ml", "platcal.rigs.centrifuge.ml:run_ml",
-                        {"ml_max_iter": "max_iter", "ml_tol": "tol", "ml_start": "start", "ml_damping": "damping",
-                         "ml_coarse": "coarse", "ml_final": "final"},
+    "ml": EstimatorKind("ml", run_ml, {"ml_max_iter": "max_iter", "ml_tol": "tol", "ml_start": "start",
+                                       "ml_damping": "damping", "ml_coarse": "coarse", "ml_final": "final"},
                         "batch maximum likelihood (MAP): Gauss-Newton over the whole record, ARW whitened"),
 }
 """The registered kinds, in the order they are listed (``Rig.estimators``, benchmarks)."""
@@ -111,4 +103,4 @@ def options_from_filter(fcfg: dict) -> tuple:
 def run_estimator(data: EstimatorInput, settings: FilterSettings) -> Estimate:
     """Run the estimator ``settings.estimator`` with its ``settings.estimator_options``."""
     kind = check_kind(settings.estimator)
-    return kind.function()(data, settings, **dict(settings.estimator_options))
+    return kind.run(data, settings, **dict(settings.estimator_options))

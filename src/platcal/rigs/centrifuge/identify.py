@@ -425,7 +425,7 @@ def filter_streamed(study: Study, scheme: Scheme, read_chunks, scan: StreamScan,
 
     kind = check_kind(settings.estimator)
     instants = StreamedInstants(tuple(scan.counts), tuple(scan.last))
-    est = kind.function()(EstimatorInput(None, instants, scan.cmd_deg, params), settings, z_source=z_source,
+    est = kind.run(EstimatorInput(None, instants, scan.cmd_deg, params), settings, z_source=z_source,
                    on_innovations=on_innovations, on_history=on_history, **dict(settings.estimator_options))
     diagnosis = [text for _, text in gross_errors_moments(scan.moments, FIT_CHANNELS)]
     clock = clock_text(study, scheme, scan.jitter_s)

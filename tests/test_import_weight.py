@@ -204,11 +204,11 @@ with tempfile.TemporaryDirectory() as d:
 print(json.dumps(sorted(m for m in HEAVY_NAMES if m in sys.modules)))
 """
 CELL_HEAVY = HEAVY + ("pandas", "pyarrow.compute", "scipy.special", "scipy.linalg", "scipy.interpolate", "scipy.optimize",
-                      "pint", "pymap3d")
+                      "pint", "pymap3d", "joblib")
 SCIPY_IN_FILTER = {"centrifuge": {"scipy.special", "scipy.linalg"}, "sled": {"scipy.special", "scipy.linalg"}}
 """What a rig's own cell code loads at its modules' top (the centrifuge's identify: the fit check's
 chi-square quantiles and the ML's scipy.linalg; the sled's simulation and fit check): allowed
-there, and nowhere else."""
+there, and nowhere else. Not joblib: the runner's ``joblib`` backend only (issue 22 item 4)."""
 
 
 @pytest.mark.parametrize("rig", RIGS)

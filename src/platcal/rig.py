@@ -67,6 +67,9 @@ by giving ``montecarlo``, an object with (see :class:`MonteCarloHooks`):
   ``platcal.study.sweep.replicate_seed``), bit-identical whatever the batch size.
 - optional ``requires(cfg) -> list[str]``: files under ``results/<rig>/``, made by the rig's own
   rules, that every cell waits for (e.g. a job compiling the rig's kernels once).
+- optional ``check_cell(raw, case, noise, estimator) -> cfg``: ``check`` restricted to what one
+  cell uses (a cell job's check; the workflow's master runs ``check`` on the whole config before
+  any job), for a rig whose whole check costs a cell job's time; without it a cell runs ``check``.
 
 The runner turns the batches into the tidy tables (one row per run x quantity, one row per run)
 that :mod:`platcal.study.stats` and :mod:`platcal.study.plots` work on. The centrifuge's hooks

@@ -38,14 +38,13 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
-from joblib import Parallel, delayed, parallel_config
 
 from ..estimation.relative import rel_err_pct
 from ..io import atomic_files, json_safe
 from ..lighttable import Table
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
-from ..rig import Rig, get_rig
+from ..rig import Rig, get_rig, resolve
 from .sweep import replicate_seed
 
 if TYPE_CHECKING:  # annotations only: a cell job builds and writes its tables without pandas (issue 22 item 4)
@@ -56,6 +55,10 @@ CELL = ["scheme", "noise", "estimator"]
 COEF_COLUMNS = CELL + ["replicate", "name", "group", "unit", "truth", "estimate", "sigma", "error",
                        "rel_err_pct"]
 RUN_COLUMNS = CELL + ["replicate", "passes", "nees", "nees_dof", "mean_nis", "failed_updates", "failed"]
+BACKENDS = {"joblib": "platcal.study.workers:map_chunks"}
+"""The backends that run a cell's chunks outside the job's process, by ``study.backend`` name:
+each a ``map_chunks(fn, calls, workers, consume)`` named by path, so that a cell on the default
+``numba`` backend (its chunks in the job's process) does not import joblib."""
 
 
 def chunks(n: int, size: int) -> list[list[int]]:
@@ -161,11 +164,10 @@ def cell_tables(rig: Rig, cfg: dict, case, level: float, estimator: str, *, repl
     threads = max(1, int(threads))
     parts = chunks(R, batch)
     t0 = time.perf_counter()
-    if backend == "joblib" and threads > 1 and len(parts) > 1:
+    if backend in BACKENDS and threads > 1 and len(parts) > 1:
         # one numba thread and one BLAS thread per worker: threads workers use threads cores
-        with parallel_config(backend="loky", inner_max_num_threads=1):
-            results = _collect_progress(Parallel(n_jobs=threads, return_as="generator")(
-                delayed(_run_chunk)(rig.name, cfg, case, level, estimator, p, 1) for p in parts), R, t0, progress)
+        results = resolve(BACKENDS[backend])(_run_chunk, [(rig.name, cfg, case, level, estimator, p, 1) for p in parts],
+                                             threads, lambda gen: _collect_progress(gen, R, t0, progress))
     else:
         results = _collect_progress((_run_chunk(rig.name, cfg, case, level, estimator, p, threads) for p in parts),
                                     R, t0, progress)
@@ -222,7 +224,9 @@ def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimator: 
     lg = job_logger(log_path)
     rig = get_rig(rig_name)
     hooks = rig.montecarlo
-    cfg = hooks.check(cfg)
+    # the workflow's master checked the whole config before any job: a cell checks what it uses
+    check_cell = getattr(hooks, "check_cell", None)
+    cfg = check_cell(cfg, case_name, level, estimator) if check_cell else hooks.check(cfg)
     case = hooks.case(cfg, case_name, case_file)
     st = hooks.settings(cfg)
     lg.info("%s cell %s, %s = %g %s, estimator %s: %d replicates, %d thread(s), backend %s, batch %d",

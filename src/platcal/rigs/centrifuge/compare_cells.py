@@ -112,7 +112,7 @@ def warm_kernels(cfg: dict) -> None:
 def compare_cell_job(cfg: dict, level: float, estimator: str, out_dir, threads: int = 1, log_path=None) -> None:
     """Rule body: one (noise level, estimator) cell of the comparison."""
     lg = job_logger(log_path)
-    cfg = with_compare_estimators(check_study(cfg))
+    cfg = with_compare_estimators(check_study(cfg, cells=[(level, estimator)]))
     c = compare_settings(cfg)
     rig = get_rig("centrifuge")
     scheme = builtin_scheme(cfg, c["scheme"])

@@ -22,6 +22,8 @@ from __future__ import annotations
 import sys
 from contextlib import nullcontext
 
+from . import numba_inline
+
 PACKAGE = __name__.rsplit(".", 1)[0]
 """The package whose modules' lazy kernels :func:`load_numba` replaces by numba's dispatchers."""
 
@@ -103,6 +105,8 @@ def load_numba():
     global prange
     # here, not at the module's top: this import is what a command with ahead-of-time kernels avoids
     import numba
+    # before any kernel compiles: numba's inliner without its copies of the callee's fresh IR
+    numba_inline.install(numba)
     if prange is _PRANGE:
         for k in _KERNELS:
             if k._dispatcher is None:

@@ -189,6 +189,20 @@ def test_stats_tables():
     assert frame_markdown(s.head(1)).count("\n") == 3
 
 
+def test_markdown_rows_are_what_iterrows_gives():
+    """frame_markdown reads the rows of ``df.values`` (not a Series per row): the text is the
+    former ``iterrows`` body's, e.g. an int beside a float column is read as a float, a mixed
+    frame keeps each value's type, missing and infinite values print '-', booleans 1 and 0 (format 'g')."""
+    mixed = pd.DataFrame({"i": [1, 2, 3], "f": [1.5, np.nan, np.inf], "s": ["a", None, "c"],
+                          "b": [True, False, True]})
+    assert frame_markdown(mixed).splitlines()[1:] == ["|---:|---:|---|---:|", "| 1 | 1.5 | a | 1 |",
+                                                      "| 2 | - | - | 0 |", "| 3 | - | c | 1 |"]
+    numeric = pd.DataFrame({"n": [7, 1234567], "x": [0.25, -2.0]})
+    assert frame_markdown(numeric, {"n": ".1f"}).splitlines()[1:] == ["|---:|---:|", "| 7.0 | 0.25 |",
+                                                                     "| 1234567.0 | -2 |"]
+    assert frame_markdown(pd.DataFrame({"a": []})) == "| a |\n|---:|\n"
+
+
 def test_figures_are_byte_stable(tmp_path):
     coef, runs = synthetic(5)
     for k in (1, 2):

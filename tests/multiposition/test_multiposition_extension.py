@@ -80,6 +80,20 @@ def test_ranges_of_one_draw_match_draw_spread(cfg, spread):
     assert first["gyro g^2"] == pytest.approx(got["gyro"])
 
 
+def test_schemes_in_lanes_equal_each_scheme_alone(cfg):
+    """``covariance_only`` of D schemes stacked (D, K, 3) runs them as lanes of one call
+    (``draw_spread``'s draws): each scheme's P is bit for bit its own run's, whatever its lane
+    and block (5 schemes: a full block of 4 and a block with one lane used)."""
+    sets = np.stack([ex.random_positions(4, s) for s in range(5)])
+    together = covariance_only(cfg, sets, 2.0, ext=1)
+    assert together.shape == (5,) + covariance_only(cfg, sets[0], 2.0, ext=1).shape
+    for d in range(5):
+        assert np.array_equal(together[d], covariance_only(cfg, sets[d], 2.0, ext=1)), d
+    assert not np.array_equal(together[0], together[1])
+    with pytest.raises(ValueError, match="sequentially"):
+        covariance_only(cfg, sets, 2.0, sequential=False)
+
+
 def test_spread_summary_counts_draws_within_20_percent():
     rows = []
     for d, scale in ((1, 1.0), (2, 1.1), (3, 1.5)):  # draws 1 and 2 within 20 % of every spec endpoint

@@ -105,10 +105,15 @@ rule multiposition_extension:
 
 
 rule multiposition_centrifuge_table1:
+    input:
+        # its information runs are the centrifuge's covariance-only EKF: beside the kernels job
+        # (no input, it could start first) it would compile that kernel a second time (issue 22)
+        rig_requires("centrifuge"),
     output:
         "results/multiposition/centrifuge_table1/observability.json",
     params:
         config=lambda w: {k: v for k, v in RAW["centrifuge"].items() if k != "study"},
+        code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"
     benchmark:

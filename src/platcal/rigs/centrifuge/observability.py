@@ -41,7 +41,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ...errors import InputError
 from ...estimation import information
@@ -214,7 +214,9 @@ def scheme_covariance(setup: Setup, angles_deg: np.ndarray, g_levels=None) -> np
 
 # ------------------------------------------------------------------ observability matrix
 
-@njit(parallel=True, cache=True)
+# serial: its jobs run on one thread (the observability of a scheme: a few positions, 0.3 s), and
+# numba's parallel lowering cost 1-1.5 s of the 11-13 s cold compile (issue 22 item 4)
+@njit(cache=True)
 def _position_grams(ang0, coef, t, params, G):
     """Gram matrices ``O_k^T O_k`` (P, 51, 51) of single positions: [48 coef | 3 initial angles].
 
@@ -224,7 +226,7 @@ def _position_grams(ang0, coef, t, params, G):
     Pn = ang0.shape[0]
     M = t.shape[0]
     nf = coef.shape[0]
-    for p in prange(Pn):
+    for p in range(Pn):
         work = make_work()
         scratch = make_rk4_scratch()
         ang = ang0[p].copy()

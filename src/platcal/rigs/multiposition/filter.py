@@ -618,14 +618,24 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
     """Coefficient covariance of a covariance-only run (§8, §14): no data, Jacobians on the truth.
 
     Step ``step_s`` (default ``observability.cov_step_s`` = 0.1 s) with the sensor variances
-    scaled by ``ts/step`` (same noise densities as the filter). ``positions_deg`` (K, 3).
-    ``sequential``: one run through all positions (P (nc, nc)); otherwise one run per position
-    from P0, returning (K, nc, nc) (the per-position posteriors, for the information sums).
+    scaled by ``ts/step`` (same noise densities as the filter). ``positions_deg`` (K, 3), or
+    (D, K, 3) for D schemes of K positions each (``sequential`` only: P (D, nc, nc), one lane
+    of the lanes kernel per scheme, each bit for bit its own run; one scheme leaves 3 of a
+    block's 4 lanes idle). ``sequential``: one run through all positions (P (nc, nc)); otherwise
+    one run per position from P0, returning (K, nc, nc) (the per-position posteriors, for the
+    information sums).
     """
     step = cfg.cov_step_s if step_s is None else float(step_s)
     ns = int(round(dwell_s / step)) + 1
-    phi0s = np.asarray(positions_deg, float).reshape(-1, 3) * DEG
-    K = phi0s.shape[0]
+    sets = np.asarray(positions_deg, float)
+    if sets.ndim == 3:
+        if not sequential:
+            raise ValueError("schemes (D, K, 3) run sequentially only")
+        phi0s = sets * DEG
+        K = phi0s.shape[1]
+    else:
+        phi0s = sets.reshape(-1, 3) * DEG
+        K = phi0s.shape[0]
     p0 = cfg.p0(ext)
     nc = p0.size
     coef = cfg.truth(ext) if truth is None else np.asarray(truth, float)
@@ -640,10 +650,12 @@ def covariance_only(cfg, positions_deg, dwell_s: float, ext: int = 0, step_s: fl
     Pinit = np.zeros((nc + 3, nc + 3))
     Pinit[3:, 3:] = np.diag(p0**2)
     if sequential:
-        X, Ps = x0[None].copy(), Pinit[None].copy()
-        resolve(EKF_LANES)(X, Ps, phi0s, tk, np.zeros((1, K, ns, 6)), nk, lay, wn, wu, r_var, cfg.arw_rad**2,
+        D = phi0s.shape[0] if phi0s.ndim == 3 else 1
+        X = np.repeat(x0[None], D, axis=0)
+        Ps = np.repeat(Pinit[None], D, axis=0)
+        resolve(EKF_LANES)(X, Ps, phi0s, tk, np.zeros((D, K, ns, 6)), nk, lay, wn, wu, r_var, cfg.arw_rad**2,
                            cfg.sigma_set_rad**2, cols, update_x=False)
-        return Ps[0, 3:, 3:]
+        return Ps[:, 3:, 3:].copy() if phi0s.ndim == 3 else Ps[0, 3:, 3:]
     # one run per position: position k is batch entry k with its own commanded angles
     X = np.repeat(x0[None], K, axis=0)
     Ps = np.repeat(Pinit[None], K, axis=0)

@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 JOBS = {
     # what the wrappers in workflow/scripts run; at the rule's threads (set_threads here, the job's
     # OMP_NUM_THREADS through platcal/__init__.py in the workflow) when threads is given
-    "campaign": ("from platcal.study.campaign import campaign_content, run_campaign\n"
+    "campaign": ("from platcal.study.campaign import run_campaign\nfrom platcal.study.campaign_file import campaign_content\n"
                  "run_campaign(campaign_content('config/campaign.yaml'), OUT)\n"),
     "table1": ("import yaml\nfrom platcal.cli import main\nfrom platcal.io import read_config\n"
                "cfg = {k: v for k, v in read_config('config/centrifuge.yaml', 'config').items() if k != 'study'}\n"

@@ -21,6 +21,7 @@ from platcal.rigs.multiposition.config import make_scheme
 from platcal.scheme import check_scheme
 from platcal.rigs.multiposition.filter import run_filter, simulate
 from platcal.study import campaign as cp
+from platcal.study import campaign_file as cf
 from file_snapshot import snapshot
 from workflow_copy import copy_workflow, needs_snakemake
 from workflow_copy import snakemake as smk
@@ -152,7 +153,7 @@ def test_information_adds_and_the_plan_meets_its_targets(planned):
     mp = cp.search(camp, cands, ("multiposition",))
     assert mp.cheapest_meeting() is None
     sig = cp.planned_sigma(camp, cands, two)[0]
-    unseen = [i for i, n in enumerate(camp.platform.names) if cp.term_of(n) in ("DII", "DSS", "DIO", "DIS", "DOS",
+    unseen = [i for i, n in enumerate(camp.platform.names) if cf.term_of(n) in ("DII", "DSS", "DIO", "DIS", "DOS",
                                                                                 "k2", "k3", "kIP")]
     seen = [i for i in range(len(sig)) if i not in unseen]
     assert np.allclose(sig[unseen], camp.prior_sigma[unseen])
@@ -234,7 +235,7 @@ def test_rms_interval_covers_the_sigma_at_its_level():
 
 
 def test_default_campaign_is_valid():
-    camp = cp.load_campaign(cp.campaign_content("config/campaign.yaml"))
+    camp = cf.load_campaign(cf.campaign_content("config/campaign.yaml"))
     assert {r.name for r in camp.rigs} == {"centrifuge", "multiposition"}
     assert (camp.target_sigma < camp.prior_sigma).all()
     assert read_config("config/campaign.yaml")["montecarlo"]["replicates"] >= 50

@@ -55,6 +55,7 @@ def install(numba) -> bool:
     """Patch ``numba``'s ``InlineWorker.inline_function`` as the module docstring says, when
     numba's version is in :data:`TESTED` and its ``inline_ir`` has the expected copies; returns
     whether the patch is in place. Idempotent."""
+    # numba's internals imported with numba itself (platcal.jit.load_numba imports it on first use)
     from numba.core import inline_closurecall as icc
 
     worker = icc.InlineWorker

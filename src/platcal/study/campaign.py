@@ -45,7 +45,7 @@ from ..errors import InputError
 from ..estimation.information import marginal_information
 from ..io import atomic_to_csv, atomic_write_text, check_writable
 from ..sizes import DEFAULT_MAX_HOURS, DEFAULT_MAX_MEMORY_GB, Size, check_sizes
-from .campaign_file import Campaign, RigOffer, campaign_content, coefficient_rule, load_campaign, term_of  # noqa: F401
+from .campaign_file import Campaign, RigOffer, load_campaign
 from .montecarlo import chunks, replicate_seed
 from .plots import save, styled
 from .tables import frame_markdown, write_table

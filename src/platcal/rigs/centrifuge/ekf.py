@@ -82,6 +82,8 @@ class FilterSettings:
     prior_x, prior_P : the start of the coefficient states, (n_coef,) or (B, n_coef) estimate and
         (n_coef, n_coef) or (B, n_coef, n_coef) covariance (engineering units): a previous test's
         posterior handed on (``platcal plan``'s Monte Carlo). None: 0 and ``diag(p0_sigma^2)`` (§9).
+    lanes : the EKF's and IEKF's passes run the state-major kernel (:func:`run_ekf` ``lanes``);
+        the same numbers bit for bit, so it chooses a cost, not a result.
     """
 
     period_s: float = 0.02
@@ -98,6 +100,7 @@ class FilterSettings:
     innovations: bool = False
     prior_x: np.ndarray | None = None
     prior_P: np.ndarray | None = None
+    lanes: bool = False
 
     @property
     def coef_index(self) -> np.ndarray:
@@ -713,7 +716,7 @@ def run_ekf(
     z_source=None,
     on_innovations=None,
     on_history=None,
-    lanes: bool = False,
+    lanes: bool | None = None,
 ) -> Estimate:
     """Run the EKF over every position of a scheme, for a batch of B runs.
 
@@ -749,8 +752,9 @@ def run_ekf(
     lanes : run the state-major kernel (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in
         SIMD lanes of 4; the same numbers bit for bit, about 25 % less CPU per replicate at
         B >= 8, 2.2x more at B = 1; issue 22) instead of the default kernel (:func:`_run_pass`:
-        one replicate per thread). Opt-in: a lone record is fast on the default kernel, which
-        is the one compiled ahead of time, and its own cold compile is shorter.
+        one replicate per thread). None: ``settings.lanes``. A lone record is fast on the
+        default kernel, which is the one compiled ahead of time (an identify); the simulated
+        batches (:func:`.identify.simulate_identify`) take the lanes.
 
     Returns
     -------
@@ -776,7 +780,7 @@ def run_ekf(
     structure = _structure(est_idx)
     p0 = np.asarray(settings.p0_sigma, float)
     it_ctl = iteration_control(p0) if iterate is None or cov_only else np.ascontiguousarray(iterate, float)
-    if lanes:
+    if settings.lanes if lanes is None else lanes:
         # imported here: its pipeline class subclasses numba's compiler, which an identify whose
         # kernels were compiled ahead of time does not load (platcal.aot)
         from .ekf_lanes import run_pass_lanes

@@ -91,7 +91,9 @@ class Setup:
 
 def setup_from_study(study, dwell_s: float, **filter_overrides) -> Setup:
     """A :class:`Setup` from a :class:`~platcal.config.Study` (filter fields may be overridden)."""
-    fs = replace(study.filter, history_every_s=None, **filter_overrides)
+    # covariance-only batches on the state-major kernel, the one the study's other runs load
+    # (:func:`.identify.simulate_identify`; the same numbers bit for bit)
+    fs = replace(study.filter, history_every_s=None, lanes=True, **filter_overrides)
     return Setup(centrifuge=study.centrifuge, truth=np.asarray(study.truth, float), filter=fs,
                  dwell_s=float(dwell_s))
 

@@ -41,6 +41,9 @@ rule campaign_plan:
         campaign=CAMPAIGN,
         code=CODE_ALL,
     threads: 1
+    # the study's longest job after the kernels (about 50 s): started as soon as its rigs' kernels
+    # are ready, so that short cells fill the cores at the end rather than it running last, alone
+    priority: 5
     conda:
         "../envs/platcal.yaml"
     benchmark:

@@ -198,6 +198,8 @@ rule centrifuge_compare_cell:
         level=lambda w: compare_levels(CEN)[w.noise],
         code=lambda w: CODE_COMPUTE["centrifuge"],
     threads: 1
+    # before the sweep's cells: 8-30 s each against their 3 s, so the short cells end the run
+    priority: 1
     conda:
         "../envs/platcal.yaml"
     benchmark:

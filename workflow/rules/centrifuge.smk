@@ -184,6 +184,10 @@ rule centrifuge_figures:
 
 CEN_COMPARE = [] if CEN is None else compare_cells(CEN)
 CEN_COMPARE_DIRS = [f"results/centrifuge/compare/noise{n}/{e}" for n, e in CEN_COMPARE]
+# the comparison's own module (its cells' job, settings and params) is outside the rig's compute
+# closure, which follows the Monte Carlo hooks' imports (the hooks name it by path): its edit
+# reruns the comparison's cells too
+CODE_COMPARE = code_hash(["platcal.rigs.centrifuge.compare_cells"])
 
 
 rule centrifuge_compare_cell:
@@ -197,6 +201,7 @@ rule centrifuge_compare_cell:
         cell=lambda w: compare_cell_params(CEN, compare_levels(CEN)[w.noise], w.estimator),
         level=lambda w: compare_levels(CEN)[w.noise],
         code=lambda w: CODE_COMPUTE["centrifuge"],
+        compare_code=CODE_COMPARE,
     threads: 1
     # before the sweep's cells: 8-30 s each against their 3 s, so the short cells end the run
     priority: 1

@@ -292,24 +292,29 @@ def quaternion_of(phi: np.ndarray) -> np.ndarray:
     return np.concatenate([[np.cos(ang / 2)], np.sin(ang / 2) * np.asarray(phi) / ang])
 
 
-def nav_rate(kin) -> np.ndarray:
-    """(N, 3) rad/s: the true navigation frame's rate w_in^n = w_ie(L) + w_en(V, L) (§1)."""
-    ve, vn = kin.v[:, 0], kin.v[:, 1]
-    return np.stack([-vn / R_EARTH, OMEGA_IE * np.cos(kin.lat) + ve / R_EARTH,
-                     OMEGA_IE * np.sin(kin.lat) + ve * np.tan(kin.lat) / R_EARTH], axis=-1)
-
-
 def truth_table(kin) -> np.ndarray:
     """(N, 13) the truth rows :func:`_stage` reads, from the true motion ``kin``
-    (:class:`.profile.Kinematics`) on the fine grid: f^n, V, sin L, cos L, w_in^n and the truth's
-    own navigation terms (units as :func:`_stage`); row by row, so a block of the grid gives the
-    whole table's rows."""
+    (:class:`.profile.Kinematics`) on the fine grid: f^n, V, sin L, cos L, the true navigation
+    frame's rate w_in^n = w_ie(L) + w_en(V, L) (§1) and the truth's own navigation terms (units as
+    :func:`_stage`); row by row, so a block of the grid gives the whole table's rows. Each column
+    is written into the table as it is computed (no stacked temporaries), sin L and cos L once."""
     slt, clt = np.sin(kin.lat), np.cos(kin.lat)
     vte, vtn = kin.v[:, 0], kin.v[:, 1]
+    tab = np.empty((kin.lat.size, 13))
+    tab[:, 0:2] = kin.f
+    tab[:, 2] = kin.f_up
+    tab[:, 3:5] = kin.v
+    tab[:, 5] = slt
+    tab[:, 6] = clt
+    np.divide(-vtn, R_EARTH, out=tab[:, 7])
+    np.add(OMEGA_IE * clt, vte / R_EARTH, out=tab[:, 8])
+    np.add(OMEGA_IE * slt, vte * np.tan(kin.lat) / R_EARTH, out=tab[:, 9])
     # the truth's terms of _rates, computed here once in the kernel's operation order (same bits)
     kt = 2.0 * OMEGA_IE * slt + vte * slt / (clt * R_EARTH)
-    return np.ascontiguousarray(np.column_stack([kin.f, kin.f_up, kin.v, slt, clt, nav_rate(kin),
-                                                 kt * vtn, kt * vte, vte / (R_EARTH * clt)]))
+    np.multiply(kt, vtn, out=tab[:, 10])
+    np.multiply(kt, vte, out=tab[:, 11])
+    np.divide(vte, R_EARTH * clt, out=tab[:, 12])
+    return tab
 
 
 @dataclass(frozen=True)

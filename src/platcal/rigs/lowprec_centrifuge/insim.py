@@ -388,4 +388,3 @@ class FineTruth:
                       np.ascontiguousarray(q0[:, a:b]), acc_w, gyro_w, noise_of[a:b], out.err, out.err_row[a:b],
                       out.phi, out.f, out.f_row[a:b], out.last[a:b])
         return out.err, (out.phi if out.phi.shape[0] else None), out.f
-

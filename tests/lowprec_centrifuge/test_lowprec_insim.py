@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from platcal.rigs.lowprec_centrifuge.config import G0, OMEGA_IE, R_EARTH, load_config
-from platcal.rigs.lowprec_centrifuge.insim import W
+from platcal.rigs.lowprec_centrifuge.insim import W, LaneOutputs
 from platcal.rigs.lowprec_centrifuge.errormodel import integrate_error_model
 from platcal.rigs.lowprec_centrifuge.profile import build_profile, kinematics
 from platcal.rigs.lowprec_centrifuge.truth import (DEG_H, coeff_vector, draw_params, fine_truth, gyro_vector,
@@ -156,3 +156,38 @@ def test_lanes_give_each_ins_the_numbers_of_navigating_it_alone(study):
         assert np.array_equal(alone[0], err[k]) and np.array_equal(alone[1], phi[k])
         assert np.array_equal(alone[2], fm[k])
     assert not np.array_equal(err[1], err[4])       # the lanes differ
+
+
+def test_lanes_write_into_the_rows_they_are_given(study):
+    """Each lane's errors, force and attitude go straight into the rows of the caller's arrays
+    that :class:`LaneOutputs` names (scattered, shared with other lanes' rows, -1: not stored,
+    nothing else touched), bit for bit those of the lane in its own row; every lane's last errors
+    are kept, stored or not (a floor's, :func:`simulate_batch`)."""
+    prof, _, ft = fine_truth(study, "P2", "run1")
+    n, K = 400, W + 2
+    rng = np.random.default_rng(11)
+    coef = rng.normal(0.0, 30e-6, (K, 8))
+    gcoef = np.stack([gyro_vector(rng.normal(0.0, 0.01, 18)) for _ in range(K)])
+    eps = rng.normal(0.0, 0.01, (K, 3)) * DEG_H
+    phi0 = rng.normal(0.0, 1e-4, (K, 3))
+    acc_w = rng.standard_normal((K, n, 2)) * 1e-4
+    gyro_w = rng.standard_normal((K, n, 3)) * 1e-7
+    noise_of = np.arange(K)
+    own = ft.navigate_lanes(n, coef, gcoef, eps, phi0, acc_w, gyro_w, noise_of, keep_phi=True)
+    err_row = rng.permutation(K + 3)[:K]
+    err_row[[2, 9]] = -1
+    f_row = rng.permutation(K)
+    f_row[[0, 9, W + 1]] = -1
+    out = LaneOutputs(err=np.full((K + 3, n, 4), np.nan), err_row=err_row, f=np.full((K, n, 2), np.nan),
+                      phi=np.full((K, n, 3), np.nan), f_row=f_row, last=np.full((K, 4), np.nan))
+    ft.navigate_lanes(n, coef, gcoef, eps, phi0, acc_w, gyro_w, noise_of, out=out)
+    for k in range(K):
+        assert np.array_equal(out.last[k], own[0][k, -1])
+        if err_row[k] >= 0:
+            assert np.array_equal(out.err[err_row[k]], own[0][k])
+        if f_row[k] >= 0:
+            assert np.array_equal(out.f[f_row[k]], own[2][k]) and np.array_equal(out.phi[f_row[k]], own[1][k])
+    # the rows no lane was given are untouched
+    assert np.isnan(np.delete(out.err, err_row[err_row >= 0], axis=0)).all()
+    assert np.isnan(np.delete(out.f, f_row[f_row >= 0], axis=0)).all()
+    assert np.isnan(np.delete(out.phi, f_row[f_row >= 0], axis=0)).all()

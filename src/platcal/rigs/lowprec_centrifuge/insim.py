@@ -28,6 +28,8 @@ integration tolerance (tested).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ...jit import njit
@@ -143,7 +145,8 @@ def _stage(L, nb, tr, dy, fm):
 
 
 @njit(cache=True, error_model="numpy")
-def _navigate(h, m, tr, cos_lat0, coef, gcoef, eps, q0, acc_w, gyro_w, noise_of, out_err, out_phi, out_f):
+def _navigate(h, m, tr, cos_lat0, coef, gcoef, eps, q0, acc_w, gyro_w, noise_of, out_err, err_row, out_phi, out_f,
+              f_row, out_last):
     """RK4 navigation of K INSs (lanes) in lock-step through one run; each lane's numbers are
     those of navigating it alone (the same operations in the same order).
 
@@ -153,12 +156,15 @@ def _navigate(h, m, tr, cos_lat0, coef, gcoef, eps, q0, acc_w, gyro_w, noise_of,
     (48, K) shared gyro coefficients (deg/h/g, deg/h/g^2; constant terms 0); eps (3, K) constant
     drift, rad/s; q0 (4, K) the initial attitude quaternion; acc_w (S, n, 2) m/s^2 and gyro_w
     (S, n, 3) rad/s: white noises of each data interval, lane k reads noise_of[k] (-1: none).
-    Outputs (K, n, ...): out_err the INS errors (dV_E, dV_N m/s, dp_E, dp_N m: R cos L0 dlambda,
-    R dL), out_phi the attitude error 2 q_vec / q0 (rad; 0 lanes: not kept), out_f the measured
-    horizontal specific force (m/s^2).
+    Outputs (rows of the caller's arrays, :func:`_navigate_block`): out_err (R, n, 4) the INS
+    errors (dV_E, dV_N m/s, dp_E, dp_N m: R cos L0 dlambda, R dL) in row err_row[k] of lane k,
+    out_f (R', n, 2) the measured horizontal specific force (m/s^2) and out_phi (R', n, 3) the
+    attitude error 2 q_vec / q0 (rad; 0 rows: not kept) in row f_row[k] (-1: not stored);
+    out_last (K, 4) every lane's errors at the last sample.
     """
     lanes, y = _lanes_init(coef, gcoef, eps, q0)
-    _navigate_block(h, m, tr, cos_lat0, lanes, y, acc_w, gyro_w, noise_of, out_err, out_phi, out_f, True)
+    _navigate_block(h, m, tr, cos_lat0, lanes, y, acc_w, gyro_w, noise_of, out_err, err_row, out_phi, out_f, f_row,
+                    out_last, True)
 
 
 @njit(cache=True, error_model="numpy")
@@ -187,18 +193,22 @@ def _lanes_init(coef, gcoef, eps, q0):
 
 
 @njit(cache=True, error_model="numpy")
-def _navigate_block(h, m, tr, cos_lat0, L, y, acc_w, gyro_w, noise_of, out_err, out_phi, out_f, last):
+def _navigate_block(h, m, tr, cos_lat0, L, y, acc_w, gyro_w, noise_of, out_err, err_row, out_phi, out_f, f_row,
+                    out_last, last):
     """The lanes (input L, state y: :func:`_lanes_init`, y carried from block to block) through the
     ``n = out_err.shape[1]`` data samples of one block: outputs at each, then the RK4 steps to the
     next; ``tr`` the truth's fine rows from the block's first sample through the next block's
     first (2 m n + 1 rows), or through its own last sample when ``last`` (the run's end: no step
     after it, 2 m (n - 1) + 1 rows). acc_w, gyro_w: the noises of the block's data intervals (S, n,
-    ...). The same operations in the same order as one call over the whole run (docs/
-    lowprec-centrifuge.md §12, a record simulated block by block, bit-identical)."""
+    ...). Lane k's outputs go straight into the caller's arrays (:func:`_navigate`: rows
+    err_row[k] of out_err, f_row[k] of out_f and out_phi, -1: not stored; out_last[k] its errors
+    at the block's last sample), so that no per-lane buffer is copied out afterwards. The same
+    operations in the same order as one call over the whole run (docs/lowprec-centrifuge.md §12,
+    a record simulated block by block, bit-identical)."""
     K = noise_of.shape[0]
     n = out_err.shape[1]
     nb = L.shape[0] // (ROWS * W)
-    keep_phi = out_phi.shape[0] == K
+    keep_phi = out_phi.shape[0] > 0
     k1 = np.empty(nb * 8 * W)
     k2 = np.empty(nb * 8 * W)
     k3 = np.empty(nb * 8 * W)
@@ -213,20 +223,27 @@ def _navigate_block(h, m, tr, cos_lat0, L, y, acc_w, gyro_w, noise_of, out_err, 
                 L[ob + W * GW0 + i] = gyro_w[w, k, 0]
                 L[ob + W * (GW0 + 1) + i] = gyro_w[w, k, 1]
                 L[ob + W * (GW0 + 2) + i] = gyro_w[w, k, 2]
-            out_err[ln, k, 0] = y[oy + i]
-            out_err[ln, k, 1] = y[oy + W + i]
-            out_err[ln, k, 2] = R_EARTH * cos_lat0 * y[oy + W * 3 + i]
-            out_err[ln, k, 3] = R_EARTH * y[oy + W * 2 + i]
-            if keep_phi:
-                out_phi[ln, k, 0] = 2.0 * y[oy + W * 5 + i] / y[oy + W * 4 + i]
-                out_phi[ln, k, 1] = 2.0 * y[oy + W * 6 + i] / y[oy + W * 4 + i]
-                out_phi[ln, k, 2] = 2.0 * y[oy + W * 7 + i] / y[oy + W * 4 + i]
+            e0, e1 = y[oy + i], y[oy + W + i]
+            e2 = R_EARTH * cos_lat0 * y[oy + W * 3 + i]
+            e3 = R_EARTH * y[oy + W * 2 + i]
+            r = err_row[ln]
+            if r >= 0:
+                out_err[r, k, 0], out_err[r, k, 1], out_err[r, k, 2], out_err[r, k, 3] = e0, e1, e2, e3
+            if k == n - 1:
+                out_last[ln, 0], out_last[ln, 1], out_last[ln, 2], out_last[ln, 3] = e0, e1, e2, e3
+            r = f_row[ln]
+            if keep_phi and r >= 0:
+                out_phi[r, k, 0] = 2.0 * y[oy + W * 5 + i] / y[oy + W * 4 + i]
+                out_phi[r, k, 1] = 2.0 * y[oy + W * 6 + i] / y[oy + W * 4 + i]
+                out_phi[r, k, 2] = 2.0 * y[oy + W * 7 + i] / y[oy + W * 4 + i]
         _stage_input(L, nb, y, y, 0.0)
         _stage(L, nb, tr[2 * m * k], k1, fm)
         for ln in range(K):
-            of, i = (ln // W) * 2 * W, ln % W
-            out_f[ln, k, 0] = fm[of + i]
-            out_f[ln, k, 1] = fm[of + W + i]
+            r = f_row[ln]
+            if r >= 0:
+                of, i = (ln // W) * 2 * W, ln % W
+                out_f[r, k, 0] = fm[of + i]
+                out_f[r, k, 1] = fm[of + W + i]
         if last and k == n - 1:
             break
         for i in range(m):
@@ -275,24 +292,51 @@ def quaternion_of(phi: np.ndarray) -> np.ndarray:
     return np.concatenate([[np.cos(ang / 2)], np.sin(ang / 2) * np.asarray(phi) / ang])
 
 
-def nav_rate(kin) -> np.ndarray:
-    """(N, 3) rad/s: the true navigation frame's rate w_in^n = w_ie(L) + w_en(V, L) (§1)."""
-    ve, vn = kin.v[:, 0], kin.v[:, 1]
-    return np.stack([-vn / R_EARTH, OMEGA_IE * np.cos(kin.lat) + ve / R_EARTH,
-                     OMEGA_IE * np.sin(kin.lat) + ve * np.tan(kin.lat) / R_EARTH], axis=-1)
-
-
 def truth_table(kin) -> np.ndarray:
     """(N, 13) the truth rows :func:`_stage` reads, from the true motion ``kin``
-    (:class:`.profile.Kinematics`) on the fine grid: f^n, V, sin L, cos L, w_in^n and the truth's
-    own navigation terms (units as :func:`_stage`); row by row, so a block of the grid gives the
-    whole table's rows."""
+    (:class:`.profile.Kinematics`) on the fine grid: f^n, V, sin L, cos L, the true navigation
+    frame's rate w_in^n = w_ie(L) + w_en(V, L) (§1) and the truth's own navigation terms (units as
+    :func:`_stage`); row by row, so a block of the grid gives the whole table's rows. Each column
+    is written into the table as it is computed (no stacked temporaries), sin L and cos L once."""
     slt, clt = np.sin(kin.lat), np.cos(kin.lat)
     vte, vtn = kin.v[:, 0], kin.v[:, 1]
+    tab = np.empty((kin.lat.size, 13))
+    tab[:, 0:2] = kin.f
+    tab[:, 2] = kin.f_up
+    tab[:, 3:5] = kin.v
+    tab[:, 5] = slt
+    tab[:, 6] = clt
+    np.divide(-vtn, R_EARTH, out=tab[:, 7])
+    np.add(OMEGA_IE * clt, vte / R_EARTH, out=tab[:, 8])
+    np.add(OMEGA_IE * slt, vte * np.tan(kin.lat) / R_EARTH, out=tab[:, 9])
     # the truth's terms of _rates, computed here once in the kernel's operation order (same bits)
     kt = 2.0 * OMEGA_IE * slt + vte * slt / (clt * R_EARTH)
-    return np.ascontiguousarray(np.column_stack([kin.f, kin.f_up, kin.v, slt, clt, nav_rate(kin),
-                                                 kt * vtn, kt * vte, vte / (R_EARTH * clt)]))
+    np.multiply(kt, vtn, out=tab[:, 10])
+    np.multiply(kt, vte, out=tab[:, 11])
+    np.divide(vte, R_EARTH * clt, out=tab[:, 12])
+    return tab
+
+
+@dataclass(frozen=True)
+class LaneOutputs:
+    """Where :func:`_navigate` stores K lanes' numbers over a run's n data samples: the caller's
+    arrays (C-contiguous) and each lane's row in them, -1: not stored; a batch's replicates,
+    floors and variants written in place rather than through per-lane buffers copied out
+    (docs/lowprec-centrifuge.md §12)."""
+
+    err: np.ndarray        # (R, n, 4) errors dV_E, dV_N m/s, dp_E, dp_N m
+    err_row: np.ndarray    # (K,) int64: lane k's row of err
+    f: np.ndarray          # (R', n, 2) measured horizontal specific force, m/s^2
+    phi: np.ndarray        # (R', n, 3) attitude errors, rad; (0, n, 3): not kept
+    f_row: np.ndarray      # (K,) int64: lane k's row of f and phi
+    last: np.ndarray       # (K, 4) every lane's errors at the last sample
+
+    @classmethod
+    def own(cls, K: int, n: int, keep_phi: bool) -> "LaneOutputs":
+        """New arrays, lane k in row k of each."""
+        rows = np.arange(K, dtype=np.int64)
+        return cls(err=np.empty((K, n, 4)), err_row=rows, f=np.empty((K, n, 2)),
+                   phi=np.empty((K if keep_phi else 0, n, 3)), f_row=rows, last=np.empty((K, 4)))
 
 
 class FineTruth:
@@ -321,17 +365,16 @@ class FineTruth:
 
     def navigate_lanes(self, n: int, coef: np.ndarray, gcoef: np.ndarray, eps: np.ndarray, phi0: np.ndarray,
                        acc_w: np.ndarray | None, gyro_w: np.ndarray | None, noise_of: np.ndarray,
-                       keep_phi: bool = False, out: tuple | None = None):
+                       keep_phi: bool = False, out: LaneOutputs | None = None):
         """K INSs over the run's ``n`` data samples in one kernel call (:func:`_navigate`), each
         with the numbers of navigating it alone: coef (K, 8) g/g, gcoef (K, 48) deg/h/g and
         deg/h/g^2, eps (K, 3) rad/s, phi0 (K, 3) rad; acc_w (S, n, 2) m/s^2 and gyro_w (S, n, 3)
-        rad/s the noises lane k reads (noise_of[k]; -1 or None noises: noise-free). Returns
-        (errors (K, n, 4), phi (K, n, 3) or None, measured f (K, n, 2)); ``out``: C-contiguous
-        arrays (K, n, 4), (K, n, 2) for the errors and f (a caller's buffers reused from call to
-        call rather than fresh pages each time), None: new arrays."""
+        rad/s the noises lane k reads (noise_of[k]; -1 or None noises: noise-free). ``out``: where
+        the lanes' numbers go (:class:`LaneOutputs`, a caller's arrays written in place; its phi
+        decides ``keep_phi``), None: new arrays, lane k in row k. Returns ``out``'s (errors,
+        phi or None, measured f): (K, n, 4), (K, n, 3), (K, n, 2) when new."""
         K = len(coef)
-        err, fm = (np.empty((K, n, 4)), np.empty((K, n, 2))) if out is None else out
-        phi = np.empty((K, n, 3)) if keep_phi else np.empty((0, n, 3))
+        out = LaneOutputs.own(K, n, keep_phi) if out is None else out
         q0 = np.stack([quaternion_of(p) for p in phi0], axis=1)
         noise_of = np.asarray(noise_of, np.int64)
         acc_w = np.zeros((0, n, 2)) if acc_w is None else acc_w
@@ -342,6 +385,6 @@ class FineTruth:
             b = min(a + W, K)
             lanes = lambda v: np.ascontiguousarray(np.asarray(v, float)[a:b].T)   # noqa: E731  (K, c) -> (c, lanes)
             _navigate(self.h, self.steps, self.tr, self.cos_lat0, lanes(coef), lanes(gcoef), lanes(eps),
-                      np.ascontiguousarray(q0[:, a:b]), acc_w, gyro_w, noise_of[a:b], err[a:b],
-                      phi[a:b] if keep_phi else phi, fm[a:b])
-        return err, (phi if keep_phi else None), fm
+                      np.ascontiguousarray(q0[:, a:b]), acc_w, gyro_w, noise_of[a:b], out.err, out.err_row[a:b],
+                      out.phi, out.f, out.f_row[a:b], out.last[a:b])
+        return out.err, (out.phi if out.phi.shape[0] else None), out.f

@@ -195,17 +195,18 @@ def motion(w, wd, wdd, theta, cen: Centrifuge, lat_deg: float) -> Kinematics:
     c, s = np.cos(theta), np.sin(theta)
     lat0 = np.radians(lat_deg)
     lat = lat0 + r * s / R_EARTH
-    scale = np.cos(lat) / np.cos(lat0)                   # R cos L lambda' over R cos L0 lambda'
+    slat, clat = np.sin(lat), np.cos(lat)                # once each (the same values every use)
+    scale = clat / np.cos(lat0)                          # R cos L lambda' over R cos L0 lambda'
     de, dn = rd * c - r * w * s, rd * s + r * w * c      # d/dt of the offsets r (cos, sin)
     dde = rdd * c - 2 * rd * w * s - r * wd * s - r * w**2 * c
     ddn = rdd * s + 2 * rd * w * c + r * wd * c - r * w**2 * s
     ve, vn = scale * de, dn
     lat_dot = vn / R_EARTH
-    vde = scale * dde - np.sin(lat) * lat_dot / np.cos(lat0) * de
+    vde = scale * dde - slat * lat_dot / np.cos(lat0) * de
     vdn = ddn
     wx = -vn / R_EARTH
-    wy = 2 * OMEGA_IE * np.cos(lat) + ve / R_EARTH
-    wz = 2 * OMEGA_IE * np.sin(lat) + ve * np.tan(lat) / R_EARTH
+    wy = 2 * OMEGA_IE * clat + ve / R_EARTH
+    wz = 2 * OMEGA_IE * slat + ve * np.tan(lat) / R_EARTH
     f = np.stack([vde - wz * vn, vdn + wz * ve], axis=-1)
     f_up = G0 + wx * vn - wy * ve
     return Kinematics(theta=theta, omega=w, r=r, f=f, f_up=f_up, v=np.stack([ve, vn], axis=-1),

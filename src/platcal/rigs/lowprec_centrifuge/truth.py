@@ -34,7 +34,7 @@ import numpy as np
 from ...model.instruments import INDEX, N_FULL
 from ...records import CHUNK_ROWS
 from .config import G0, Study
-from .insim import W, FineTruth, _lanes_init, _navigate_block, quaternion_of, truth_table
+from .insim import W, FineTruth, LaneOutputs, _lanes_init, _navigate_block, quaternion_of, truth_table
 from .profile import (Kinematics, Profile, build_profile, grid_gradient, kinematics, motion, profile_grid,
                       segments)
 
@@ -200,8 +200,11 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
     s_acc = res["accel_noise_ug_rthz"] * 1e-6 * G0 / np.sqrt(dt)
     s_gyro = res["arw_deg_rth"] * np.pi / 180 / 60 / np.sqrt(dt)
     nseed = seeds.size
-    err = np.empty((nseed, n, 4))
-    phi = np.empty((nseed, n, 3)) if keep_phi else None
+    nvar = VARIANTS if sens else 0
+    # the replicates' errors then the variants' responses: one array the kernel writes in place
+    errs = np.empty((nseed + nvar, n, 4))
+    err, sens_out = errs[:nseed], (errs[nseed:] if sens else None)
+    phi = np.empty((nseed if keep_phi else 0, n, 3))
     v_ind = np.empty((nseed, n, 2))
     p_ind = np.empty((nseed, n, 2))
     f_meas = np.empty((nseed, n, 2))
@@ -222,16 +225,14 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
         if floor:
             lanes.append((i, "floor", np.concatenate([k0, sk, np.zeros(4)]) * 1e-6, gyro_vector(gg), eps * DEG_H,
                           phi0))
-    for j in range(VARIANTS if sens else 0):
+    for j in range(nvar):
         coef = np.zeros(8)
         coef[4 + j] = 1e-6
         lanes.append((-1, j, coef, np.zeros(N_FULL), np.zeros(3), np.zeros(3)))
-    sens_out = np.empty((VARIANTS, n, 4)) if sens else None
-    # one set of block buffers (noises, errors, force) reused by every block: tens of MB that
-    # fresh arrays would take as new zeroed pages for each block
+    # one set of noise buffers reused by every block: tens of MB that fresh arrays would take as
+    # new zeroed pages for each block
     nbuf = min(W, len(lanes))
-    bufs = {"acc": np.empty((nbuf, n, 2)), "gyro": np.empty((nbuf, n, 3)), "err": np.empty((nbuf, n, 4)),
-            "f": np.empty((nbuf, n, 2))}
+    bufs = {"acc": np.empty((nbuf, n, 2)), "gyro": np.empty((nbuf, n, 3))}
     for a in range(0, len(lanes), W):
         block = lanes[a:a + W]
         reps = sorted({ln[0] for ln in block if ln[0] >= 0 and not noise_free})
@@ -241,20 +242,19 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
         # stacked: the same draws and the same products)
         acc_w = _draw_scaled([rngs[i] for i in reps], bufs["acc"][:len(reps)], s_acc) if reps else None
         gyro_w = _draw_scaled([rngs[i] for i in reps], bufs["gyro"][:len(reps)], s_gyro) if reps else None
-        e, ph, fm = ft.navigate_lanes(n, np.array([ln[2] for ln in block]), np.array([ln[3] for ln in block]),
-                                      np.array([ln[4] for ln in block]), np.array([ln[5] for ln in block]),
-                                      acc_w, gyro_w, np.array([local.get(ln[0], -1) for ln in block]), keep_phi,
-                                      out=(bufs["err"][:len(block)], bufs["f"][:len(block)]))
+        # the kernel writes each replicate's errors, force and attitude into its rows of the
+        # outputs, each variant's into its row after the replicates; a floor keeps its last errors
+        err_row = [i if what == "ins" else -1 if what == "floor" else nseed + what for i, what, *_ in block]
+        f_row = [i if what == "ins" else -1 for i, what, *_ in block]
+        dest = LaneOutputs(err=errs, err_row=np.array(err_row, np.int64), f=f_meas, phi=phi,
+                           f_row=np.array(f_row, np.int64), last=np.empty((len(block), 4)))
+        ft.navigate_lanes(n, np.array([ln[2] for ln in block]), np.array([ln[3] for ln in block]),
+                          np.array([ln[4] for ln in block]), np.array([ln[5] for ln in block]),
+                          acc_w, gyro_w, np.array([local.get(ln[0], -1) for ln in block]), out=dest)
         for k, (i, what, *_) in enumerate(block):
-            if what == "ins":
-                err[i], f_meas[i] = e[k], fm[k]
-                if keep_phi:
-                    phi[i] = ph[k]
-            elif what == "floor":
-                final_floor[i] = e[k, -1]
-            else:
-                sens_out[what] = e[k]
-    bufs = e = ph = fm = acc_w = gyro_w = None   # the block buffers (and views of them) freed
+            if what == "floor":
+                final_floor[i] = dest.last[k]
+    bufs = acc_w = gyro_w = None   # the noise buffers (and views of them) freed
     # the outputs: truth + error (+ noise), every replicate at once; each replicate's noises drawn
     # in its stream's order (velocity, position, heading) into one reused buffer
     np.add(kin.v, err[:, :, :2], out=v_ind)
@@ -273,7 +273,7 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
             psi[i] += buf1
     draws = Draws(k0_ug=dr["k0"], scale_ppm=dr["sk"], drift_deg_h=dr["eps"], phi0_rad=dr["phi0"], gyro_g=dr["gg"])
     return RunBatch(platform=platform, run=run, seeds=seeds, coeffs=coeffs, prof=prof, kin=kin, draws=draws,
-                    err=err, phi=phi, sens=sens_out, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi,
+                    err=err, phi=phi if keep_phi else None, sens=sens_out, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi,
                     final_floor=final_floor)
 
 
@@ -369,6 +369,7 @@ class RecordRun:
         h = self.dt / steps
         cos_lat0 = float(np.cos(np.radians(lat)))
         theta_carry, p0 = 0.0, None
+        row0 = np.zeros(1, np.int64)   # the one lane's row of the block's outputs
         for k0 in range(0, n, rows):
             k1 = min(k0 + rows, n)
             last = k1 == n
@@ -395,7 +396,8 @@ class RecordRun:
                 acc_w = (gens[0].standard_normal((m, 2)) * s_acc)[None]
                 gyro_w = (gens[1].standard_normal((m, 3)) * s_gyro)[None]
                 noise_of = np.array([0])
-            _navigate_block(h, steps, truth_table(kin), cos_lat0, L, y, acc_w, gyro_w, noise_of, err, phi, fm, last)
+            _navigate_block(h, steps, truth_table(kin), cos_lat0, L, y, acc_w, gyro_w, noise_of, err, row0, phi, fm,
+                            row0, np.empty((1, 4)), last)
             data = Kinematics(**{f: getattr(kin, f)[:sub * (m - 1) + 1:sub] for f in Kinematics.__dataclass_fields__})
             if p0 is None:
                 p0 = data.p[0].copy()

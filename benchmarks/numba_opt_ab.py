@@ -1,6 +1,7 @@
-"""Issue 22 item 4: LLVM's optimisation level for numba (``NUMBA_OPT``, set to 1 by the
-repository's ``.numba_config.yaml``) against numba's default (3): the cold compile of each rig's
-kernels job and the CPU of one Monte Carlo cell per rig, with the cells' tables compared.
+"""Issue 22 item 4: LLVM's optimisation level 1 for numba (``NUMBA_OPT=1``) against numba's
+default (3): the cold compile of each rig's kernels job and the CPU of one Monte Carlo cell per
+rig, with the cells' tables compared. The study keeps numba's default: level 1 saved 3-15 % of the
+compile and cost up to 24 % of a cell (``benchmarks/results_issue22_numba_opt.txt``).
 
 For each rig and level, alternating the levels (``--rounds`` times): a fresh process on an empty
 ``NUMBA_CACHE_DIR`` runs the rig's ``warm_kernels`` (what the study's rule ``kernels`` runs; CPU s

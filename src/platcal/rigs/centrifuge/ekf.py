@@ -82,8 +82,9 @@ class FilterSettings:
     prior_x, prior_P : the start of the coefficient states, (n_coef,) or (B, n_coef) estimate and
         (n_coef, n_coef) or (B, n_coef, n_coef) covariance (engineering units): a previous test's
         posterior handed on (``platcal plan``'s Monte Carlo). None: 0 and ``diag(p0_sigma^2)`` (§9).
-    lanes : the EKF's and IEKF's passes run the state-major kernel (:func:`run_ekf` ``lanes``);
-        the same numbers bit for bit, so it chooses a cost, not a result.
+    lanes : :func:`run_ekf`'s passes (the EKF, the IEKF, the ML's EKF start and the
+        covariance-only runs) on the state-major kernel (:func:`run_ekf` ``lanes``): the same
+        numbers bit for bit, so it chooses a cost, not a result.
     """
 
     period_s: float = 0.02

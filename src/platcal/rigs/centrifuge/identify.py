@@ -40,9 +40,11 @@ if TYPE_CHECKING:  # annotations only: an identify loads no pandas (issue 22 ite
 def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSettings | None = None,
                       truth: np.ndarray | None = None) -> Estimate:
     """Simulate a batch (one run per SeedSequence; ``seeds=None``: one noise-free run) and identify
-    it with the study's estimator (``filter.estimator``, the EKF by default): the one simulate -> identify path of the centrifuge (Monte Carlo, design
-    studies, observability checks). ``settings`` defaults to the study's filter without history;
-    ``truth`` (48,) to the study's. Runs are independent: a batch gives the numbers of B runs of one.
+    it with the study's estimator (``filter.estimator``, the EKF by default): the one simulate ->
+    identify path of the centrifuge (Monte Carlo, design studies, observability checks), its EKF
+    passes on the state-major kernel (``FilterSettings.lanes``). ``settings`` defaults to the
+    study's filter without history; ``truth`` (48,) to the study's. Runs are independent: a batch
+    gives the numbers of B runs of one.
     """
     truth = study.truth if truth is None else truth
     # the state-major kernel: the same numbers bit for bit, a quarter less CPU at B >= 8, and every

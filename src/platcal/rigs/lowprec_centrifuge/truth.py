@@ -273,8 +273,8 @@ def simulate_batch(study: Study, platform: str, run: str, seeds, replicates=None
             psi[i] += buf1
     draws = Draws(k0_ug=dr["k0"], scale_ppm=dr["sk"], drift_deg_h=dr["eps"], phi0_rad=dr["phi0"], gyro_g=dr["gg"])
     return RunBatch(platform=platform, run=run, seeds=seeds, coeffs=coeffs, prof=prof, kin=kin, draws=draws,
-                    err=err, phi=phi if keep_phi else None, sens=sens_out, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind, psi=psi,
-                    final_floor=final_floor)
+                    err=err, phi=phi if keep_phi else None, sens=sens_out, v_ind=v_ind, f_meas=f_meas, p_ind=p_ind,
+                    psi=psi, final_floor=final_floor)
 
 
 def _draw_scaled(rngs: list, out: np.ndarray, sigma: float) -> np.ndarray:

@@ -10,6 +10,7 @@ import json
 import math
 import os
 import re
+import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -114,6 +115,29 @@ def atomic_files(folder: str | os.PathLike):
             t.unlink(missing_ok=True)
         # name the file being written (the last asked for), else the folder
         _raise_write_error(exc, temps[-1][1] if temps else folder)
+        raise
+
+
+@contextmanager
+def atomic_folder(folder: str | os.PathLike):
+    """Fill a result folder so that it appears whole or not at all.
+
+    Yields a temporary folder beside ``folder``; when the block ends without error it is renamed
+    to ``folder``, which must not exist or be empty (a Snakemake ``directory()`` output: Snakemake
+    removes it before the job). On error the temporary folder and its files are removed.
+    """
+    folder = Path(folder)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".part", dir=folder.parent))
+    try:
+        yield tmp
+        os.chmod(tmp, 0o777 & ~_umask())
+        if folder.is_dir():
+            folder.rmdir()  # empty (made by the caller): rename cannot replace a folder otherwise
+        os.replace(tmp, folder)
+    except BaseException as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        _raise_write_error(exc, folder)
         raise
 
 

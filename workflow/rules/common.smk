@@ -59,20 +59,9 @@ def config_provider(rig, *keys):
 
 
 def mc_cells(rig):
-    """The cell folders of a rig's sweep: cases x noise levels x estimators."""
+    """The cell folders of a rig's sweep: cases x noise levels (a cell runs every estimator)."""
     h, c = MC_HOOKS[rig], MC_CONFIG[rig]
-    return expand(
-        "results/{rig}/runs/{scheme}/noise{noise}/{estimator}",
-        rig=rig,
-        scheme=h.cases(c),
-        noise=list(MC_LEVELS[rig]),
-        estimator=h.estimators(c),
-    )
-
-
-def mc_cell_files(name):
-    """An input function: file ``name`` of every cell of the rule's rig."""
-    return lambda w: [f"{c}/{name}" for c in mc_cells(w.rig)]
+    return expand("results/{rig}/runs/{scheme}/noise{noise}", rig=rig, scheme=h.cases(c), noise=list(MC_LEVELS[rig]))
 
 
 def mc_case_input(w):
@@ -101,11 +90,16 @@ def mc_requires_input(w):
     return rig_requires(w.rig)
 
 
+def mc_estimators(w):
+    """The estimators a cell runs, in the rig's order."""
+    return list(MC_HOOKS[w.rig].estimators(MC_CONFIG[w.rig]))
+
+
 def mc_cell_params(w):
-    """Exactly what the cell's numbers depend on (the rig says): a change reruns that cell only."""
-    return MC_HOOKS[w.rig].cell_params(
-        MC_CONFIG[w.rig], w.scheme, MC_LEVELS[w.rig][w.noise], w.estimator
-    )
+    """Exactly what the cell's numbers depend on (the rig says, per estimator): a change reruns that
+    cell only."""
+    h, c, level = MC_HOOKS[w.rig], MC_CONFIG[w.rig], MC_LEVELS[w.rig][w.noise]
+    return {e: h.cell_params(c, w.scheme, level, e) for e in mc_estimators(w)}
 
 
 def mc_threads(w):

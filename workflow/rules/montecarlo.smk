@@ -1,7 +1,8 @@
 # The generic Monte Carlo stage of every rig with Monte Carlo hooks (platcal.rig.MonteCarloHooks):
-# one job per (case, noise level, estimator) cell, then the rig's tidy tables; before them, for a
-# rig whose hooks have ``warm_kernels``, one job compiling its numba kernels (rule kernels).
-#   results/<rig>/runs/<case>/noise<level>/<estimator>/{coef,runs}.parquet, timing.json
+# one job per (case, noise level) cell running every estimator on the cell's data, then the rig's
+# tidy tables; before them, for a rig whose hooks have ``warm_kernels``, one job compiling its
+# numba kernels (rule kernels).
+#   results/<rig>/runs/<case>/noise<level>/{coef,runs}.parquet, timing.json
 #   results/<rig>/montecarlo/{coef,runs}.parquet, timing.csv
 
 
@@ -38,34 +39,34 @@ rule montecarlo_cell:
         case=mc_case_input,
         requires=mc_requires_input,
     output:
-        coef="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/coef.parquet",
-        runs="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/runs.parquet",
-        timing="results/{rig}/runs/{scheme}/noise{noise}/{estimator}/timing.json",
+        # one folder per estimator: coef.parquet, runs.parquet, timing.json (the rig's own per-run
+        # columns differ between estimators: they stay each in its own tables, as collect reads them)
+        directory("results/{rig}/runs/{scheme}/noise{noise}"),
     params:
         cell=mc_cell_params,
+        estimators=mc_estimators,
         level=lambda w: MC_LEVELS[w.rig][w.noise],
         code=lambda w: CODE_COMPUTE[w.rig],
     threads: mc_threads
     conda:
         "../envs/platcal.yaml"
     benchmark:
-        bench("{rig}", "montecarlo_cell", "{scheme}_noise{noise}_{estimator}"),
+        bench("{rig}", "montecarlo_cell", "{scheme}_noise{noise}"),
     log:
-        "results/{rig}/logs/montecarlo/{scheme}_noise{noise}_{estimator}.log",
+        "results/{rig}/logs/montecarlo/{scheme}_noise{noise}.log",
     script:
         "../scripts/montecarlo_cell.py"
 
 
 rule collect:
     input:
-        coef=mc_cell_files("coef.parquet"),
-        runs=mc_cell_files("runs.parquet"),
-        timing=mc_cell_files("timing.json"),
+        cells=lambda w: mc_cells(w.rig),
     output:
         coef="results/{rig}/montecarlo/coef.parquet",
         runs="results/{rig}/montecarlo/runs.parquet",
         timing="results/{rig}/montecarlo/timing.csv",
     params:
+        estimators=mc_estimators,
         code=CODE_ALL,
     conda:
         "../envs/platcal.yaml"

@@ -31,6 +31,7 @@ import importlib.util
 import json
 import os
 import time
+from collections.abc import Sequence
 from functools import lru_cache
 from typing import TYPE_CHECKING
 from importlib import resources
@@ -40,7 +41,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from ..estimation.relative import rel_err_pct
-from ..io import atomic_files, json_safe
+from ..io import atomic_files, atomic_folder, json_safe
 from ..lighttable import Table
 from ..log import eta_line, job_logger
 from ..parallel import set_threads
@@ -218,28 +219,53 @@ def write_cell(out_dir: str | os.PathLike, coef: Table | pd.DataFrame, runs: Tab
         tmp("timing.json").write_text(json.dumps(json_safe(timing), indent=2, sort_keys=True, allow_nan=False) + "\n")
 
 
-def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimator: str, out_dir,
-             threads: int = 1, log_path=None, case_file=None) -> None:
-    """Run a cell and write its files, logging what runs and how far it is (a rule's body)."""
+def estimator_runs(rig_name: str, cfg: dict, case_name: str, level: float, estimators: Sequence[str],
+                   threads: int = 1, log_path=None, case_file=None):
+    """Check every estimator's part of the config for a (case, noise level) cell, then return an
+    iterator that runs them one after the other, yielding ``(estimator, coef, runs, timing)`` of
+    :func:`cell_tables` and logging what runs and how far it is. The checks run before this
+    returns: a bad estimator refuses the cell before any of them runs."""
     lg = job_logger(log_path)
     rig = get_rig(rig_name)
     hooks = rig.montecarlo
     # the workflow's master checked the whole config before any job: a cell checks what it uses
     check_cell = getattr(hooks, "check_cell", None)
-    cfg = check_cell(cfg, case_name, level, estimator) if check_cell else hooks.check(cfg)
-    case = hooks.case(cfg, case_name, case_file)
-    st = hooks.settings(cfg)
-    lg.info("%s cell %s, %s = %g %s, estimator %s: %d replicates, %d thread(s), backend %s, batch %d",
-            rig.name, case.name, hooks.noise.name, level, hooks.noise.unit, estimator, st.replicates, threads,
-            st.backend, st.batch)
+    checked = {e: check_cell(cfg, case_name, level, e) if check_cell else hooks.check(cfg) for e in estimators}
+    cases = {e: hooks.case(c, case_name, case_file) for e, c in checked.items()}
 
     def progress(done, total, seconds):
         lg.info("  replicates %s", eta_line(done, total, seconds))
 
-    coef, runs, timing = cell_tables(rig, cfg, case, level, estimator, threads=threads, progress=progress)
-    write_cell(out_dir, coef, runs, timing)
-    lg.info("done: mean NEES %.1f (dof %d), %.2f s per run -> %s", runs["nees"].mean(),
-            int(runs["nees_dof"].iloc[0]), timing["wall_s_per_run"], out_dir)
+    def run():
+        for estimator in estimators:
+            c, case = checked[estimator], cases[estimator]
+            st = hooks.settings(c)
+            lg.info("%s cell %s, %s = %g %s, estimator %s: %d replicates, %d thread(s), backend %s, batch %d",
+                    rig.name, case.name, hooks.noise.name, level, hooks.noise.unit, estimator, st.replicates,
+                    threads, st.backend, st.batch)
+            coef, runs, timing = cell_tables(rig, c, case, level, estimator, threads=threads, progress=progress)
+            lg.info("  %s done: mean NEES %.1f (dof %d), %.2f s per run", estimator, runs["nees"].mean(),
+                    int(runs["nees_dof"].iloc[0]), timing["wall_s_per_run"])
+            yield estimator, coef, runs, timing
+
+    return run()
+
+
+def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimators: Sequence[str], out_dir,
+             threads: int = 1, log_path=None, case_file=None) -> None:
+    """Rule body: a (case, noise level) cell run with every estimator of ``estimators``
+    (:func:`estimator_runs`) into the folder ``out_dir``, one sub-folder per estimator
+    (:func:`write_cell`), the folder renamed into place once all are written.
+
+    One process for all of a cell's estimators: they run on the same data (common random numbers:
+    the seeds do not name the estimator), and a process costs 1-1.5 s to start (imports, numba's
+    target and its cached kernels) before it runs anything (issue 22 item 4).
+    """
+    runs = estimator_runs(rig_name, cfg, case_name, level, estimators, threads, log_path, case_file)
+    with atomic_folder(out_dir) as tmp:
+        for estimator, coef, table, timing in runs:
+            write_cell(tmp / estimator, coef, table, timing)
+    job_logger(log_path).info("done: %d estimator(s) -> %s", len(estimators), out_dir)
 
 
 # ---------------------------------------------------------------------------------------------

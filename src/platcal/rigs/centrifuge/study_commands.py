@@ -13,7 +13,7 @@ import time
 from ...errors import InputError
 from ...io import check_writable
 from ...sizes import Size
-from ...study.montecarlo import cell_job
+from ...study.montecarlo import estimator_runs, write_cell
 from .commands import scheme_option
 from .config import Study, check_filter
 from .design import design_config, preset, run_design, write_design
@@ -68,8 +68,9 @@ def montecarlo_command(study: Study, args: argparse.Namespace) -> int:
     if args.noise is None:
         raise InputError("--noise", "required for rig centrifuge: the accelerometer noise sigma_a, ug per sample")
     check_writable(args.out, "--out", folder=True)
-    cell_job("centrifuge", study.config, args.scheme, args.noise, args.estimator, args.out, threads=args.threads,
-             case_file=args.scheme_file)
+    for _, coef, runs, timing in estimator_runs("centrifuge", study.config, args.scheme, args.noise, [args.estimator],
+                                                threads=args.threads, case_file=args.scheme_file):
+        write_cell(args.out, coef, runs, timing)
     return 0
 
 

@@ -70,10 +70,13 @@ def test_a_cell_check_refuses_an_estimator_the_study_does_not_define():
 RUN = """
 import runpy, sys
 from types import SimpleNamespace
-script, config, out, log, estimator = sys.argv[1:]
-w = SimpleNamespace(rig="centrifuge", scheme="classical", noise="10", estimator=estimator)
+script, config, out, log, estimators = sys.argv[1:]
+estimators = estimators.split(",")
+w = SimpleNamespace(rig="centrifuge", scheme="classical", noise="10", estimator=estimators[0])
+class Output(list):  # Snakemake's outputs: by position and by name
+    coef = out
 sm = SimpleNamespace(config={"rigs": {"centrifuge": config}}, wildcards=w, threads=1,
-                     params=SimpleNamespace(level=10.0), output=SimpleNamespace(coef=out), log=[log],
+                     params=SimpleNamespace(level=10.0, estimators=estimators), output=Output([out]), log=[log],
                      input=SimpleNamespace(case=[]))
 runpy.run_path(script, init_globals={"snakemake": sm}, run_name="__main__")
 """
@@ -96,4 +99,21 @@ def test_a_cell_job_refuses_a_bad_filter_of_its_cell_with_the_field_named(script
     assert p.returncode == 2, p.stderr
     assert "Traceback" not in p.stderr and "error: filter.sigma_set_arcsec" in p.stderr, p.stderr
     assert "replicates" not in p.stderr, p.stderr  # refused before the job announced its run
+    assert not out.parent.exists()
+
+
+def test_a_monte_carlo_cell_refuses_before_its_first_estimator_runs(tmp_path):
+    """A cell runs every estimator of its (case, level) in one job: an estimator the study does not
+    define, named after a good one, refuses the job before the good one runs (exit 2, nothing
+    written)."""
+    config = tmp_path / "centrifuge.yaml"
+    config.write_text(json.dumps(_default_centrifuge()))
+    out = tmp_path / "results" / "cell"
+    log = tmp_path / "logs" / "cell.log"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "NUMBA_NUM_THREADS": "1"}
+    p = subprocess.run([sys.executable, "-c", RUN, str(SCRIPTS / "montecarlo_cell.py"), str(config), str(out),
+                        str(log), "ekf1,nope"], capture_output=True, text=True, env=env, timeout=120, cwd=ROOT)
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr and "study.estimators" in p.stderr, p.stderr
+    assert "replicates" not in p.stderr, p.stderr
     assert not out.parent.exists()

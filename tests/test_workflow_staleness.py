@@ -46,14 +46,21 @@ def scheduled(dry: str, kinds=("output:",)) -> list[str]:
                    for o in line.split(k, 1)[1].split(",")})
 
 
+DIRECTORY_OUTPUTS = re.compile(r"^rule montecarlo_cell:\n(?:    .*\n)*?    output: (\S+)$", re.M)
+
+
 def mark_done(d: Path) -> list[str]:
     """Create every output of the study and record every job as done with its params
     (``--touch --forceall``); the outputs, sorted."""
     dry = smk(d, "-n", "--configfile", "index.yaml")
     outs = scheduled(dry)
+    folders = set(DIRECTORY_OUTPUTS.findall(dry))  # a Monte Carlo cell's output is its folder
     for o in scheduled(dry, ("output:", "benchmark:")):  # a job's benchmark file is one of its products
-        (d / o).parent.mkdir(parents=True, exist_ok=True)
-        (d / o).touch()
+        if o in folders:
+            (d / o).mkdir(parents=True, exist_ok=True)
+        else:
+            (d / o).parent.mkdir(parents=True, exist_ok=True)
+            (d / o).touch()
     smk(d, "--touch", "--forceall", "--cores", "1", "--configfile", "index.yaml")
     return outs
 
@@ -82,11 +89,12 @@ EDITS = [
     ("multiposition", r"ROLL4: \{dwell_s: 60", "ROLL4: {dwell_s: 50", r"observability/ROLL4/observability\.json",
      r"/runs/|extension/|design/"),
     ("multiposition", r"^seed: 1 ", "seed: 2 ", r"/runs/S8/", r"observability/|extension/"),
-    # one estimator's setting reruns its cells (and, through the kernels job they wait for, the
-    # others: Snakemake's ancient() would spare them but then also skip the edited cells' own
-    # params check, a stale result - Snakemake 9 masks a job downstream of a rerun job)
+    # one estimator's setting reruns the cells it runs in (every estimator of a (case, level) cell
+    # runs in one job; and, through the kernels job they wait for, the other cells: Snakemake's
+    # ancient() would spare them but then also skip the edited cells' own params check, a stale
+    # result - Snakemake 9 masks a job downstream of a rerun job)
     ("multiposition", r"ekf2: \{estimator: ekf, passes: 2\}", "ekf2: {estimator: ekf, passes: 3}",
-     r"/runs/S8/noise5/ekf2/", r"^$"),
+     r"/runs/S8/noise5$", r"^$"),
     ("sled", r"sigma_arcsec: \[30, 30, 180\]", "sigma_arcsec: [31, 30, 180]", r"runs/default/", r"rank_table"),
     ("centrifuge", r"sigma_set_arcsec: 10\}", "sigma_set_arcsec: 12}", r"/runs/table1/", r"^$"),
 ]

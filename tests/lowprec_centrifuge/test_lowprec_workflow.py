@@ -102,7 +102,7 @@ def test_tiny_study_runs_and_reports(done):
     runs = pd.read_parquet(res / "montecarlo" / "runs.parquet")
     assert set(runs["scheme"]) == {"default", "perfect", "worst"}
     assert set(runs["estimator"]) == {"proposed", "traditional"}
-    assert (res / "logs" / "montecarlo" / "default_noise10_proposed.log").exists()
+    assert (res / "logs" / "montecarlo" / "default_noise10.log").exists()
     assert not (res / "scenarios").exists()    # the rig's former own loop is gone
     assert "Nothing to be done" in dry(done)
 
@@ -114,28 +114,30 @@ def test_editing_a_value_reruns_its_jobs_and_a_comment_nothing(done, tmp_path):
     (d / "config" / "lp.yaml").write_text("# another comment\n" + (d / "config" / "lp.yaml").read_text())
     assert jobs(dry(d)) == {}
     text = (d / "config" / "lp.yaml").read_text()
-    edit(d, residuals__k0_ug=25)      # every cell (both methods, every scenario), the trace, the report
-    assert jobs(dry(d)) == {"montecarlo_cell": 6, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
+    edit(d, residuals__k0_ug=25)      # every cell (every scenario, both methods), the trace, the report
+    assert jobs(dry(d)) == {"montecarlo_cell": 3, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
     (d / "config" / "lp.yaml").write_text(text)
     edit(d, platforms__P1__kA_x=-41)
-    assert jobs(dry(d)) == {"montecarlo_cell": 6, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
+    assert jobs(dry(d)) == {"montecarlo_cell": 3, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
     (d / "config" / "lp.yaml").write_text(text)
     # the default scenario's rate: default and the scenarios that keep the default rate (not perfect, worst)
     edit(d, centrifuge__rate_error=4e-4)
-    assert jobs(dry(d)) == {"montecarlo_cell": 2, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
+    assert jobs(dry(d)) == {"montecarlo_cell": 1, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
     (d / "config" / "lp.yaml").write_text(text)
-    edit(d, traditional__hold_s=31)   # the traditional cells, the trace, the report; no proposed cell
+    # the traditional method's profile: every scenario's cell (a cell runs both methods on its
+    # data: the proposed one reruns with it, its numbers unchanged), the trace, the report
+    edit(d, traditional__hold_s=31)
     out = dry(d)
     assert jobs(out) == {"montecarlo_cell": 3, "collect": 1, "lowprec_trace": 1, "lowprec_report": 1, **AFTER}
-    cells = [o for o in re.findall(r"output: (\S+)", out) if "/runs/" in o]   # the cells' first outputs
-    assert len(cells) == 3 and all("/traditional/" in o for o in cells)
+    cells = [o for o in re.findall(r"output: (\S+)", out) if "/runs/" in o]   # the cells' folders
+    assert sorted(cells) == [f"results/lowprec_centrifuge/runs/{s}/noise10" for s in ("default", "perfect", "worst")]
 
 
 def test_inline_config_gives_the_same_jobs_as_the_path(tmp_path):
     a = setup(tmp_path / "a")
     b = setup(tmp_path / "b", inline=True)
     ja, jb = dry(a), dry(b)
-    assert jobs(ja) == jobs(jb) and jobs(ja)["montecarlo_cell"] == 6
+    assert jobs(ja) == jobs(jb) and jobs(ja)["montecarlo_cell"] == 3
     outs = [sorted(re.findall(r"output: (\S+)", j)) for j in (ja, jb)]
     assert outs[0] == outs[1]
 

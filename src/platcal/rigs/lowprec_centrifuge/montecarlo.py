@@ -2,8 +2,8 @@
 §2, §8, §9, §12).
 
 The study is scenarios x estimators x ``study.seeds`` replicates, run by
-:mod:`platcal.study.montecarlo` (one Snakemake job per cell, rule ``montecarlo_cell``) and
-collected into the tidy tables ``results/lowprec_centrifuge/montecarlo/``.
+:mod:`platcal.study.montecarlo` (one Snakemake job per scenario, both methods in it, rule
+``montecarlo_cell``) and collected into the tidy tables ``results/lowprec_centrifuge/montecarlo/``.
 
 - Cases: the centrifuge scenarios of §2 (:func:`.scenario.scenarios`: default, the rate and arm
   sweeps, perfect, worst, gross, gross-neg), each a :class:`Scenario`.

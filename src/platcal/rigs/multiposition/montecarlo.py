@@ -1,8 +1,8 @@
 """The multiposition rig's hooks for the generic Monte Carlo runner (docs/multiposition-1g.md §14-16).
 
 The study is ``study.schemes`` x ``study.sigma_a_ug`` x ``study.estimators`` x ``study.seeds``
-replicates, run by :mod:`platcal.study.montecarlo` (one Snakemake job per cell, rule
-``montecarlo_cell``) and collected into the tidy tables ``results/multiposition/montecarlo/``.
+replicates, run by :mod:`platcal.study.montecarlo` (one Snakemake job per (scheme, sigma_a) cell
+with every estimator, rule ``montecarlo_cell``) and collected into the tidy tables ``results/multiposition/montecarlo/``.
 
 - Cases: a scheme of the config (the §11 schemes are built in) or a GA design (``GA``, or
   ``GA<K>`` with K in ``design.positions``), read from the file the rule ``multiposition_design``

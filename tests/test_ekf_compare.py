@@ -79,9 +79,9 @@ def compared(tmp_path_factory):
     c = cfg()
     root = tmp_path_factory.mktemp("compare")
     dirs = []
-    for label, est in compare_cells.compare_cells(c):
-        d = root / f"noise{label}" / est
-        compare_cells.compare_cell_job(c, compare_cells.compare_levels(c)[label], est, d)
+    for label, level in compare_cells.compare_levels(c).items():  # one job per level, its estimators
+        d = root / f"noise{label}"
+        compare_cells.compare_level_job(c, level, d)
         dirs.append(d)
     out = {"coef": root / "coef.parquet", "runs": root / "runs.parquet", "timing": root / "timing.csv"}
     collect_job([d / "coef.parquet" for d in dirs], [d / "runs.parquet" for d in dirs],

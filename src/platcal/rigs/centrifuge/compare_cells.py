@@ -19,11 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
+from ...lighttable import Table
 from ...log import job_logger
 from ...rig import get_rig
 from ...study.montecarlo import cell_tables, write_cell
 from ...study.sweep import noise_label
-from .study import builtin_scheme, check_study
+from .study import builtin_scheme, check_study, study_for_cell
 
 
 def compare_settings(cfg: dict) -> dict:
@@ -109,28 +110,63 @@ def warm_kernels(cfg: dict) -> None:
         warm_estimator(cfg, scheme, level, name)
 
 
-def compare_cell_job(cfg: dict, level: float, estimator: str, out_dir, threads: int = 1, log_path=None) -> None:
-    """Rule body: one (noise level, estimator) cell of the comparison."""
-    lg = job_logger(log_path)
-    cfg = with_compare_estimators(check_study(cfg, cells=[(level, estimator)]))
-    c = compare_settings(cfg)
-    rig = get_rig("centrifuge")
-    scheme = builtin_scheme(cfg, c["scheme"])
-    lg.info("comparison cell %s, sigma_a = %g ug, estimator %s: %d replicates", scheme.name, level, estimator,
-            c["replicates"])
+def level_estimators(cfg: dict, level: float) -> list[str]:
+    """The comparison estimators that run at ``level`` (ug), in :func:`compare_cells` order.
+    ``cfg``: a checked config."""
+    return [e for label, e in compare_cells(cfg) if label == noise_label(level)]
+
+
+def level_params(cfg: dict, level: float) -> dict:
+    """What a comparison level job's numbers depend on (a Snakemake param): :func:`cell_params`
+    of every estimator of the level, by name, so an edit of one estimator's settings reruns the
+    level's job."""
+    return {e: cell_params(cfg, level, e) for e in level_estimators(cfg, level)}
+
+
+def estimator_tables(cfg: dict, scheme, level: float, estimator: str, threads: int = 1) -> tuple[Table, Table, dict]:
+    """One estimator's cell of the comparison at ``level`` (ug): its tidy tables and timing, the
+    runs table with the cost per run (``wall_s``, ``cpu_s``: the cell's mean, simulation and
+    filter, every thread of the process) measured around its own runs after its warm-up
+    (docs/centrifuge-model.md §10-11). ``cfg``: checked, with the comparison's estimators."""
     # load the compiled kernels before the clock starts, so the cost per run is the runs', not the
     # process's start-up
     warm_estimator(cfg, scheme, level, estimator)
     t0, c0 = time.perf_counter(), time.process_time()
-    coef, runs, timing = cell_tables(rig, cfg, scheme, level, estimator, replicates=int(c["replicates"]),
-                                     threads=threads)
+    coef, runs, timing = cell_tables(get_rig("centrifuge"), cfg, scheme, level, estimator,
+                                     replicates=int(compare_settings(cfg)["replicates"]), threads=threads)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    # the cost per run (cell mean, simulation and filter, every thread of the process): the
-    # comparison's runs table is machine-dependent in these two columns only
+    # the comparison's runs table is machine-dependent in these two columns only
     R = max(len(runs), 1)
     runs["wall_s"] = np.full(len(runs), wall / R)
     runs["cpu_s"] = np.full(len(runs), cpu / R)
     timing["cpu_s"] = cpu
-    write_cell(out_dir, coef, runs, timing)
-    lg.info("done: mean NEES %.1f, %.3f s CPU per run -> %s", runs["nees"].mean(), runs["cpu_s"].mean(), out_dir)
+    return coef, runs, timing
 
+
+def compare_level_job(cfg: dict, level: float, out_dir, threads: int = 1, log_path=None) -> None:
+    """Rule body: every estimator of one noise level of the comparison (:func:`level_estimators`),
+    one after another in one process (one process start-up per level instead of one per
+    estimator; issue 22 item 4), into one ``coef.parquet``, ``runs.parquet`` (the estimators' rows
+    in order, an ``estimator`` column) and ``timing.json`` (a list: one timing record per
+    estimator) under ``out_dir``. Every estimator's filter settings are checked before any work
+    (InputError naming the field)."""
+    lg = job_logger(log_path)
+    cfg = with_compare_estimators(check_study(cfg, cells=[]))
+    names = level_estimators(cfg, level)
+    if not names:
+        raise InputError("study.compare.sigma_a_ug", f"{level:g} ug is not a level of the comparison "
+                         f"({compare_settings(cfg)['sigma_a_ug']})")
+    for name in names:  # the filter checks that check_study(cfg, cells=...) runs, the level's only
+        study_for_cell(cfg, level, name)
+    c = compare_settings(cfg)
+    scheme = builtin_scheme(cfg, c["scheme"])
+    lg.info("comparison level %s, sigma_a = %g ug, estimators %s: %d replicates each", scheme.name, level,
+            ", ".join(names), c["replicates"])
+    cells = []
+    for name in names:
+        cells.append(estimator_tables(cfg, scheme, level, name, threads))
+        runs = cells[-1][1]
+        lg.info("  %s: mean NEES %.1f, %.3f s CPU per run", name, runs["nees"].mean(), runs["cpu_s"].mean())
+    write_cell(out_dir, Table.concat([t[0] for t in cells]), Table.concat([t[1] for t in cells]),
+               [t[2] for t in cells])
+    lg.info("done -> %s", out_dir)

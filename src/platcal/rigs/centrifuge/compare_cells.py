@@ -145,8 +145,9 @@ def level_tables(cfg: dict, scheme, level: float, names: list[str], threads: int
     (docs/centrifuge-model.md §8-11). The outputs are kept at the greatest common divisor of the
     estimators' samples per filter period, each estimator reading every k-th of them: its numbers
     are those of its cell run alone (``cell_tables``), bit for bit. ``cfg``: checked, with the
-    comparison's estimators; ``threads``: numba threads; ``progress(done, total, seconds)`` after
-    each chunk.
+    comparison's estimators; ``threads``: numba threads (the chunks run in the job's process
+    whatever ``study.backend``: the comparison's rule runs one thread); ``progress(done, total,
+    seconds)`` after each chunk.
 
     Returns, per estimator in order, ``(coef, runs, timing)`` as ``cell_tables`` gives them, the
     runs table with the cost per run (``wall_s``, ``cpu_s``: the estimator's mean over its runs,

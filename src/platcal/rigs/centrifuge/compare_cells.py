@@ -198,10 +198,10 @@ def level_tables(cfg: dict, scheme, level: float, names: list[str], threads: int
 def compare_level_job(cfg: dict, level: float, out_dir, threads: int = 1, log_path=None) -> None:
     """Rule body: every estimator of one noise level of the comparison (:func:`level_estimators`)
     in one process, on records simulated once (:func:`level_tables`; one process start-up and one
-    simulation per level instead of one per estimator; issue 22 item 4), into one ``coef.parquet``, ``runs.parquet`` (the estimators' rows
-    in order, an ``estimator`` column) and ``timing.json`` (a list: one timing record per
-    estimator) under ``out_dir``. Every estimator's filter settings are checked before any work
-    (InputError naming the field)."""
+    simulation per level instead of one per estimator; issue 22 item 4), into one
+    ``coef.parquet``, ``runs.parquet`` (the estimators' rows in order, an ``estimator`` column)
+    and ``timing.json`` (a list: one timing record per estimator) under ``out_dir``. Every
+    estimator's filter settings are checked before any work (InputError naming the field)."""
     lg = job_logger(log_path)
     cfg = with_compare_estimators(check_study(cfg, cells=[]))
     names = level_estimators(cfg, level)

@@ -159,7 +159,8 @@ def write_compare_tables(cfg: dict, coef: pd.DataFrame, runs: pd.DataFrame, out_
                 f"[{lo:.1f}, {hi:.1f}] and beyond the 99.9 % point {chi2.ppf(NEES_LEVEL, dof):.1f}; wall and CPU s per "
                 "run (the estimator alone, not the simulation; batch of study.batch, machine- and load-dependent); "
                 "cost_vs_ekf1: CPU per run over the one-pass EKF's; meets: mean NEES within 10 % of 45, "
-                "<= 1 % beyond the 99.9 % point and a largest-gyro error no worse than the 2-pass EKF's (issue 9).", SUMMARY_FMT)
+                "<= 1 % beyond the 99.9 % point and a largest-gyro error no worse than the 2-pass EKF's (issue 9).",
+                SUMMARY_FMT)
     return summ
 
 

@@ -38,8 +38,7 @@ from platcal.io import atomic_write_text
 
 # (job name, estimator or None): the sweep's estimators first (they start the study), then the
 # comparison's other kinds, then the single run and the GA design
-JOBS = ("sweep:ekf1", "sweep:ekfw", "compare:ekf2", "compare:iekf", "compare:ukf", "compare:ml", "single",
-        "design:ga_J")
+JOBS = ("sweep:ekf1", "sweep:ekfw", "compare:10", "single", "design:ga_J")
 
 
 class Recorder(event.Listener):
@@ -64,8 +63,8 @@ def run_job(job: str, dwell: float, out: Path) -> None:
         from platcal.study.montecarlo import cell_job
         cell_job("centrifuge", cfg, "table1", 10.0, arg, out)
     elif kind == "compare":
-        from platcal.rigs.centrifuge.compare_cells import compare_cell_job
-        compare_cell_job(cfg, 10.0, arg, out)
+        from platcal.rigs.centrifuge.compare_cells import compare_level_job
+        compare_level_job(cfg, float(arg), out)  # every estimator of the level, as the rule runs them
     elif kind == "single":
         from platcal.rigs.centrifuge.study import single_job
         single_job(cfg, out)

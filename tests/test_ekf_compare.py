@@ -14,6 +14,7 @@ from platcal.rigs.centrifuge import study as mc
 from platcal.rigs.centrifuge.config import study_from_config
 from platcal.rigs.centrifuge.estimators import KINDS, run_estimator
 from platcal.study.collect import collect_job
+from platcal.study.montecarlo import run_cell
 
 BASE = {
     "seed": 7,
@@ -79,9 +80,9 @@ def compared(tmp_path_factory):
     c = cfg()
     root = tmp_path_factory.mktemp("compare")
     dirs = []
-    for label, est in compare_cells.compare_cells(c):
-        d = root / f"noise{label}" / est
-        compare_cells.compare_cell_job(c, compare_cells.compare_levels(c)[label], est, d)
+    for label, level in compare_cells.compare_levels(c).items():  # one job per level, its estimators
+        d = root / f"noise{label}"
+        compare_cells.compare_level_job(c, level, d)
         dirs.append(d)
     out = {"coef": root / "coef.parquet", "runs": root / "runs.parquet", "timing": root / "timing.csv"}
     collect_job([d / "coef.parquet" for d in dirs], [d / "runs.parquet" for d in dirs],
@@ -115,6 +116,32 @@ def test_comparison_cells_tables_and_figures(compared):
     assert summ.loc[summ["estimator"] == "ekf1", "cost_vs_ekf1"].eq(1.0).all()
     for f in ("compare_summary.md", "compare_summary.html", "cost.png", "nees.png"):
         assert (root / f).stat().st_size > 0
+
+
+def test_a_level_job_gives_each_estimators_cell_run_alone_bit_for_bit(tmp_path):
+    """The level job simulates each chunk once and runs every estimator of the level on it
+    (issue 22 item 4): its tables are those of each estimator's cell run alone (the runner's
+    ``cell_tables``, which simulates for every estimator), bit for bit, for every kind, an
+    estimator with a filter period of its own (it reads every 2nd kept output) and a last chunk
+    shorter than the batch; only the cost columns differ."""
+    own = {"ekf1": {"passes": 1}, "ekf2": {"passes": 2}, "ekfw": {"estimator": "ekf", "warmup_s": 0.2},
+           "iekf": {"estimator": "iekf", "iterations": 2}, "ukf": {"estimator": "ukf"}, "ml": {"estimator": "ml"},
+           "slow": {"passes": 1, "period_ms": 40}}
+    c = cfg(estimators=own, sigma_a_ug=[10, 50], replicates=5, levels_of={"ukf": [50]})
+    compare_cells.compare_level_job(c, 50.0, tmp_path)
+    coef, runs = pd.read_parquet(tmp_path / "coef.parquet"), pd.read_parquet(tmp_path / "runs.parquet")
+    timing = json.loads((tmp_path / "timing.json").read_text())
+    assert list(dict.fromkeys(runs["estimator"])) == list(own) == [t["estimator"] for t in timing]
+    assert (runs["cpu_s"] > 0).all() and all(t["level_simulation_cpu_s"] > 0 for t in timing)
+    full = compare_cells.with_compare_estimators(c)
+    scheme = mc.builtin_scheme(c, "short")
+    for name in own:
+        alone_coef, alone_runs, _ = run_cell(RIG, full, scheme, 50.0, name, replicates=5)
+        mine_coef = coef[coef["estimator"] == name].reset_index(drop=True)
+        mine_runs = runs[runs["estimator"] == name].drop(columns=["wall_s", "cpu_s"]).reset_index(drop=True)
+        pd.testing.assert_frame_equal(mine_coef, alone_coef, check_exact=True)
+        pd.testing.assert_frame_equal(mine_runs, alone_runs, check_exact=True)
+        assert len(alone_runs) == 5 and np.isfinite(alone_runs["nees"]).all()
 
 
 def _summ(rows):

@@ -164,6 +164,6 @@ def test_every_job_that_runs_an_estimator_waits_for_its_rigs_kernels_job(tmp_pat
     n_mp_cov = sum(rule in ("multiposition_observability", "multiposition_design", "multiposition_extension")
                    for rule in rules)
     assert n_mp_cov >= 3
-    # comparison cells, single run, GA design, series, the multi-position covariance jobs, four rigs'
+    # comparison levels, single run, GA design, series, the multi-position covariance jobs, four rigs'
     # Monte Carlo cells (one per case and noise level)
-    assert checked == 16 + 1 + 1 + 7 + n_mp_cov + 18 + 7 + 11 + 10
+    assert checked == 3 + 1 + 1 + 7 + n_mp_cov + 18 + 7 + 11 + 10

@@ -5,8 +5,8 @@
 #   design/      GA schemes (ga_*.yaml, read by the sweep) and the design studies
 # `snakemake --cores 2 design_all` builds the full design report (design/report.md).
 from platcal.rigs.centrifuge.design import design_config
-from platcal.rigs.centrifuge.compare_cells import cell_params as compare_cell_params
 from platcal.rigs.centrifuge.compare_cells import compare_cells, compare_levels
+from platcal.rigs.centrifuge.compare_cells import level_params as compare_level_params
 from platcal.rigs.centrifuge.report import COMPARE_FIGURES, COMPARE_TABLES, FIGURES, TABLES
 from platcal.rigs.centrifuge.study import (
     DESIGN_KEYS,
@@ -183,7 +183,9 @@ rule centrifuge_figures:
 # ---- the estimator comparison (issue 9): its own cells, study.compare
 
 CEN_COMPARE = [] if CEN is None else compare_cells(CEN)
-CEN_COMPARE_DIRS = [f"results/centrifuge/compare/noise{n}/{e}" for n, e in CEN_COMPARE]
+# one job per noise level runs every estimator of the level (issue 22 item 4: one process start-up
+# per level instead of one per estimator)
+CEN_COMPARE_DIRS = [f"results/centrifuge/compare/noise{n}" for n in dict.fromkeys(n for n, _ in CEN_COMPARE)]
 # the comparison's own module (its cells' job, settings and params) is outside the rig's compute
 # closure, which follows the Monte Carlo hooks' imports (the hooks name it by path): its edit
 # reruns the comparison's cells too
@@ -194,23 +196,24 @@ rule centrifuge_compare_cell:
     input:
         rig_requires("centrifuge"),
     output:
-        coef="results/centrifuge/compare/noise{noise}/{estimator}/coef.parquet",
-        runs="results/centrifuge/compare/noise{noise}/{estimator}/runs.parquet",
-        timing="results/centrifuge/compare/noise{noise}/{estimator}/timing.json",
+        coef="results/centrifuge/compare/noise{noise}/coef.parquet",
+        runs="results/centrifuge/compare/noise{noise}/runs.parquet",
+        timing="results/centrifuge/compare/noise{noise}/timing.json",
     params:
-        cell=lambda w: compare_cell_params(CEN, compare_levels(CEN)[w.noise], w.estimator),
+        # every estimator's cell params: an edit of one estimator's settings reruns its level
+        cells=lambda w: compare_level_params(CEN, compare_levels(CEN)[w.noise]),
         level=lambda w: compare_levels(CEN)[w.noise],
         code=lambda w: CODE_COMPUTE["centrifuge"],
         compare_code=CODE_COMPARE,
     threads: 1
-    # before the sweep's cells: 8-30 s each against their 3 s, so the short cells end the run
+    # before the sweep's cells: 50-60 s each (a level's estimators) against their 3 s, so the short cells end the run
     priority: 1
     conda:
         "../envs/platcal.yaml"
     benchmark:
-        bench("centrifuge", "centrifuge_compare_cell", "noise{noise}_{estimator}"),
+        bench("centrifuge", "centrifuge_compare_cell", "noise{noise}"),
     log:
-        "results/centrifuge/logs/compare/noise{noise}_{estimator}.log",
+        "results/centrifuge/logs/compare/noise{noise}.log",
     script:
         "../scripts/centrifuge_compare_cell.py"
 

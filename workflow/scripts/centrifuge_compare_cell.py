@@ -1,4 +1,4 @@
-"""Snakemake wrapper: one (noise level, estimator) cell of the centrifuge's estimator comparison."""
+"""Snakemake wrapper: one noise level of the centrifuge's estimator comparison, every estimator of the level."""
 import os
 
 # one BLAS thread per process: the parallelism is numba's or Snakemake's jobs
@@ -8,8 +8,8 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 from pathlib import Path  # noqa: E402
 
 from platcal.rig import rig_config  # noqa: E402
-from platcal.rigs.centrifuge.compare_cells import compare_cell_job  # noqa: E402
+from platcal.rigs.centrifuge.compare_cells import compare_level_job  # noqa: E402
 
 sm = snakemake  # noqa: F821
-compare_cell_job(rig_config(sm.config, "centrifuge"), sm.params.level, sm.wildcards.estimator,
-                 Path(sm.output.coef).parent, threads=sm.threads, log_path=sm.log[0])
+compare_level_job(rig_config(sm.config, "centrifuge"), sm.params.level, Path(sm.output.coef).parent,
+                  threads=sm.threads, log_path=sm.log[0])

@@ -16,6 +16,13 @@ from ..log import job_logger
 from .montecarlo import CELL
 
 
+def timing_records(path) -> list[dict]:
+    """The timing records of a job's ``timing.json``: one record (a cell), or a list of them (a
+    job that runs several cells, e.g. every estimator of a noise level)."""
+    t = json.loads(Path(path).read_text())
+    return t if isinstance(t, list) else [t]
+
+
 def collect(coef_files, runs_files, timing_files) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
     """Concatenate the cells' files into sorted study-wide tables (order-independent)."""
     keys = CELL + ["replicate"]
@@ -24,7 +31,7 @@ def collect(coef_files, runs_files, timing_files) -> tuple[pd.DataFrame, pd.Data
     coef = coef.sort_values(keys + ["_i"], kind="stable").drop(columns="_i").reset_index(drop=True)
     runs = pd.concat([pd.read_parquet(f) for f in runs_files], ignore_index=True)
     runs = runs.sort_values(keys, kind="stable").reset_index(drop=True)
-    timing = pd.DataFrame([json.loads(Path(f).read_text()) for f in timing_files])
+    timing = pd.DataFrame([t for f in timing_files for t in timing_records(f)])
     timing = timing.sort_values(CELL, kind="stable").reset_index(drop=True)
     return coef, runs, timing
 

@@ -130,15 +130,22 @@ def failed_runs(batch) -> np.ndarray:
     return (np.asarray(batch.failed_updates) > 0) | ~finite
 
 
+def replicate_seeds(hooks, cfg: dict, case, level: float, replicates) -> list[np.random.SeedSequence]:
+    """The SeedSequences of ``replicates`` (indices) of ``case`` at ``level`` (module doc,
+    "Seeding"): those :func:`cell_tables` hands the rig's ``run_batch``, for a job that simulates
+    a chunk once for several estimators."""
+    key = getattr(case, "seed_key", case.name)
+    seed = hooks.settings(cfg).seed
+    return [replicate_seed(seed, key, level, r) for r in replicates]
+
+
 def _run_chunk(rig_name: str, cfg: dict, case, level: float, estimator: str, replicates, numba_threads: int):
     """One chunk of replicates (a joblib task or an in-process batch); the rig is looked up by
     name so that a joblib worker can rebuild it."""
     set_threads(numba_threads)
     hooks = get_rig(rig_name).montecarlo
-    seed = hooks.settings(cfg).seed
     t0 = time.perf_counter()
-    key = getattr(case, "seed_key", case.name)
-    batch = hooks.run_batch(cfg, case, level, estimator, [replicate_seed(seed, key, level, r) for r in replicates])
+    batch = hooks.run_batch(cfg, case, level, estimator, replicate_seeds(hooks, cfg, case, level, replicates))
     coef, runs = tidy_tables(batch, case.name, level, estimator, replicates)
     return coef, runs, time.perf_counter() - t0
 

@@ -5,22 +5,26 @@ Its own set of cells, sized apart from the scheme sweep (config ``study.compare`
 ``study.compare.estimators`` (names of ``study.estimators``, empty: all of them; or a mapping of
 the comparison's own estimators, ``filter:`` overrides as in ``study.estimators``, which the
 scheme sweep does not run) and
-``study.compare.replicates`` replicates per cell. A cell is run by the generic runner
-(:func:`platcal.study.montecarlo.run_cell`) with the sweep's seeds, so every estimator of a noise
-level sees the same data, and replicate r of (table1, 10 ug) is the same record in the sweep and
-here. Outputs, under ``results/centrifuge/``:
+``study.compare.replicates`` replicates per cell. A cell has the sweep's seeds, so every
+estimator of a noise level sees the same data, and replicate r of (table1, 10 ug) is the same
+record in the sweep and here. One job per noise level runs every estimator of the level on
+records it simulates once, a chunk at a time
+(:func:`platcal.rigs.centrifuge.compare_cells.level_tables`): each estimator's numbers are
+those of the generic runner's cell (:func:`platcal.study.montecarlo.cell_tables`) bit for bit.
+Outputs, under ``results/centrifuge/``:
 
-- ``compare/noise<level>/<estimator>/{coef,runs}.parquet, timing.json`` (one job per cell; the
-  runs table has the sweep's columns plus ``wall_s`` and ``cpu_s``, the cell's wall and process
-  CPU seconds per run, machine- and load-dependent) and
-  ``compare/{coef,runs}.parquet, timing.csv`` (collected);
+- ``compare/noise<level>/{coef,runs}.parquet, timing.json`` (one job per level, the level's
+  estimators in its tables' ``estimator`` column and one timing record each; the runs table has
+  the sweep's columns plus ``wall_s`` and ``cpu_s``, the estimator's wall and process CPU seconds
+  per run, the estimator alone: not the simulation, which the level's job runs once and logs;
+  machine- and load-dependent) and ``compare/{coef,runs}.parquet, timing.csv`` (collected);
 - ``tables/compare_rms.csv``: the tidy RMS relative error per estimator x noise level x
   coefficient;
 - ``tables/compare_summary.{csv,md,html}``: per estimator x noise level, the largest gyro and
   accelerometer RMS relative error (%), mean NEES (45 dof), the share of runs inside the chi2(45)
   95 % band and beyond its 99.9 % bound (80.1), wall and CPU seconds per run, and whether the
   estimator meets the issue's bounds (:func:`meets_bounds`);
-- ``figures/compare_cost.png`` (largest-gyro error against CPU time per run) and
+- ``figures/compare_cost.png`` (largest-gyro error against the estimator's CPU time per run) and
   ``figures/compare_nees.png`` (NEES histograms side by side per estimator).
 
 The report section "Which estimator" (:func:`which_estimator`) reads the summary.
@@ -153,9 +157,10 @@ def write_compare_tables(cfg: dict, coef: pd.DataFrame, runs: pd.DataFrame, out_
                 f"RMS relative error (%) over the replicates, largest over the gyro and over the accelerometer "
                 f"coefficients; NEES of the {dof} coefficient errors: mean, share inside the 95 % chi-square band "
                 f"[{lo:.1f}, {hi:.1f}] and beyond the 99.9 % point {chi2.ppf(NEES_LEVEL, dof):.1f}; wall and CPU s per "
-                "run (filter and simulation, batch of study.batch, machine- and load-dependent); cost_vs_ekf1: CPU "
-                "per run over the one-pass EKF's; meets: mean NEES within 10 % of 45, <= 1 % beyond the 99.9 % "
-                "point and a largest-gyro error no worse than the 2-pass EKF's (issue 9).", SUMMARY_FMT)
+                "run (the estimator alone, not the simulation; batch of study.batch, machine- and load-dependent); "
+                "cost_vs_ekf1: CPU per run over the one-pass EKF's; meets: mean NEES within 10 % of 45, "
+                "<= 1 % beyond the 99.9 % point and a largest-gyro error no worse than the 2-pass EKF's (issue 9).",
+                SUMMARY_FMT)
     return summ
 
 
@@ -186,7 +191,7 @@ def error_vs_cost(summ: pd.DataFrame, path, title: str = ""):
     for j, v in enumerate(levels):
         ax.scatter([], [], marker="s", color=colors[j % len(colors)], label=f"sigma_a = {v:g} ug")
     ax.scatter([], [], marker="o", facecolor="none", edgecolor="black", label="meets the issue's bounds")
-    ax.set_xlabel("CPU time per run, s (filter + simulation)")
+    ax.set_xlabel("CPU time per run, s (the estimator alone, not the simulation)")
     ax.set_ylabel("largest gyro RMS relative error, %")
     ax.set_yscale("log")
     ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())

@@ -8,22 +8,31 @@ and its collect job). A cell's tables are numpy columns (:class:`platcal.lightta
 written to Parquet through pyarrow), so a cell job loads no pandas either (issue 22 item 4); the
 comparison's collect is the generic :func:`platcal.study.collect.collect_job`.
 The cells, their seeds and their outputs are described in :mod:`platcal.rigs.centrifuge.compare`.
+
+One job per noise level (:func:`compare_level_job`) runs every estimator of the level: its
+estimators see the same replicates (the seeds do not depend on the estimator), so each chunk of
+replicates is simulated once and identified by each estimator in turn (:func:`level_tables`),
+with the numbers of each estimator's cell run alone, bit for bit, one process start-up and one
+simulation per level instead of one per estimator (issue 22 item 4).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
 from ...errors import InputError
-from ...log import job_logger
+from ...lighttable import Table
+from ...log import eta_line, job_logger
+from ...parallel import set_threads
 from ...rig import get_rig
-from ...study.montecarlo import cell_tables, write_cell
+from ...study.montecarlo import chunks, replicate_seeds, tidy_tables, write_cell
 from ...study.sweep import noise_label
-from .study import builtin_scheme, check_study
+from .identify import identify_simulated, simulate_outputs
+from .study import builtin_scheme, check_study, replicate_batch, study_for_cell
 
 
 def compare_settings(cfg: dict) -> dict:
@@ -109,28 +118,111 @@ def warm_kernels(cfg: dict) -> None:
         warm_estimator(cfg, scheme, level, name)
 
 
-def compare_cell_job(cfg: dict, level: float, estimator: str, out_dir, threads: int = 1, log_path=None) -> None:
-    """Rule body: one (noise level, estimator) cell of the comparison."""
-    lg = job_logger(log_path)
-    cfg = with_compare_estimators(check_study(cfg, cells=[(level, estimator)]))
-    c = compare_settings(cfg)
-    rig = get_rig("centrifuge")
-    scheme = builtin_scheme(cfg, c["scheme"])
-    lg.info("comparison cell %s, sigma_a = %g ug, estimator %s: %d replicates", scheme.name, level, estimator,
-            c["replicates"])
-    # load the compiled kernels before the clock starts, so the cost per run is the runs', not the
-    # process's start-up
-    warm_estimator(cfg, scheme, level, estimator)
-    t0, c0 = time.perf_counter(), time.process_time()
-    coef, runs, timing = cell_tables(rig, cfg, scheme, level, estimator, replicates=int(c["replicates"]),
-                                     threads=threads)
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    # the cost per run (cell mean, simulation and filter, every thread of the process): the
-    # comparison's runs table is machine-dependent in these two columns only
-    R = max(len(runs), 1)
-    runs["wall_s"] = np.full(len(runs), wall / R)
-    runs["cpu_s"] = np.full(len(runs), cpu / R)
-    timing["cpu_s"] = cpu
-    write_cell(out_dir, coef, runs, timing)
-    lg.info("done: mean NEES %.1f, %.3f s CPU per run -> %s", runs["nees"].mean(), runs["cpu_s"].mean(), out_dir)
+def level_estimators(cfg: dict, level: float) -> list[str]:
+    """The comparison estimators that run at ``level`` (ug), in :func:`compare_cells` order.
+    ``cfg``: a checked config."""
+    return [e for label, e in compare_cells(cfg) if label == noise_label(level)]
 
+
+def level_params(cfg: dict, level: float) -> dict:
+    """What a comparison level job's numbers depend on (a Snakemake param): :func:`cell_params`
+    of every estimator of the level, by name, so an edit of one estimator's settings reruns the
+    level's job."""
+    return {e: cell_params(cfg, level, e) for e in level_estimators(cfg, level)}
+
+
+def clocks() -> np.ndarray:
+    """(wall, process CPU) seconds now."""
+    return np.array([time.perf_counter(), time.process_time()])
+
+
+def level_tables(cfg: dict, scheme, level: float, names: list[str], threads: int = 1,
+                 progress=None) -> tuple[list[tuple[Table, Table, dict]], np.ndarray]:
+    """Every estimator of ``names`` on the comparison's replicates at ``level`` (ug), a chunk of
+    ``study.batch`` replicates at a time: each chunk simulated once, from the seeds of
+    :func:`~platcal.study.montecarlo.cell_tables` (every estimator of a level sees the same
+    records), and identified by every estimator in turn, so the job holds one chunk's records
+    (docs/centrifuge-model.md §8-11). The outputs are kept at the greatest common divisor of the
+    estimators' samples per filter period, each estimator reading every k-th of them: its numbers
+    are those of its cell run alone (``cell_tables``), bit for bit. ``cfg``: checked, with the
+    comparison's estimators; ``threads``: numba threads (the chunks run in the job's process
+    whatever ``study.backend``: the comparison's rule runs one thread); ``progress(done, total,
+    seconds)`` after each chunk.
+
+    Returns, per estimator in order, ``(coef, runs, timing)`` as ``cell_tables`` gives them, the
+    runs table with the cost per run (``wall_s``, ``cpu_s``: the estimator's mean over its runs,
+    measured around its own calls after its warm-up, not the simulation), and the level's
+    simulation time (wall, CPU s), shared by its estimators."""
+    hooks = get_rig("centrifuge").montecarlo
+    R = int(compare_settings(cfg)["replicates"])
+    batch = int(hooks.settings(cfg).batch)
+    studies = [study_for_cell(cfg, level, name) for name in names]
+    keep = math.gcd(*(st.keep_every for st in studies))
+    set_threads(threads)
+    for name in names:
+        # load the compiled kernels before the clocks start, so the cost per run is the runs', not
+        # the process's start-up
+        warm_estimator(cfg, scheme, level, name)
+    parts = [[] for _ in names]
+    spent = np.zeros((len(names), 2))
+    simulation = np.zeros(2)
+    t0 = time.perf_counter()
+    for reps in chunks(R, batch):
+        c = clocks()
+        # the simulation reads no filter setting: the first estimator's study simulates for all
+        outputs, times = simulate_outputs(studies[0], scheme, replicate_seeds(hooks, cfg, scheme, level, reps),
+                                          keep_every=keep)
+        simulation += clocks() - c
+        for i, (name, st) in enumerate(zip(names, studies)):
+            c = clocks()
+            k = st.keep_every // keep
+            est = identify_simulated(st, scheme, [a[:, ::k] for a in outputs], [t[::k] for t in times])
+            parts[i].append(tidy_tables(replicate_batch(st, est), scheme.name, level, name, reps))
+            spent[i] += clocks() - c
+        if progress:
+            progress(reps[-1] + 1, R, time.perf_counter() - t0)
+    out = []
+    for name, part, (wall, cpu) in zip(names, parts, spent):
+        coef, runs = Table.concat([p[0] for p in part]), Table.concat([p[1] for p in part])
+        # the comparison's runs table is machine-dependent in these two columns only
+        runs["wall_s"] = np.full(len(runs), wall / R)
+        runs["cpu_s"] = np.full(len(runs), cpu / R)
+        timing = {"scheme": scheme.name, "noise": float(level), "estimator": name, "replicates": R,
+                  "threads": threads, "backend": "numba", "batch": batch, "wall_s": wall, "wall_s_per_run": wall / R,
+                  "compute_s": wall, "cpu_s": cpu, "level_simulation_wall_s": simulation[0],
+                  "level_simulation_cpu_s": simulation[1]}
+        out.append((coef, runs, timing))
+    return out, simulation
+
+
+def compare_level_job(cfg: dict, level: float, out_dir, threads: int = 1, log_path=None) -> None:
+    """Rule body: every estimator of one noise level of the comparison (:func:`level_estimators`)
+    in one process, on records simulated once (:func:`level_tables`; one process start-up and one
+    simulation per level instead of one per estimator; issue 22 item 4), into one
+    ``coef.parquet``, ``runs.parquet`` (the estimators' rows in order, an ``estimator`` column)
+    and ``timing.json`` (a list: one timing record per estimator) under ``out_dir``. Every
+    estimator's filter settings are checked before any work (InputError naming the field)."""
+    lg = job_logger(log_path)
+    cfg = with_compare_estimators(check_study(cfg, cells=[]))
+    names = level_estimators(cfg, level)
+    if not names:
+        raise InputError("study.compare.sigma_a_ug", f"{level:g} ug is not a level of the comparison "
+                         f"({compare_settings(cfg)['sigma_a_ug']})")
+    for name in names:  # the filter checks that check_study(cfg, cells=...) runs, the level's only
+        study_for_cell(cfg, level, name)
+    c = compare_settings(cfg)
+    scheme = builtin_scheme(cfg, c["scheme"])
+    lg.info("comparison level %s, sigma_a = %g ug, estimators %s: %d replicates each", scheme.name, level,
+            ", ".join(names), c["replicates"])
+
+    def progress(done, total, seconds):
+        lg.info("  replicates %s", eta_line(done, total, seconds))
+
+    cells, (wall, cpu) = level_tables(cfg, scheme, level, names, threads, progress)
+    lg.info("simulation, once for the level's estimators: %.2f s wall, %.2f s CPU (%.4f s CPU per run)", wall, cpu,
+            cpu / max(int(c["replicates"]), 1))
+    for name, (_, runs, _) in zip(names, cells):
+        lg.info("  %s: mean NEES %.1f, %.3f s CPU per run", name, runs["nees"].mean(), runs["cpu_s"].mean())
+    write_cell(out_dir, Table.concat([t[0] for t in cells]), Table.concat([t[1] for t in cells]),
+               [t[2] for t in cells])
+    lg.info("done -> %s", out_dir)

@@ -46,21 +46,41 @@ def simulate_identify(study: Study, scheme: Scheme, seeds, settings: FilterSetti
     study's filter without history; ``truth`` (48,) to the study's. Runs are independent: a batch
     gives the numbers of B runs of one.
     """
+    outputs, times = simulate_outputs(study, scheme, seeds, truth)
+    return identify_simulated(study, scheme, outputs, times, settings)
+
+
+def simulate_outputs(study: Study, scheme: Scheme, seeds, truth: np.ndarray | None = None,
+                     keep_every: int | None = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The simulated batch of :func:`simulate_identify`: each position's accelerometer outputs
+    (K arrays (B, M, 3), g) at every ``keep_every``-th sample (default the study's filter period,
+    ``study.keep_every``) and their instants (K arrays (M,), s since the position's start, the
+    reset instant t = 0 first) (docs/centrifuge-model.md §8). The outputs at every k-th instant of
+    a batch kept at ``keep_every`` are those of the batch kept at k x ``keep_every``, bit for bit:
+    the simulation steps every sample whatever it keeps."""
     truth = study.truth if truth is None else truth
+    keep = study.keep_every if keep_every is None else int(keep_every)
+    # each position's outputs as the simulation yields them (one chunk per position: the numbers
+    # of simulate()), not copied into simulate()'s (B, K, N, 3) outputs and true angles first:
+    # the filter reads only the outputs, and end to end (issue 22 item 4)
+    parts = list(simulate_chunks(truth, scheme, study.centrifuge.scheme_params(scheme), study.noise, seeds,
+                                 sample_s=study.sample_s, keep_every=keep))
+    return [p.A for p in parts], [p.t for p in parts]
+
+
+def identify_simulated(study: Study, scheme: Scheme, outputs: list, times: list,
+                       settings: FilterSettings | None = None) -> Estimate:
+    """Identify a simulated batch with the study's estimator: ``outputs`` and ``times`` as
+    :func:`simulate_outputs` gives them at the study's filter period (docs/centrifuge-model.md
+    §8-9); ``settings`` as :func:`simulate_identify`'s."""
     # the state-major kernel: the same numbers bit for bit, a quarter less CPU at B >= 8, and every
     # job of a study (cells, design, campaign, single run) then loads the one kernel the study's
     # kernels job compiled (issue 22 item 4); an identify of one record keeps the default kernel
     fs = replace(replace(study.filter, history_every_s=None) if settings is None else settings, lanes=True)
-    params = study.centrifuge.scheme_params(scheme)
-    # each position's outputs as the simulation yields them (one chunk per position: the numbers
-    # of simulate()), not copied into simulate()'s (B, K, N, 3) outputs and true angles first:
-    # the filter reads only the outputs, and end to end (issue 22 item 4)
-    parts = list(simulate_chunks(truth, scheme, params, study.noise, seeds, sample_s=study.sample_s,
-                                 keep_every=study.keep_every))
     # the samples at the reset instant (t = 0) are not used unless filter.update_at_reset
     i0 = first_instant(fs.update_at_reset)
-    return run_estimator(EstimatorInput([p.A[:, i0:] for p in parts], [p.t[i0:] for p in parts], scheme.angles_deg,
-                                        params), fs)
+    return run_estimator(EstimatorInput([a[:, i0:] for a in outputs], [t[i0:] for t in times], scheme.angles_deg,
+                                        study.centrifuge.scheme_params(scheme)), fs)
 
 
 FIT_CHANNELS = ("Ax", "Ay", "Az")

@@ -209,8 +209,9 @@ def _collect_progress(gen, total: int, t0: float, progress) -> list:
 
 
 def write_cell(out_dir: str | os.PathLike, coef: Table | pd.DataFrame, runs: Table | pd.DataFrame,
-               timing: dict) -> None:
-    """``coef.parquet``, ``runs.parquet`` and ``timing.json`` of a cell, each written atomically;
+               timing: dict | list[dict]) -> None:
+    """``coef.parquet``, ``runs.parquet`` and ``timing.json`` of a cell (``timing``: its record, or a
+    list of records for a job of several estimators), each written atomically;
     the tables :class:`platcal.lighttable.Table` (written through pyarrow, no pandas) or pandas
     DataFrames (written as pandas writes them). Either reads back as the same DataFrame.
 

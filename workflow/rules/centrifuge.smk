@@ -206,7 +206,8 @@ rule centrifuge_compare_cell:
         code=lambda w: CODE_COMPUTE["centrifuge"],
         compare_code=CODE_COMPARE,
     threads: 1
-    # before the sweep's cells: 50-60 s each (a level's estimators) against their 3 s, so the short cells end the run
+    # before the sweep's cells: 50-60 s each (a level's estimators) against their 4-10 s, so the
+    # short cells end the run
     priority: 1
     conda:
         "../envs/platcal.yaml"

@@ -11,7 +11,6 @@ wildcard_constraints:
     rig="|".join(MC_CONFIG) or "(?!)",
     scheme=r"[A-Za-z0-9_.-]+",
     noise=r"[0-9][0-9.e+-]*",
-    estimator=r"[A-Za-z0-9_-]+",
 
 
 rule kernels:

@@ -76,7 +76,7 @@ w = SimpleNamespace(rig="centrifuge", scheme="classical", noise="10", estimator=
 class Output(list):  # Snakemake's outputs: by position and by name
     coef = out
 sm = SimpleNamespace(config={"rigs": {"centrifuge": config}}, wildcards=w, threads=1,
-                     params=SimpleNamespace(level=10.0, estimators=estimators), output=Output([out]), log=[log],
+                     params=SimpleNamespace(level=10.0, cell={e: {} for e in estimators}), output=Output([out]), log=[log],
                      input=SimpleNamespace(case=[]))
 runpy.run_path(script, init_globals={"snakemake": sm}, run_name="__main__")
 """

@@ -42,8 +42,7 @@ rule montecarlo_cell:
         # columns differ between estimators: they stay each in its own tables, as collect reads them)
         directory("results/{rig}/runs/{scheme}/noise{noise}"),
     params:
-        cell=mc_cell_params,
-        estimators=mc_estimators,
+        cell=mc_cell_params,  # estimator -> what its numbers depend on
         level=lambda w: MC_LEVELS[w.rig][w.noise],
         code=lambda w: CODE_COMPUTE[w.rig],
     threads: mc_threads

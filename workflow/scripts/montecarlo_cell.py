@@ -11,5 +11,5 @@ from platcal.study.montecarlo import cell_job  # noqa: E402
 
 sm = snakemake  # noqa: F821
 w = sm.wildcards
-cell_job(w.rig, rig_config(sm.config, w.rig), w.scheme, sm.params.level, sm.params.estimators, sm.output[0],
+cell_job(w.rig, rig_config(sm.config, w.rig), w.scheme, sm.params.level, list(sm.params.cell), sm.output[0],
          threads=sm.threads, log_path=sm.log[0], case_file=sm.input.case or None)

@@ -259,6 +259,12 @@ def estimator_runs(rig_name: str, cfg: dict, case_name: str, level: float, estim
     return run()
 
 
+def cell_files(cells, estimators, name: str) -> list[str]:
+    """The file ``name`` of every estimator of every cell folder of ``cells``, as :func:`cell_job`
+    writes them (``<cell>/<estimator>/<name>``), cell by cell."""
+    return [str(Path(c) / e / name) for c in cells for e in estimators]
+
+
 def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimators: Sequence[str], out_dir,
              threads: int = 1, log_path=None, case_file=None) -> None:
     """Rule body: a (case, noise level) cell run with every estimator of ``estimators``
@@ -272,7 +278,7 @@ def cell_job(rig_name: str, cfg: dict, case_name: str, level: float, estimators:
     runs = estimator_runs(rig_name, cfg, case_name, level, estimators, threads, log_path, case_file)
     with atomic_folder(out_dir) as tmp:
         for estimator, coef, table, timing in runs:
-            write_cell(tmp / estimator, coef, table, timing)
+            write_cell(tmp / estimator, coef, table, timing)  # the layout cell_files reads
     job_logger(log_path).info("done: %d estimator(s) -> %s", len(estimators), out_dir)
 
 

@@ -136,9 +136,10 @@ def clocks() -> np.ndarray:
     return np.array([time.perf_counter(), time.process_time()])
 
 
-def level_tables(cfg: dict, scheme, level: float, names: list[str], threads: int = 1,
+def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 1,
                  progress=None) -> tuple[list[tuple[Table, Table, dict]], np.ndarray]:
-    """Every estimator of ``names`` on the comparison's replicates at ``level`` (ug), a chunk of
+    """Every estimator of ``studies`` (name -> its cell's Study, :func:`study_for_cell`, which
+    checks its filter) on the comparison's replicates at ``level`` (ug), a chunk of
     ``study.batch`` replicates at a time: each chunk simulated once, from the seeds of
     :func:`~platcal.study.montecarlo.cell_tables` (every estimator of a level sees the same
     records), and identified by every estimator in turn, so the job holds one chunk's records
@@ -156,7 +157,7 @@ def level_tables(cfg: dict, scheme, level: float, names: list[str], threads: int
     hooks = get_rig("centrifuge").montecarlo
     R = int(compare_settings(cfg)["replicates"])
     batch = int(hooks.settings(cfg).batch)
-    studies = [study_for_cell(cfg, level, name) for name in names]
+    names, studies = list(studies), list(studies.values())
     keep = math.gcd(*(st.keep_every for st in studies))
     set_threads(threads)
     for name in names:
@@ -208,8 +209,8 @@ def compare_level_job(cfg: dict, level: float, out_dir, threads: int = 1, log_pa
     if not names:
         raise InputError("study.compare.sigma_a_ug", f"{level:g} ug is not a level of the comparison "
                          f"({compare_settings(cfg)['sigma_a_ug']})")
-    for name in names:  # the filter checks that check_study(cfg, cells=...) runs, the level's only
-        study_for_cell(cfg, level, name)
+    # the filter checks that check_study(cfg, cells=...) runs, the level's only, before any work
+    studies = {name: study_for_cell(cfg, level, name) for name in names}
     c = compare_settings(cfg)
     scheme = builtin_scheme(cfg, c["scheme"])
     lg.info("comparison level %s, sigma_a = %g ug, estimators %s: %d replicates each", scheme.name, level,
@@ -218,7 +219,7 @@ def compare_level_job(cfg: dict, level: float, out_dir, threads: int = 1, log_pa
     def progress(done, total, seconds):
         lg.info("  replicates %s", eta_line(done, total, seconds))
 
-    cells, (wall, cpu) = level_tables(cfg, scheme, level, names, threads, progress)
+    cells, (wall, cpu) = level_tables(cfg, scheme, level, studies, threads, progress)
     lg.info("simulation, once for the level's estimators: %.2f s wall, %.2f s CPU (%.4f s CPU per run)", wall, cpu,
             cpu / max(int(c["replicates"]), 1))
     for name, (_, runs, _) in zip(names, cells):

@@ -70,6 +70,13 @@ by giving ``montecarlo``, an object with (see :class:`MonteCarloHooks`):
 - optional ``check_cell(raw, case, noise, estimator) -> cfg``: ``check`` restricted to what one
   cell uses (a cell job's check; the workflow's master runs ``check`` on the whole config before
   any job), for a rig whose whole check costs a cell job's time; without it a cell runs ``check``.
+- optional, together: ``simulate_cell(cfgs, case, noise, seeds) -> data`` and
+  ``identify_cell(cfg, case, noise, estimator, data) -> ReplicateBatch``, for a rig whose
+  simulation does not depend on the estimator: the replicates of ``seeds`` simulated once for
+  every estimator of ``cfgs`` (name -> its checked config), then each estimator identifies them;
+  ``identify_cell(cfgs[e], case, noise, e, simulate_cell(cfgs, case, noise, seeds))`` must give
+  ``run_batch(cfgs[e], case, noise, e, seeds)`` bit for bit. A cell job runs its estimators
+  through them chunk by chunk (one simulation per chunk instead of one per estimator).
 
 The runner turns the batches into the tidy tables (one row per run x quantity, one row per run)
 that :mod:`platcal.study.stats` and :mod:`platcal.study.plots` work on. The centrifuge's hooks

@@ -139,32 +139,48 @@ def replicate_seeds(hooks, cfg: dict, case, level: float, replicates) -> list[np
     return [replicate_seed(seed, key, level, r) for r in replicates]
 
 
-def _run_chunk(rig_name: str, cfg: dict, case, level: float, estimator: str, replicates, numba_threads: int):
-    """One chunk of replicates (a joblib task or an in-process batch); the rig is looked up by
-    name so that a joblib worker can rebuild it."""
+def _run_chunk(rig_name: str, cells: dict, level: float, replicates, numba_threads: int) -> dict:
+    """One chunk of replicates of every estimator of ``cells`` (name -> (its checked config, its
+    case)): simulated once for all when the rig has ``simulate_cell`` and there are several
+    (the first estimator's case simulates; :mod:`platcal.rig`, "Monte Carlo hooks"), else each
+    estimator's ``run_batch``. Returns name -> (coef, runs, seconds): its identification's
+    seconds plus an equal share of the shared simulation's. The rig is looked up by name so that
+    a joblib worker can rebuild it."""
     set_threads(numba_threads)
     hooks = get_rig(rig_name).montecarlo
+    cfg, case = next(iter(cells.values()))
+    seeds = replicate_seeds(hooks, cfg, case, level, replicates)
+    shared = len(cells) > 1 and hasattr(hooks, "simulate_cell")
     t0 = time.perf_counter()
-    batch = hooks.run_batch(cfg, case, level, estimator, replicate_seeds(hooks, cfg, case, level, replicates))
-    coef, runs = tidy_tables(batch, case.name, level, estimator, replicates)
-    return coef, runs, time.perf_counter() - t0
+    data = hooks.simulate_cell({e: c for e, (c, _) in cells.items()}, case, level, seeds) if shared else None
+    simulation = (time.perf_counter() - t0) / len(cells)
+    out = {}
+    for estimator, (cfg, case) in cells.items():
+        t0 = time.perf_counter()
+        batch = (hooks.identify_cell(cfg, case, level, estimator, data) if shared
+                 else hooks.run_batch(cfg, case, level, estimator, seeds))
+        coef, runs = tidy_tables(batch, case.name, level, estimator, replicates)
+        out[estimator] = (coef, runs, time.perf_counter() - t0 + simulation)
+    return out
 
 
-def cell_tables(rig: Rig, cfg: dict, case, level: float, estimator: str, *, replicates: int | None = None,
-             threads: int = 1, backend: str | None = None, batch: int | None = None,
-             progress=None) -> tuple[Table, Table, dict]:
-    """Run every replicate of one (case, noise level, estimator) cell of ``rig``.
+def cells_tables(rig: Rig, cells: dict, level: float, *, replicates: int | None = None, threads: int = 1,
+                 backend: str | None = None, batch: int | None = None, progress=None) -> dict:
+    """Run every replicate of one (case, noise level) cell of ``rig`` for every estimator of
+    ``cells`` (name -> (its checked config, ``rig.montecarlo.check``; its case object, whose
+    ``name`` keys the seeds)), chunk by chunk, each chunk of every estimator before the next
+    (:func:`_run_chunk`: one simulation per chunk for a rig with ``simulate_cell``). The run
+    settings (replicates, batch, backend) are the first estimator's: the estimators of one call
+    share them. ``threads``: numba threads for ``backend='numba'``, joblib workers (each with one
+    numba and one BLAS thread) for ``'joblib'``. ``replicates``, ``backend``, ``batch`` default to
+    the rig's settings; ``progress(done, total, seconds)`` is called after each chunk.
 
-    ``cfg`` is the rig's checked config (``rig.montecarlo.check``); ``case`` its case object
-    (``name`` keys the seeds). ``threads``: numba threads for ``backend='numba'``, joblib
-    workers (each with one numba and one BLAS thread) for ``'joblib'``. ``replicates``,
-    ``backend``, ``batch`` default to the rig's settings; ``progress(done, total, seconds)`` is
-    called after each chunk.
-
-    Returns ``(coef, runs, timing)``: the tidy tables (:class:`platcal.lighttable.Table`, numpy
-    columns: a cell job loads no pandas) and wall-time information (s), which is the only output
-    that depends on the machine.
+    Returns name -> ``(coef, runs, timing)``: the tidy tables (:class:`platcal.lighttable.Table`,
+    numpy columns: a cell job loads no pandas) and wall-time information (s), which is the only
+    output that depends on the machine (an estimator's ``compute_s`` its own seconds plus an equal
+    share of the shared simulation's; ``wall_s`` the cell's wall time in the same proportion).
     """
+    cfg, case = next(iter(cells.values()))
     st = rig.montecarlo.settings(cfg)
     R = int(st.replicates if replicates is None else replicates)
     backend = backend or st.backend
@@ -174,21 +190,33 @@ def cell_tables(rig: Rig, cfg: dict, case, level: float, estimator: str, *, repl
     t0 = time.perf_counter()
     if backend in BACKENDS and threads > 1 and len(parts) > 1:
         # one numba thread and one BLAS thread per worker: threads workers use threads cores
-        results = resolve(BACKENDS[backend])(_run_chunk, [(rig.name, cfg, case, level, estimator, p, 1) for p in parts],
+        results = resolve(BACKENDS[backend])(_run_chunk, [(rig.name, cells, level, p, 1) for p in parts],
                                              threads, lambda gen: _collect_progress(gen, R, t0, progress))
     else:
-        results = _collect_progress((_run_chunk(rig.name, cfg, case, level, estimator, p, threads) for p in parts),
+        results = _collect_progress((_run_chunk(rig.name, cells, level, p, threads) for p in parts),
                                     R, t0, progress)
     wall = time.perf_counter() - t0
-    coef = Table.concat([r[0] for r in results])
-    coef = coef[np.argsort(coef["replicate"], kind="stable")]
-    runs = Table.concat([r[1] for r in results])
-    runs = runs[np.argsort(runs["replicate"], kind="stable")]
-    timing = {"scheme": case.name, "noise": float(level), "estimator": estimator,
-              "replicates": R, "threads": threads, "backend": backend, "batch": batch,
-              "wall_s": wall, "wall_s_per_run": wall / max(R, 1),
-              "compute_s": float(sum(r[2] for r in results))}
-    return coef[COEF_COLUMNS], runs[RUN_COLUMNS + [c for c in runs.columns if c not in RUN_COLUMNS]], timing
+    spent = {e: float(sum(r[e][2] for r in results)) for e in cells}
+    out = {}
+    for estimator in cells:
+        coef = Table.concat([r[estimator][0] for r in results])
+        coef = coef[np.argsort(coef["replicate"], kind="stable")]
+        runs = Table.concat([r[estimator][1] for r in results])
+        runs = runs[np.argsort(runs["replicate"], kind="stable")]
+        share = wall * spent[estimator] / max(sum(spent.values()), 1e-300)
+        timing = {"scheme": case.name, "noise": float(level), "estimator": estimator,
+                  "replicates": R, "threads": threads, "backend": backend, "batch": batch,
+                  "wall_s": share, "wall_s_per_run": share / max(R, 1), "compute_s": spent[estimator]}
+        out[estimator] = (coef[COEF_COLUMNS], runs[RUN_COLUMNS + [c for c in runs.columns if c not in RUN_COLUMNS]],
+                          timing)
+    return out
+
+
+def cell_tables(rig: Rig, cfg: dict, case, level: float, estimator: str, **kw) -> tuple[Table, Table, dict]:
+    """Run every replicate of one (case, noise level, estimator) cell of ``rig``: :func:`cells_tables`
+    of that estimator alone (``cfg`` its checked config, ``case`` its case object; same keywords).
+    Returns ``(coef, runs, timing)``."""
+    return cells_tables(rig, {estimator: (cfg, case)}, level, **kw)[estimator]
 
 
 def run_cell(rig: Rig, cfg: dict, case, level: float, estimator: str, **kw) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
@@ -202,7 +230,7 @@ def _collect_progress(gen, total: int, t0: float, progress) -> list:
     results, done = [], 0
     for res in gen:
         results.append(res)
-        done += len(res[1])
+        done += len(next(iter(res.values()))[1])
         if progress:
             progress(done, total, time.perf_counter() - t0)
     return results
@@ -227,12 +255,27 @@ def write_cell(out_dir: str | os.PathLike, coef: Table | pd.DataFrame, runs: Tab
         tmp("timing.json").write_text(json.dumps(json_safe(timing), indent=2, sort_keys=True, allow_nan=False) + "\n")
 
 
+def estimator_groups(hooks, checked: dict) -> list[list[str]]:
+    """The estimators of a cell (``checked``: name -> its checked config) in the groups that run
+    together, in order: with the rig's ``simulate_cell``, those of equal run settings (seed,
+    replicates, batch, backend: the same chunks of the same seeds) share each chunk's simulation;
+    otherwise each runs alone."""
+    if not hasattr(hooks, "simulate_cell"):
+        return [[e] for e in checked]
+    groups: dict = {}
+    for e, c in checked.items():
+        st = hooks.settings(c)
+        groups.setdefault((st.seed, st.replicates, st.batch, st.backend), []).append(e)
+    return list(groups.values())
+
+
 def estimator_runs(rig_name: str, cfg: dict, case_name: str, level: float, estimators: Sequence[str],
                    threads: int = 1, log_path=None, case_file=None):
     """Check every estimator's part of the config for a (case, noise level) cell, then return an
-    iterator that runs them one after the other, yielding ``(estimator, coef, runs, timing)`` of
-    :func:`cell_tables` and logging what runs and how far it is. The checks run before this
-    returns: a bad estimator refuses the cell before any of them runs."""
+    iterator that runs them (:func:`estimator_groups`: together when they can share the
+    simulation, else one after the other), yielding ``(estimator, coef, runs, timing)`` of
+    :func:`cells_tables` group by group and logging what runs and how far it is.
+    The checks run before this returns: a bad estimator refuses the cell before any of them runs."""
     lg = job_logger(log_path)
     rig = get_rig(rig_name)
     hooks = rig.montecarlo
@@ -245,16 +288,18 @@ def estimator_runs(rig_name: str, cfg: dict, case_name: str, level: float, estim
         lg.info("  replicates %s", eta_line(done, total, seconds))
 
     def run():
-        for estimator in estimators:
-            c, case = checked[estimator], cases[estimator]
-            st = hooks.settings(c)
-            lg.info("%s cell %s, %s = %g %s, estimator %s: %d replicates, %d thread(s), backend %s, batch %d",
-                    rig.name, case.name, hooks.noise.name, level, hooks.noise.unit, estimator, st.replicates,
-                    threads, st.backend, st.batch)
-            coef, runs, timing = cell_tables(rig, c, case, level, estimator, threads=threads, progress=progress)
-            lg.info("  %s done: mean NEES %.1f (dof %d), %.2f s per run", estimator, runs["nees"].mean(),
-                    int(runs["nees_dof"].iloc[0]), timing["wall_s_per_run"])
-            yield estimator, coef, runs, timing
+        for group in estimator_groups(hooks, checked):
+            st = hooks.settings(checked[group[0]])
+            lg.info("%s cell %s, %s = %g %s, estimator(s) %s: %d replicates, %d thread(s), backend %s, batch %d%s",
+                    rig.name, case_name, hooks.noise.name, level, hooks.noise.unit, ", ".join(group),
+                    st.replicates, threads, st.backend, st.batch,
+                    ", one simulation per chunk for all" if len(group) > 1 else "")
+            done = cells_tables(rig, {e: (checked[e], cases[e]) for e in group}, level, threads=threads,
+                                progress=progress)
+            for estimator, (coef, runs, timing) in done.items():
+                lg.info("  %s done: mean NEES %.1f (dof %d), %.2f s per run", estimator, runs["nees"].mean(),
+                        int(runs["nees_dof"].iloc[0]), timing["wall_s_per_run"])
+                yield estimator, coef, runs, timing
 
     return run()
 

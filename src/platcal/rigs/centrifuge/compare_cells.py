@@ -18,7 +18,6 @@ simulation per level instead of one per estimator (issue 22 item 4).
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import replace
 
@@ -31,7 +30,7 @@ from ...parallel import set_threads
 from ...rig import get_rig
 from ...study.montecarlo import chunks, replicate_seeds, tidy_tables, write_cell
 from ...study.sweep import noise_label
-from .identify import identify_simulated, simulate_outputs
+from .identify import identify_shared, simulate_shared
 from .study import builtin_scheme, check_study, replicate_batch, study_for_cell
 
 
@@ -143,9 +142,9 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
     ``study.batch`` replicates at a time: each chunk simulated once, from the seeds of
     :func:`~platcal.study.montecarlo.cell_tables` (every estimator of a level sees the same
     records), and identified by every estimator in turn, so the job holds one chunk's records
-    (docs/centrifuge-model.md §8-11). The outputs are kept at the greatest common divisor of the
-    estimators' samples per filter period, each estimator reading every k-th of them: its numbers
-    are those of its cell run alone (``cell_tables``), bit for bit. ``cfg``: checked, with the
+    (docs/centrifuge-model.md §8-11; :func:`~.identify.simulate_shared`, kept at the greatest
+    common divisor of the estimators' filter periods): each estimator's numbers are those of its
+    cell run alone (``cell_tables``), bit for bit. ``cfg``: checked, with the
     comparison's estimators; ``threads``: numba threads (the chunks run in the job's process
     whatever ``study.backend``: the comparison's rule runs one thread); ``progress(done, total,
     seconds)`` after each chunk.
@@ -158,7 +157,6 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
     R = int(compare_settings(cfg)["replicates"])
     batch = int(hooks.settings(cfg).batch)
     names, studies = list(studies), list(studies.values())
-    keep = math.gcd(*(st.keep_every for st in studies))
     set_threads(threads)
     for name in names:
         # load the compiled kernels before the clocks start, so the cost per run is the runs', not
@@ -170,14 +168,11 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
     t0 = time.perf_counter()
     for reps in chunks(R, batch):
         c = clocks()
-        # the simulation reads no filter setting: the first estimator's study simulates for all
-        outputs, times = simulate_outputs(studies[0], scheme, replicate_seeds(hooks, cfg, scheme, level, reps),
-                                          keep_every=keep)
+        records = simulate_shared(studies, scheme, replicate_seeds(hooks, cfg, scheme, level, reps))
         simulation += clocks() - c
         for i, (name, st) in enumerate(zip(names, studies)):
             c = clocks()
-            k = st.keep_every // keep
-            est = identify_simulated(st, scheme, [a[:, ::k] for a in outputs], [t[::k] for t in times])
+            est = identify_shared(st, scheme, records)
             parts[i].append(tidy_tables(replicate_batch(st, est), scheme.name, level, name, reps))
             spent[i] += clocks() - c
         if progress:

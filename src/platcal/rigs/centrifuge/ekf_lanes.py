@@ -346,25 +346,19 @@ def _run_blocks(nblk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, par
                    seg_t0, seg_last, seg_nis, pidx)
 
 
-@njit(cache=True)
-def _run_blocks_serial(nblk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
-                       update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec,
-                       seg_k, seg_t0, seg_last, seg_nis, pidx):
-    """:func:`_run_blocks` without threads (one block, or one thread): the same block kernel."""
-    for blk in range(nblk):
-        _run_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
-                   hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k,
-                   seg_t0, seg_last, seg_nis, pidx)
-
-
 def run_pass_lanes(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
                    hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg):
     """One pass of the EKF over a batch, in place: the reference kernel's arguments and effect
     (:func:`platcal.rigs.centrifuge.ekf._run_pass`), computed block by block in lanes."""
     B, n = x.shape
     nblk = -(-B // LANES)
-    kernel = _run_blocks_serial if nblk == 1 or numba.get_num_threads() == 1 else _run_blocks
+    args = (x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x, hist_idx, hist_x,
+            hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, *seg, packed_index(n))
     with slp_vectorize():
-        kernel(nblk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
-               hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, *seg,
-               packed_index(n))
+        if nblk == 1 or numba.get_num_threads() == 1:
+            # block by block from here: a compiled serial loop would link and optimise the block
+            # kernel's whole module again (~4 s of a cold compile) to save a few us per block
+            for blk in range(nblk):
+                _run_block(blk, *args)
+        else:
+            _run_blocks(nblk, *args)

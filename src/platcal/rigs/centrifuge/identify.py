@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass, replace
@@ -81,6 +82,35 @@ def identify_simulated(study: Study, scheme: Scheme, outputs: list, times: list,
     i0 = first_instant(fs.update_at_reset)
     return run_estimator(EstimatorInput([a[:, i0:] for a in outputs], [t[i0:] for t in times], scheme.angles_deg,
                                         study.centrifuge.scheme_params(scheme)), fs)
+
+
+@dataclass(frozen=True)
+class SharedRecords:
+    """A batch simulated once for several estimators (:func:`simulate_shared`): each position's
+    outputs (K arrays (B, M, 3), g) and instants (K arrays (M,), s) kept at every
+    ``keep_every``-th sample, the greatest common divisor of the estimators' filter periods in
+    samples (docs/centrifuge-model.md §8)."""
+
+    keep_every: int
+    outputs: list
+    times: list
+
+
+def simulate_shared(studies: list[Study], scheme: Scheme, seeds) -> SharedRecords:
+    """One simulated batch (one run per SeedSequence) for every study of ``studies`` (the same
+    model, truth and noise; estimators and filter periods of their own): the simulation reads no
+    filter setting, so the first study simulates for all, kept at the gcd of their periods."""
+    keep = math.gcd(*(st.keep_every for st in studies))
+    outputs, times = simulate_outputs(studies[0], scheme, seeds, keep_every=keep)
+    return SharedRecords(keep, outputs, times)
+
+
+def identify_shared(study: Study, scheme: Scheme, records: SharedRecords) -> Estimate:
+    """:func:`identify_simulated` of ``study`` on shared records, reading every k-th kept sample
+    (k = its period over theirs): the numbers of :func:`simulate_identify` with the same seeds, bit
+    for bit (the simulation steps every sample whatever it keeps)."""
+    k = study.keep_every // records.keep_every
+    return identify_simulated(study, scheme, [a[:, ::k] for a in records.outputs], [t[::k] for t in records.times])
 
 
 FIT_CHANNELS = ("Ax", "Ay", "Az")

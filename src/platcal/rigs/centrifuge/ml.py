@@ -125,16 +125,6 @@ def _normal_equations(rows, theta, z, t, offs, est_idx, coef_fixed, params, r_va
                    pg, hstate, hsrc, hnnz, N[i], g[i], stats[i])
 
 
-@njit(cache=True)
-def _normal_equations_serial(rows, theta, z, t, offs, est_idx, coef_fixed, params, r_var, q_rate, gstate,
-                             pg, hstate, hsrc, hnnz, N, g, stats):
-    """:func:`_normal_equations` without threads (one replicate or one thread)."""
-    for i in range(rows.shape[0]):
-        b = rows[i]
-        _replicate(theta[i], z[b], t, offs, est_idx, coef_fixed[b], params[b], r_var, q_rate, gstate,
-                   pg, hstate, hsrc, hnnz, N[i], g[i], stats[i])
-
-
 @njit(cache=True, inline="always")
 def mul3_into(A, B, out):
     """``out = A B`` for a (3, 3) ``A`` and a (3, m) ``B``, each sum in the order of the index."""
@@ -409,12 +399,17 @@ class _Problem:
         N = np.empty((Ba, self.n, self.n))
         g = np.empty((Ba, self.n))
         stats = np.zeros((Ba, 3))
-        kernel = (_normal_equations_serial if Ba == 1 or get_threads() == 1
-                  else _normal_equations)
         theta = np.ascontiguousarray(theta, float)
-        with parallel_chunksize(1):
-            kernel(rows, theta, self.z_all, self.t_all, self.offs, self.est_idx,
-                   self.coef_fixed, self.params, self.r_var, self.q_rate, *self.structure, N, g, stats)
+        if Ba == 1 or get_threads() == 1:
+            # replicate by replicate from here: a compiled serial loop would link and optimise the
+            # replicate kernel's whole module again (~2.5 s of a cold compile) to save a few us each
+            for i, b in enumerate(rows):
+                _replicate(theta[i], self.z_all[b], self.t_all, self.offs, self.est_idx, self.coef_fixed[b],
+                           self.params[b], self.r_var, self.q_rate, *self.structure, N[i], g[i], stats[i])
+        else:
+            with parallel_chunksize(1):
+                _normal_equations(rows, theta, self.z_all, self.t_all, self.offs, self.est_idx,
+                                  self.coef_fixed, self.params, self.r_var, self.q_rate, *self.structure, N, g, stats)
         # each replicate's latest statistics and where they were taken (diagnostics of the estimate)
         self.stats[rows] = stats
         self.stats_theta[rows] = theta

@@ -38,7 +38,7 @@ from ...seeding import stable_key
 from ...study.sweep import StudySectionHooks, noise_key, noise_label, replicate_seed
 from .config import check_filter, study_from_config, validate_config
 from .estimators import check_kind
-from .identify import simulate_identify
+from .identify import SharedRecords, identify_shared, simulate_identify, simulate_shared
 from ...scheme import check_scheme, load_scheme_file, whole_periods
 from .tables import estimates_columns
 
@@ -300,6 +300,13 @@ class CentrifugeMonteCarlo(StudySectionHooks):
     def run_batch(self, cfg: dict, case, noise: float, estimator: str, seeds) -> ReplicateBatch:
         study = study_for_cell(cfg, noise, estimator)
         return replicate_batch(study, simulate_identify(study, case, seeds))
+
+    def simulate_cell(self, cfgs: dict, case, noise: float, seeds) -> SharedRecords:
+        return simulate_shared([study_for_cell(c, noise, e) for e, c in cfgs.items()], case, seeds)
+
+    def identify_cell(self, cfg: dict, case, noise: float, estimator: str, data: SharedRecords) -> ReplicateBatch:
+        study = study_for_cell(cfg, noise, estimator)
+        return replicate_batch(study, identify_shared(study, case, data))
 
 
 # ---------------------------------------------------------------------------------------------

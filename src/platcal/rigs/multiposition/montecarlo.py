@@ -102,9 +102,24 @@ def run_cell_batch(cfg, scheme: Scheme, sigma_a_ug: float, estimator: str, seeds
     """Simulate one replicate per SeedSequence of ``scheme`` at ``sigma_a_ug`` (truth and filter
     R) and identify it with the study's estimator variant ``estimator``; ``threads`` of the
     simulator's and filter's thread pools change the speed only."""
+    choice = variant_choice(cfg, estimator, field=f"study.estimators.{estimator}")
+    return identify_records(cfg, scheme, sigma_a_ug, choice, simulate_records(cfg, scheme, sigma_a_ug, seeds, threads),
+                            threads)
+
+
+def simulate_records(cfg, scheme: Scheme, sigma_a_ug: float, seeds, threads: int = 1) -> tuple:
+    """The simulated replicates of :func:`run_cell_batch` (one per SeedSequence): instants and
+    measurements as :func:`.filter.simulate` gives them, which every estimator variant reads
+    unchanged (docs/multiposition-1g.md §9)."""
+    t, _, z = simulate(cfg.with_noise(sigma_a_ug=float(sigma_a_ug)), scheme, list(seeds), threads=threads)
+    return t, z
+
+
+def identify_records(cfg, scheme: Scheme, sigma_a_ug: float, choice, records: tuple, threads: int = 1) -> ReplicateBatch:
+    """The estimator variant ``choice`` (:func:`.estimators.variant_choice`) on simulated
+    ``records`` (:func:`simulate_records`): the batch of :func:`run_cell_batch`."""
     c = cfg.with_noise(sigma_a_ug=float(sigma_a_ug))
-    choice = variant_choice(c, estimator, field=f"study.estimators.{estimator}")
-    t, _, z = simulate(c, scheme, list(seeds), threads=threads)
+    t, z = records
     res = estimate(c, choice, scheme.angles_deg, t, z, threads=threads)
     truth = c.truth()
     return ReplicateBatch(
@@ -168,3 +183,11 @@ class MultipositionMonteCarlo(StudySectionHooks):
     def run_batch(self, cfg: dict, case, noise: float, estimator: str, seeds) -> ReplicateBatch:
         # the runner has set this process's kernel threads (numba's count): the thread pools follow it
         return run_cell_batch(load_config(cfg), case, noise, estimator, seeds, threads=get_threads())
+
+    def simulate_cell(self, cfgs: dict, case, noise: float, seeds) -> tuple:
+        return simulate_records(load_config(next(iter(cfgs.values()))), case, noise, seeds, threads=get_threads())
+
+    def identify_cell(self, cfg: dict, case, noise: float, estimator: str, data: tuple) -> ReplicateBatch:
+        c = load_config(cfg)
+        return identify_records(c, case, noise, variant_choice(c, estimator, field=f"study.estimators.{estimator}"),
+                                data, threads=get_threads())

@@ -643,9 +643,10 @@ SEARCH_SECONDS_PER_PLAN = 1e-3
 (population 20 x 5 generations), 1.1e-4 .. 3.3e-4 for :func:`planned_sigma` alone on 500 and
 4000 plans."""
 SEARCH_VALUES_PER_PLAN = 18000
-"""float64 values held per archived plan when a search's archive is judged at once
-(:func:`planned_sigma`: the (n, n) information and the rigs' blocks): the peak grows by 9100 and
-9700 values a plan between 500 and 4000 plans (45 coefficients)."""
+"""float64 values held per plan of a batch :func:`planned_sigma` judges at once (the (n, n)
+information and the rigs' blocks): the peak grows by 9100 and 9700 values a plan between 500 and
+4000 plans (45 coefficients). A search judges one generation at a time; its archive keeps each
+plan's counts and sigma/target only (:func:`search`)."""
 CHECK_SECONDS_PER_TEST_SECOND = 6e-4
 """CPU s the Monte Carlo check takes per replicate test-second (replicates x positions x dwell_s
 of the plan's tests): 2.3e-4 .. 3.1e-4 on 10 and 30 replicates of a 2-test plan (1680 test-seconds)."""
@@ -655,19 +656,28 @@ def search_sizes(campaign: Campaign) -> list[Size]:
     """The work of planning ``campaign`` before its Monte Carlo check (:mod:`platcal.sizes`): the
     candidates' information (every rig's schemes x dwells, positions x dwell_s test-seconds, the
     rig with the most named) and the searches (the plan's and one per rig: population x
-    generations plans each, one search's archive held at once)."""
+    generations plans each, one search's archive held at once, one generation judged at once)."""
     per_rig = {o.name: sum(o.rig.campaign.positions(o.cfg, s) * d for s in o.schemes for d in o.dwells)
                for o in campaign.rigs}
     most = max(per_rig, key=per_rig.get)
     opt = campaign.optimiser
     plans = float(opt["population"]) * float(opt["generations"])
     searches = 1 + len(campaign.rigs)
+    # candidate tests: the rigs' schemes x dwells and at most one more per reference test
+    tests = sum(len(o.schemes) * len(o.dwells) for o in campaign.rigs) + sum(map(len, campaign.references.values()))
+    # the first generation is the start population (initial_plans: each test alone, twice)
+    batch = max(float(opt["population"]), 1.0 + 2.0 * tests)
+    # an archived plan: its counts and sigma/target (n values), held in pieces, concatenated and
+    # sorted (np.unique) at the end: three copies
+    archived = 3.0 * (tests + len(campaign.platform.names))
     return [Size(f"rigs.{most}.dwell_s", sum(per_rig.values()), 0, 1,
                  f"the candidate tests' information, {len(per_rig)} rig(s)' schemes x dwells",
                  INFORMATION_SECONDS_PER_TEST_SECOND, unit="candidate test-seconds"),
-            Size("optimiser.generations", plans, SEARCH_VALUES_PER_PLAN, 1,
+            Size("optimiser.generations", plans, archived, 1,
                  f"population {opt['population']} x {opt['generations']} generations, {searches} searches",
-                 SEARCH_SECONDS_PER_PLAN, runs=searches, unit="plans")]
+                 SEARCH_SECONDS_PER_PLAN, runs=searches, unit="plans"),
+            Size("optimiser.population", batch, SEARCH_VALUES_PER_PLAN, 1,
+                 f"a generation of population {opt['population']} judged at once", unit="plans")]
 
 
 def check_size(cands: Candidates, sequences: dict[str, list[int]], replicates: int, field: str) -> Size:

@@ -134,6 +134,34 @@ def test_an_unused_rig_is_skipped_without_changing_a_bit(planned):
     assert not np.array_equal(beside[1], beside[0])
 
 
+def test_search_keeps_the_sigmas_its_evaluations_computed(planned):
+    """The search judges each generation once and keeps its sigmas: every archived plan's worst
+    and mean sigma/target equal planned_sigma of the deduplicated archive judged at once, bit for
+    bit (a plan's row does not depend on the batch it was judged in), for both searches."""
+    camp, cands = planned
+    for rigs in (None, ("multiposition",)):
+        res = cp.search(camp, cands, rigs)
+        ratio = cp.planned_sigma(camp, cands, res.counts) / camp.target_sigma
+        assert len(np.unique(res.counts, axis=0)) == len(res.counts) > 1
+        assert np.array_equal(res.worst, ratio.max(axis=1)) and np.array_equal(res.mean, ratio.mean(axis=1))
+        assert np.array_equal(res.cost, cp.plan_cost(cands, res.counts))
+
+
+def test_check_numbers_do_not_depend_on_the_batch(planned):
+    """The Monte Carlo check of 6 replicates in batches of 2, 4 (a short last block of the lanes
+    kernels) and the default: the same NEES, RMS and sigmas bit for bit."""
+    camp, cands = planned
+    m = len(cands.tests)
+    counts = np.zeros(m, int)
+    counts[cands.index("multiposition", "TET4", 10)] = 1
+    counts[cands.index("centrifuge", "short", 3)] = 1
+    seq = cp.plan_sequence(camp, cands, counts)
+    runs = [cp.check_plan(camp, cands, seq, 6, batch=b) for b in (2, 4, cp.CHECK_BATCH)]
+    for c in runs[1:]:
+        for f in ("nees", "achieved_rms", "filter_sigma"):
+            assert np.array_equal(getattr(c, f), getattr(runs[0], f)), f
+
+
 def test_information_adds_and_the_plan_meets_its_targets(planned):
     camp, cands = planned
     m = len(cands.tests)

@@ -43,6 +43,7 @@ from scipy import stats
 
 from ..errors import InputError
 from ..estimation.information import marginal_information
+from ..estimation.lanes import LANES
 from ..io import atomic_to_csv, atomic_write_text, check_writable
 from ..sizes import DEFAULT_MAX_HOURS, DEFAULT_MAX_MEMORY_GB, Size, check_sizes
 from .campaign_file import Campaign, RigOffer, load_campaign
@@ -181,13 +182,15 @@ def worst_ratio(campaign: Campaign, sigma: np.ndarray) -> np.ndarray:
 
 class _PlanProblem(Problem):
     """Integer counts of the candidate tests ``cols``; objectives cost and worst sigma/target;
-    every evaluated plan archived (the Pareto front is taken over all of them)."""
+    every evaluated plan archived with its sigma/target per coefficient (the Pareto front is
+    taken over all of them, without computing their sigmas again)."""
 
     def __init__(self, campaign: Campaign, cands: Candidates, cols: np.ndarray):
         upper = cands.max_repeats[cols].astype(float)
         super().__init__(n_var=cols.size, n_obj=2, xl=np.zeros(cols.size), xu=upper, vtype=int)
         self.campaign, self.cands, self.cols = campaign, cands, cols
         self.archive: list[np.ndarray] = []
+        self.ratios: list[np.ndarray] = []
 
     def full(self, x) -> np.ndarray:
         counts = np.zeros((len(x), len(self.cands.tests)), int)
@@ -196,10 +199,10 @@ class _PlanProblem(Problem):
 
     def _evaluate(self, x, out, *args, **kwargs):
         counts = self.full(x)
+        ratio = planned_sigma(self.campaign, self.cands, counts) / self.campaign.target_sigma
         self.archive.append(counts)
-        cost = plan_cost(self.cands, counts)
-        worst = worst_ratio(self.campaign, planned_sigma(self.campaign, self.cands, counts))
-        out["F"] = np.column_stack([cost, worst])
+        self.ratios.append(ratio)
+        out["F"] = np.column_stack([plan_cost(self.cands, counts), ratio.max(axis=1)])
 
 
 def initial_plans(upper: np.ndarray, size: int, rng: np.random.Generator) -> np.ndarray:
@@ -261,8 +264,11 @@ def search(campaign: Campaign, cands: Candidates, rigs: tuple[str, ...] | None =
                       crossover=SBX(prob=0.9, eta=3.0, vtype=float, repair=RoundingRepair()),
                       mutation=PM(eta=3.0, vtype=float, repair=RoundingRepair()), eliminate_duplicates=True)
     minimize(problem, algorithm, ("n_gen", opt["generations"]), seed=opt["seed"], verbose=False)
-    counts = np.unique(np.concatenate(problem.archive), axis=0)
-    ratio = planned_sigma(campaign, cands, counts) / campaign.target_sigma
+    # each plan's sigmas as its evaluation computed them: a plan's row of planned_sigma does not
+    # depend on the batch it is in, and computing the archive's again was a fifth of the search
+    # (issue 22 item 4)
+    counts, first = np.unique(np.concatenate(problem.archive), axis=0, return_index=True)
+    ratio = np.concatenate(problem.ratios)[first]
     return SearchResult(counts, plan_cost(cands, counts), ratio.max(axis=1), ratio.mean(axis=1))
 
 
@@ -477,8 +483,14 @@ class Check:
     seconds: float
 
 
+# The check's replicates per rig call: whole blocks of the rigs' state-major filter kernels
+# (platcal.estimation.lanes), whose short last block runs its idle lanes anyway: at 10 a batch
+# paid for 12 (the centrifuge's EKF 0.97 s CPU at B = 10, 0.99 at 12; issue 22 item 4)
+CHECK_BATCH = 5 * LANES
+
+
 def check_plan(campaign: Campaign, cands: Candidates, sequence: list[int], replicates: int, label: str = "plan",
-               batch: int = 10) -> Check:
+               batch: int = CHECK_BATCH) -> Check:
     """Run the plan ``replicates`` times (batches of ``batch``; replicate r of step s draws from
     the runner's ``replicate_seed(seed, '<campaign>/<label>/<s>', 0, r)``, so its numbers do not
     depend on the batch size)."""
@@ -631,9 +643,10 @@ SEARCH_SECONDS_PER_PLAN = 1e-3
 (population 20 x 5 generations), 1.1e-4 .. 3.3e-4 for :func:`planned_sigma` alone on 500 and
 4000 plans."""
 SEARCH_VALUES_PER_PLAN = 18000
-"""float64 values held per archived plan when a search's archive is judged at once
-(:func:`planned_sigma`: the (n, n) information and the rigs' blocks): the peak grows by 9100 and
-9700 values a plan between 500 and 4000 plans (45 coefficients)."""
+"""float64 values held per plan of a batch :func:`planned_sigma` judges at once (the (n, n)
+information and the rigs' blocks): the peak grows by 9100 and 9700 values a plan between 500 and
+4000 plans (45 coefficients). A search judges one generation at a time; its archive keeps each
+plan's counts and sigma/target only (:func:`search`)."""
 CHECK_SECONDS_PER_TEST_SECOND = 6e-4
 """CPU s the Monte Carlo check takes per replicate test-second (replicates x positions x dwell_s
 of the plan's tests): 2.3e-4 .. 3.1e-4 on 10 and 30 replicates of a 2-test plan (1680 test-seconds)."""
@@ -643,19 +656,28 @@ def search_sizes(campaign: Campaign) -> list[Size]:
     """The work of planning ``campaign`` before its Monte Carlo check (:mod:`platcal.sizes`): the
     candidates' information (every rig's schemes x dwells, positions x dwell_s test-seconds, the
     rig with the most named) and the searches (the plan's and one per rig: population x
-    generations plans each, one search's archive held at once)."""
+    generations plans each, one search's archive held at once, one generation judged at once)."""
     per_rig = {o.name: sum(o.rig.campaign.positions(o.cfg, s) * d for s in o.schemes for d in o.dwells)
                for o in campaign.rigs}
     most = max(per_rig, key=per_rig.get)
     opt = campaign.optimiser
     plans = float(opt["population"]) * float(opt["generations"])
     searches = 1 + len(campaign.rigs)
+    # candidate tests: the rigs' schemes x dwells and at most one more per reference test
+    tests = sum(len(o.schemes) * len(o.dwells) for o in campaign.rigs) + sum(map(len, campaign.references.values()))
+    # the first generation is the start population (initial_plans: each test alone, twice)
+    batch = max(float(opt["population"]), 1.0 + 2.0 * tests)
+    # an archived plan: its counts and sigma/target (n values), held in pieces, concatenated and
+    # sorted (np.unique) at the end: three copies
+    archived = 3.0 * (tests + len(campaign.platform.names))
     return [Size(f"rigs.{most}.dwell_s", sum(per_rig.values()), 0, 1,
                  f"the candidate tests' information, {len(per_rig)} rig(s)' schemes x dwells",
                  INFORMATION_SECONDS_PER_TEST_SECOND, unit="candidate test-seconds"),
-            Size("optimiser.generations", plans, SEARCH_VALUES_PER_PLAN, 1,
+            Size("optimiser.generations", plans, archived, 1,
                  f"population {opt['population']} x {opt['generations']} generations, {searches} searches",
-                 SEARCH_SECONDS_PER_PLAN, runs=searches, unit="plans")]
+                 SEARCH_SECONDS_PER_PLAN, runs=searches, unit="plans"),
+            Size("optimiser.population", batch, SEARCH_VALUES_PER_PLAN, 1,
+                 f"a generation of population {opt['population']} judged at once", unit="plans")]
 
 
 def check_size(cands: Candidates, sequences: dict[str, list[int]], replicates: int, field: str) -> Size:

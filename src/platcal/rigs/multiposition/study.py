@@ -242,7 +242,7 @@ def warm_kernels(cfg) -> None:
     estimator at the batch sizes the cells run (:func:`warm_batches`). The one-replicate
     reference kernel (an identify's) is warmed only when a cell runs one replicate: with the
     default 20 seeds in one batch no study job calls it (issue 22 item 4; the campaign's checks
-    call the rig in batches of 10 replicates, the claims' noise-free check runs its one replicate
+    call the rig in batches of 20 replicates, the claims' noise-free check runs its one replicate
     in the lanes kernel)."""
     s = cfg.scheme("TET4")
     t, _, z = simulate(cfg, s, [0, 1])

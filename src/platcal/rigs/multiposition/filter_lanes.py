@@ -168,41 +168,45 @@ def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, 
                     for t in range(nn[r]):
                         hval[r, t, l] = hval[r, t, 0]
                     innov[r, l] = innov[r, 0]
-            # the accelerometers, then the angle sensors (H = 1/arcsec on phi, innovation from the
-            # updated state): one loop, so the kernel holds one copy of the update's code, not two
-            # (a third less cold compile, issue 22 item 4; the same operations in the same order)
-            for u in range(2):
-                if u == 0:
-                    hcu, nnu, hvu, rvu = hc, nn, hval, r_var[:3]
+            _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var[:3], U, Kg, D, S, Sinv, nu, ok, acc[0], gn[0],
+                          update_x)
+            for l in range(nact):
+                if gn[0, l] == 0.0:
+                    continue
+                cnt[2, l] += gn[0, l]
+                if ok[l] > 0.0:
+                    if gn[1, l] == 0.0:
+                        cnt[0, l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
+                    cnt[1, l] += 1.0
                 else:
-                    hcu, nnu, hvu, rvu = hca, nna, hvala, r_var[3:]
-                    for l in range(L):
-                        src = b0 + l if l < nact else b0
-                        for i in range(3):
-                            d = Z[src, k, s, 3 + i] - (phi0s[src if own else 0, k, i] + xl[i, l]) / ARCSEC
-                            innov[i, l] = (d + 648000.0) % 1296000.0 - 648000.0
-                _update_lanes(xl, Pl, pidx, hcu, nnu, hvu, innov, rvu, U, Kg, D, S, Sinv, nu, ok, acc[0], gn[0],
-                              update_x)
-                c = 3 * u  # the channels' columns of the innovations record
-                for l in range(nact):
-                    if gn[0, l] == 0.0:
-                        continue
-                    if u == 0:
-                        cnt[2, l] += gn[0, l]
-                    if ok[l] > 0.0:
-                        if gn[1, l] == 0.0:
-                            cnt[0, l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
-                        if u == 0:
-                            cnt[1, l] += 1.0
-                    else:
-                        cnt[3, l] += 1.0
-                    if keep:
-                        for i in range(3):
-                            rec[b0 + l, k, s, c + i] = innov[i, l]
-                            rec[b0 + l, k, s, 6 + c + i] = S[i, i, l] if ok[l] > 0.0 else np.nan
-                    if u == 1 and gn[1, l] > 0.0:
-                        for i in range(6):
-                            cnt[0, l] += nu6L[i, l] * nu6L[i, l]
+                    cnt[3, l] += 1.0
+                if keep:
+                    for i in range(3):
+                        rec[b0 + l, k, s, i] = innov[i, l]
+                        rec[b0 + l, k, s, 6 + i] = S[i, i, l] if ok[l] > 0.0 else np.nan
+            # the angle sensors (H = 1/arcsec on phi), innovation from the updated state
+            for l in range(L):
+                src = b0 + l if l < nact else b0
+                for i in range(3):
+                    d = Z[src, k, s, 3 + i] - (phi0s[src if own else 0, k, i] + xl[i, l]) / ARCSEC
+                    innov[i, l] = (d + 648000.0) % 1296000.0 - 648000.0
+            _update_lanes(xl, Pl, pidx, hca, nna, hvala, innov, r_var[3:], U, Kg, D, S, Sinv, nu, ok, acc[0], gn[0],
+                          update_x)
+            for l in range(nact):
+                if gn[0, l] == 0.0:
+                    continue
+                if ok[l] > 0.0:
+                    if gn[1, l] == 0.0:
+                        cnt[0, l] += nu[0, l] * nu[0, l] + nu[1, l] * nu[1, l] + nu[2, l] * nu[2, l]
+                else:
+                    cnt[3, l] += 1.0
+                if keep:
+                    for i in range(3):
+                        rec[b0 + l, k, s, 3 + i] = innov[i, l]
+                        rec[b0 + l, k, s, 9 + i] = S[i, i, l] if ok[l] > 0.0 else np.nan
+                if gn[1, l] > 0.0:
+                    for i in range(6):
+                        cnt[0, l] += nu6L[i, l] * nu6L[i, l]
     for l in range(nact):
         b = b0 + l
         for i in range(n):

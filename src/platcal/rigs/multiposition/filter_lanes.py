@@ -46,7 +46,7 @@ def _update_lanes(xl, Pl, pidx, hc, nn, hval, innov, r_var, U, Kg, D, S, Sinv, n
     joseph_correct_lanes(xl, Pl, U, Kg, D, S, Sinv, innov, update_x)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", pipeline_class=NoAliasCompiler)
+@njit(cache=True, error_model="numpy", pipeline_class=NoAliasCompiler)
 def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
                rec, pidx, xl, Pl, xm, Pm, W, U, Kg, D, phiL, qL, hval, hvala, innov, S, Sinv, nu, ok, acc, cnt, gn,
                nu6L, F, nxt, C, dC, T, dT, f, eps, deps, greg, phi1, q1, zp, Hs, hc, nn, hca, nna, zero3,
@@ -217,19 +217,18 @@ def _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, 
             sums[b, i] = cnt[i, l]
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
 def _ekf_blocks(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
                 rec, pidx):
-    """Blocks ``lo .. hi - 1`` of the batch through :func:`_ekf_block`, with their scratch. A Python
-    loop, not a compiled one: a compiled caller would generate the block kernel's machine code a
-    second time (numba links a callee's code into its caller's module), 5-6 s of CPU of every cold
-    compile (issue 22 item 4), while a call of the block kernel from Python costs tens of
-    microseconds against a block's milliseconds."""
+    """Blocks ``lo .. hi - 1`` of the batch through :func:`_ekf_block`, with their scratch."""
     n = X.shape[1]
     L = LANES
     m = cols.shape[0]
     C, dC, T, dT, f, eps, deps, greg = make_scratch(n)
     hvala = np.full((3, 1, L), 1.0 / ARCSEC)
-    hca = np.arange(3, dtype=np.int64).reshape(3, 1)
+    hca = np.empty((3, 1), dtype=np.int64)
+    for i in range(3):
+        hca[i, 0] = i
     e = np.empty
     for blk in range(lo, hi):
         _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,

@@ -17,6 +17,13 @@ Prints per job its wall / CPU s and compile CPU s, then per dispatcher its speci
 types) with their own compile s, and the total. ``--json`` writes the raw records.
 
     NUMBA_NUM_THREADS=1 python benchmarks/compile_events.py [--dwell 1] [--json out.json]
+
+``--rig multiposition``: the multi-position rig's study jobs in the study's order instead
+(:data:`MP_JOBS`): the centrifuge's and the rig's ``kernels`` jobs (the rig's hook
+``warm_kernels``), a Monte Carlo cell (S8 at 5 ug, every estimator, the config's 20 seeds) and
+``multiposition_centrifuge_table1`` (``platcal observability`` of the centrifuge's config, scheme
+table1, which waits for the centrifuge's kernels job); what a job after a kernels job compiles is
+what that kernels job did not warm.
 """
 
 from __future__ import annotations
@@ -31,7 +38,8 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from bench_compile import study_config
+import yaml
+from bench_compile import ROOT, study_config
 from numba.core import event
 
 from platcal.io import atomic_write_text
@@ -39,6 +47,14 @@ from platcal.io import atomic_write_text
 # (job name, estimator or None): the sweep's estimators first (they start the study), then the
 # comparison's other kinds, then the single run and the GA design
 JOBS = ("sweep:ekf1", "sweep:ekfw", "compare:10", "single", "design:ga_J")
+# the multi-position rig's study jobs, each after the jobs it waits for (--rig multiposition)
+MP_JOBS = ("kernels:centrifuge", "kernels:multiposition", "mpcell:S8", "table1")
+
+
+def rig_raw(rig: str) -> dict:
+    """The rig's default-study config (``config/<rig>.yaml``), checked by its Monte Carlo hooks."""
+    from platcal.rig import get_rig, rig_config
+    return get_rig(rig).montecarlo.check(rig_config({"rigs": {rig: str(ROOT / "config" / f"{rig}.yaml")}}, rig))
 
 
 class Recorder(event.Listener):
@@ -57,8 +73,24 @@ class Recorder(event.Listener):
 
 def run_job(job: str, dwell: float, out: Path) -> None:
     """One job of :data:`JOBS` as the study's rule runs it, files under ``out``."""
-    cfg = study_config(dwell)
     kind, _, arg = job.partition(":")
+    if kind == "kernels":
+        from platcal.rig import get_rig
+        get_rig(arg).montecarlo.warm_kernels(rig_raw(arg))
+        return
+    if kind == "mpcell":
+        from platcal.study.montecarlo import cell_job
+        raw = rig_raw("multiposition")
+        cell_job("multiposition", raw, arg, 5.0, list(raw["study"]["estimators"]), out / "cell")
+        return
+    if kind == "table1":
+        from platcal.cli import main as cli
+        raw = yaml.safe_load((ROOT / "config" / "centrifuge.yaml").read_text(encoding="utf-8"))
+        raw.pop("study", None)  # as the rule's params
+        (out / "config.yaml").write_text(yaml.safe_dump(raw), encoding="utf-8")
+        cli(["observability", "--config", str(out / "config.yaml"), "--scheme", "table1", "--out", str(out / "o")])
+        return
+    cfg = study_config(dwell)
     if kind == "sweep":
         from platcal.study.montecarlo import cell_job
         cell_job("centrifuge", cfg, "table1", 10.0, arg, out)
@@ -104,7 +136,9 @@ def child(job: str, dwell: float) -> None:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dwell", type=float, default=1.0, help="s per position of every scheme (default 1)")
-    ap.add_argument("--jobs", nargs="+", default=list(JOBS), choices=list(JOBS))
+    ap.add_argument("--rig", choices=("centrifuge", "multiposition"), default="centrifuge",
+                    help="whose study jobs (default centrifuge: JOBS; multiposition: MP_JOBS)")
+    ap.add_argument("--jobs", nargs="+", choices=list(JOBS + MP_JOBS), help="these jobs, in this order")
     ap.add_argument("--json", help="write the raw records here")
     ap.add_argument("--width", type=int, default=120, help="characters of argument types shown (default 120)")
     ap.add_argument("--child", help=argparse.SUPPRESS)
@@ -116,7 +150,7 @@ def main(argv=None) -> None:
     results = []
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        for job in a.jobs:
+        for job in a.jobs or (MP_JOBS if a.rig == "multiposition" else JOBS):
             out = subprocess.run([sys.executable, __file__, "--child", job, "--dwell", str(a.dwell)], env=env,
                                  check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
             r = json.loads(out)

@@ -260,9 +260,14 @@ def _position_grams(ang0, coef, t, params, G):
                         tmp_a[r, i] = pa[r, 0] * phi_a[0, i] + pa[r, 1] * phi_a[1, i] + pa[r, 2] * phi_a[2, i]
                     for i in range(nf):
                         tmp_c[r, i] = pc[r, i] + pa[r, 0] * phi_c[0, i] + pa[r, 1] * phi_c[1, i] + pa[r, 2] * phi_c[2, i]
-                phi_a[:, :] = tmp_a
-                phi_c[:, :] = tmp_c
-                ang[:] = new
+                # element copies, not slice assignments: those bring numba's shape-mismatch error
+                # (its message formatting) into the kernel, about 4 s of its cold compile (issue 22)
+                for r in range(3):
+                    ang[r] = new[r]
+                    for i in range(3):
+                        phi_a[r, i] = tmp_a[r, i]
+                    for i in range(nf):
+                        phi_c[r, i] = tmp_c[r, i]
                 t_prev = t[m]
             specific_force_into(t[m], params[p], fr3[0])
             measure_into(ang, coef, fr3[0], params[p], out, hc, ha, work)

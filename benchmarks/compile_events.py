@@ -93,7 +93,7 @@ def run_job(job: str, dwell: float, out: Path) -> None:
     cfg = study_config(dwell)
     if kind == "sweep":
         from platcal.study.montecarlo import cell_job
-        cell_job("centrifuge", cfg, "table1", 10.0, arg, out)
+        cell_job("centrifuge", cfg, "table1", 10.0, [arg], out)
     elif kind == "compare":
         from platcal.rigs.centrifuge.compare_cells import compare_level_job
         compare_level_job(cfg, float(arg), out)  # every estimator of the level, as the rule runs them

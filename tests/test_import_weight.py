@@ -260,6 +260,7 @@ JOBS_WITHOUT_FIGURES = {
     "multiposition_lie_cache": FIGURES_STATS_SYMPY + ("pymoo", "pandas"),
     "multiposition_observability": FIGURES_STATS_SYMPY + ("pymoo",),
     "multiposition_report": ("sympy", "pymoo"),
+    "lowprec_trace": FIGURES_STATS_SYMPY + ("pymoo", "pandas"),
 }
 """Workflow jobs that draw no figure (or, the multi-position report, build no Lie derivative) and
 the libraries their script's imports must not load: each is a fresh process per job, and these

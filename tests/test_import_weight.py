@@ -261,9 +261,12 @@ JOBS_WITHOUT_FIGURES = {
     "multiposition_observability": FIGURES_STATS_SYMPY + ("pymoo",),
     "multiposition_report": ("sympy", "pymoo"),
     "lowprec_trace": FIGURES_STATS_SYMPY + ("pymoo", "pandas"),
+    "lowprec_report": ("scipy.stats", "sympy", "pymoo"),
+    "sled_summary": ("scipy.stats", "sympy", "pymoo"),
 }
-"""Workflow jobs that draw no figure (or, the multi-position report, build no Lie derivative) and
-the libraries their script's imports must not load: each is a fresh process per job, and these
+"""Workflow jobs that draw no figure (or, the multi-position report, build no Lie derivative; the
+low-precision and sled reports, no NEES histogram: :mod:`platcal.study.nees_figure`) and the
+libraries their script's imports must not load: each is a fresh process per job, and these
 cost 0.4-1 s of CPU apiece (issue 22 item 4; ``benchmarks/script_imports.py`` times them)."""
 
 

@@ -12,7 +12,7 @@ import pandas as pd
 
 from ..io import atomic_write_text
 from ..rig import get_rig
-from .plots import nees_histogram
+from .nees_figure import nees_histogram
 from .stats import summary
 from .tables import frame_markdown, write_table
 

@@ -16,8 +16,8 @@ import pandas as pd
 
 from ...log import job_logger
 from ...model.instruments import NAMES, unit_of
-from ...study.plots import (boxplot_rel_err, convergence, correlation_heatmap, nees_histogram, plt,
-                            rms_vs_noise, save, styled)
+from ...study.nees_figure import nees_histogram
+from ...study.plots import boxplot_rel_err, convergence, correlation_heatmap, plt, rms_vs_noise, save, styled
 from .catalogue import load_catalogue
 from .report import CONVERGENCE_STATES, GROUP_TITLES, NOISE, resolve_cell
 from .study import check_study

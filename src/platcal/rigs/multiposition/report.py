@@ -18,7 +18,8 @@ import pandas as pd
 from ...estimation.consistency import chi2_quantile
 from ...io import atomic_write_text
 from ...study.claims import ledger_section, read_ledger
-from ...study.plots import finish, nees_histogram, plt, save as save_figure
+from ...study.nees_figure import nees_histogram
+from ...study.plots import finish, plt, save as save_figure
 from ...study.stats import CELL, select_cell, with_timing
 from ...study.tables import frame_markdown, write_table
 from .extension import SPEC_RANGES, spread_summary

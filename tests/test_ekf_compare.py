@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from platcal.errors import InputError
-from platcal.rigs.centrifuge import RIG, compare, compare_cells
+from platcal.rigs.centrifuge import RIG, compare, compare_cells, compare_figures
 from platcal.rigs.centrifuge import study as mc
 from platcal.rigs.centrifuge.config import study_from_config
 from platcal.rigs.centrifuge.estimators import KINDS, run_estimator
@@ -88,7 +88,7 @@ def compared(tmp_path_factory):
     collect_job([d / "coef.parquet" for d in dirs], [d / "runs.parquet" for d in dirs],
                 [d / "timing.json" for d in dirs], out)
     figs = {"tables": root, "cost": root / "cost.png", "nees": root / "nees.png"}
-    compare.compare_job(c, out["coef"], out["runs"], figs)
+    compare_figures.compare_job(c, out["coef"], out["runs"], figs)
     return c, root
 
 

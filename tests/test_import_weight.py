@@ -4,6 +4,7 @@ design search (pymoo), the exact rank test (sympy) nor scipy.stats; the study co
 claims are named by module path and imported only when chosen. Each check runs in a fresh
 interpreter (this one has imported everything already)."""
 
+import importlib.util
 import json
 import subprocess
 import sys
@@ -51,8 +52,10 @@ def test_a_command_on_a_log_loads_no_figure_design_or_stats_library(rig):
 
 
 def test_a_study_command_loads_its_own_libraries_when_chosen():
-    # the probe would see them: the centrifuge's report draws with matplotlib
-    assert "matplotlib" in loaded_after("centrifuge", ["report"])
+    # the probe would see them: the centrifuge's design command searches with pymoo; its report
+    # command rewrites report.md from the tables and draws nothing (issue 22 item 4)
+    assert "pymoo" in loaded_after("centrifuge", ["design"])
+    assert "matplotlib" not in loaded_after("centrifuge", ["report"])
 
 
 @pytest.mark.parametrize("rig", RIGS)
@@ -240,5 +243,54 @@ def test_validating_a_campaign_loads_no_optimiser_or_figures():
     probe = ("import json, sys\nfrom platcal.study.campaign_file import campaign_content, load_campaign\n"
              f"load_campaign(campaign_content({str(ROOT / 'config' / 'campaign.yaml')!r}))\n"
              f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))")
+    out = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True, text=True, cwd=ROOT)
+    assert json.loads(out.stdout) == []
+
+
+SCRIPT_HEAD = importlib.util.spec_from_file_location("script_imports", ROOT / "benchmarks" / "script_imports.py")
+script_imports = importlib.util.module_from_spec(SCRIPT_HEAD)
+SCRIPT_HEAD.loader.exec_module(script_imports)
+FIGURES_STATS_SYMPY = ("matplotlib", "scipy.stats", "sympy")
+JOBS_WITHOUT_FIGURES = {
+    "report_index": FIGURES_STATS_SYMPY + ("pymoo",),
+    "centrifuge_report": FIGURES_STATS_SYMPY + ("pymoo",),
+    "centrifuge_tables": FIGURES_STATS_SYMPY + ("pymoo",),
+    "multiposition_design": FIGURES_STATS_SYMPY,
+    "multiposition_extension": FIGURES_STATS_SYMPY + ("pymoo",),
+    "multiposition_lie_cache": FIGURES_STATS_SYMPY + ("pymoo", "pandas"),
+    "multiposition_observability": FIGURES_STATS_SYMPY + ("pymoo",),
+    "multiposition_report": ("sympy", "pymoo"),
+    "lowprec_trace": FIGURES_STATS_SYMPY + ("pymoo", "pandas"),
+    "lowprec_report": ("scipy.stats", "sympy", "pymoo"),
+    "sled_summary": ("scipy.stats", "sympy", "pymoo"),
+}
+"""Workflow jobs that draw no figure (or, the multi-position report, build no Lie derivative; the
+low-precision and sled reports, no NEES histogram: :mod:`platcal.study.nees_figure`) and the
+libraries their script's imports must not load: each is a fresh process per job, and these
+cost 0.4-1 s of CPU apiece (issue 22 item 4; ``benchmarks/script_imports.py`` times them)."""
+
+
+@pytest.mark.parametrize("script", sorted(JOBS_WITHOUT_FIGURES))
+def test_a_job_that_draws_nothing_imports_no_figure_library(script):
+    """The imports of ``workflow/scripts/<script>.py`` (its lines before the first that reads
+    ``snakemake``) in a fresh interpreter leave the libraries of :data:`JOBS_WITHOUT_FIGURES`
+    unloaded: the tables, reports and index read modules that draw nothing (the figures are in
+    their own modules: ``platcal.rigs.centrifuge.figures``, ``.compare_figures``,
+    ``platcal.rigs.multiposition.report``, ``platcal.study.generic_report``), and the
+    multi-position rank test loads sympy only to build a Lie Jacobian the disk cache lacks."""
+    head = script_imports.head_of(ROOT / "workflow" / "scripts" / f"{script}.py")
+    heavy = JOBS_WITHOUT_FIGURES[script]
+    probe = head + f"\nimport json, sys\nprint(json.dumps(sorted(m for m in {heavy!r} if m in sys.modules)))\n"
+    out = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True, text=True, cwd=ROOT)
+    assert json.loads(out.stdout.splitlines()[-1]) == []
+
+
+def test_the_claims_of_a_rig_load_no_figure_library():
+    """The claims job resolves its rig's claims module at run time: none of them loads matplotlib,
+    scipy.stats or sympy (the centrifuge's read the paper's cell from its report module, which
+    draws nothing now; the multi-position rig's read §13's ranges without the Lie build)."""
+    probe = ("import json, sys\nfrom platcal.rig import get_rig, rig_names\n"
+             "for name in rig_names():\n    get_rig(name).extra('claims')\n"
+             f"print(json.dumps(sorted(m for m in {FIGURES_STATS_SYMPY!r} if m in sys.modules)))")
     out = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True, text=True, cwd=ROOT)
     assert json.loads(out.stdout) == []

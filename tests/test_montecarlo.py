@@ -14,7 +14,7 @@ from platcal.rigs.centrifuge import report
 from platcal.rigs.centrifuge import study as mc
 from platcal.seeding import stable_key
 from platcal.study import montecarlo as smc
-from platcal.study import plots, stats, sweep
+from platcal.study import nees_figure, plots, stats, sweep
 from platcal.study.tables import frame_markdown
 from platcal.model.frames import DEG, c_rp
 from platcal.io import normalise_numbers, read_yaml
@@ -206,7 +206,7 @@ def test_markdown_rows_are_what_iterrows_gives():
 def test_figures_are_byte_stable(tmp_path):
     coef, runs = synthetic(5)
     for k in (1, 2):
-        plots.nees_histogram(runs, tmp_path / f"n{k}.png")
+        nees_figure.nees_histogram(runs, tmp_path / f"n{k}.png")
         plots.rms_vs_noise(coef, tmp_path / f"r{k}.png", report.GROUP_TITLES, RIG.montecarlo.noise.label)
     assert (tmp_path / "n1.png").read_bytes() == (tmp_path / "n2.png").read_bytes()
     assert (tmp_path / "r1.png").read_bytes() == (tmp_path / "r2.png").read_bytes()

@@ -8,7 +8,7 @@ import pytest
 import sympy as sp
 
 from platcal.cli import main
-from platcal.rigs.multiposition.lie import symbolic_model
+from platcal.rigs.multiposition.lie_symbolic import symbolic_model
 from platcal.rigs.multiposition.model import Site
 
 CUSTOM = """rig: multiposition

@@ -57,7 +57,7 @@ def test_symbolic_model_equals_kernels():
     """The sympy model of the Lie test (an independent writing of §4-7) equals the kernels."""
     import sympy as sp
 
-    from platcal.rigs.multiposition.lie import symbolic_model
+    from platcal.rigs.multiposition.lie_symbolic import symbolic_model
 
     for ext in (0, 2):
         x, p, f, h = symbolic_model(ext)

@@ -2,7 +2,7 @@
 from pathlib import Path
 
 from platcal.rig import rig_config
-from platcal.rigs.centrifuge.compare import compare_job
+from platcal.rigs.centrifuge.compare_figures import compare_job
 
 sm = snakemake  # noqa: F821
 compare_job(rig_config(sm.config, "centrifuge"), sm.input.coef, sm.input.runs,

@@ -2,7 +2,8 @@
 from pathlib import Path
 
 from platcal.rig import rig_config
-from platcal.rigs.centrifuge.report import FIGURES, figures_job
+from platcal.rigs.centrifuge.figures import figures_job
+from platcal.rigs.centrifuge.report import FIGURES
 
 sm = snakemake  # noqa: F821
 figures_job(rig_config(sm.config, "centrifuge"), sm.input.coef, sm.input.runs, sm.input.t2mc,

@@ -1,8 +1,8 @@
-"""Snakemake wrapper: the report of a rig without rules of its own (platcal.study.report)."""
+"""Snakemake wrapper: the report of a rig without rules of its own (platcal.study.generic_report)."""
 from pathlib import Path
 
 from platcal.log import job_logger
-from platcal.study.report import write_generic_report
+from platcal.study.generic_report import write_generic_report
 
 sm = snakemake  # noqa: F821
 write_generic_report(sm.wildcards.generic_rig, sm.input.coef, sm.input.runs, Path(sm.output[0]).parent)

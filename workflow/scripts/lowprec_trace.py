@@ -1,7 +1,7 @@
 """Snakemake wrapper: the figures' traces of the lowprec_centrifuge study (replicate 0, default scenario)."""
 from platcal.log import job_logger
 from platcal.rigs.lowprec_centrifuge.montecarlo import study_trace
-from platcal.rigs.lowprec_centrifuge.report import write_trace
+from platcal.rigs.lowprec_centrifuge.traces import write_trace
 
 sm = snakemake  # noqa: F821
 log = job_logger(sm.log[0])

@@ -1,6 +1,6 @@
 """Tables, figures and report.md of the multiposition study (its Monte Carlo from the collected tidy tables)."""
 from platcal.log import job_logger
-from platcal.rigs.multiposition.study import report_job
+from platcal.rigs.multiposition.report import report_job
 
 sm = snakemake  # noqa: F821
 report_job(sm.input, sm.output.report, sm.params.config, log=job_logger(sm.log[0]).info)

@@ -3,7 +3,7 @@
 Each function takes the tidy tables of :mod:`platcal.study.montecarlo` / :mod:`platcal.study.stats`
 and a path, and writes one figure with labelled axes (units), a legend and a title. What is a
 rig's own (its groups' titles, the noise axis label, reference values such as a paper's) comes
-in as arguments.
+in as arguments. The NEES histogram, which needs scipy.stats, is :mod:`platcal.study.nees_figure`.
 """
 
 from __future__ import annotations
@@ -18,9 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-from scipy import stats as sps  # noqa: E402
 
-from ..estimation.consistency import nees_band  # noqa: E402
 from ..io import atomic_path  # noqa: E402
 from .stats import per_coefficient  # noqa: E402
 
@@ -199,32 +197,5 @@ def correlation_heatmap(cov: pd.DataFrame, path, n_coef: int, title: str = ""):
     ax.plot([], [], " ", label=f"largest coefficient pair: |rho({names[i]}, {names[j]})| = {off[i, j]:.3f}")
     ax.legend(loc="upper right", fontsize=8, handlelength=0)
     ax.set_title(title or "|correlation| of the final covariance")
-    fig.tight_layout()
-    save(fig, path)
-
-
-@styled
-def nees_histogram(runs: pd.DataFrame, path):
-    """NEES histogram against the chi-square(dof) density, one panel per estimator."""
-    estimators = list(dict.fromkeys(runs["estimator"]))
-    dof = int(runs["nees_dof"].iloc[0])
-    lo, hi = nees_band(dof)
-    xmax = float(sps.chi2.ppf(0.9999, dof)) * 1.6
-    bins = np.linspace(0, xmax, 50)
-    fig, axes = plt.subplots(1, len(estimators), figsize=(5.5 * len(estimators), 4), squeeze=False)
-    xs = np.linspace(0.01, xmax, 400)
-    for ax, e in zip(axes[0], estimators):
-        v = runs.loc[runs["estimator"] == e, "nees"].to_numpy()
-        over = int(np.sum(v > xmax))
-        inside = float(np.mean((v >= lo) & (v <= hi))) if v.size else float("nan")
-        ax.hist(np.clip(v, 0, xmax), bins=bins, density=True, alpha=0.6, color="C0",
-                label=f"{v.size} runs (mean {np.mean(v):.1f}; {over} beyond {xmax:.0f}, piled in the last bin)")
-        ax.plot(xs, sps.chi2.pdf(xs, dof), "r", label=f"chi-square({dof}) density")
-        ax.axvspan(lo, hi, color="g", alpha=0.08, label=f"95 % band {lo:.1f}-{hi:.1f}: {100 * inside:.0f} % inside")
-        ax.set_xlabel(f"NEES of the {dof} coefficient errors (dimensionless)")
-        ax.set_ylabel("probability density")
-        ax.set_title(f"estimator {e} (all schemes and noise levels)")
-        ax.legend(fontsize=7)
-    fig.suptitle("Filter consistency: NEES against chi-square")
     fig.tight_layout()
     save(fig, path)

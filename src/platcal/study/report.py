@@ -2,7 +2,9 @@
 
 Each rig writes ``results/<rig>/report.md`` (its tables inline, figures linked); the index
 ``results/report.md`` lists the rigs with their titles and the sections of their reports, so a
-reader starts there whatever rigs the study holds.
+reader starts there whatever rigs the study holds. The report of a rig without rules of its own,
+which draws a figure, is :mod:`platcal.study.generic_report`: this module imports no figure
+library (the index job's start, issue 22 item 4).
 """
 
 from __future__ import annotations
@@ -15,9 +17,7 @@ import pandas as pd
 from ..io import atomic_write_text
 from ..rig import get_rig
 from .claims import ledger_markdown, ledger_note
-from .plots import nees_histogram
-from .stats import summary
-from .tables import frame_markdown, write_table
+from .tables import frame_markdown
 from .timing import TIMING_FORMATS, TIMING_NOTE
 
 
@@ -74,20 +74,3 @@ def write_index(rigs: list[str], reports: list, out_path, ledger=None, campaign=
     if timing is not None:
         lines += ["## Where the time goes", "", TIMING_NOTE, "", frame_markdown(timing, TIMING_FORMATS)]
     atomic_write_text(out, "\n".join(lines))
-
-
-def write_generic_report(rig_name: str, coef_path, runs_path, out_dir) -> None:
-    """The report of a rig that has no report of its own: from its Monte Carlo tidy tables, the
-    summary per cell (:func:`platcal.study.stats.summary`: largest and median RMS relative error
-    per group, NEES) as CSV/Markdown/HTML, the NEES histogram and ``report.md``."""
-    rig = get_rig(rig_name)
-    out = Path(out_dir)
-    coef, runs = pd.read_parquet(coef_path), pd.read_parquet(runs_path)
-    summ = summary(coef, runs)
-    write_table(summ, out / "tables" / "summary", f"{rig.name}: Monte Carlo summary",
-                "per case x noise level x estimator: RMS relative error (%) per group, NEES", {})
-    nees_histogram(runs, out / "figures" / "nees.png")
-    lines = [f"# {rig.name}: {rig.title}", "", f"Spec: `docs/{rig.spec}`. {len(runs)} Monte Carlo runs "
-             f"({runs['replicate'].nunique()} replicates per cell).", "", "## Monte Carlo summary", "",
-             frame_markdown(summ), "", "## Figures", "", "![NEES histogram](figures/nees.png)", ""]
-    atomic_write_text(out / "report.md", "\n".join(lines))

@@ -25,9 +25,11 @@ Outputs, under ``results/centrifuge/``:
   95 % band and beyond its 99.9 % bound (80.1), wall and CPU seconds per run, and whether the
   estimator meets the issue's bounds (:func:`meets_bounds`);
 - ``figures/compare_cost.png`` (largest-gyro error against the estimator's CPU time per run) and
-  ``figures/compare_nees.png`` (NEES histograms side by side per estimator).
+  ``figures/compare_nees.png`` (NEES histograms side by side per estimator), drawn by
+  :mod:`.compare_figures` with the rule's body (:func:`.compare_figures.compare_job`).
 
-The report section "Which estimator" (:func:`which_estimator`) reads the summary.
+The report section "Which estimator" (:func:`which_estimator`) reads the summary. This module
+draws nothing, so that the report and tables jobs that read it import no figure library.
 """
 
 from __future__ import annotations
@@ -35,18 +37,13 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import matplotlib.ticker
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
 
-from ...estimation.consistency import nees_band
-from ...log import job_logger
-from ...study.plots import plt, save, styled
+from ...estimation.consistency import chi2_quantile, nees_band
 from ...study.stats import per_coefficient
 from ...study.tables import write_table
-from .compare_cells import compare_settings, kind_of, passes_of, with_compare_estimators
-from .study import check_study
+from .compare_cells import compare_settings, kind_of, passes_of
 
 NEES_LEVEL = 0.999
 """The tail bound of the issue: chi-square(45) 99.9 % point, 80.1."""
@@ -81,7 +78,7 @@ def summary_table(cfg: dict, coef: pd.DataFrame, runs: pd.DataFrame) -> pd.DataF
     rms = rms_table(coef)
     dof = int(runs["nees_dof"].iloc[0])
     lo, hi = nees_band(dof)
-    bound = float(chi2.ppf(NEES_LEVEL, dof))
+    bound = chi2_quantile(NEES_LEVEL, dof)
     order = compare_settings(cfg)["estimators"]
     rows = []
     for (est, level), g in runs.groupby(["estimator", "noise"], sort=False):
@@ -156,93 +153,12 @@ def write_compare_tables(cfg: dict, coef: pd.DataFrame, runs: pd.DataFrame, out_
                 f"Which estimator: scheme {c['scheme']}, {int(summ['runs'].min())} replicates per cell",
                 f"RMS relative error (%) over the replicates, largest over the gyro and over the accelerometer "
                 f"coefficients; NEES of the {dof} coefficient errors: mean, share inside the 95 % chi-square band "
-                f"[{lo:.1f}, {hi:.1f}] and beyond the 99.9 % point {chi2.ppf(NEES_LEVEL, dof):.1f}; wall and CPU s per "
+                f"[{lo:.1f}, {hi:.1f}] and beyond the 99.9 % point {chi2_quantile(NEES_LEVEL, dof):.1f}; wall and CPU s per "
                 "run (the estimator alone, not the simulation; batch of study.batch, machine- and load-dependent); "
                 "cost_vs_ekf1: CPU per run over the one-pass EKF's; meets: mean NEES within 10 % of 45, "
                 "<= 1 % beyond the 99.9 % point and a largest-gyro error no worse than the 2-pass EKF's (issue 9).",
                 SUMMARY_FMT)
     return summ
-
-
-# ---------------------------------------------------------------------------------------------
-# the figures
-
-
-@styled
-def error_vs_cost(summ: pd.DataFrame, path, title: str = ""):
-    """Largest-gyro RMS relative error against CPU seconds per run, per estimator and noise level."""
-    fig, ax = plt.subplots(figsize=(8, 5.5))
-    levels = sorted(set(summ["sigma_a_ug"]))
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    markers = "osD^v<>ph*"
-    names = list(dict.fromkeys(summ["estimator"]))
-    for i, e in enumerate(names):
-        d = summ[summ["estimator"] == e].sort_values("sigma_a_ug")
-        ax.plot(d["cpu_s_per_run"], d["max_rms_rel_err_pct_gyro"], color="0.75", linewidth=0.8, zorder=1)
-        for r in d.itertuples():
-            ax.scatter(r.cpu_s_per_run, r.max_rms_rel_err_pct_gyro, marker=markers[i % len(markers)],
-                       color=colors[levels.index(r.sigma_a_ug) % len(colors)], s=60, zorder=2,
-                       edgecolor="black" if r.meets else "none")
-        last = d.iloc[-1]
-        ax.annotate(e, (last["cpu_s_per_run"], last["max_rms_rel_err_pct_gyro"]), textcoords="offset points",
-                    xytext=(6, 4), fontsize=8)
-    for i, e in enumerate(names):
-        ax.scatter([], [], marker=markers[i % len(markers)], color="0.4", label=e)
-    for j, v in enumerate(levels):
-        ax.scatter([], [], marker="s", color=colors[j % len(colors)], label=f"sigma_a = {v:g} ug")
-    ax.scatter([], [], marker="o", facecolor="none", edgecolor="black", label="meets the issue's bounds")
-    ax.set_xlabel("CPU time per run, s (the estimator alone, not the simulation)")
-    ax.set_ylabel("largest gyro RMS relative error, %")
-    ax.set_yscale("log")
-    ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-    ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, ncol=2)
-    ax.set_title(title or "Error against cost per estimator and noise level")
-    fig.tight_layout()
-    save(fig, path)
-
-
-@styled
-def nees_side_by_side(runs: pd.DataFrame, path, order: list[str], title: str = ""):
-    """NEES histograms, one panel per estimator (noise levels overlaid), with the chi2(dof) density."""
-    dof = int(runs["nees_dof"].iloc[0])
-    names = [e for e in order if e in set(runs["estimator"])]
-    levels = sorted(set(runs["noise"]))
-    fig, axes = plt.subplots(1, len(names), figsize=(3.6 * len(names) + 1, 3.8), sharey=True, squeeze=False)
-    top = max(3 * dof, float(chi2.ppf(0.9999, dof)))
-    bins = np.linspace(0, top, 41)
-    xs = np.linspace(1e-3, top, 300)
-    bound = float(chi2.ppf(NEES_LEVEL, dof))
-    for ax, e in zip(axes[0], names):
-        for v in levels:
-            n = runs.loc[(runs["estimator"] == e) & np.isclose(runs["noise"], v), "nees"].to_numpy(float)
-            clipped = np.clip(n, 0, top)  # the overflow lands in the last bin, not off the plot
-            ax.hist(clipped, bins=bins, density=True, histtype="step", linewidth=1.3,
-                    label=f"{v:g} ug (mean {n.mean():.0f})")
-        ax.plot(xs, chi2.pdf(xs, dof), "k--", linewidth=1, label=f"chi2({dof})")
-        ax.axvline(bound, color="red", linewidth=0.8, label=f"99.9 % point {bound:.1f}")
-        ax.set_title(e)
-        ax.set_xlabel(f"NEES ({dof} dof; > {top:.0f} in the last bin)")
-        ax.legend(fontsize=7)
-    axes[0][0].set_ylabel("density")
-    fig.suptitle(title or "NEES per estimator")
-    fig.tight_layout()
-    save(fig, path)
-
-
-def compare_job(cfg: dict, coef_path, runs_path, out: dict, log_path=None) -> None:
-    """Rule body: the comparison's tables and figures (``out``: ``tables`` folder, ``cost`` and
-    ``nees`` figure paths)."""
-    lg = job_logger(log_path)
-    cfg = with_compare_estimators(check_study(cfg))
-    coef, runs = pd.read_parquet(coef_path), pd.read_parquet(runs_path)
-    summ = write_compare_tables(cfg, coef, runs, out["tables"])
-    c = compare_settings(cfg)
-    error_vs_cost(summ, out["cost"], f"Error against cost: scheme {c['scheme']}, {int(summ['runs'].min())} runs per point")
-    nees_side_by_side(runs, out["nees"], c["estimators"],
-                      f"NEES per estimator: scheme {c['scheme']}, {int(summ['runs'].min())} runs per level")
-    lg.info("comparison tables and figures -> %s, %s, %s", out["tables"], out["cost"], out["nees"])
 
 
 # ---------------------------------------------------------------------------------------------

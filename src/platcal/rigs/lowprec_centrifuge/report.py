@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ...io import atomic_path, atomic_write_text  # noqa: E402
+from ...io import atomic_write_text  # noqa: E402
 from ...study.claims import ledger_markdown, ledger_note  # noqa: E402
 from ...study.plots import save  # noqa: E402
 from ...study.tables import frame_markdown, write_table  # noqa: E402
@@ -25,6 +25,7 @@ from .montecarlo import study_frames  # noqa: E402
 from .scenario import scenarios  # noqa: E402
 from .study import (PAPER_TRADITIONAL_RESIDUAL_PCT, acceptance, coefficient_table, degradation_table,  # noqa: E402
                     drop_failed, pooled, table1, y_table)
+from .traces import load_trace  # noqa: E402
 
 FMT = {"before": ".3f", "after": ".3f", "VE_before": ".2f", "VE_after": ".3f", "pE_before": ".0f", "pE_after": ".1f",
        "truth": "g", "mean": ".3f", "sd": ".3f", "mean_error": "+.3f", "mean_sigma": ".3f", "rms_z": ".2f"}
@@ -95,20 +96,9 @@ def fig_windows(tr: dict, path: Path) -> None:
     save(fig, path, dpi=110, tight=False)
 
 
-def load_trace(path) -> dict:
-    with np.load(path, allow_pickle=False) as z:
-        return {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
-
-
-def write_trace(trace: dict, path) -> None:
-    """The figures' traces (:func:`.montecarlo.study_trace`) as an ``.npz``, atomically."""
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **trace)
-
-
 def write_study(cfg: dict, coef_path, runs_path, trace_path, out: Path, claims=None) -> None:
     """All tables, figures and report.md of the study under ``out``, from the tidy Monte Carlo
-    tables (``coef.parquet``, ``runs.parquet``) and the traces of :func:`write_trace`; the report
+    tables (``coef.parquet``, ``runs.parquet``) and the traces of :func:`.traces.write_trace`; the report
     opens on ``claims``, the rig's ledger rows (:func:`platcal.study.claims.evaluate_rig`)."""
     out = Path(out)
     study = load_config(cfg)

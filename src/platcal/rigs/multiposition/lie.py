@@ -1,13 +1,14 @@
 """Exact Lie-derivative observability rank (docs/multiposition-1g.md §8, patent step 3).
 
-The model of §4-7 is written once more, symbolically with sympy (commanded angles, Earth-rate
-components and every state as symbols); ``h``, ``L_f h``, ``L_f^2 h`` and their Jacobian
-``M = d/dx [h; L_f h; ...]`` (6 (order+1) x n) are built once per (layout, order), lambdified
-with common-subexpression elimination and cached: in-process, and as generated source on disk
-under the user cache dir (``$XDG_CACHE_HOME/platcal`` or ``~/.cache/platcal``; keyed by the hash
-of this file and :mod:`.model`), so the sympy build (tens of seconds) happens once per machine.
-Being an independent writing of the model, the symbolic ``h`` and ``f`` are also checked against
-the numba kernels in the tests.
+The model of §4-7 is written once more, symbolically with sympy (:mod:`.lie_symbolic`: commanded
+angles, Earth-rate components and every state as symbols); ``h``, ``L_f h``, ``L_f^2 h`` and their
+Jacobian ``M = d/dx [h; L_f h; ...]`` (6 (order+1) x n) are built once per (layout, order),
+lambdified with common-subexpression elimination and cached: in-process, and as generated source
+on disk under the user cache dir (``$XDG_CACHE_HOME/platcal`` or ``~/.cache/platcal``; keyed by
+the hash of this file, :mod:`.lie_symbolic` and :mod:`.model`), so the sympy build (tens of
+seconds) happens once per machine, and a job that finds the source cached does not import sympy
+(:data:`SYMBOLIC_SOURCE`, by path; issue 22 item 4). Being an independent writing of the model,
+the symbolic ``h`` and ``f`` are also checked against the numba kernels in the tests.
 
 Evaluation is float64 with the §8 scaling: the rows of ``L_f^k h`` of output i times
 ``dwell^k / sigma_i``, the column of state j times its P0 sigma (sigma_set for phi); rank = the
@@ -17,74 +18,22 @@ number of singular values above ``rtol`` times the largest.
 from __future__ import annotations
 
 import hashlib
-import inspect
 import math
 import os
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import sympy as sp
 
-from ...model.frames import ARCSEC, DEG, DEG_PER_HOUR
-from ...model.instruments import GYRO_AXES
-from .model import ACCEL_AXES, ext_terms, state_names
+from ...model.frames import DEG
+from ...rig import resolve
+from .model import state_names
 
-_GYRO_REG = {"DF": lambda I, O, S: 1, "DI": lambda I, O, S: I, "DS": lambda I, O, S: S,
-             "DO": lambda I, O, S: O, "DII": lambda I, O, S: I * I, "DSS": lambda I, O, S: S * S,
-             "DIO": lambda I, O, S: I * O, "DIS": lambda I, O, S: I * S, "DOS": lambda I, O, S: O * S,
-             "DOO": lambda I, O, S: O * O}
-
-
-def symbolic_model(ext: int = 0):
-    """``(x, p, f, h)``: state symbols, parameters (alpha0, beta0, gamma0, Omega_N, Omega_U),
-    the phi rows of the drift field (3, rad/s) and the output (6: ug, arcsec), §4-7."""
-    names = state_names(ext)
-    x = sp.symbols(" ".join(n.replace("theta_", "th_") for n in names), real=True)
-    a0, b0, g0, wn, wu = sp.symbols("alpha0 beta0 gamma0 Omega_N Omega_U", real=True)
-    a, b, g = a0 + x[0], b0 + x[1], g0 + x[2]
-    Mx = sp.Matrix([[1, 0, 0], [0, sp.cos(a), sp.sin(a)], [0, -sp.sin(a), sp.cos(a)]])
-    My = sp.Matrix([[sp.cos(b), 0, -sp.sin(b)], [0, 1, 0], [sp.sin(b), 0, sp.cos(b)]])
-    Mz = sp.Matrix([[sp.cos(g), sp.sin(g), 0], [-sp.sin(g), sp.cos(g), 0], [0, 0, 1]])
-    C = Mz * My * Mx
-    fp = C[:, 2]
-    c = dict(zip(names[3:], x[3:]))
-    gyro, accel = ext_terms(ext)
-
-    def coef(term, j):
-        return c[f"{term}{'xyz'[j]}" if term.startswith("theta") else f"{term}_{'xyz'[j]}"]
-
-    eps = []
-    for j in range(3):
-        I, O, S = (sum(GYRO_AXES[j, r, k] * fp[k] for k in range(3)) for r in range(3))
-        eps.append(sum(coef(t, j) * _GYRO_REG[t](I, O, S) for t in gyro))
-    u = sp.Matrix([eps[j] * DEG_PER_HOUR + C[j, 1] * wn + C[j, 2] * wu for j in range(3)])
-    T = sp.Matrix([[sp.cos(g) / sp.cos(b), -sp.sin(g) / sp.cos(b), 0], [sp.sin(g), sp.cos(g), 0],
-                   [-sp.tan(b) * sp.cos(g), sp.tan(b) * sp.sin(g), 1]])
-    f = -T * u
-    h = []
-    for j in range(3):
-        fI, fP, fO = (sum(ACCEL_AXES[j, r, k] * fp[k] for k in range(3)) for r in range(3))
-        aI = fI + coef("theta_o", j) * ARCSEC * fP - coef("theta_p", j) * ARCSEC * fO
-        A = coef("k0", j) + (10**6 + coef("k1", j)) * aI
-        if "k2" in accel:
-            A += coef("k2", j) * aI**2 + coef("k3", j) * aI**3 + coef("kIP", j) * aI * fP
-        h.append(A)
-    h += [(a0 + x[0]) / ARCSEC, (b0 + x[1]) / ARCSEC, (g0 + x[2]) / ARCSEC]
-    return x, (a0, b0, g0, wn, wu), list(f), h
-
-
-def _build_source(ext: int, order: int) -> str:
-    x, p, f, h = symbolic_model(ext)
-    rows = [sp.Matrix(h)]
-    L = sp.Matrix(h)
-    fv = sp.Matrix(f)
-    for _ in range(order):
-        L = L.jacobian(x[:3]) * fv  # f is zero outside the phi rows
-        rows.append(L)
-    M = sp.Matrix.vstack(*rows).jacobian(x)
-    fn = sp.lambdify([x, p], M, modules="numpy", cse=True)
-    return inspect.getsource(fn)
+SYMBOLIC_SOURCE = f"{__package__}.lie_symbolic:build_source"
+"""The sympy build of the Jacobian's source (:func:`.lie_symbolic.build_source`), by path: imported
+only when the disk cache does not hold it, so the jobs that evaluate ranks load no sympy."""
+SOURCE_FILES = ("lie.py", "lie_symbolic.py", "model.py")
+"""The files the cached source is keyed by (their hash): the build, its model and this loader."""
 
 
 def _cache_dir() -> Path:
@@ -95,7 +44,7 @@ def _cache_dir() -> Path:
 def _code_key(ext: int, order: int) -> str:
     here = Path(__file__).parent
     h = hashlib.sha256()
-    for name in ("lie.py", "model.py"):
+    for name in SOURCE_FILES:
         h.update((here / name).read_bytes())
     return f"lie_{h.hexdigest()[:16]}_ext{ext}_order{order}"
 
@@ -108,7 +57,7 @@ def observability_function(ext: int = 0, order: int = 2):
     if path.exists():
         src = path.read_text()
     if src is None:
-        src = _build_source(ext, order)
+        src = resolve(SYMBOLIC_SOURCE)(ext, order)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             tmp = path.with_suffix(f".{os.getpid()}.part")

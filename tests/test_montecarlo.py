@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from platcal.errors import InputError
+from platcal.rig import get_rig
 from platcal.estimation.consistency import nees_band
 from platcal.rigs.centrifuge import RIG
 from platcal.rigs.centrifuge import report
@@ -97,6 +98,21 @@ def test_code_hash_covers_the_compute_closure_only():
     assert not {"plots", "report", "design", "cli"} & mods
     assert smc.code_hash() != smc.compute_code_hash(RIG) and len(smc.compute_code_hash(RIG)) == 16
     assert smc.code_hash(["platcal.study.plots"]) != smc.code_hash()
+
+
+@pytest.mark.parametrize("rig", ["multiposition", "sled"])
+def test_code_hash_follows_a_kernel_named_by_path(rig):
+    # the lanes kernels are imported only as a batch runs (f"{__package__}.filter_lanes:..."): an
+    # edit of them must rerun the rig's cells like an edit of an imported module
+    mods = smc.module_closure([type(get_rig(rig).montecarlo).__module__, smc.__name__])
+    assert f"platcal.rigs.{rig}.filter_lanes" in mods
+
+
+def test_a_path_of_the_files_own_package_is_read_as_an_import(tmp_path):
+    f = tmp_path / "mod.py"
+    f.write_text('KERNEL = f"{__package__}.kernels:run"\nOTHER = f"{__package__}.x"\nFIG = "platcal.logs.f:g"\n')
+    st = f.stat()
+    assert smc._platcal_imports(f, "platcal.rigs.r", (st.st_mtime_ns, st.st_size)) == ("platcal.rigs.r.kernels",)
 
 
 def test_import_reading_is_cached_but_an_edited_file_is_read_again(tmp_path):

@@ -30,6 +30,7 @@ import hashlib
 import importlib.util
 import json
 import os
+import re
 import time
 from collections.abc import Sequence
 from functools import lru_cache
@@ -367,7 +368,30 @@ def _platcal_imports(path: Path, pkg: str, stamp: tuple[int, int]) -> tuple[str,
                 out.extend(f"{target}.{a.name}" for a in node.names)  # submodules imported by name
         elif isinstance(node, ast.Import):
             out.extend(a.name for a in node.names if a.name.split(".")[0] == "platcal")
+        else:
+            out.extend(_named_by_path(node, pkg))
     return tuple(out)
+
+
+NAMED_BY_PATH = re.compile(r"\.[A-Za-z_][\w.]*:[A-Za-z_]\w*")
+"""The tail of a ``f"{__package__}.module:attribute"`` path (:func:`platcal.rig.resolve`)."""
+
+
+def _named_by_path(node, pkg: str) -> list[str]:
+    """The module of the file's own package that ``f"{__package__}.module:attribute"`` names by
+    path: the form a rig's kernels use when they are imported only as they run (the multi-position
+    and sled lanes kernels, the Lie Jacobian's builder), as much a dependency of the code that
+    resolves them as an import statement. Literal ``"platcal.x:attr"`` paths are not followed:
+    those in the package draw a figure (``logs.dwells.DWELL_FIGURE``), pick a back-end
+    (``study.montecarlo.BACKENDS``) or warm a cache (the rigs' ``warm_kernels``), none of them a
+    number of the code that names them, and following them would rerun the cells on a figure's
+    edit."""
+    if (isinstance(node, ast.JoinedStr) and len(node.values) == 2
+            and isinstance(node.values[0], ast.FormattedValue) and isinstance(node.values[0].value, ast.Name)
+            and node.values[0].value.id == "__package__" and isinstance(node.values[1], ast.Constant)
+            and NAMED_BY_PATH.fullmatch(str(node.values[1].value))):
+        return [pkg + str(node.values[1].value).partition(":")[0]]
+    return []
 
 
 def module_closure(roots) -> list[str]:

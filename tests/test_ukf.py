@@ -283,8 +283,8 @@ def test_nonlinear_update_equals_full_update_with_permuted_square_root(short):
     mstates = np.arange(27, 45)
     ok2, nis2 = ukf.update_all(x2, P2, coef, fr, 9.80665, zrow, r_var, h, w2, perm, mstates, est, True,
                                np.zeros((n, n)), np.zeros((n, n)), np.empty((n, 3)), np.empty((n, 3)),
-                               s2["U"], s2["S"], s2["K"], s2["D"], s2["F"], s2["nu"], s2["innov"],
-                               coef.copy(), s2["a"], s2["y0"], s2["y"], s2["mz"], s2["Pzz"])
+                               np.empty((21, n)), s2["U"], s2["S"], s2["K"], s2["D"], s2["F"], s2["nu"],
+                               s2["innov"], coef.copy(), s2["y0"], s2["mz"], s2["Pzz"])
     assert ok1 and ok2
     sig = np.sqrt(np.diag(P))
     np.testing.assert_allclose((x1 - x2) / sig, 0.0, atol=1e-6)
@@ -336,13 +336,13 @@ def test_noise_free_record_converges_to_the_truth():
 
 
 def test_each_variant_its_own_kernels_cached_by_value():
-    # one filter kernel and two pass kernels per sigma-point variant (issue 22 item 4), so that a
-    # process compiles only the variant it runs; each holds its mode alone in its closure, an int
-    # numba's cache keys by value (a kernel held there pickles with a per-process id: never a hit)
-    filters = (ukf._filter_nonlinear, ukf._filter_update, ukf._filter_all)
-    assert len(filters) == len(ukf._PASS_KERNELS) == len(ukf.SIGMA_POINT_MODES)
+    # two pass kernels per sigma-point variant (issue 22 item 4), so that a process compiles only
+    # the variant it runs (the filter is inlined into them); each holds its mode alone in its
+    # closure, an int numba's cache keys by value (a kernel held there pickles with a per-process
+    # id: never a hit)
+    assert len(ukf._PASS_KERNELS) == len(ukf.SIGMA_POINT_MODES)
     for mode in range(len(ukf.SIGMA_POINT_MODES)):
-        for kernel in (filters[mode], *ukf._PASS_KERNELS[mode]):
+        for kernel in ukf._PASS_KERNELS[mode]:
             assert [cell.cell_contents for cell in kernel.py_func.__closure__] == [mode]
             assert kernel.py_func.__code__.co_freevars == ("mode",)
 

@@ -244,7 +244,7 @@ def _sigma_point_outputs(sa, ca, sb, cb, sg, cg, Sf, j, step, mstates, est_idx, 
 
 
 @njit(cache=True)
-def _sigma_outputs_lanes(sa, ca, sb, cb, sg, cg, Sf, h, mstates, coef, fr, g, y0, T, Dp, Dm):
+def _sigma_outputs_all(sa, ca, sb, cb, sg, cg, Sf, h, mstates, coef, fr, g, y0, T, Dp, Dm):
     """Deviations ``Dp[j, r]``, ``Dm[j, r]`` (g) of the outputs at the sigma points ``x +- h Sf[j]``
     from ``y0``, every point with the Taylor shift of the angles (:func:`shift_small`; the caller
     redoes the points whose angle step is not small). ``mstates`` (18,): the states of the
@@ -293,7 +293,7 @@ def _sigma_outputs_lanes(sa, ca, sb, cb, sg, cg, Sf, h, mstates, coef, fr, g, y0
 def _sigma_deviations(sa, ca, sb, cb, sg, cg, Sf, h, mstates, est_idx, coef, cs, fr, g, y0, T, Dp, Dm):
     """``Dp[j, r]``, ``Dm[j, r]``: output r at the sigma points ``x +- h Sf[j]`` less ``y0`` (g).
 
-    In lanes (:func:`_sigma_outputs_lanes`) when the states read by the measurement are its 18
+    All at once (:func:`_sigma_outputs_all`) when the states read by the measurement are its 18
     coefficients in order; the points whose angle step is not below :data:`SHIFT_SMALL` (or not
     finite), and every point otherwise, one by one (:func:`_sigma_point_outputs`): the same
     numbers either way."""
@@ -304,7 +304,7 @@ def _sigma_deviations(sa, ca, sb, cb, sg, cg, Sf, h, mstates, est_idx, coef, cs,
     for q in range(nm):
         lanes = lanes and est_idx[mstates[q]] == I_K0 + q
     if lanes:
-        _sigma_outputs_lanes(sa, ca, sb, cb, sg, cg, Sf, h, mstates, coef, fr, g, y0, T, Dp, Dm)
+        _sigma_outputs_all(sa, ca, sb, cb, sg, cg, Sf, h, mstates, coef, fr, g, y0, T, Dp, Dm)
     for j in range(n):
         small = True
         for r in range(3):

@@ -300,16 +300,16 @@ def _sigma_deviations(sa, ca, sb, cb, sg, cg, Sf, h, mstates, est_idx, coef, cs,
     n = Sf.shape[0]
     nc = n - 3
     nm = mstates.shape[0]
-    lanes = nm == 18
+    together = nm == 18
     for q in range(nm):
-        lanes = lanes and est_idx[mstates[q]] == I_K0 + q
-    if lanes:
+        together = together and est_idx[mstates[q]] == I_K0 + q
+    if together:
         _sigma_outputs_all(sa, ca, sb, cb, sg, cg, Sf, h, mstates, coef, fr, g, y0, T, Dp, Dm)
     for j in range(n):
         small = True
         for r in range(3):
             small = small and abs(h * Sf[j, nc + r]) < SHIFT_SMALL  # = |-h Sf[j, nc + r]|
-        if lanes and small:
+        if together and small:
             continue
         for sgn in (1.0, -1.0):
             y = _sigma_point_outputs(sa, ca, sb, cb, sg, cg, Sf, j, sgn * h, mstates, est_idx, coef, cs, fr, g)

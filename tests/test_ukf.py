@@ -294,6 +294,39 @@ def test_nonlinear_update_equals_full_update_with_permuted_square_root(short):
     assert np.all(np.diag(P1)[lin] < np.diag(P)[lin])
 
 
+@pytest.mark.parametrize("angle_sigma", [None, 1e-3])
+def test_sigma_points_all_at_once_same_bits_as_one_by_one(short, angle_sigma):
+    """The update's sigma-point outputs all at once (the measurement's 18 coefficients in order)
+    give the numbers of the point-by-point path (the same states in another order take it), also
+    when some angle steps are too large for the Taylor shift (those points are redone one by one)."""
+    x, P, tm, zrow = _state_after(short)
+    if angle_sigma is not None:  # the angles' sigma 1e-3 rad: many angle steps above SHIFT_SMALL
+        s = np.sqrt(np.diag(P))
+        P = P.copy()
+        P[-3:, :] *= angle_sigma / s[-3:, None]
+        P[:, -3:] *= angle_sigma / s[None, -3:]
+    fs = FilterSettings()
+    n, est = x.size, fs.coef_index
+    h, w2, _ = ukf.check_options(n, "update", 1.0, 2.0, None)
+    coef = np.zeros(48)
+    coef[est] = x[:-3]
+    fr = specific_force(tm, CEN.params())
+    r_var = np.full(3, 1e-10)
+    out = []
+    for mstates in (np.arange(27, 45), np.arange(44, 26, -1)):
+        x1, P1 = x.copy(), P.copy()
+        s1 = _scratch(n, 18)
+        ok, nis = ukf.update_all(x1, P1, coef, fr, 9.80665, zrow, r_var, h, w2, np.arange(n), mstates, est, True,
+                                 np.zeros((n, n)), np.zeros((n, n)), np.empty((n, 3)), np.empty((n, 3)),
+                                 np.empty((21, n)), s1["U"], s1["S"], s1["K"], s1["D"], s1["F"], s1["nu"],
+                                 s1["innov"], coef.copy(), s1["y0"], s1["mz"], s1["Pzz"])
+        assert ok
+        out.append((x1, P1, nis))
+    assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1])
+    assert out[0][2] == out[1][2]
+    assert not np.array_equal(out[0][0], x)  # it did update
+
+
 def test_linearised_propagation_equals_unscented_propagation(short):
     # one 20 ms step from a state with correlated P: the EKF's propagation (used by the default
     # "update" and by "nonlinear") against the unscented one of "all"

@@ -283,8 +283,8 @@ def test_nonlinear_update_equals_full_update_with_permuted_square_root(short):
     mstates = np.arange(27, 45)
     ok2, nis2 = ukf.update_all(x2, P2, coef, fr, 9.80665, zrow, r_var, h, w2, perm, mstates, est, True,
                                np.zeros((n, n)), np.zeros((n, n)), np.empty((n, 3)), np.empty((n, 3)),
-                               s2["U"], s2["S"], s2["K"], s2["D"], s2["F"], s2["nu"], s2["innov"],
-                               coef.copy(), s2["a"], s2["y0"], s2["y"], s2["mz"], s2["Pzz"])
+                               np.empty((21, n)), s2["U"], s2["S"], s2["K"], s2["D"], s2["F"], s2["nu"],
+                               s2["innov"], coef.copy(), s2["y0"], s2["mz"], s2["Pzz"])
     assert ok1 and ok2
     sig = np.sqrt(np.diag(P))
     np.testing.assert_allclose((x1 - x2) / sig, 0.0, atol=1e-6)
@@ -292,6 +292,39 @@ def test_nonlinear_update_equals_full_update_with_permuted_square_root(short):
     np.testing.assert_allclose(nis1, nis2, rtol=1e-6)
     # and the update did something: the coefficient sigmas of the accelerometer shrink
     assert np.all(np.diag(P1)[lin] < np.diag(P)[lin])
+
+
+@pytest.mark.parametrize("angle_sigma", [None, 1e-3])
+def test_sigma_points_all_at_once_same_bits_as_one_by_one(short, angle_sigma):
+    """The update's sigma-point outputs all at once (the measurement's 18 coefficients in order)
+    give the numbers of the point-by-point path (the same states in another order take it), also
+    when some angle steps are too large for the Taylor shift (those points are redone one by one)."""
+    x, P, tm, zrow = _state_after(short)
+    if angle_sigma is not None:  # the angles' sigma 1e-3 rad: many angle steps above SHIFT_SMALL
+        s = np.sqrt(np.diag(P))
+        P = P.copy()
+        P[-3:, :] *= angle_sigma / s[-3:, None]
+        P[:, -3:] *= angle_sigma / s[None, -3:]
+    fs = FilterSettings()
+    n, est = x.size, fs.coef_index
+    h, w2, _ = ukf.check_options(n, "update", 1.0, 2.0, None)
+    coef = np.zeros(48)
+    coef[est] = x[:-3]
+    fr = specific_force(tm, CEN.params())
+    r_var = np.full(3, 1e-10)
+    out = []
+    for mstates in (np.arange(27, 45), np.arange(44, 26, -1)):
+        x1, P1 = x.copy(), P.copy()
+        s1 = _scratch(n, 18)
+        ok, nis = ukf.update_all(x1, P1, coef, fr, 9.80665, zrow, r_var, h, w2, np.arange(n), mstates, est, True,
+                                 np.zeros((n, n)), np.zeros((n, n)), np.empty((n, 3)), np.empty((n, 3)),
+                                 np.empty((21, n)), s1["U"], s1["S"], s1["K"], s1["D"], s1["F"], s1["nu"],
+                                 s1["innov"], coef.copy(), s1["y0"], s1["mz"], s1["Pzz"])
+        assert ok
+        out.append((x1, P1, nis))
+    assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1])
+    assert out[0][2] == out[1][2]
+    assert not np.array_equal(out[0][0], x)  # it did update
 
 
 def test_linearised_propagation_equals_unscented_propagation(short):
@@ -336,13 +369,13 @@ def test_noise_free_record_converges_to_the_truth():
 
 
 def test_each_variant_its_own_kernels_cached_by_value():
-    # one filter kernel and two pass kernels per sigma-point variant (issue 22 item 4), so that a
-    # process compiles only the variant it runs; each holds its mode alone in its closure, an int
-    # numba's cache keys by value (a kernel held there pickles with a per-process id: never a hit)
-    filters = (ukf._filter_nonlinear, ukf._filter_update, ukf._filter_all)
-    assert len(filters) == len(ukf._PASS_KERNELS) == len(ukf.SIGMA_POINT_MODES)
+    # two pass kernels per sigma-point variant (issue 22 item 4), so that a process compiles only
+    # the variant it runs (the filter is inlined into them); each holds its mode alone in its
+    # closure, an int numba's cache keys by value (a kernel held there pickles with a per-process
+    # id: never a hit)
+    assert len(ukf._PASS_KERNELS) == len(ukf.SIGMA_POINT_MODES)
     for mode in range(len(ukf.SIGMA_POINT_MODES)):
-        for kernel in (filters[mode], *ukf._PASS_KERNELS[mode]):
+        for kernel in ukf._PASS_KERNELS[mode]:
             assert [cell.cell_contents for cell in kernel.py_func.__closure__] == [mode]
             assert kernel.py_func.__code__.co_freevars == ("mode",)
 

@@ -122,27 +122,37 @@ def gyro_drift_slopes(coef, j, aI, aO, aS):
 
 
 @njit(cache=True)
-def accel_axes(coef, j, f0, f1, f2):
-    """Input- and pendulous-axis specific force (g) of accelerometer j, with the misalignments
-    theta_py, theta_pz, theta_oz (arcsec) of eqs. 1-3 (docs/centrifuge-model.md §5): ``(aI, aP)``."""
+def accel_axes_sc(j, f0, f1, f2, t_py, t_pz, t_oz):
+    """:func:`accel_axes` from the misalignments theta_py, theta_pz, theta_oz (arcsec) as scalars:
+    the kernels that vary the coefficients per sigma point pass them so (issue 22)."""
     if j == 0:
         return f0, f1
     if j == 1:
-        return coef[I_THETA] * ARCSEC * f0 + f1, -f2
-    toz = coef[I_THETA + 2] * ARCSEC
-    return coef[I_THETA + 1] * ARCSEC * f0 + toz * f1 + f2, f1 - toz * f2
+        return t_py * ARCSEC * f0 + f1, -f2
+    toz = t_oz * ARCSEC
+    return t_pz * ARCSEC * f0 + toz * f1 + f2, f1 - toz * f2
+
+
+@njit(cache=True)
+def accel_axes(coef, j, f0, f1, f2):
+    """Input- and pendulous-axis specific force (g) of accelerometer j, with the misalignments
+    theta_py, theta_pz, theta_oz (arcsec) of eqs. 1-3 (docs/centrifuge-model.md §5): ``(aI, aP)``."""
+    return accel_axes_sc(j, f0, f1, f2, coef[I_THETA], coef[I_THETA + 1], coef[I_THETA + 2])
+
+
+@njit(cache=True)
+def accel_out(k0, k1, k2, k3, kip, aI, aP):
+    """Output (g) of an accelerometer with coefficients k0 (ug), k1 (ug/g), k2 (ug/g^2), k3 (ug/g^3),
+    kIP (ug/g^2) from its input- and pendulous-axis specific force (g), eq. 13 (docs/centrifuge-model.md §5)."""
+    return UG * k0 + (1.0 + UG * k1) * aI + UG * k2 * aI * aI + UG * k3 * aI * aI * aI \
+        + UG * kip * aI * aP
 
 
 @njit(cache=True)
 def accel_one(coef, j, aI, aP):
     """Output of accelerometer j (g) from its input- and pendulous-axis specific force (g), eq. 13."""
-    k0 = coef[I_K0 + j]
-    k1 = coef[I_K0 + 3 + j]
-    k2 = coef[I_K0 + 6 + j]
-    k3 = coef[I_K0 + 9 + j]
-    kip = coef[I_K0 + 12 + j]
-    return UG * k0 + (1.0 + UG * k1) * aI + UG * k2 * aI * aI + UG * k3 * aI * aI * aI \
-        + UG * kip * aI * aP
+    return accel_out(coef[I_K0 + j], coef[I_K0 + 3 + j], coef[I_K0 + 6 + j], coef[I_K0 + 9 + j],
+                     coef[I_K0 + 12 + j], aI, aP)
 
 
 @njit(cache=True)

@@ -24,9 +24,9 @@ import numpy as np
 from ...jit import njit
 
 from ...model.frames import ARCSEC, DEG_PER_HOUR, c_rp_into, euler_t_into
-from ...model.instruments import (GYRO_AXES, I_DOO, I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one, accel_output_into,
-                          accel_slopes, gyro_axis_components, gyro_drift_into, gyro_drift_scalar,
-                          gyro_drift_slopes)
+from ...model.instruments import (GYRO_AXES, I_DOO, I_K0, I_THETA, N_FULL, UG, accel_axes, accel_axes_sc,
+                          accel_one, accel_out, accel_output_into, accel_slopes, gyro_axis_components,
+                          gyro_drift_into, gyro_drift_scalar, gyro_drift_slopes)
 
 P_G, P_OMEGA_N, P_OMEGA_U = 2, 3, 4
 """Indices of g (m/s^2) and the Earth rate's north and up components (rad/s) in the packed
@@ -248,20 +248,31 @@ def _drift(coef, j, f0, f1, f2):
     return gyro_drift_scalar(coef, j, aI, aO, aS)
 
 
+SHIFT_SMALL = 1e-4
+"""rad: below it :func:`_shift` takes the Taylor form :func:`shift_small`."""
+
+
 @njit(cache=True)
 def _shift(s, c, d):
     """``(sin(a + d), cos(a + d))`` from ``s = sin a``, ``c = cos a``.
 
     An RK4 stage moves the angles by ``d ~ 1e-9 rad``, so the Taylor forms of ``sin d``, ``cos d``
     are exact to rounding (truncation below 1e-20 relative) and save three quarters of the
-    trigonometric calls; a large ``d`` falls back to the direct functions.
+    trigonometric calls; a large ``d`` (:data:`SHIFT_SMALL` or more) falls back to the direct functions.
     """
-    if abs(d) < 1e-4:
-        d2 = d * d
-        cd = 1.0 - 0.5 * d2
-        sd = d - d * d2 * (1.0 / 6.0)
-        return s * cd + c * sd, c * cd - s * sd
+    if abs(d) < SHIFT_SMALL:
+        return shift_small(s, c, d)
     return s * np.cos(d) + c * np.sin(d), c * np.cos(d) - s * np.sin(d)
+
+
+@njit(cache=True)
+def shift_small(s, c, d):
+    """:func:`_shift` for ``|d| <`` :data:`SHIFT_SMALL` rad: the Taylor forms, no branch and no call
+    (what a loop over sigma points vectorises)."""
+    d2 = d * d
+    cd = 1.0 - 0.5 * d2
+    sd = d - d * d2 * (1.0 / 6.0)
+    return s * cd + c * sd, c * cd - s * sd
 
 
 # rate_scalar, _stage, rk4_scalar_sc and measure_scalar are inlined into their callers (the
@@ -495,13 +506,28 @@ def make_step_scratch():
 def measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr0, fr1, fr2, g):
     """Accelerometer outputs x, y, z (g), no Jacobians, from the sines and cosines of the
     angles and the base specific force (m/s^2): the simulator's measurement (eq. 13)."""
+    return measure_coef_sc(sa, ca, sb, cb, sg, cg, fr0, fr1, fr2, g,
+                           coef[I_K0], coef[I_K0 + 1], coef[I_K0 + 2], coef[I_K0 + 3], coef[I_K0 + 4],
+                           coef[I_K0 + 5], coef[I_K0 + 6], coef[I_K0 + 7], coef[I_K0 + 8], coef[I_K0 + 9],
+                           coef[I_K0 + 10], coef[I_K0 + 11], coef[I_K0 + 12], coef[I_K0 + 13],
+                           coef[I_K0 + 14], coef[I_THETA], coef[I_THETA + 1], coef[I_THETA + 2])
+
+
+@njit(cache=True, inline="always")
+def measure_coef_sc(sa, ca, sb, cb, sg, cg, fr0, fr1, fr2, g, k0x, k0y, k0z, k1x, k1y, k1z, k2x, k2y,
+                    k2z, k3x, k3y, k3z, kpx, kpy, kpz, t_py, t_pz, t_oz):
+    """:func:`measure_scalar` with the 18 coefficients it reads as scalars, in the full vector's
+    order (``coef[I_K0:I_THETA + 3]``: k0, k1, k2, k3, kIP of x, y, z, then theta_py, theta_pz,
+    theta_oz; units of :mod:`platcal.model.instruments`): no array, so a loop over the UKF's sigma
+    points vectorises (issue 22)."""
     c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_rp_sc(sa, ca, sb, cb, sg, cg)
     f0, f1, f2 = _force_p(c00, c01, c02, c10, c11, c12, c20, c21, c22, fr0, fr1, fr2, g)
     j0, j1, j2 = np.int64(0), np.int64(1), np.int64(2)  # int64, not literals (see rate_scalar)
-    aI0, aP0 = accel_axes(coef, j0, f0, f1, f2)
-    aI1, aP1 = accel_axes(coef, j1, f0, f1, f2)
-    aI2, aP2 = accel_axes(coef, j2, f0, f1, f2)
-    return accel_one(coef, j0, aI0, aP0), accel_one(coef, j1, aI1, aP1), accel_one(coef, j2, aI2, aP2)
+    aI0, aP0 = accel_axes_sc(j0, f0, f1, f2, t_py, t_pz, t_oz)
+    aI1, aP1 = accel_axes_sc(j1, f0, f1, f2, t_py, t_pz, t_oz)
+    aI2, aP2 = accel_axes_sc(j2, f0, f1, f2, t_py, t_pz, t_oz)
+    return (accel_out(k0x, k1x, k2x, k3x, kpx, aI0, aP0), accel_out(k0y, k1y, k2y, k3y, kpy, aI1, aP1),
+            accel_out(k0z, k1z, k2z, k3z, kpz, aI2, aP2))
 
 
 @njit(cache=True, inline="always")

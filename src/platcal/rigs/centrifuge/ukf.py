@@ -59,8 +59,8 @@ from ...errors import InputError
 from ...estimation.kalman import update_scratch
 from ...estimation.unscented import (check_ut_params, cholesky_upper_into, joseph_update,
                                      regression_cross_into, ut_moments_into)
-from .attitude import (GYRO_COLS, P_G, _shift, c_rp_sc, make_step_scratch, measure_scalar,
-                       rk4_scalar)
+from .attitude import (GYRO_COLS, P_G, SHIFT_SMALL, _shift, c_rp_sc, make_step_scratch, measure_coef_sc,
+                       measure_scalar, rk4_scalar, shift_small)
 from ...model.instruments import I_K0, I_THETA, N_FULL, UG, accel_axes, accel_one
 from .base import specific_force_into
 from .ekf import (Estimate, EstimatorInput, FilterSettings, attitude_reset, drive_passes, filter_start,
@@ -228,13 +228,135 @@ def propagate_all(xb, Pb, coef, fr3, dt, pb, q_var, h, w2, perm, est_idx, Rp, Sf
 
 
 @njit(cache=True)
+def _sigma_point_outputs(sa, ca, sb, cb, sg, cg, Sf, j, step, mstates, est_idx, coef, cs, fr, g):
+    """Accelerometer outputs (g) at the sigma point ``x + step Sf[j]`` (``sa, ca, ...``: sin and cos
+    of the mean's angles); ``cs`` (48,) takes the point's coefficients (``mstates``: the states
+    the measurement reads) and must be restored by the caller."""
+    nc = Sf.shape[0] - 3
+    for q in range(mstates.shape[0]):
+        k = mstates[q]
+        cs[est_idx[k]] = coef[est_idx[k]] + step * Sf[j, k]
+    # the sigma point's angles: sin/cos by exact-to-rounding shifts from the mean's
+    s0, c0 = _shift(sa, ca, step * Sf[j, nc])
+    s1, c1 = _shift(sb, cb, step * Sf[j, nc + 1])
+    s2, c2 = _shift(sg, cg, step * Sf[j, nc + 2])
+    return measure_scalar(s0, c0, s1, c1, s2, c2, cs, fr[0], fr[1], fr[2], g)
+
+
+@njit(cache=True)
+def _sigma_outputs_all(sa, ca, sb, cb, sg, cg, Sf, h, mstates, coef, fr, g, y0, T, Dp, Dm):
+    """Deviations ``Dp[j, r]``, ``Dm[j, r]`` (g) of the outputs at the sigma points ``x +- h Sf[j]``
+    from ``y0``, every point with the Taylor shift of the angles (:func:`shift_small`; the caller
+    redoes the points whose angle step is not small). ``mstates`` (18,): the states of the
+    coefficients ``coef[I_K0:I_THETA + 3]`` in that order; ``T`` (21, n) scratch.
+
+    The same operations as :func:`_sigma_point_outputs` (hence the same numbers), without its
+    per-point costs (issue 22): the columns of ``Sf`` that the measurement reads are copied to
+    contiguous rows of ``T`` once, and the loop over the points calls no function, takes no branch
+    and writes no coefficient through the state map (about 3x faster than point by point).
+    """
+    n = Sf.shape[0]
+    nc = n - 3
+    for q in range(18):
+        k = mstates[q]
+        for j in range(n):
+            T[q, j] = Sf[j, k]
+    for r in range(3):
+        for j in range(n):
+            T[18 + r, j] = Sf[j, nc + r]
+    fr0, fr1, fr2 = fr[0], fr[1], fr[2]
+    y00, y01, y02 = y0[0], y0[1], y0[2]
+    for sgn in (1.0, -1.0):
+        step = sgn * h
+        G = Dp if sgn > 0.0 else Dm
+        for j in range(n):
+            s0, c0 = shift_small(sa, ca, step * T[18, j])
+            s1, c1 = shift_small(sb, cb, step * T[19, j])
+            s2, c2 = shift_small(sg, cg, step * T[20, j])
+            o0, o1, o2 = measure_coef_sc(
+                s0, c0, s1, c1, s2, c2, fr0, fr1, fr2, g,
+                coef[I_K0] + step * T[0, j], coef[I_K0 + 1] + step * T[1, j], coef[I_K0 + 2] + step * T[2, j],
+                coef[I_K0 + 3] + step * T[3, j], coef[I_K0 + 4] + step * T[4, j],
+                coef[I_K0 + 5] + step * T[5, j], coef[I_K0 + 6] + step * T[6, j],
+                coef[I_K0 + 7] + step * T[7, j], coef[I_K0 + 8] + step * T[8, j],
+                coef[I_K0 + 9] + step * T[9, j], coef[I_K0 + 10] + step * T[10, j],
+                coef[I_K0 + 11] + step * T[11, j], coef[I_K0 + 12] + step * T[12, j],
+                coef[I_K0 + 13] + step * T[13, j], coef[I_K0 + 14] + step * T[14, j],
+                coef[I_K0 + 15] + step * T[15, j], coef[I_K0 + 16] + step * T[16, j],
+                coef[I_K0 + 17] + step * T[17, j])
+            G[j, 0] = o0 - y00
+            G[j, 1] = o1 - y01
+            G[j, 2] = o2 - y02
+
+
+@njit(cache=True, inline="always")
+def _sigma_deviations(sa, ca, sb, cb, sg, cg, Sf, h, mstates, est_idx, coef, cs, fr, g, y0, T, Dp, Dm):
+    """``Dp[j, r]``, ``Dm[j, r]``: output r at the sigma points ``x +- h Sf[j]`` less ``y0`` (g).
+
+    All at once (:func:`_sigma_outputs_all`) when the states read by the measurement are its 18
+    coefficients in order; the points whose angle step is not below :data:`SHIFT_SMALL` (or not
+    finite), and every point otherwise, one by one (:func:`_sigma_point_outputs`): the same
+    numbers either way."""
+    n = Sf.shape[0]
+    nc = n - 3
+    nm = mstates.shape[0]
+    together = nm == 18
+    for q in range(nm):
+        together = together and est_idx[mstates[q]] == I_K0 + q
+    if together:
+        _sigma_outputs_all(sa, ca, sb, cb, sg, cg, Sf, h, mstates, coef, fr, g, y0, T, Dp, Dm)
+    for j in range(n):
+        small = True
+        for r in range(3):
+            small = small and abs(h * Sf[j, nc + r]) < SHIFT_SMALL  # = |-h Sf[j, nc + r]|
+        if together and small:
+            continue
+        for sgn in (1.0, -1.0):
+            y = _sigma_point_outputs(sa, ca, sb, cb, sg, cg, Sf, j, sgn * h, mstates, est_idx, coef, cs, fr, g)
+            G = Dp if sgn > 0.0 else Dm
+            for r in range(3):
+                G[j, r] = y[r] - y0[r]
+        for q in range(nm):
+            k = mstates[q]
+            cs[est_idx[k]] = coef[est_idx[k]]
+
+
+@njit(cache=True, inline="always")
+def _cross_covariance(Sf, Dp, Dm, h, upper, U):
+    """Cross-covariance ``U[r] = (1/2h) sum_j (Dp[j, r] - Dm[j, r]) Sf[j]`` of the states with the
+    three outputs, each entry summed in the order j = 0, 1, ... (docs/centrifuge-model.md §9).
+
+    With ``upper`` (``Sf`` the upper factor in the state order: ``Sf[j, i] = +0`` for i < j) row j
+    starts at its diagonal: a finite g times +0 adds +-0 to a sum that is never -0, i.e. nothing,
+    so the terms skipped change no bit; where a g is not finite the row takes every column, so
+    that NaN and inf spread as ever.
+    """
+    n = Sf.shape[0]
+    i2h = 0.5 / h
+    for r in range(3):
+        for i in range(n):
+            U[r, i] = 0.0
+    for j in range(n):
+        g0 = i2h * (Dp[j, 0] - Dm[j, 0])
+        g1 = i2h * (Dp[j, 1] - Dm[j, 1])
+        g2 = i2h * (Dp[j, 2] - Dm[j, 2])
+        finite = abs(g0) < np.inf and abs(g1) < np.inf and abs(g2) < np.inf
+        for i in range(j if upper and finite else 0, n):
+            sji = Sf[j, i]
+            U[0, i] += g0 * sji
+            U[1, i] += g1 * sji
+            U[2, i] += g2 * sji
+
+
+@njit(cache=True, inline="always")
 def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, mstates, est_idx, update_x, Rp, Sf,
-               Dp, Dm, U, S, K, D, F, nu, innov, cs, a, y0, y, mz, Pzz):
+               Dp, Dm, T, U, S, K, D, F, nu, innov, cs, y0, mz, Pzz):
     """Unscented update with 2n + 1 sigma points over all states (the reference). Returns
     ``(ok, nis)``; ok False (nothing changed) if P or S is not positive definite.
 
     ``mstates``: the coefficient states the measurement reads (k0 ... kIP, theta); every sigma
     point moves every state, but the others cannot change the outputs, so only these are set.
+    ``Dp``, ``Dm`` (n, 3) and ``T`` (21, n): scratch of :func:`_sigma_deviations`.
     """
     n = xb.shape[0]
     nc = n - 3
@@ -244,52 +366,12 @@ def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, mstates, est_idx, 
     sb, cb = np.sin(xb[nc + 1]), np.cos(xb[nc + 1])
     sg, cg = np.sin(xb[nc + 2]), np.cos(xb[nc + 2])
     y0[0], y0[1], y0[2] = measure_scalar(sa, ca, sb, cb, sg, cg, coef, fr[0], fr[1], fr[2], g)
-    # Sf indexed in 2-D and Dp / Dm written by name, not through row views or a selected array:
-    # each of those costs atomic reference counts at every sigma point (issue 22)
-    nm = mstates.shape[0]
-    for j in range(n):
-        for sgn in (1.0, -1.0):
-            step = sgn * h
-            for q in range(nm):
-                k = mstates[q]
-                cs[est_idx[k]] = coef[est_idx[k]] + step * Sf[j, k]
-            # the sigma point's angles: sin/cos by exact-to-rounding shifts from the mean's
-            s0, c0 = _shift(sa, ca, step * Sf[j, nc])
-            s1, c1 = _shift(sb, cb, step * Sf[j, nc + 1])
-            s2, c2 = _shift(sg, cg, step * Sf[j, nc + 2])
-            y[0], y[1], y[2] = measure_scalar(s0, c0, s1, c1, s2, c2, cs, fr[0], fr[1], fr[2], g)
-            for r in range(3):
-                if sgn > 0.0:
-                    Dp[j, r] = y[r] - y0[r]
-                else:
-                    Dm[j, r] = y[r] - y0[r]
-    for q in range(nm):
-        k = mstates[q]
-        cs[est_idx[k]] = coef[est_idx[k]]
+    _sigma_deviations(sa, ca, sb, cb, sg, cg, Sf, h, mstates, est_idx, coef, cs, fr, g, y0, T, Dp, Dm)
     ut_moments_into(Dp, Dm, h, w2, mz, Pzz)
-    # cross-covariance U[r] = (1/2h) sum_j (Dp[j, r] - Dm[j, r]) Sf[j], the three outputs in one
-    # pass over Sf, each entry summed in the order j = 0, 1, ... as ever
-    i2h = 0.5 / h
     upper = True
     for i in range(n):
         upper = upper and perm[i] == i
-    for r in range(3):
-        for i in range(n):
-            U[r, i] = 0.0
-    for j in range(n):
-        g0 = i2h * (Dp[j, 0] - Dm[j, 0])
-        g1 = i2h * (Dp[j, 1] - Dm[j, 1])
-        g2 = i2h * (Dp[j, 2] - Dm[j, 2])
-        # in the state order Sf is the upper factor: Sf[j, i] = +0 for i < j, and a finite g
-        # times it adds +-0 to a sum that is never -0, i.e. nothing: those terms are skipped
-        # (all of them taken when a g is not finite, so that NaN and inf spread as before)
-        finite = abs(g0) < np.inf and abs(g1) < np.inf and abs(g2) < np.inf
-        i0 = j if upper and finite else 0
-        for i in range(i0, n):
-            sji = Sf[j, i]
-            U[0, i] += g0 * sji
-            U[1, i] += g1 * sji
-            U[2, i] += g2 * sji
+    _cross_covariance(Sf, Dp, Dm, h, upper, U)
     for r in range(3):
         for c in range(3):
             S[r, c] = Pzz[r, c]
@@ -300,8 +382,8 @@ def update_all(xb, Pb, coef, fr, g, zrow, r_var, h, w2, perm, mstates, est_idx, 
     return True, nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2]
 
 
-# inlined into each variant's kernel (_variant_filter), where ``mode`` is a constant: numba prunes
-# the branches of the other variants before typing, so their callees are not compiled
+# inlined (with _filter_replicate) into each variant's pass kernels, where ``mode`` is a constant:
+# numba prunes the branches of the other variants before typing, so their callees are not compiled
 @njit(cache=True, inline="always")
 def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
                 hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm):
@@ -331,6 +413,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     Sf = np.zeros((n, n))
     Dp = np.empty((nsig, 3))
     Dm = np.empty((nsig, 3))
+    T = np.empty((21, n))
     Y = np.empty((q, 3))
     U, K, D, S, F, nu = update_scratch(3, n)
     innov = np.zeros(3)
@@ -376,8 +459,7 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
         zrow = zb[m]
         if full:
             ok, s = update_all(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, perm, mstates, est_idx,
-                               update_x, Rp, Sf, Dp, Dm, U, S, K, D, F, nu, innov, cs,
-                               a, y0, y, mz, Pzz)
+                               update_x, Rp, Sf, Dp, Dm, T, U, S, K, D, F, nu, innov, cs, y0, mz, Pzz)
         else:
             ok, s = update_nonlinear(xb, Pb, coef, fr_now, g, zrow, r_var, h, w2, nl, nl_full, lin,
                                      update_x, Rnn, Dp, Dm, Y, U, S, K, D, F, nu, innov, cs, a,
@@ -393,46 +475,28 @@ def _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q
     return nis, bad
 
 
-def _variant_filter(mode: int):
-    """:func:`_filter_one` of one sigma-point variant (``mode``, an index of
-    :data:`SIGMA_POINT_MODES`) as a kernel of its own: ``mode`` is a constant of its closure, so
-    numba compiles only that variant's propagation and update (issue 22 item 4). The closure holds
-    the int alone, which numba's cache keys by value (a kernel in a closure would defeat the cache)."""
-
-    @njit(cache=True)
-    def filter_variant(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
-                       hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, mstates, h, w2, perm):
-        return _filter_one(xb, Pb, zb, t, cmd, reset_var, est_idx, coef_fixed, pb, r_var, q_rate, update_x,
-                           hist_idx, hist_x, hist_s, pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm)
-
-    return filter_variant
-
-
-_filter_nonlinear, _filter_update, _filter_all = (_variant_filter(m) for m in range(len(SIGMA_POINT_MODES)))
-
-
-# inlined into the two pass kernels (a few lines of numba IR): otherwise a third compiled
-# function whose own LLVM module links, optimises and emits the filter's whole code once more
+# inlined into the two pass kernels, and _filter_one with it: with a compiled filter kernel between
+# them (one per variant, before issue 22's ukf session) each pass kernel linked, optimised and
+# emitted the filter's whole code a second time (the UKF's cold compile 24 -> 20 s CPU without it)
 @njit(cache=True, inline="always")
 def _filter_replicate(b, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var,
                       q_rate, update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, nl,
                       nl_full, lin, mstates, h, w2, mode, perm):
     """Replicate b through every position of one pass (``mode``: a constant of the pass kernel,
-    which picks the variant's filter kernel; numba prunes the other two)."""
-    filter_one = _filter_nonlinear if mode == 0 else _filter_update if mode == 1 else _filter_all
+    which picks the variant; numba prunes the other two)."""
     for k in range(offs.shape[0] - 1):
         o0, o1 = offs[k], offs[k + 1]
         zb = z[b, o0:o1] if update_x else z[b]
-        stats = filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx, coef_fixed[b],
-                           params[b, k], r_var, q_rate, update_x, hist_idx[o0:o1], hist_x[b],
-                           hist_s[b], pcols, pg, nl, nl_full, lin, mstates, h, w2, perm)
+        stats = _filter_one(x[b], P[b], zb, t[o0:o1], cmd[b, k], reset_var, est_idx, coef_fixed[b],
+                            params[b, k], r_var, q_rate, update_x, hist_idx[o0:o1], hist_x[b],
+                            hist_s[b], pcols, pg, nl, nl_full, lin, mstates, h, w2, mode, perm)
         nis_sum[b] += stats[0]
         n_bad[b] += int(stats[1])
 
 
 def _pass_kernels(mode: int):
     """``(threaded, serial)`` pass kernels of one sigma-point variant (``mode``, a constant of
-    their closure, as in :func:`_variant_filter`): every replicate of the batch through one pass."""
+    their closure, an int numba's cache keys by value): every replicate of the batch through one pass."""
 
     @njit(parallel=True, cache=True)
     def run_pass(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,

@@ -152,9 +152,11 @@ def _run_chunk(rig_name: str, cells: dict, level: float, replicates, numba_threa
     cfg, case = next(iter(cells.values()))
     seeds = replicate_seeds(hooks, cfg, case, level, replicates)
     shared = len(cells) > 1 and hasattr(hooks, "simulate_cell")
-    t0 = time.perf_counter()
-    data = hooks.simulate_cell({e: c for e, (c, _) in cells.items()}, case, level, seeds) if shared else None
-    simulation = (time.perf_counter() - t0) / len(cells)
+    data, simulation = None, 0.0
+    if shared:
+        t0 = time.perf_counter()
+        data = hooks.simulate_cell({e: c for e, (c, _) in cells.items()}, case, level, seeds)
+        simulation = (time.perf_counter() - t0) / len(cells)
     out = {}
     for estimator, (cfg, case) in cells.items():
         t0 = time.perf_counter()

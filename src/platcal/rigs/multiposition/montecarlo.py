@@ -102,9 +102,15 @@ def run_cell_batch(cfg, scheme: Scheme, sigma_a_ug: float, estimator: str, seeds
     """Simulate one replicate per SeedSequence of ``scheme`` at ``sigma_a_ug`` (truth and filter
     R) and identify it with the study's estimator variant ``estimator``; ``threads`` of the
     simulator's and filter's thread pools change the speed only."""
-    choice = variant_choice(cfg, estimator, field=f"study.estimators.{estimator}")
+    choice = study_variant(cfg, estimator)  # an unknown estimator is refused before the simulation
     return identify_records(cfg, scheme, sigma_a_ug, choice, simulate_records(cfg, scheme, sigma_a_ug, seeds, threads),
                             threads)
+
+
+def study_variant(cfg, estimator: str):
+    """The estimator variant ``estimator`` of the study (:func:`.estimators.variant_choice`; an
+    InputError names ``study.estimators.<estimator>``)."""
+    return variant_choice(cfg, estimator, field=f"study.estimators.{estimator}")
 
 
 def simulate_records(cfg, scheme: Scheme, sigma_a_ug: float, seeds, threads: int = 1) -> tuple:
@@ -189,5 +195,4 @@ class MultipositionMonteCarlo(StudySectionHooks):
 
     def identify_cell(self, cfg: dict, case, noise: float, estimator: str, data: tuple) -> ReplicateBatch:
         c = load_config(cfg)
-        return identify_records(c, case, noise, variant_choice(c, estimator, field=f"study.estimators.{estimator}"),
-                                data, threads=get_threads())
+        return identify_records(c, case, noise, study_variant(c, estimator), data, threads=get_threads())

@@ -23,7 +23,9 @@ types) with their own compile s, and the total. ``--json`` writes the raw record
 ``warm_kernels``), a Monte Carlo cell (S8 at 5 ug, every estimator, the config's 20 seeds) and
 ``multiposition_centrifuge_table1`` (``platcal observability`` of the centrifuge's config, scheme
 table1, which waits for the centrifuge's kernels job); what a job after a kernels job compiles is
-what that kernels job did not warm.
+what that kernels job did not warm. ``--rig sled`` and ``--rig lowprec_centrifuge`` (:data:`RIG_JOBS`):
+the rig's ``kernels`` job, then a Monte Carlo cell of its ``default`` case (the study's first noise
+level, every estimator) and, for the sled, the case's one-replicate series (rule ``sled_series``).
 """
 
 from __future__ import annotations
@@ -49,6 +51,10 @@ from platcal.io import atomic_write_text
 JOBS = ("sweep:ekf1", "sweep:ekfw", "compare:10", "single", "design:ga_J")
 # the multi-position rig's study jobs, each after the jobs it waits for (--rig multiposition)
 MP_JOBS = ("kernels:centrifuge", "kernels:multiposition", "mpcell:S8", "table1")
+# the other rigs' kernels job, then a Monte Carlo cell of their first case (and the sled's series)
+RIG_JOBS = {"centrifuge": JOBS, "multiposition": MP_JOBS,
+            "sled": ("kernels:sled", "cell:sled:default", "series:default"),
+            "lowprec_centrifuge": ("kernels:lowprec_centrifuge", "cell:lowprec_centrifuge:default")}
 
 
 def rig_raw(rig: str) -> dict:
@@ -82,6 +88,17 @@ def run_job(job: str, dwell: float, out: Path) -> None:
         from platcal.study.montecarlo import cell_job
         raw = rig_raw("multiposition")
         cell_job("multiposition", raw, arg, 5.0, list(raw["study"]["estimators"]), out / "cell")
+        return
+    if kind == "cell":  # cell:<rig>:<case>, the study's first noise level, every estimator
+        from platcal.rig import get_rig
+        from platcal.study.montecarlo import cell_job
+        rig, case = arg.split(":")
+        hooks, raw = get_rig(rig).montecarlo, rig_raw(rig)
+        cell_job(rig, raw, case, hooks.noise_levels(raw)[0], hooks.estimators(raw), out / "cell")
+        return
+    if kind == "series":  # the sled's one-replicate series of a case (rule sled_series)
+        from platcal.rigs.sled.series import write_series
+        write_series(rig_raw("sled"), arg, out / "series.csv")
         return
     if kind == "table1":
         from platcal.cli import main as cli
@@ -136,9 +153,11 @@ def child(job: str, dwell: float) -> None:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dwell", type=float, default=1.0, help="s per position of every scheme (default 1)")
-    ap.add_argument("--rig", choices=("centrifuge", "multiposition"), default="centrifuge",
-                    help="whose study jobs (default centrifuge: JOBS; multiposition: MP_JOBS)")
-    ap.add_argument("--jobs", nargs="+", choices=list(JOBS + MP_JOBS), help="these jobs, in this order")
+    ap.add_argument("--rig", choices=tuple(RIG_JOBS), default="centrifuge",
+                    help="whose study jobs (default centrifuge: JOBS; multiposition: MP_JOBS; sled and "
+                         "lowprec_centrifuge: RIG_JOBS)")
+    ap.add_argument("--jobs", nargs="+", choices=sorted({j for jobs in RIG_JOBS.values() for j in jobs}),
+                    help="these jobs, in this order")
     ap.add_argument("--json", help="write the raw records here")
     ap.add_argument("--width", type=int, default=120, help="characters of argument types shown (default 120)")
     ap.add_argument("--child", help=argparse.SUPPRESS)
@@ -150,7 +169,7 @@ def main(argv=None) -> None:
     results = []
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        for job in a.jobs or (MP_JOBS if a.rig == "multiposition" else JOBS):
+        for job in a.jobs or RIG_JOBS[a.rig]:
             out = subprocess.run([sys.executable, __file__, "--child", job, "--dwell", str(a.dwell)], env=env,
                                  check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
             r = json.loads(out)

@@ -122,3 +122,28 @@ def test_noise_free_record_has_no_errors():
     sb = simulate(cfg, replicate_seeds(cfg.raw, "default", [0]), noise_free=True)
     f, w = true_imu(sb.traj, cfg.omega_ie)
     assert np.array_equal(sb.f[0], f) and np.array_equal(sb.truth.x_inst, sb.truth.x_true)
+
+
+def test_mechanise_kernel_types_do_not_depend_on_the_batch():
+    """One seed (its rates a broadcast numpy hands over read-only), two seeds, a scalar period
+    and a record's own sample intervals all reach the navigation kernel as writable arrays
+    (``ins.kernel_input``), so numba compiles it once for all of them (issue 22 item 4), and the
+    numbers are those of the same inputs passed as fresh copies."""
+    from platcal.rigs.sled import ins
+
+    rng = np.random.default_rng(3)
+    N = 40
+    f1 = rng.normal(0.0, 1.0, (1, N, 3)) + [0.0, 0.0, -9.8]
+    w1 = rng.normal(0.0, 1e-4, (N, 3))
+    dts = np.full(N, 0.01) + rng.uniform(0.0, 1e-5, N)
+    omega_ie = np.array([0.0, 5.6e-5, 4.2e-5])
+    runs = [(f1, w1[None], np.zeros((1, 3)), dts),                       # one seed, rates broadcast
+            (np.repeat(f1, 2, axis=0), w1[None], np.full((2, 3), 1e-4), 0.01)]   # two seeds, scalar dt
+    for f, w, phi0, dt in runs:
+        got = ins.mechanise(f, w, phi0, omega_ie, dt)
+        ref = ins.mechanise(f.copy(), np.array(np.broadcast_to(w, f.shape)), phi0.copy(), omega_ie,
+                            np.array(np.broadcast_to(np.asarray(dt, float), (N,))))
+        for a, b in zip(got, ref):
+            assert np.array_equal(a, b)
+    readonly = [str(t) for sig in ins._mechanise.signatures for t in sig if hasattr(t, "ndim") and not t.mutable]
+    assert readonly == []

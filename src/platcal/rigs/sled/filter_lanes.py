@@ -319,13 +319,16 @@ def _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, f
         bad[blk] = 1
 
 
-@nb.njit(cache=True, nogil=True)
 def _kalman_blocks(lo, hi, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out, bad,
                    fa, fb, pa, pb, pptr, pcs, rptr, rcols):
-    """Blocks ``lo .. hi - 1`` of :func:`_kalman_block` (one thread's share), with their scratch."""
+    """Blocks ``lo .. hi - 1`` of :func:`_kalman_block` (one thread's share), each with its own
+    scratch. The loop runs in Python, one dispatch per block of :data:`LANES` seeds: a compiled
+    loop linked the block kernel's whole module and optimised it again, about 5 s of every cold
+    compile (issue 22 item 4; ``python benchmarks/compile_events.py --rig sled``), for a loop of a
+    few blocks per filter run. The kernel releases the GIL, so the threads still run side by side."""
     n, m, L = X.shape[1], z.shape[2], LANES
     e = np.empty
-    hcols = np.arange(m).reshape(m, 1)   # H = [I_m 0] as the reference's sparse rows
+    hcols = np.arange(m, dtype=np.int64).reshape(m, 1)   # H = [I_m 0] as the reference's sparse rows
     for blk in range(lo, hi):
         _kalman_block(blk, kind, fm, w, wc, Ts, z, X, PP, Qd, r_var, xs, sig, acc, failed, innov_out, svar_out, bad,
                       fa, fb, pa, pb, pptr, pcs, rptr, rcols, e(L, dtype=np.int64), e((L, n, n)), e((n, n, L)),

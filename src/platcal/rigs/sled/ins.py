@@ -108,6 +108,15 @@ def _mechanise(lo, hi, f, w, C, vr, wie, g, dts, v_out, r_out, fl_out):
         vr[s, 0], vr[s, 1], vr[s, 2], vr[s, 3], vr[s, 4], vr[s, 5] = v0, v1, v2, r0, r1, r2
 
 
+def kernel_input(a: np.ndarray) -> np.ndarray:
+    """``a`` as a C-contiguous float64 array that numba types as writable: a copy where numpy hands
+    over a read-only view (a broadcast that needed no copy: one seed's rates, a record's own sample
+    intervals), else ``a`` itself, so that :func:`_mechanise` compiles one signature for every
+    batch and record instead of three (about 2 s of the sled's cold compile, issue 22 item 4)."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    return a if a.flags.writeable else a.copy()
+
+
 class Navigator:
     """The mechanisation of a record read in blocks (issue 22 item 3): :meth:`step` navigates the
     next block's samples from where the previous one stopped (attitude, velocity, position
@@ -129,12 +138,12 @@ class Navigator:
         """``v, r`` (S,N+1,3) at the block's t_0 … t_N (t_N: the next block's first sample) and
         ``f_l`` (S,N,3) of samples f̃, ω̃ (S,N,3) over ``dt`` (s, scalar or (N,)); see :func:`mechanise`."""
         f = np.ascontiguousarray(f, dtype=np.float64)
-        w = np.ascontiguousarray(np.broadcast_to(w, f.shape), dtype=np.float64)
+        w = kernel_input(np.broadcast_to(w, f.shape))
         S, N = f.shape[:2]
         v = np.empty((S, N + 1, 3))
         r = np.empty((S, N + 1, 3))
         fl = np.empty((S, N, 3))
-        dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
+        dts = kernel_input(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
         run_seeds("mechanise", _mechanise, S, f, w, self.C, self.vr, self.wie, G, dts, v, r, fl)
         return v, r, fl
 

@@ -131,12 +131,10 @@ def warm_kernels(raw: dict) -> None:
     load them from the cache instead of compiling them side by side (docs/rocket-sled.md §11;
     issue 22 item 4). ``raw``: the checked config (:func:`check`); nothing is written."""
     short = merge(raw, {"trajectory": WARM_TRAJECTORY})
-    for i, case in enumerate(raw["study"]["cases"]):
-        # one replicate (the series jobs) and, once, two: the navigation kernel is compiled apart
-        # for a batch of one, whose broadcast rate samples numpy hands over read-only
-        for seeds in ([0], [0, 1]) if i == 0 else ([0],):
-            sb, idn = run_replicates(case_config(short, case), replicate_seeds(short, case, seeds))
-            replicate_batch(idn, sb)  # the cells' tables: their metrics' kernels too
+    for case in raw["study"]["cases"]:
+        # one replicate: the kernels' types do not depend on the batch (.ins.kernel_input)
+        sb, idn = run_replicates(case_config(short, case), replicate_seeds(short, case, [0]))
+        replicate_batch(idn, sb)  # the cells' tables: their metrics' kernels too
 
 
 def quantities(states: int):

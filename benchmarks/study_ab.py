@@ -38,6 +38,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from platcal.study.tables import frame_markdown
 from platcal.study.timing import read_benchmarks
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -157,10 +158,6 @@ def differing_files(a: Path, b: Path, pattern: str) -> tuple[int, list[str]]:
     return len(files), bad
 
 
-def markdown(df: pd.DataFrame, floatfmt: str = ".1f") -> str:
-    return df.to_markdown(floatfmt=floatfmt)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tree", action="append", required=True, help="NAME=COMMIT[:snakemake args], two or more")
@@ -224,9 +221,9 @@ def main(argv=None) -> int:
         f"`python benchmarks/study_ab.py {' '.join(sys.argv[1:] if argv is None else argv)}`)",
         "Runs in order (seconds; cpu_s: Snakemake and its jobs, user + system; job_s: the jobs' wall seconds "
         "summed from the benchmark files; snakemake_cpu_s: the Snakemake process's own CPU):",
-        markdown(table[cols]),
+        frame_markdown(table[cols].reset_index(), {c: ".1f" for c in cols if c not in ("exit", "scheduler_passes")}),
         "Job-seconds per rule:",
-        markdown(per_rule),
+        frame_markdown(per_rule.reset_index(), {c: ".1f" for c in per_rule.columns}),
         "Outputs:\n" + "\n".join(checks),
     ]) + "\n"
     print(text)

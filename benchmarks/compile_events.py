@@ -42,9 +42,13 @@ from pathlib import Path
 
 import yaml
 from bench_compile import ROOT, study_config
-from numba.core import event
 
+# platcal before numba, as in the study's jobs: platcal sets numba's cache locators in the
+# environment, and numba re-reads a changed environment at its first compile, which resets LLVM's
+# SLP vectoriser if that compile runs inside platcal.estimation.lanes.slp_vectorize
 from platcal.io import atomic_write_text
+
+from numba.core import event
 
 # (job name, estimator or None): the sweep's estimators first (they start the study), then the
 # comparison's other kinds, then the single run and the GA design

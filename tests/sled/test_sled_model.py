@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 from platcal.rigs.sled.config import G, load_config
 from platcal.rigs.sled.errmodel import run_F, skew, stop_F
 from platcal.rigs.sled.filters import discretise
-from platcal.rigs.sled.ins import mechanise
+from platcal.rigs.sled.ins import _mechanise, mechanise
 from platcal.rigs.sled.montecarlo import replicate_seeds
 from platcal.rigs.sled.observability import rank
 from platcal.rigs.sled.simulate import record_rotation, simulate
@@ -129,8 +129,6 @@ def test_mechanise_kernel_types_do_not_depend_on_the_batch():
     and a record's own sample intervals all reach the navigation kernel as writable arrays
     (``ins.kernel_input``), so numba compiles it once for all of them (issue 22 item 4), and the
     numbers are those of the same inputs passed as fresh copies."""
-    from platcal.rigs.sled import ins
-
     rng = np.random.default_rng(3)
     N = 40
     f1 = rng.normal(0.0, 1.0, (1, N, 3)) + [0.0, 0.0, -9.8]
@@ -140,10 +138,10 @@ def test_mechanise_kernel_types_do_not_depend_on_the_batch():
     runs = [(f1, w1[None], np.zeros((1, 3)), dts),                       # one seed, rates broadcast
             (np.repeat(f1, 2, axis=0), w1[None], np.full((2, 3), 1e-4), 0.01)]   # two seeds, scalar dt
     for f, w, phi0, dt in runs:
-        got = ins.mechanise(f, w, phi0, omega_ie, dt)
-        ref = ins.mechanise(f.copy(), np.array(np.broadcast_to(w, f.shape)), phi0.copy(), omega_ie,
+        got = mechanise(f, w, phi0, omega_ie, dt)
+        ref = mechanise(f.copy(), np.array(np.broadcast_to(w, f.shape)), phi0.copy(), omega_ie,
                             np.array(np.broadcast_to(np.asarray(dt, float), (N,))))
         for a, b in zip(got, ref):
             assert np.array_equal(a, b)
-    readonly = [str(t) for sig in ins._mechanise.signatures for t in sig if hasattr(t, "ndim") and not t.mutable]
+    readonly = [str(t) for sig in _mechanise.signatures for t in sig if hasattr(t, "ndim") and not t.mutable]
     assert readonly == []

@@ -21,6 +21,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from study_ab import run_order
+
 ROOT = Path(__file__).resolve().parents[1]
 
 CHILD = """
@@ -71,16 +73,15 @@ def main(argv=None) -> int:
         rows = {name: [] for name in trees}
         print(f"load average {os.getloadavg()[0]:.2f} at start; CPU s, least of {args.repeat} per process, "
               f"{args.seeds} seeds, one numba thread")
-        for r in range(args.rounds):
-            for name in (list(trees) if r % 2 == 0 else list(trees)[::-1]):
-                env = dict(os.environ, PYTHONPATH=str(Path(trees[name]).resolve()),
-                           NUMBA_CACHE_DIR=str(caches / name), NUMBA_NUM_THREADS="1")
-                out = subprocess.run([sys.executable, "-c", CHILD, str(args.seeds), str(args.repeat), config],
-                                     env=env, check=True, capture_output=True, text=True).stdout
-                fig = json.loads(out.strip().splitlines()[-1])
-                rows[name].append(fig)
-                print(f"round {r + 1} {name}: replicates {fig['replicates_cpu_s']:.3f} s, "
-                      f"filter {fig['filter_cpu_s']:.3f} s", flush=True)
+        for i, name in enumerate(run_order(list(trees), args.rounds)):
+            env = dict(os.environ, PYTHONPATH=str(Path(trees[name]).resolve()),
+                       NUMBA_CACHE_DIR=str(caches / name), NUMBA_NUM_THREADS="1")
+            out = subprocess.run([sys.executable, "-c", CHILD, str(args.seeds), str(args.repeat), config],
+                                 env=env, check=True, capture_output=True, text=True).stdout
+            fig = json.loads(out.strip().splitlines()[-1])
+            rows[name].append(fig)
+            print(f"round {i // len(trees) + 1} {name}: replicates {fig['replicates_cpu_s']:.3f} s, "
+                  f"filter {fig['filter_cpu_s']:.3f} s", flush=True)
         print(f"load average {os.getloadavg()[0]:.2f} at end")
         for name, figs in rows.items():
             rep = sorted(f["replicates_cpu_s"] for f in figs)

@@ -22,6 +22,8 @@ from __future__ import annotations
 import sys
 from contextlib import nullcontext
 
+import numpy as np
+
 from . import numba_inline
 
 PACKAGE = __name__.rsplit(".", 1)[0]
@@ -129,3 +131,12 @@ def parallel_chunksize(n: int):
     """``numba.parallel_chunksize(n)`` when numba is loaded, else nothing: a parallel kernel is
     chosen by :func:`platcal.parallel.get_threads`, which loads numba, before this is entered."""
     return load_numba().parallel_chunksize(n) if numba_loaded() else nullcontext()
+
+
+def kernel_input(a) -> np.ndarray:
+    """``a`` as a C-contiguous float64 array that numba types as writable: a copy where numpy hands
+    over a read-only view (a broadcast that needed no copy: one seed's rates, a record's own sample
+    intervals), else ``a`` itself. numba compiles a kernel once per argument writeability, so a
+    kernel fed through this compiles one signature for every batch and record (issue 22 item 4)."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    return a if a.flags.writeable else a.copy()

@@ -19,7 +19,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...estimation.fit import FitCheck, fit_check
-from ...jit import njit
+from ...jit import kernel_input, njit
 from ...lighttable import Table
 from ...logs.calibration import Calibration, calibration_of
 from ...logs.increments import sample_intervals
@@ -145,9 +145,9 @@ def x_corrections_held(fl: np.ndarray, est: np.ndarray, hold: np.ndarray, dt,
     the (S,N,3) array; one compiled loop per seed, the seeds over the numba threads set."""
     fl = np.ascontiguousarray(fl, dtype=np.float64)
     S, N = fl.shape[:2]
-    dts = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
+    dts = kernel_input(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
     dv0, dr0 = (np.zeros(S), np.zeros(S)) if start is None else (
-        np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=np.float64), (S,))) for v in start)
+        kernel_input(np.broadcast_to(np.asarray(v, dtype=np.float64), (S,))) for v in start)
     dv, dr = np.empty((S, N + 1)), np.empty((S, N + 1))
     run_seeds("x_corrections", _x_corrections, S, fl, np.ascontiguousarray(est, dtype=np.float64),
               np.ascontiguousarray(hold, dtype=np.int64), dts, dv0, dr0, dv, dr)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...jit import njit
+from ...jit import kernel_input, njit
 from .aot_kernels import run_seeds, seed_kernel
 from .config import G
 
@@ -106,15 +106,6 @@ def _mechanise(lo, hi, f, w, C, vr, wie, g, dts, v_out, r_out, fl_out):
                 for j in range(3):
                     Cs[i, j] = E[i, 0] * T[0, j] + E[i, 1] * T[1, j] + E[i, 2] * T[2, j]
         vr[s, 0], vr[s, 1], vr[s, 2], vr[s, 3], vr[s, 4], vr[s, 5] = v0, v1, v2, r0, r1, r2
-
-
-def kernel_input(a: np.ndarray) -> np.ndarray:
-    """``a`` as a C-contiguous float64 array that numba types as writable: a copy where numpy hands
-    over a read-only view (a broadcast that needed no copy: one seed's rates, a record's own sample
-    intervals), else ``a`` itself, so that :func:`_mechanise` compiles one signature for every
-    batch and record instead of three (about 2 s of the sled's cold compile, issue 22 item 4)."""
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    return a if a.flags.writeable else a.copy()
 
 
 class Navigator:

@@ -132,7 +132,7 @@ def warm_kernels(raw: dict) -> None:
     issue 22 item 4). ``raw``: the checked config (:func:`check`); nothing is written."""
     short = merge(raw, {"trajectory": WARM_TRAJECTORY})
     for case in raw["study"]["cases"]:
-        # one replicate: the kernels' types do not depend on the batch (.ins.kernel_input)
+        # one replicate: the kernels' types do not depend on the batch (platcal.jit.kernel_input)
         sb, idn = run_replicates(case_config(short, case), replicate_seeds(short, case, [0]))
         replicate_batch(idn, sb)  # the cells' tables: their metrics' kernels too
 

@@ -369,7 +369,7 @@ def gyro_coefs(x, lay):
     return g0, g1, g2, on
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _drift_s(g, on, j, f0, f1, f2):
     """Drift of gyro ``j`` (deg/h) at ``f`` (g, in p), its slot coefficients ``g`` and the
     layout's slots ``on`` (:func:`gyro_coefs`; §5, §13): :func:`gyro_drift_k`'s ``eps[j]``, the
@@ -384,7 +384,7 @@ def _drift_s(g, on, j, f0, f1, f2):
     return e
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def rate_s(a0, a1, a2, g0, g1, g2, on, wn, wu, w0, w1, w2):
     """Error-angle rate of §4 (rad/s) at the gimbal angles ``a0, a1, a2`` (rad: commanded plus
     phi), gyro coefficients ``g0, g1, g2``, ``on`` (:func:`gyro_coefs`), Earth rate ``wn``, ``wu`` (rad/s)
@@ -419,7 +419,7 @@ def rate_s(a0, a1, a2, g0, g1, g2, on, wn, wu, w0, w1, w2):
     return r0, r1, r2
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def rk4_s(p0, p1, p2, x0, x1, x2, g0, g1, g2, on, wn, wu, w0, w1, w2, h, k10, k11, k12):
     """One RK4 step of §4 over ``h`` s from phi ``x0, x1, x2`` (rad) at the commanded angles
     ``p0, p1, p2`` (rad), the gyro coefficients ``g0, g1, g2``, ``on`` (:func:`gyro_coefs`, constant over

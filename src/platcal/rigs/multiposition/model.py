@@ -164,7 +164,11 @@ class Site:
 # about 10 % of a multiposition filter step, benchmarks/profile_multiposition.py). Inlining alone
 # does not remove the counts of an array handed on past a branch, so RK4's stages, which need no
 # Jacobian, run on scalars only (rate_s, rk4_s: the same operations in the same order as rate_k,
-# 3.2x faster per step's three stages).
+# 3.2x faster per step's three stages). Those scalar kernels (_drift_s, rate_s, rk4_s) are plain
+# calls, not inlined by numba: with no array argument there is no reference count to save, LLVM
+# inlines them anyway, and numba's inlining typed and lowered a copy per call site (rk4_s holds
+# three rate_s, each three _drift_s): the rig's kernels job compiled 40.7 s CPU with them inlined,
+# 30.0 s without, the same numbers (issue 22 item 4; benchmarks/results_issue22_mpinline.txt).
 
 @njit(cache=True, error_model="numpy", inline="always")
 def gyro_drift_k(c, lay, f, eps, deps, greg):

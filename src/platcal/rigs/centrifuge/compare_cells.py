@@ -30,7 +30,7 @@ from ...parallel import set_threads
 from ...rig import get_rig
 from ...study.montecarlo import chunks, replicate_seeds, tidy_tables, write_cell
 from ...study.sweep import noise_label
-from .identify import identify_shared, simulate_shared
+from .identify import identify_shared, pass_prefixes, simulate_shared
 from .study import builtin_scheme, check_study, replicate_batch, study_for_cell
 
 
@@ -135,6 +135,22 @@ def clocks() -> np.ndarray:
     return np.array([time.perf_counter(), time.process_time()])
 
 
+def identify_with_takers(study, scheme, records, takers: dict[int, int]) -> tuple:
+    """``study``'s estimate of ``records`` (:func:`~.identify.identify_shared`) and, on the way,
+    the estimates after fewer passes that ``takers`` (index -> passes) ask for. Returns (estimate,
+    its clocks (wall, CPU s), index -> (estimate, the clocks from the start to its last pass))."""
+    start = clocks()
+    taken = {}
+
+    def on_pass(p: int, est) -> None:
+        for j, passes in takers.items():
+            if passes == p:
+                taken[j] = (est, clocks() - start)
+
+    est = identify_shared(study, scheme, records, on_pass if takers else None)
+    return est, clocks() - start, taken
+
+
 def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 1,
                  progress=None) -> tuple[list[tuple[Table, Table, dict]], np.ndarray]:
     """Every estimator of ``studies`` (name -> its cell's Study, :func:`study_for_cell`, which
@@ -149,10 +165,15 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
     whatever ``study.backend``: the comparison's rule runs one thread); ``progress(done, total,
     seconds)`` after each chunk.
 
+    An estimator whose run another's gives on the way (the EKF of 1 pass and of 2 passes, the
+    same settings otherwise: :func:`~.identify.pass_prefixes`) takes its estimates from that run
+    after its own passes, with the same numbers bit for bit, instead of filtering the records again.
+
     Returns, per estimator in order, ``(coef, runs, timing)`` as ``cell_tables`` gives them, the
     runs table with the cost per run (``wall_s``, ``cpu_s``: the estimator's mean over its runs,
-    measured around its own calls after its warm-up, not the simulation), and the level's
-    simulation time (wall, CPU s), shared by its estimators."""
+    measured around its own calls after its warm-up, not the simulation; for an estimator taken
+    on the way, the run's clocks at the end of its passes), and the level's simulation time
+    (wall, CPU s), shared by its estimators."""
     hooks = get_rig("centrifuge").montecarlo
     R = int(compare_settings(cfg)["replicates"])
     batch = int(hooks.settings(cfg).batch)
@@ -166,15 +187,23 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
     spent = np.zeros((len(names), 2))
     simulation = np.zeros(2)
     t0 = time.perf_counter()
+    on_the_way = pass_prefixes({name: st.filter for name, st in zip(names, studies)})
     for reps in chunks(R, batch):
         c = clocks()
         records = simulate_shared(studies, scheme, replicate_seeds(hooks, cfg, scheme, level, reps))
         simulation += clocks() - c
         for i, (name, st) in enumerate(zip(names, studies)):
+            if name in on_the_way:
+                continue   # tabled from on_the_way[name]'s run below
+            takers = {j: studies[j].filter.passes for j, other in enumerate(names) if on_the_way.get(other) == name}
+            est, ran, taken = identify_with_takers(st, scheme, records, takers)
+            for j, (est_j, upto) in taken.items():
+                c = clocks()
+                parts[j].append(tidy_tables(replicate_batch(studies[j], est_j), scheme.name, level, names[j], reps))
+                spent[j] += upto + clocks() - c
             c = clocks()
-            est = identify_shared(st, scheme, records)
             parts[i].append(tidy_tables(replicate_batch(st, est), scheme.name, level, name, reps))
-            spent[i] += clocks() - c
+            spent[i] += ran + clocks() - c
         if progress:
             progress(reps[-1] + 1, R, time.perf_counter() - t0)
     out = []

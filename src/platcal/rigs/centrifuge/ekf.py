@@ -632,13 +632,17 @@ def filter_start(cmd_deg: np.ndarray, centrifuge_params: np.ndarray, settings: F
 
 
 def drive_passes(run_pass, x: np.ndarray, P: np.ndarray, z: list | None, t: list, settings: FilterSettings,
-                 passes: int, nis: np.ndarray | None = None, n_bad: np.ndarray | None = None) -> Estimate:
+                 passes: int, nis: np.ndarray | None = None, n_bad: np.ndarray | None = None,
+                 on_pass=None) -> Estimate:
     """Run ``passes`` passes over every position end to end (docs/centrifuge-model.md §9, §11):
     pass p > 0 restarts from the previous estimate with P0 = 100 x its coefficient covariance.
 
     ``run_pass(x, P, z_all, t_all, offs, hidx, hist_x, hist_s, nis, n_bad)`` runs one pass of a
     filter kernel in place (replicates handed out one at a time, so that a thread slowed by other
     processes takes fewer). ``nis`` and ``n_bad`` carry counts from a warm-up pass (None: zeros).
+    ``on_pass(p, estimate)``, if given, is called after each pass but the last with ``p`` passes
+    done and the Estimate a run of ``p`` passes returns (copies): a pass reads nothing of the
+    passes after it, so its numbers are those of that run, bit for bit.
     """
     B = x.shape[0]
     nc = settings.coef_index.size
@@ -663,6 +667,12 @@ def drive_passes(run_pass, x: np.ndarray, P: np.ndarray, z: list | None, t: list
             run_pass(x, P, z_all, t_all, offs, hidx_all, hist_x, hist_s, nis, n_bad)
         pass_x[p] = x[:, :nc]
         pass_P[p] = P[:, :nc, :nc]
+        if on_pass is not None and p < passes - 1:
+            h = total * (p + 1)   # a run of p + 1 passes has these history slots, pass by pass as here
+            on_pass(p + 1, Estimate(names=settings.state_names, x=x.copy(), P=P.copy(), history_t=hist_t[:h].copy(),
+                                    history_x=hist_x[:, :h].copy(), history_sigma=hist_s[:, :h].copy(),
+                                    pass_x=pass_x[:p + 1].copy(), pass_P=pass_P[:p + 1].copy(),
+                                    mean_nis=nis / max(int(offs[-1]), 1), failed_updates=n_bad.copy()))
     return Estimate(names=settings.state_names, x=x, P=P, history_t=hist_t, history_x=hist_x,
                     history_sigma=hist_s, pass_x=pass_x, pass_P=pass_P,
                     mean_nis=nis / max(int(offs[-1]), 1), failed_updates=n_bad)
@@ -718,6 +728,7 @@ def run_ekf(
     on_innovations=None,
     on_history=None,
     lanes: bool | None = None,
+    on_pass=None,
 ) -> Estimate:
     """Run the EKF over every position of a scheme, for a batch of B runs.
 
@@ -756,6 +767,10 @@ def run_ekf(
         one replicate per thread). None: ``settings.lanes``. A lone record is fast on the
         default kernel, which is the one compiled ahead of time (an identify); the simulated
         batches (:func:`.identify.simulate_identify`) take the lanes.
+    on_pass : called ``on_pass(p, estimate)`` after each pass p < ``settings.passes`` with the
+        Estimate (copies, innovations included when kept) that this run with ``passes = p`` returns,
+        bit for bit (:func:`drive_passes`), so that one run gives the estimates of fewer passes
+        too (:func:`.identify.identify_shared_all`). Not with ``z_source``.
 
     Returns
     -------
@@ -764,8 +779,8 @@ def run_ekf(
     z, t, cmd_deg, centrifuge_params = data.z, data.t, data.cmd_deg, data.centrifuge_params
     K = len(t)
     cov_only = linearise_about is not None
-    if z_source is not None and (cov_only or warmup_s is not None):
-        raise ValueError("a streamed record (z_source) is filtered without warm-up, not covariance-only")
+    if z_source is not None and (cov_only or warmup_s is not None or on_pass is not None):
+        raise ValueError("a streamed record (z_source) is filtered without warm-up or on_pass, not covariance-only")
     B = 1 if z_source is not None else z[0].shape[0] if not cov_only else np.asarray(linearise_about).shape[0]
     st = filter_start(cmd_deg, centrifuge_params, settings, B, K)
     est_idx = settings.coef_index
@@ -818,8 +833,19 @@ def run_ekf(
                      nis, n_bad, update_x=True, rec=np.zeros((B, 0, 6)))
         P = restart_covariance(P, nc)
         nis[:] = 0.0
-    est = drive_passes(run_pass, x, P, None if cov_only else z, t, settings, passes, nis, n_bad)
+    est = drive_passes(run_pass, x, P, None if cov_only else z, t, settings, passes, nis, n_bad,
+                       _with_innovations(on_pass, rec) if on_pass is not None and keep else on_pass)
     return replace(est, innovations=rec) if keep else est
+
+
+def _with_innovations(on_pass, rec: np.ndarray):
+    """``on_pass`` handed each Estimate with the innovations of the pass just done (``rec``, which
+    each pass overwrites: a run's innovations are its last pass's), copied."""
+
+    def call(p: int, est: Estimate) -> None:
+        on_pass(p, replace(est, innovations=rec.copy()))
+
+    return call
 
 
 def _with_instants(z_source, t: list):
@@ -925,7 +951,7 @@ def run_iekf(
     (iterate only while the mean over the coefficients of P_ii / P0_ii exceeds it, i.e. while
     the coefficients are still poorly known; None: always). Same batching and bit-identity
     whatever B and threads as the EKF. ``stream``: :func:`run_ekf`'s ``z_source`` and
-    ``on_innovations`` (a streamed record).
+    ``on_innovations`` (a streamed record), or ``on_pass``.
     """
     if int(iterations) < 1:
         raise ValueError("iterations must be >= 1")

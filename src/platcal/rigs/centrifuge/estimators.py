@@ -52,21 +52,23 @@ from .ukf import run_ukf
 @dataclass(frozen=True)
 class EstimatorKind:
     """One kind of estimator: its name, run function, the ``filter:`` keys of its keyword options
-    (``{config key: keyword}``) and one line for people."""
+    (``{config key: keyword}``), one line for people, and whether its run takes ``on_pass``
+    (:func:`~platcal.rigs.centrifuge.ekf.run_ekf`: the estimates of its first passes on the way)."""
 
     name: str
     run: Callable[..., Estimate]
     config_keys: dict = field(default_factory=dict)
     description: str = ""
+    pass_snapshots: bool = False
 
 
 KINDS: dict[str, EstimatorKind] = {
     "ekf": EstimatorKind("ekf", run_ekf, {"warmup_s": "warmup_s"},
                          "the paper's EKF, filter.passes passes (after a warm-up pass over the first "
-                         "filter.warmup_s of each position when set)"),
+                         "filter.warmup_s of each position when set)", pass_snapshots=True),
     "iekf": EstimatorKind("iekf", run_iekf, {"iterations": "iterations", "iterate_tol": "tol",
                                              "iterate_s": "until_s", "iterate_ratio": "ratio"},
-                          "iterated EKF: each update relinearised (Gauss-Newton)"),
+                          "iterated EKF: each update relinearised (Gauss-Newton)", pass_snapshots=True),
     "ukf": EstimatorKind("ukf", run_ukf, {"ukf_sigma_points": "sigma_points", "ukf_alpha": "alpha",
                                           "ukf_beta": "beta", "ukf_kappa": "kappa"},
                          "unscented Kalman filter, filter.passes passes"),
@@ -100,7 +102,12 @@ def options_from_filter(fcfg: dict) -> tuple:
     return tuple(out)
 
 
-def run_estimator(data: EstimatorInput, settings: FilterSettings) -> Estimate:
-    """Run the estimator ``settings.estimator`` with its ``settings.estimator_options``."""
+def run_estimator(data: EstimatorInput, settings: FilterSettings, on_pass=None) -> Estimate:
+    """Run the estimator ``settings.estimator`` with its ``settings.estimator_options``;
+    ``on_pass`` (a kind with ``pass_snapshots``) as :func:`~platcal.rigs.centrifuge.ekf.run_ekf`'s."""
     kind = check_kind(settings.estimator)
-    return kind.run(data, settings, **dict(settings.estimator_options))
+    if on_pass is None:
+        return kind.run(data, settings, **dict(settings.estimator_options))
+    if not kind.pass_snapshots:
+        raise ValueError(f"the {kind.name} estimator gives no estimates of its first passes (on_pass)")
+    return kind.run(data, settings, on_pass=on_pass, **dict(settings.estimator_options))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -70,10 +70,11 @@ def simulate_outputs(study: Study, scheme: Scheme, seeds, truth: np.ndarray | No
 
 
 def identify_simulated(study: Study, scheme: Scheme, outputs: list, times: list,
-                       settings: FilterSettings | None = None) -> Estimate:
+                       settings: FilterSettings | None = None, on_pass=None) -> Estimate:
     """Identify a simulated batch with the study's estimator: ``outputs`` and ``times`` as
     :func:`simulate_outputs` gives them at the study's filter period (docs/centrifuge-model.md
-    §8-9); ``settings`` as :func:`simulate_identify`'s."""
+    §8-9); ``settings`` as :func:`simulate_identify`'s; ``on_pass`` as
+    :func:`~.estimators.run_estimator`'s."""
     # the state-major kernel: the same numbers bit for bit, a quarter less CPU at B >= 8, and every
     # job of a study (cells, design, campaign, single run) then loads the one kernel the study's
     # kernels job compiled (issue 22 item 4); an identify of one record keeps the default kernel
@@ -81,7 +82,7 @@ def identify_simulated(study: Study, scheme: Scheme, outputs: list, times: list,
     # the samples at the reset instant (t = 0) are not used unless filter.update_at_reset
     i0 = first_instant(fs.update_at_reset)
     return run_estimator(EstimatorInput([a[:, i0:] for a in outputs], [t[i0:] for t in times], scheme.angles_deg,
-                                        study.centrifuge.scheme_params(scheme)), fs)
+                                        study.centrifuge.scheme_params(scheme)), fs, on_pass)
 
 
 @dataclass(frozen=True)
@@ -105,12 +106,45 @@ def simulate_shared(studies: list[Study], scheme: Scheme, seeds) -> SharedRecord
     return SharedRecords(keep, outputs, times)
 
 
-def identify_shared(study: Study, scheme: Scheme, records: SharedRecords) -> Estimate:
+def identify_shared(study: Study, scheme: Scheme, records: SharedRecords, on_pass=None) -> Estimate:
     """:func:`identify_simulated` of ``study`` on shared records, reading every k-th kept sample
     (k = its period over theirs): the numbers of :func:`simulate_identify` with the same seeds, bit
-    for bit (the simulation steps every sample whatever it keeps)."""
+    for bit (the simulation steps every sample whatever it keeps). ``on_pass`` as
+    :func:`~.estimators.run_estimator`'s."""
     k = study.keep_every // records.keep_every
-    return identify_simulated(study, scheme, [a[:, ::k] for a in records.outputs], [t[::k] for t in records.times])
+    return identify_simulated(study, scheme, [a[:, ::k] for a in records.outputs], [t[::k] for t in records.times],
+                              on_pass=on_pass)
+
+
+def same_but_passes(a: FilterSettings, b: FilterSettings) -> bool:
+    """Whether two filters differ in ``passes`` at most (every other setting equal, arrays by value)."""
+    for f in fields(FilterSettings):
+        if f.name == "passes":
+            continue
+        u, v = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(u, np.ndarray) or isinstance(v, np.ndarray):
+            if u is None or v is None or not np.array_equal(u, v):
+                return False
+        elif u != v:
+            return False
+    return True
+
+
+def pass_prefixes(filters: dict[str, FilterSettings]) -> dict[str, str]:
+    """Which estimators' runs another's gives on the way (docs/centrifuge-model.md §9: pass p
+    reads nothing of the passes after it): name -> the estimator of ``filters`` (name -> its
+    filter) of a kind with pass snapshots whose settings differ only by more passes (the most
+    passes, the first listed on a tie). The estimators of one noise level run on the same records
+    (:func:`simulate_shared`), so such a name's numbers are that run's after its own passes, bit
+    for bit. Names that run themselves are not keys."""
+    out = {}
+    for name, f in filters.items():
+        if not check_kind(f.estimator).pass_snapshots:
+            continue
+        longer = [m for m, g in filters.items() if g.passes > f.passes and same_but_passes(f, g)]
+        if longer:
+            out[name] = max(longer, key=lambda m: filters[m].passes)   # max keeps the first of a tie
+    return out
 
 
 FIT_CHANNELS = ("Ax", "Ay", "Az")

@@ -3,8 +3,10 @@
 What the README's "How long, now" paragraphs report, by one command: for each round and each
 tree (``--tree NAME=COMMIT``, a commit of ``--repo``; the order alternates from round to round:
 A B, then B A), a fresh ``git clone`` of the commit, then ``snakemake --cores 2`` in it with its
-own ``src`` on ``PYTHONPATH`` and an empty numba cache in the clone (cold caches, as on a fresh
-machine; pip excluded: the clones share this Python environment's installed dependencies).
+own ``src`` on ``PYTHONPATH``, an empty numba cache and an empty user cache dir
+(``XDG_CACHE_HOME``: platcal's generated sources, matplotlib's font list) in the clone (cold
+caches, as on a fresh machine; before stop 41 the user cache dir was this machine's, warm; pip
+excluded: the clones share this Python environment's installed dependencies).
 
 Per run it records the wall time (clone included and apart), the CPU of Snakemake and its jobs
 (user + system of the whole process tree), the peak resident memory of the largest process, the
@@ -103,7 +105,10 @@ def clone(repo: Path, commit: str, dest: Path) -> None:
 def run_study(dest: Path, cores: int, extra: list[str], targets: list[str]) -> dict:
     """``snakemake --cores N`` in the clone ``dest``: its figures (wall s, CPU s of the process tree,
     peak RSS MB of its largest process, Snakemake's own CPU s, scheduler passes, load averages)."""
-    env = dict(os.environ, PYTHONPATH=str(dest / "src"), NUMBA_CACHE_DIR=str(dest / ".numba_cache"))
+    # every cache cold, as on a fresh machine: numba's and the user cache dir's (platcal's generated
+    # sources, matplotlib's fonts), which runs of earlier clones would otherwise have filled
+    env = dict(os.environ, PYTHONPATH=str(dest / "src"), NUMBA_CACHE_DIR=str(dest / ".numba_cache"),
+               XDG_CACHE_HOME=str(dest / ".cache"))
     own = dest / ".snakemake_self.json"
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()

@@ -1,12 +1,15 @@
 """Observability (§15 items 2 and 3): static and exact Lie ranks, ROLL4 null space, covariance."""
 
 import json
+import re
 
 import numpy as np
 import pytest
 
 from platcal.cli import main
+from platcal.rig import resolve
 from platcal.rigs.multiposition import filter as fl
+from platcal.rigs.multiposition import lie
 from platcal.rigs.multiposition.lie import rank_analysis
 from platcal.rigs.multiposition.observability import evaluate
 
@@ -86,3 +89,30 @@ def test_cli_observability_writes_json(tmp_path):
     # a stricter configurable threshold refuses SIX (0.75 %)
     assert main(["observability", "--config", str(cfgf), "--scheme", "SIX", "--out", str(tmp_path / "o6")]) == 0
     assert json.loads((tmp_path / "o6" / "observability.json").read_text())["verdict"]["decision"] == "refuse"
+
+
+def test_the_shipped_lie_sources_are_those_of_the_current_files():
+    """The default study's symbolic Jacobians ship with the package (a fresh machine builds no
+    sympy; issue 22 item 4), keyed by the hash of the model's files: an edit of those files
+    without ``python -m platcal.rigs.multiposition.lie`` fails here, not silently rebuilding
+    in every first study."""
+    for ext, order in lie.SHIPPED:
+        path = lie.SHIPPED_DIR / (lie._code_key(ext, order) + ".py")
+        assert path.exists(), f"{path.name} missing: run python -m platcal.rigs.multiposition.lie"
+        assert lie._source_path(ext, order) == path
+    assert len(list(lie.SHIPPED_DIR.glob("lie_*.py"))) == len(lie.SHIPPED)   # no stale key left
+
+
+def _dummies_in_order(src: str) -> str:
+    """``src`` with sympy's dummy names numbered by first appearance (their numbers count the
+    dummies the process made before)."""
+    names = {}
+    return re.sub(r"_Dummy_\d+", lambda m: names.setdefault(m.group(0), f"_Dummy_{len(names)}"), src)
+
+
+@pytest.mark.slow
+def test_a_shipped_lie_source_is_what_sympy_builds_now():
+    """The shipped source is the symbolic build's (sympy's output is the same but for its dummy
+    names' numbers), so the rank tests above that load it test :mod:`.lie_symbolic` itself."""
+    built = resolve(lie.SYMBOLIC_SOURCE)(1, 1)
+    assert _dummies_in_order(built) == _dummies_in_order(lie._source_path(1, 1).read_text())

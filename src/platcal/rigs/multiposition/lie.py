@@ -4,10 +4,13 @@ The model of §4-7 is written once more, symbolically with sympy (:mod:`.lie_sym
 angles, Earth-rate components and every state as symbols); ``h``, ``L_f h``, ``L_f^2 h`` and their
 Jacobian ``M = d/dx [h; L_f h; ...]`` (6 (order+1) x n) are built once per (layout, order),
 lambdified with common-subexpression elimination and cached: in-process, and as generated source
-on disk under the user cache dir (``$XDG_CACHE_HOME/platcal`` or ``~/.cache/platcal``; keyed by
-the hash of this file, :mod:`.lie_symbolic` and :mod:`.model`), so the sympy build (tens of
-seconds) happens once per machine, and a job that finds the source cached does not import sympy
-(:data:`SYMBOLIC_SOURCE`, by path; issue 22 item 4). Being an independent writing of the model,
+keyed by the hash of this file, :mod:`.lie_symbolic` and :mod:`.model`. The sources of the default
+study's (layout, order) pairs (:data:`SHIPPED`) ship with the package (``data/lie/``, written by
+``python -m platcal.rigs.multiposition.lie``; a test fails when they are not those of the current
+files), so a fresh machine's first study builds nothing; others are built once per machine into
+the user cache dir (``$XDG_CACHE_HOME/platcal`` or ``~/.cache/platcal``). A job that finds the
+source does not import sympy (:data:`SYMBOLIC_SOURCE`, by path; the build is tens of seconds: the
+default study's three pairs took 22 s; issue 22 item 4). Being an independent writing of the model,
 the symbolic ``h`` and ``f`` are also checked against the numba kernels in the tests.
 
 Evaluation is float64 with the §8 scaling: the rows of ``L_f^k h`` of output i times
@@ -34,11 +37,23 @@ SYMBOLIC_SOURCE = f"{__package__}.lie_symbolic:build_source"
 only when the disk cache does not hold it, so the jobs that evaluate ranks load no sympy."""
 SOURCE_FILES = ("lie.py", "lie_symbolic.py", "model.py")
 """The files the cached source is keyed by (their hash): the build, its model and this loader."""
+SHIPPED = ((0, 2), (1, 1), (2, 1))
+"""The (layout ``ext``, order) pairs whose sources ship with the package: the default study's
+(``observability.lie_order`` 2 for the scheme checks, order 1 for the extension models)."""
+SHIPPED_DIR = Path(__file__).parent / "data" / "lie"
 
 
 def _cache_dir() -> Path:
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "platcal"
+
+
+def _source_path(ext: int, order: int) -> Path:
+    """Where the source of (ext, order) is: shipped with the package if it is there for the current
+    files, else the user cache (which may not hold it yet)."""
+    name = _code_key(ext, order) + ".py"
+    shipped = SHIPPED_DIR / name
+    return shipped if shipped.exists() else _cache_dir() / name
 
 
 def _code_key(ext: int, order: int) -> str:
@@ -52,19 +67,12 @@ def _code_key(ext: int, order: int) -> str:
 @lru_cache(maxsize=None)
 def observability_function(ext: int = 0, order: int = 2):
     """``M(x, params) -> (6 (order+1), n)``: the Jacobian of the stacked Lie derivatives."""
-    path = _cache_dir() / (_code_key(ext, order) + ".py")
-    src = None
+    path = _source_path(ext, order)
     if path.exists():
         src = path.read_text()
-    if src is None:
+    else:
         src = resolve(SYMBOLIC_SOURCE)(ext, order)
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_suffix(f".{os.getpid()}.part")
-            tmp.write_text(src)
-            os.replace(tmp, path)
-        except OSError:
-            pass  # a read-only cache only costs the rebuild
+        _write_source(path, src)
 
     ns = {"numpy": np, "math": math, **{k: getattr(np, k) for k in ("sin", "cos", "tan", "sqrt", "array")}}
     ns.update({"ImmutableDenseMatrix": np.array, "MutableDenseMatrix": np.array})
@@ -75,6 +83,34 @@ def observability_function(ext: int = 0, order: int = 2):
     def call(xv, params):
         return np.array(fn(np.asarray(xv, float), np.asarray(params, float)), dtype=float)
     return call
+
+
+def _write_source(path: Path, src: str) -> None:
+    """``src`` into ``path`` through a temporary file (a reader never sees half a file); a
+    read-only place only costs the next run the build."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.part")
+        tmp.write_text(src)
+        os.replace(tmp, path)
+    except OSError:
+        pass
+
+
+def ship() -> list[Path]:
+    """Build the sources of :data:`SHIPPED` for the current files into the package's ``data/lie/``
+    and remove those of other keys; returns the files written. Run after an edit of
+    :data:`SOURCE_FILES` (``python -m platcal.rigs.multiposition.lie``)."""
+    keep = {_code_key(ext, order) + ".py" for ext, order in SHIPPED}
+    for old in SHIPPED_DIR.glob("lie_*.py"):
+        if old.name not in keep:
+            old.unlink()
+    out = []
+    for ext, order in SHIPPED:
+        path = SHIPPED_DIR / (_code_key(ext, order) + ".py")
+        _write_source(path, resolve(SYMBOLIC_SOURCE)(ext, order))
+        out.append(path)
+    return out
 
 
 def stacked_matrix(cfg, positions_deg, dwell_s: float, x=None, ext: int = 0, order: int | None = None,
@@ -117,3 +153,8 @@ def rank_analysis(cfg, positions_deg, dwell_s: float, x=None, ext: int = 0, orde
             "weakest_rel_singular_value": float(rel[rank - 1]) if rank else 0.0,
             "null_space": [names[i] for i in range(n) if weight[i] > 0.5],
             "null_vectors": vectors}
+
+
+if __name__ == "__main__":
+    for written in ship():
+        print(written)

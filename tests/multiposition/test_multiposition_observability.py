@@ -97,10 +97,10 @@ def test_the_shipped_lie_sources_are_those_of_the_current_files():
     without ``python -m platcal.rigs.multiposition.lie`` fails here, not silently rebuilding
     in every first study."""
     for ext, order in lie.SHIPPED:
-        path = lie.SHIPPED_DIR / (lie._code_key(ext, order) + ".py")
+        path = lie.SHIPPED_DIR / (lie._code_key(ext, order) + lie.SHIPPED_SUFFIX)
         assert path.exists(), f"{path.name} missing: run python -m platcal.rigs.multiposition.lie"
         assert lie._source_path(ext, order) == path
-    assert len(list(lie.SHIPPED_DIR.glob("lie_*.py"))) == len(lie.SHIPPED)   # no stale key left
+    assert len(list(lie.SHIPPED_DIR.glob("lie_*"))) == len(lie.SHIPPED)   # no stale key left
 
 
 def _dummies_in_order(src: str) -> str:

@@ -41,6 +41,8 @@ SHIPPED = ((0, 2), (1, 1), (2, 1))
 """The (layout ``ext``, order) pairs whose sources ship with the package: the default study's
 (``observability.lie_order`` 2 for the scheme checks, order 1 for the extension models)."""
 SHIPPED_DIR = Path(__file__).parent / "data" / "lie"
+SHIPPED_SUFFIX = ".txt"
+"""The shipped sources are text the loader executes, as the cached ones: generated, not written."""
 
 
 def _cache_dir() -> Path:
@@ -51,9 +53,8 @@ def _cache_dir() -> Path:
 def _source_path(ext: int, order: int) -> Path:
     """Where the source of (ext, order) is: shipped with the package if it is there for the current
     files, else the user cache (which may not hold it yet)."""
-    name = _code_key(ext, order) + ".py"
-    shipped = SHIPPED_DIR / name
-    return shipped if shipped.exists() else _cache_dir() / name
+    shipped = SHIPPED_DIR / (_code_key(ext, order) + SHIPPED_SUFFIX)
+    return shipped if shipped.exists() else _cache_dir() / (_code_key(ext, order) + ".py")
 
 
 def _code_key(ext: int, order: int) -> str:
@@ -101,13 +102,13 @@ def ship() -> list[Path]:
     """Build the sources of :data:`SHIPPED` for the current files into the package's ``data/lie/``
     and remove those of other keys; returns the files written. Run after an edit of
     :data:`SOURCE_FILES` (``python -m platcal.rigs.multiposition.lie``)."""
-    keep = {_code_key(ext, order) + ".py" for ext, order in SHIPPED}
-    for old in SHIPPED_DIR.glob("lie_*.py"):
+    keep = {_code_key(ext, order) + SHIPPED_SUFFIX for ext, order in SHIPPED}
+    for old in SHIPPED_DIR.glob("lie_*" + SHIPPED_SUFFIX):
         if old.name not in keep:
             old.unlink()
     out = []
     for ext, order in SHIPPED:
-        path = SHIPPED_DIR / (_code_key(ext, order) + ".py")
+        path = SHIPPED_DIR / (_code_key(ext, order) + SHIPPED_SUFFIX)
         _write_source(path, resolve(SYMBOLIC_SOURCE)(ext, order))
         out.append(path)
     return out

@@ -770,7 +770,7 @@ def run_ekf(
     on_pass : called ``on_pass(p, estimate)`` after each pass p < ``settings.passes`` with the
         Estimate (copies, innovations included when kept) that this run with ``passes = p`` returns,
         bit for bit (:func:`drive_passes`), so that one run gives the estimates of fewer passes
-        too (:func:`.identify.identify_shared_all`). Not with ``z_source``.
+        too (:func:`.identify.pass_prefixes`). Not with ``z_source``.
 
     Returns
     -------
@@ -824,9 +824,9 @@ def run_ekf(
     nis = np.zeros(B)
     n_bad = np.zeros(B, dtype=np.int64)
     if warmup_s is not None and not cov_only:
-        keep = [np.asarray(tk, float) < warmup_s for tk in t]
-        offs_w, t_w, z_w = end_to_end([np.asarray(zk, float)[:, kp] for zk, kp in zip(z, keep)],
-                                      [np.asarray(tk, float)[kp] for tk, kp in zip(t, keep)], B)
+        early = [np.asarray(tk, float) < warmup_s for tk in t]
+        offs_w, t_w, z_w = end_to_end([np.asarray(zk, float)[:, kp] for zk, kp in zip(z, early)],
+                                      [np.asarray(tk, float)[kp] for tk, kp in zip(t, early)], B)
         no_hist = np.full(t_w.size, -1, dtype=np.int64)
         with parallel_chunksize(1):
             run_pass(x, P, z_w, t_w, offs_w, no_hist, np.zeros((B, 0, nc + 3)), np.zeros((B, 0, nc + 3)),

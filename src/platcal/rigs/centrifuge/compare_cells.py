@@ -188,6 +188,9 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
     simulation = np.zeros(2)
     t0 = time.perf_counter()
     on_the_way = pass_prefixes({name: st.filter for name, st in zip(names, studies)})
+    # name -> (index -> passes) of the estimators its run gives on the way
+    takers = {name: {j: studies[j].filter.passes for j, other in enumerate(names) if on_the_way.get(other) == name}
+              for name in names}
     for reps in chunks(R, batch):
         c = clocks()
         records = simulate_shared(studies, scheme, replicate_seeds(hooks, cfg, scheme, level, reps))
@@ -195,8 +198,7 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
         for i, (name, st) in enumerate(zip(names, studies)):
             if name in on_the_way:
                 continue   # tabled from on_the_way[name]'s run below
-            takers = {j: studies[j].filter.passes for j, other in enumerate(names) if on_the_way.get(other) == name}
-            est, ran, taken = identify_with_takers(st, scheme, records, takers)
+            est, ran, taken = identify_with_takers(st, scheme, records, takers[name])
             for j, (est_j, upto) in taken.items():
                 c = clocks()
                 parts[j].append(tidy_tables(replicate_batch(studies[j], est_j), scheme.name, level, names[j], reps))

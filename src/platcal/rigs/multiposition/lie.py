@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...io import atomic_write_text
 from ...model.frames import DEG
 from ...rig import resolve
 from .model import state_names
@@ -53,8 +54,9 @@ def _cache_dir() -> Path:
 def _source_path(ext: int, order: int) -> Path:
     """Where the source of (ext, order) is: shipped with the package if it is there for the current
     files, else the user cache (which may not hold it yet)."""
-    shipped = SHIPPED_DIR / (_code_key(ext, order) + SHIPPED_SUFFIX)
-    return shipped if shipped.exists() else _cache_dir() / (_code_key(ext, order) + ".py")
+    key = _code_key(ext, order)
+    shipped = SHIPPED_DIR / (key + SHIPPED_SUFFIX)
+    return shipped if shipped.exists() else _cache_dir() / (key + ".py")
 
 
 def _code_key(ext: int, order: int) -> str:
@@ -73,7 +75,10 @@ def observability_function(ext: int = 0, order: int = 2):
         src = path.read_text()
     else:
         src = resolve(SYMBOLIC_SOURCE)(ext, order)
-        _write_source(path, src)
+        try:
+            atomic_write_text(path, src)
+        except OSError:
+            pass  # a read-only cache only costs the next run the build
 
     ns = {"numpy": np, "math": math, **{k: getattr(np, k) for k in ("sin", "cos", "tan", "sqrt", "array")}}
     ns.update({"ImmutableDenseMatrix": np.array, "MutableDenseMatrix": np.array})
@@ -84,18 +89,6 @@ def observability_function(ext: int = 0, order: int = 2):
     def call(xv, params):
         return np.array(fn(np.asarray(xv, float), np.asarray(params, float)), dtype=float)
     return call
-
-
-def _write_source(path: Path, src: str) -> None:
-    """``src`` into ``path`` through a temporary file (a reader never sees half a file); a
-    read-only place only costs the next run the build."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.part")
-        tmp.write_text(src)
-        os.replace(tmp, path)
-    except OSError:
-        pass
 
 
 def ship() -> list[Path]:
@@ -109,7 +102,7 @@ def ship() -> list[Path]:
     out = []
     for ext, order in SHIPPED:
         path = SHIPPED_DIR / (_code_key(ext, order) + SHIPPED_SUFFIX)
-        _write_source(path, resolve(SYMBOLIC_SOURCE)(ext, order))
+        atomic_write_text(path, resolve(SYMBOLIC_SOURCE)(ext, order))   # a failure here is an error
         out.append(path)
     return out
 

@@ -20,7 +20,9 @@ CENTRIFUGE = {
               "paper": {"scheme": "table1", "estimator": "ekf1", "sigma_a_ug": 20},
               # a warm-up pass, and a filter period of its own: it reads every 2nd kept output
               "estimators": {"ekf1": {"passes": 1}, "ekfw": {"estimator": "ekf", "warmup_s": 0.2},
-                             "slow": {"passes": 1, "period_ms": 40}}},
+                             "slow": {"passes": 1, "period_ms": 40},
+                             # ekf1 is tabled from ekf2's run after its first pass (pass_prefixes)
+                             "ekf2": {"passes": 2}}},
 }
 
 MULTIPOSITION = """rig: multiposition
@@ -41,10 +43,10 @@ def _cell(name):
 
 
 class Counting:
-    """The rig's hooks, counting the shared simulations."""
+    """The rig's hooks, counting the shared simulations and each estimator's identifications."""
 
     def __init__(self, hooks):
-        self.hooks, self.calls = hooks, 0
+        self.hooks, self.calls, self.identified = hooks, 0, []
 
     def __getattr__(self, name):
         return getattr(self.hooks, name)
@@ -52,6 +54,10 @@ class Counting:
     def simulate_cell(self, *a):
         self.calls += 1
         return self.hooks.simulate_cell(*a)
+
+    def identify_cell(self, cfg, case, noise, estimator, data, **kw):
+        self.identified.append(estimator)
+        return self.hooks.identify_cell(cfg, case, noise, estimator, data, **kw)
 
 
 @pytest.mark.parametrize("name", ["centrifuge", "multiposition"])
@@ -76,6 +82,9 @@ def test_a_cell_job_simulates_each_chunk_once_for_all_its_estimators(name, tmp_p
     monkeypatch.setattr(smc, "get_rig", lambda _: type(rig)(**{**rig.__dict__, "montecarlo": counting}))
     smc.cell_job(name, cfg, case.name, level, estimators, tmp_path / "cell")
     assert counting.calls == len(smc.chunks(5, 2))  # 3 chunks, not 3 per estimator
+    # ekf1 comes from ekf2's run on the way: never identified by itself
+    assert "ekf1" in estimators and "ekf2" in estimators
+    assert sorted(counting.identified) == sorted([e for e in estimators if e != "ekf1"] * 3)
     for e in estimators:
         alone_coef, alone_runs, _ = smc.run_cell(rig, cfg, case, level, e)
         pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "cell" / e / "coef.parquet"), alone_coef,

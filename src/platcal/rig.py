@@ -77,6 +77,12 @@ by giving ``montecarlo``, an object with (see :class:`MonteCarloHooks`):
   ``identify_cell(cfgs[e], case, noise, e, simulate_cell(cfgs, case, noise, seeds))`` must give
   ``run_batch(cfgs[e], case, noise, e, seeds)`` bit for bit. A cell job runs its estimators
   through them chunk by chunk (one simulation per chunk instead of one per estimator).
+- optional, with those two: ``pass_prefixes(cfgs, case, noise) -> {name: (other, passes)}``, the
+  estimators whose numbers another's run gives after ``passes`` of its passes (they differ in
+  nothing but fewer passes: :func:`platcal.estimation.passes.pass_prefixes`); the rig's
+  ``identify_cell`` then takes ``on_pass`` too, called ``on_pass(p, batch)`` after each pass but the
+  last with the batch of a run of p passes, bit for bit. The runner tables such an estimator from
+  the other's run instead of identifying the data again.
 
 The runner turns the batches into the tidy tables (one row per run x quantity, one row per run)
 that :mod:`platcal.study.stats` and :mod:`platcal.study.plots` work on. The centrifuge's hooks

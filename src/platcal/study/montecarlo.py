@@ -33,7 +33,7 @@ import os
 import re
 import time
 from collections.abc import Sequence
-from functools import lru_cache
+from functools import lru_cache, partial
 from typing import TYPE_CHECKING
 from importlib import resources
 from pathlib import Path
@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
+from ..estimation.passes import run_with_takers
 from ..estimation.relative import rel_err_pct
 from ..io import atomic_files, atomic_folder, json_safe
 from ..lighttable import Table
@@ -144,26 +145,47 @@ def _run_chunk(rig_name: str, cells: dict, level: float, replicates, numba_threa
     """One chunk of replicates of every estimator of ``cells`` (name -> (its checked config, its
     case)): simulated once for all when the rig has ``simulate_cell`` and there are several
     (the first estimator's case simulates; :mod:`platcal.rig`, "Monte Carlo hooks"), else each
-    estimator's ``run_batch``. Returns name -> (coef, runs, seconds): its identification's
-    seconds plus an equal share of the shared simulation's. The rig is looked up by name so that
-    a joblib worker can rebuild it."""
+    estimator's ``run_batch``. With the rig's ``pass_prefixes`` too, an estimator that differs
+    from another only by fewer passes is tabled from that one's run after its own passes
+    (:func:`platcal.estimation.passes.run_with_takers`) instead of filtering the data again.
+    Returns name -> (coef, runs, seconds): its identification's seconds (for one taken on the
+    way, the run's at the end of its passes) plus an equal share of the shared simulation's. The
+    rig is looked up by name so that a joblib worker can rebuild it."""
     set_threads(numba_threads)
     hooks = get_rig(rig_name).montecarlo
     cfg, case = next(iter(cells.values()))
     seeds = replicate_seeds(hooks, cfg, case, level, replicates)
     shared = len(cells) > 1 and hasattr(hooks, "simulate_cell")
-    data, simulation = None, 0.0
-    if shared:
-        t0 = time.perf_counter()
-        data = hooks.simulate_cell({e: c for e, (c, _) in cells.items()}, case, level, seeds)
-        simulation = (time.perf_counter() - t0) / len(cells)
-    out = {}
+    if not shared:
+        out = {}
+        for estimator, (cfg, case) in cells.items():
+            t0 = time.perf_counter()
+            coef, runs = tidy_tables(hooks.run_batch(cfg, case, level, estimator, seeds), case.name, level, estimator,
+                                     replicates)
+            out[estimator] = (coef, runs, time.perf_counter() - t0)
+        return out
+    t0 = time.perf_counter()
+    cfgs = {e: c for e, (c, _) in cells.items()}
+    data = hooks.simulate_cell(cfgs, case, level, seeds)
+    simulation = (time.perf_counter() - t0) / len(cells)
+    # short -> (the estimator whose run gives it on the way, its passes): tabled from that run
+    on_the_way = hooks.pass_prefixes(cfgs, case, level) if hasattr(hooks, "pass_prefixes") else {}
+    parts = {}
     for estimator, (cfg, case) in cells.items():
+        if estimator in on_the_way:
+            continue
+        takers = {e: passes for e, (longer, passes) in on_the_way.items() if longer == estimator}
+        batch, seconds, taken = run_with_takers(partial(hooks.identify_cell, cfg, case, level, estimator, data),
+                                                takers)
+        for e, (batch_e, upto) in taken.items():
+            parts[e] = (batch_e, upto)
+        parts[estimator] = (batch, seconds)
+    out = {}
+    for estimator, (cfg, case) in cells.items():  # in the cells' order
         t0 = time.perf_counter()
-        batch = (hooks.identify_cell(cfg, case, level, estimator, data) if shared
-                 else hooks.run_batch(cfg, case, level, estimator, seeds))
+        batch, seconds = parts[estimator]
         coef, runs = tidy_tables(batch, case.name, level, estimator, replicates)
-        out[estimator] = (coef, runs, time.perf_counter() - t0 + simulation)
+        out[estimator] = (coef, runs, seconds + time.perf_counter() - t0 + simulation)
     return out
 
 

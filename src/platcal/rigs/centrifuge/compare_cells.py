@@ -20,10 +20,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
 from ...errors import InputError
+from ...estimation.passes import run_with_takers
 from ...lighttable import Table
 from ...log import eta_line, job_logger
 from ...parallel import set_threads
@@ -135,22 +137,6 @@ def clocks() -> np.ndarray:
     return np.array([time.perf_counter(), time.process_time()])
 
 
-def identify_with_takers(study, scheme, records, takers: dict[int, int]) -> tuple:
-    """``study``'s estimate of ``records`` (:func:`~.identify.identify_shared`) and, on the way,
-    the estimates after fewer passes that ``takers`` (index -> passes) ask for. Returns (estimate,
-    its clocks (wall, CPU s), index -> (estimate, the clocks from the start to its last pass))."""
-    start = clocks()
-    taken = {}
-
-    def on_pass(p: int, est) -> None:
-        for j, passes in takers.items():
-            if passes == p:
-                taken[j] = (est, clocks() - start)
-
-    est = identify_shared(study, scheme, records, on_pass if takers else None)
-    return est, clocks() - start, taken
-
-
 def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 1,
                  progress=None) -> tuple[list[tuple[Table, Table, dict]], np.ndarray]:
     """Every estimator of ``studies`` (name -> its cell's Study, :func:`study_for_cell`, which
@@ -198,7 +184,7 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
         for i, (name, st) in enumerate(zip(names, studies)):
             if name in on_the_way:
                 continue   # tabled from on_the_way[name]'s run below
-            est, ran, taken = identify_with_takers(st, scheme, records, takers[name])
+            est, ran, taken = run_with_takers(partial(identify_shared, st, scheme, records), takers[name], clocks)
             for j, (est_j, upto) in taken.items():
                 c = clocks()
                 parts[j].append(tidy_tables(replicate_batch(studies[j], est_j), scheme.name, level, names[j], reps))

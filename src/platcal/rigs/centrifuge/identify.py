@@ -12,6 +12,7 @@ import numpy as np
 
 from ...estimation.consistency import chi2_quantile, estimate_problems, nees
 from ...estimation.fit import FitCheck, FitSums, Moments, fit_check, gross_errors_moments
+from ...estimation.passes import pass_prefixes as shared_pass_prefixes
 from ...io import atomic_files, json_text, write_csv, write_csv_blocks
 from ...logs.calibration import Calibration, calibration_of, write_calibration_files, write_covariance
 from ...logs.dwells import DWELL_FIGURE, dwells_found
@@ -133,18 +134,14 @@ def same_but_passes(a: FilterSettings, b: FilterSettings) -> bool:
 def pass_prefixes(filters: dict[str, FilterSettings]) -> dict[str, str]:
     """Which estimators' runs another's gives on the way (docs/centrifuge-model.md §9: pass p
     reads nothing of the passes after it): name -> the estimator of ``filters`` (name -> its
-    filter) of a kind with pass snapshots whose settings differ only by more passes (the most
-    passes, the first listed on a tie). The estimators of one noise level run on the same records
-    (:func:`simulate_shared`), so such a name's numbers are that run's after its own passes, bit
-    for bit. Names that run themselves are not keys."""
-    out = {}
-    for name, f in filters.items():
-        if not check_kind(f.estimator).pass_snapshots:
-            continue
-        longer = [m for m, g in filters.items() if g.passes > f.passes and same_but_passes(f, g)]
-        if longer:
-            out[name] = max(longer, key=lambda m: filters[m].passes)   # max keeps the first of a tie
-    return out
+    filter) whose settings differ only by more passes, for a kind with pass snapshots
+    (:func:`platcal.estimation.passes.pass_prefixes`: the most passes, the first listed on a tie).
+    The estimators of one noise level run on the same records (:func:`simulate_shared`), so such a
+    name's numbers are that run's after its own passes, bit for bit. Names that run themselves are
+    not keys."""
+    return shared_pass_prefixes({n: f.passes for n, f in filters.items()},
+                                lambda a, b: (check_kind(filters[a].estimator).pass_snapshots
+                                              and same_but_passes(filters[a], filters[b])))
 
 
 FIT_CHANNELS = ("Ax", "Ay", "Az")

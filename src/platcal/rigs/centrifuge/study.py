@@ -38,7 +38,7 @@ from ...seeding import stable_key
 from ...study.sweep import StudySectionHooks, noise_key, noise_label, replicate_seed
 from .config import check_filter, study_from_config, validate_config
 from .estimators import check_kind
-from .identify import SharedRecords, identify_shared, simulate_identify, simulate_shared
+from .identify import SharedRecords, identify_shared, pass_prefixes, simulate_identify, simulate_shared
 from ...scheme import check_scheme, load_scheme_file, whole_periods
 from .tables import estimates_columns
 
@@ -230,8 +230,9 @@ def study_for_cell(cfg: dict, sigma_a_ug: float, estimator: str):
     return study
 
 
-def replicate_batch(study, est) -> ReplicateBatch:
-    """The coefficient part of an :class:`~platcal.rigs.centrifuge.ekf.Estimate` for the runner."""
+def replicate_batch(study, est, passes: int | None = None) -> ReplicateBatch:
+    """The coefficient part of an :class:`~platcal.rigs.centrifuge.ekf.Estimate` for the runner;
+    ``passes``: the estimate's (default the study filter's; fewer for one taken on the way)."""
     nc = est.n_coef
     names = tuple(est.names[:nc])
     truth = study.truth[study.filter.coef_index]
@@ -241,7 +242,7 @@ def replicate_batch(study, est) -> ReplicateBatch:
     return ReplicateBatch(
         quantities=quantities, estimate=est.coef, sigma=est.coef_sigma,
         nees=nees(est.coef, est.P[:, :nc, :nc], truth[None]), nees_dof=nc, mean_nis=est.mean_nis,
-        failed_updates=est.failed_updates, passes=int(study.filter.passes))
+        failed_updates=est.failed_updates, passes=int(study.filter.passes if passes is None else passes))
 
 
 def resolve_scheme_for_job(cfg: dict, name: str, scheme_file: str | None = None):
@@ -304,9 +305,17 @@ class CentrifugeMonteCarlo(StudySectionHooks):
     def simulate_cell(self, cfgs: dict, case, noise: float, seeds) -> SharedRecords:
         return simulate_shared([study_for_cell(c, noise, e) for e, c in cfgs.items()], case, seeds)
 
-    def identify_cell(self, cfg: dict, case, noise: float, estimator: str, data: SharedRecords) -> ReplicateBatch:
+    def identify_cell(self, cfg: dict, case, noise: float, estimator: str, data: SharedRecords,
+                      on_pass=None) -> ReplicateBatch:
         study = study_for_cell(cfg, noise, estimator)
-        return replicate_batch(study, identify_shared(study, case, data))
+        per_pass = None if on_pass is None else (lambda p, est: on_pass(p, replicate_batch(study, est, passes=p)))
+        return replicate_batch(study, identify_shared(study, case, data, per_pass))
+
+    def pass_prefixes(self, cfgs: dict, case, noise: float) -> dict[str, tuple[str, int]]:
+        # a cell's estimators are one config's variants (the same model and records): their
+        # filters say whether one run gives another on the way
+        filters = {e: study_for_cell(c, noise, e).filter for e, c in cfgs.items()}
+        return {e: (longer, int(filters[e].passes)) for e, longer in pass_prefixes(filters).items()}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -42,25 +42,33 @@ class Estimate:
     failed_updates: np.ndarray
 
 
+def _estimates(on_pass):
+    """``on_pass(p, Estimate)`` as :func:`.filter.run_filter`'s ``on_pass`` (None stays None)."""
+    return None if on_pass is None else (lambda p, result, _innovations: on_pass(p, Estimate(*result)))
+
+
 def run_ekf_estimator(cfg, positions_deg, t, Z, nk=None, passes=None, options=None, threads=None,
-                      sigma_a_ug=None, innovations=None) -> Estimate:
+                      sigma_a_ug=None, innovations=None, on_pass=None) -> Estimate:
     """The EKF of §9 (``innovations``: see :func:`.filter.run_filter`)."""
     return Estimate(*run_filter(cfg, positions_deg, t, Z, nk, passes, threads=threads, sigma_a_ug=sigma_a_ug,
-                                innovations=innovations))
+                                innovations=innovations, on_pass=_estimates(on_pass)))
 
 
 def run_iekf_estimator(cfg, positions_deg, t, Z, nk=None, passes=None, options=None, threads=None,
-                       sigma_a_ug=None, innovations=None) -> Estimate:
+                       sigma_a_ug=None, innovations=None, on_pass=None) -> Estimate:
     """The Gauss-Newton iterated EKF; ``options`` = ``filter.iekf`` (iterations, tolerance)."""
     iterations, tolerance = linearisations(FilterChoice("iekf", 1, options or {}))
     return Estimate(*run_filter(cfg, positions_deg, t, Z, nk, passes, threads=threads, sigma_a_ug=sigma_a_ug,
-                                iterations=iterations, tolerance=tolerance, innovations=innovations))
+                                iterations=iterations, tolerance=tolerance, innovations=innovations,
+                                on_pass=_estimates(on_pass)))
 
 
 Runner = Callable[..., Estimate]
 ESTIMATORS: dict[str, Runner] = {"ekf": run_ekf_estimator, "iekf": run_iekf_estimator}
 """Estimator name -> runner ``(cfg, positions_deg, t, Z, nk, passes, options, threads, sigma_a_ug,
-innovations)``."""
+innovations, on_pass)``; ``on_pass(p, Estimate)``, when given, after each pass but the last with
+the estimate of a run of p passes (:func:`.filter.run_filter`; every estimator here is
+sequential, so every one hands its passes)."""
 
 ESTIMATOR_DEFAULTS: dict[str, dict] = {"ekf": {}, "iekf": {"iterations": 3, "tolerance": 0.01}}
 """Default options per estimator (the schema's defaults of ``filter.<name>``)."""
@@ -116,12 +124,13 @@ def raw_variant_choice(raw: dict, name: str, field: str = "--estimator") -> Filt
 
 
 def estimate(cfg, choice: FilterChoice, positions_deg, t, Z, nk=None, threads=None, sigma_a_ug=None,
-             innovations=None) -> Estimate:
+             innovations=None, on_pass=None) -> Estimate:
     """Run the estimator of ``choice`` on outputs ``Z`` (R, K, n, 6); ``innovations`` (R, K, n, 12),
-    when given, receives the last pass's innovations and S diagonals (:func:`.filter.run_filter`)."""
+    when given, receives the last pass's innovations and S diagonals (:func:`.filter.run_filter`);
+    ``on_pass(p, Estimate)`` as in :data:`ESTIMATORS`."""
     return ESTIMATORS[choice.estimator](cfg, positions_deg, t, Z, nk=nk, passes=choice.passes,
                                         options=choice.options, threads=threads, sigma_a_ug=sigma_a_ug,
-                                        innovations=innovations)
+                                        innovations=innovations, on_pass=on_pass)
 
 
 def linearisations(choice: FilterChoice) -> tuple[int, float]:

@@ -468,7 +468,7 @@ def dynamic_cols(ext: int) -> np.ndarray:
 def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext: int = 0,
                threads: int | None = None, sigma_a_ug: float | None = None, iterations: int = 0,
                tolerance: float = 0.0, innovations: np.ndarray | None = None, prior_x=None, prior_P=None,
-               lanes: bool = False):
+               lanes: bool = False, on_pass=None):
     """Identify the coefficients from outputs ``Z`` (R, K, n, 6) (ug, arcsec) at times ``t``.
 
     ``positions_deg`` (K, 3) commanded angles; ``t`` is (n,) shared by all positions, or (K, n)
@@ -482,7 +482,11 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
     (:func:`_ekf_one`; the fit check, issue 25). ``prior_x`` ((nc,) or (R, nc)) and ``prior_P``
     ((nc, nc) or (R, nc, nc)), engineering units: the start of the coefficient states (a previous
     test's posterior handed on); None: 0 and diag(P0^2) (§9). ``lanes``: one replicate on the batch
-    kernel as well (:func:`_ekf_pass`; the same numbers).
+    kernel as well (:func:`_ekf_pass`; the same numbers). ``on_pass(p, result, innovations)``,
+    when given, is called after each pass p = 1 .. passes - 1 with what a run of p passes returns
+    (copies, bit for bit: pass p reads nothing of the passes after it) and a copy of
+    ``innovations`` (None when not given): an estimator of fewer passes taken on the way
+    (:mod:`platcal.estimation.passes`).
     """
     Z = np.ascontiguousarray(Z, dtype=float)
     R, K, ns, _ = Z.shape
@@ -505,7 +509,15 @@ def run_filter(cfg, positions_deg, t, Z, nk=None, passes: int | None = None, ext
         nis[:] = sums[:, 0] / np.maximum(sums[:, 1], 1) / 6.0
         nlin += sums[:, 2]
         nbad += sums[:, 3].astype(np.int64)
-    return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis, nlin / (npass * int(nk.sum())), nbad
+        if on_pass is not None and p + 1 < npass:
+            on_pass(p + 1, _filter_result(X, Ps, nis, nlin, nbad, p + 1, nk),
+                    None if innovations is None else innovations.copy())
+    return _filter_result(X, Ps, nis, nlin, nbad, npass, nk)
+
+
+def _filter_result(X, Ps, nis, nlin, nbad, npass: int, nk) -> tuple:
+    """:func:`run_filter`'s return after ``npass`` passes, as copies of the running arrays."""
+    return X[:, 3:].copy(), Ps[:, 3:, 3:].copy(), nis.copy(), nlin / (npass * int(nk.sum())), nbad.copy()
 
 
 @dataclass

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
+from ...estimation.passes import pass_prefixes
 from ...io import read_yaml
 from ...lighttable import Table
 from ...parallel import get_threads
@@ -121,17 +122,27 @@ def simulate_records(cfg, scheme: Scheme, sigma_a_ug: float, seeds, threads: int
     return t, z
 
 
-def identify_records(cfg, scheme: Scheme, sigma_a_ug: float, choice, records: tuple, threads: int = 1) -> ReplicateBatch:
+def identify_records(cfg, scheme: Scheme, sigma_a_ug: float, choice, records: tuple, threads: int = 1,
+                     on_pass=None) -> ReplicateBatch:
     """The estimator variant ``choice`` (:func:`.estimators.variant_choice`) on simulated
-    ``records`` (:func:`simulate_records`): the batch of :func:`run_cell_batch`."""
+    ``records`` (:func:`simulate_records`): the batch of :func:`run_cell_batch`. ``on_pass(p,
+    batch)``, when given, after each pass but the last with the batch of the same variant run with
+    p passes (:func:`.estimators.estimate`; bit for bit)."""
     c = cfg.with_noise(sigma_a_ug=float(sigma_a_ug))
     t, z = records
-    res = estimate(c, choice, scheme.angles_deg, t, z, threads=threads)
-    truth = c.truth()
+    per_pass = None if on_pass is None else (lambda p, res: on_pass(p, estimate_batch(c, res, p)))
+    return estimate_batch(c, estimate(c, choice, scheme.angles_deg, t, z, threads=threads, on_pass=per_pass),
+                          int(choice.passes))
+
+
+def estimate_batch(cfg, res, passes: int) -> ReplicateBatch:
+    """The runner's batch of an :class:`.estimators.Estimate` of ``passes`` passes (``cfg`` with
+    the cell's noise: its truth and quantities)."""
+    truth = cfg.truth()
     return ReplicateBatch(
-        quantities=quantities(c), estimate=res.coef, sigma=np.sqrt(np.diagonal(res.cov, axis1=1, axis2=2)),
+        quantities=quantities(cfg), estimate=res.coef, sigma=np.sqrt(np.diagonal(res.cov, axis1=1, axis2=2)),
         nees=nees(res.coef, res.cov, truth), nees_dof=truth.size, mean_nis=res.mean_nis,
-        failed_updates=res.failed_updates, passes=int(choice.passes),
+        failed_updates=res.failed_updates, passes=int(passes),
         extra={"linearisations": np.asarray(res.linearisations, float)})
 
 
@@ -193,6 +204,21 @@ class MultipositionMonteCarlo(StudySectionHooks):
     def simulate_cell(self, cfgs: dict, case, noise: float, seeds) -> tuple:
         return simulate_records(load_config(next(iter(cfgs.values()))), case, noise, seeds, threads=get_threads())
 
-    def identify_cell(self, cfg: dict, case, noise: float, estimator: str, data: tuple) -> ReplicateBatch:
+    def identify_cell(self, cfg: dict, case, noise: float, estimator: str, data: tuple,
+                      on_pass=None) -> ReplicateBatch:
         c = load_config(cfg)
-        return identify_records(c, case, noise, study_variant(c, estimator), data, threads=get_threads())
+        return identify_records(c, case, noise, study_variant(c, estimator), data, threads=get_threads(),
+                                on_pass=on_pass)
+
+    def pass_prefixes(self, cfgs: dict, case, noise: float) -> dict[str, tuple[str, int]]:
+        # every estimator here hands its passes (run_filter's on_pass); two differ in nothing but
+        # passes when their cells' params (all their numbers depend on) do not
+        params = {e: self.cell_params(c, case.name, noise, e) for e, c in cfgs.items()}
+
+        def same(a: str, b: str) -> bool:
+            pa, pb = ({**p, "filter": {k: v for k, v in p["filter"].items() if k != "passes"}}
+                      for p in (params[a], params[b]))
+            return pa == pb
+
+        passes = {e: int(p["filter"]["passes"]) for e, p in params.items()}
+        return {e: (longer, passes[e]) for e, longer in pass_prefixes(passes, same).items()}

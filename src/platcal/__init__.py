@@ -1,5 +1,7 @@
 """platcal: identification of inertial-platform error coefficients from test-rig data."""
 
+import atexit
+import gc
 import os
 import sys
 
@@ -21,3 +23,11 @@ if "numba.core.config" in sys.modules and not sys.modules["numba.core.config"].C
 _omp = os.environ.get("OMP_NUM_THREADS", "").strip()
 if _omp.isdigit() and int(_omp) > 0 and "NUMBA_NUM_THREADS" not in os.environ and "numba" not in sys.modules:
     os.environ["NUMBA_NUM_THREADS"] = _omp
+
+# A process that loaded numba's target holds over a million objects the garbage collector tracks
+# (numba's typing and lowering registries, its cached kernels' libraries); the interpreter's
+# collections at exit walk them all, 0.2-0.3 s CPU that every workflow job and command paid after
+# its work was done (issue 22 item 4). Frozen at exit they are not walked: the atexit handlers
+# and the modules' teardown run as before, and only reference cycles still alive at exit are left
+# to the operating system, whose finalisers Python does not promise to run at exit anyway.
+atexit.register(gc.freeze)

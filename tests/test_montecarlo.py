@@ -1,7 +1,9 @@
 """Monte Carlo machinery: seeding, study schemes, validation, cells, statistics, figures."""
 
+import ast
 import hashlib
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -128,6 +130,32 @@ def test_import_reading_is_cached_but_an_edited_file_is_read_again(tmp_path):
     st = f.stat()
     assert smc._platcal_imports(f, "platcal.study", (st.st_mtime_ns, st.st_size)) == (
         "platcal.rig", "platcal.plausibility", "platcal.plausibility.clock_rate")
+
+
+def test_imports_nested_anywhere_in_the_statements_are_read(tmp_path):
+    f = tmp_path / "mod.py"
+    f.write_text("def f():\n    if x:\n        from .a import b\n    else:\n        import platcal.c\n"
+                 "class K:\n    def g(self):\n        try:\n            pass\n        except E:\n"
+                 "            from . import d\n        finally:\n            from .e import h\n"
+                 "for i in y:\n    pass\nelse:\n    with z:\n        from .m import n\n"
+                 "match v:\n    case 1:\n        from .p import q\n")
+    st = f.stat()
+    got = smc._platcal_imports(f, "platcal.study", (st.st_mtime_ns, st.st_size))
+    assert set(got) == {"platcal.study.a", "platcal.study.a.b", "platcal.c", "platcal.study", "platcal.study.d",
+                        "platcal.study.e", "platcal.study.e.h", "platcal.study.m", "platcal.study.m.n",
+                        "platcal.study.p", "platcal.study.p.q"}
+
+
+def test_the_statement_walk_finds_every_import_a_full_walk_finds_in_the_package():
+    # the master reads imports from the statements alone (issue 22 item 4): on every module of
+    # the package it must find what a walk of every node finds, or an edit would leave a stale cell
+    root = Path(smc.__file__).resolve().parents[1]
+    for f in root.rglob("*.py"):
+        tree = ast.parse(f.read_text())
+        every = {type(n).__name__ + ast.dump(n) for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))}
+        stmts = {type(n).__name__ + ast.dump(n) for n in smc._statements(tree.body)
+                 if isinstance(n, (ast.Import, ast.ImportFrom))}
+        assert stmts == every, f
 
 
 @pytest.fixture(scope="module")

@@ -387,8 +387,8 @@ def _platcal_imports(path: Path, pkg: str, stamp: tuple[int, int]) -> tuple[str,
     text = path.read_text()
     tree = ast.parse(text)
     # imports are statements: walking the statements alone (a tenth of the nodes) halves the
-    # master's start-up parse; a path is named in an f-string only where __package__ is formatted
-    nodes = ast.walk(tree) if "{__package__}" in text else _statements(tree.body)
+    # master's start-up parse; a path is named in an f-string only where __package__ is read
+    nodes = ast.walk(tree) if "__package__" in text else _statements(tree.body)
     for node in nodes:
         if isinstance(node, ast.ImportFrom):
             if node.level:

@@ -30,7 +30,7 @@ def pass_prefixes(passes: Mapping[str, int], same: Callable[[str, str], bool]) -
     return out
 
 
-def run_with_takers(run: Callable[[Callable | None], Any], takers: Mapping[Hashable, int],
+def run_with_takers(run: Callable[..., Any], takers: Mapping[Hashable, int],
                     clock: Callable[[], Any] = time.perf_counter) -> tuple[Any, Any, dict]:
     """``run(on_pass=...)``, a filter run that calls ``on_pass(p, estimate)`` after each of its
     passes but the last with the estimate a run of p passes returns, and on the way the estimates

@@ -157,30 +157,24 @@ def _run_chunk(rig_name: str, cells: dict, level: float, replicates, numba_threa
     hooks = get_rig(rig_name).montecarlo
     cfg, case = next(iter(cells.values()))
     seeds = replicate_seeds(hooks, cfg, case, level, replicates)
-    shared = len(cells) > 1 and hasattr(hooks, "simulate_cell")
-    if not shared:
-        out = {}
+    parts, simulation = {}, 0.0   # name -> (its batch, its identification's seconds)
+    if len(cells) > 1 and hasattr(hooks, "simulate_cell"):
+        t0 = time.perf_counter()
+        data = hooks.simulate_cell({e: c for e, (c, _) in cells.items()}, case, level, seeds)
+        simulation = (time.perf_counter() - t0) / len(cells)
+        on_the_way = on_the_way or {}
+        for estimator, (cfg, case) in cells.items():
+            if estimator in on_the_way:
+                continue
+            takers = {e: passes for e, (longer, passes) in on_the_way.items() if longer == estimator}
+            batch, seconds, taken = run_with_takers(partial(hooks.identify_cell, cfg, case, level, estimator, data),
+                                                    takers)
+            parts.update(taken)
+            parts[estimator] = (batch, seconds)
+    else:
         for estimator, (cfg, case) in cells.items():
             t0 = time.perf_counter()
-            coef, runs = tidy_tables(hooks.run_batch(cfg, case, level, estimator, seeds), case.name, level, estimator,
-                                     replicates)
-            out[estimator] = (coef, runs, time.perf_counter() - t0)
-        return out
-    t0 = time.perf_counter()
-    cfgs = {e: c for e, (c, _) in cells.items()}
-    data = hooks.simulate_cell(cfgs, case, level, seeds)
-    simulation = (time.perf_counter() - t0) / len(cells)
-    on_the_way = on_the_way or {}
-    parts = {}
-    for estimator, (cfg, case) in cells.items():
-        if estimator in on_the_way:
-            continue
-        takers = {e: passes for e, (longer, passes) in on_the_way.items() if longer == estimator}
-        batch, seconds, taken = run_with_takers(partial(hooks.identify_cell, cfg, case, level, estimator, data),
-                                                takers)
-        for e, (batch_e, upto) in taken.items():
-            parts[e] = (batch_e, upto)
-        parts[estimator] = (batch, seconds)
+            parts[estimator] = (hooks.run_batch(cfg, case, level, estimator, seeds), time.perf_counter() - t0)
     out = {}
     for estimator, (cfg, case) in cells.items():  # in the cells' order
         t0 = time.perf_counter()

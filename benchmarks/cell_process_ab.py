@@ -11,7 +11,7 @@ alternating round by round; it prints every run's process CPU (user + system of 
 ``RUSAGE_CHILDREN``) and the median per cell and tree, with the load average at the start and
 the end. One numba and one BLAS thread, as the study's cells run.
 
-    python benchmarks/cell_process_ab.py --tree before=/path/to/worktree --tree after=. --rounds 4
+    cd benchmarks && python cell_process_ab.py --tree before=/path/to/worktree --tree after=.. --rounds 4
 """
 
 from __future__ import annotations
@@ -25,29 +25,19 @@ import sys
 import tempfile
 from pathlib import Path
 
-CHILD = """
-import os, sys, tempfile
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[var] = "1"
-from platcal.rig import get_rig, rig_config
-from platcal.study.montecarlo import cell_job
-root, rig, case = sys.argv[1], sys.argv[2], sys.argv[3]
-hooks = get_rig(rig).montecarlo
-raw = hooks.check(rig_config({"rigs": {rig: f"{root}/config/{rig}.yaml"}}, rig))
-out = tempfile.mkdtemp()
-cell_job(rig, raw, case, hooks.noise_levels(raw)[0], hooks.estimators(raw), out + "/cell", threads=1)
-"""
+from job_ab import CHILD
 
 DEFAULT_CELLS = ("centrifuge:table1", "multiposition:S8", "lowprec_centrifuge:default", "sled:default")
 
 
 def run_child(root: Path, cell: str, cache: Path) -> float:
     """Process CPU seconds (user + system) of one cell job in a fresh interpreter."""
-    rig, case = cell.split(":")
     env = dict(os.environ, PYTHONPATH=str(root / "src"), NUMBA_CACHE_DIR=str(cache), NUMBA_NUM_THREADS="1")
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    subprocess.run([sys.executable, "-c", CHILD, str(root), rig, case], env=env, cwd=root, check=True,
-                   capture_output=True)
+    # job_ab's child with no timed repeat: the cell job once, in a process of its own
+    with tempfile.TemporaryDirectory() as out:
+        subprocess.run([sys.executable, "-c", CHILD, f"cell:{cell}", str(root), out, "0"], env=env, cwd=root,
+                       check=True, capture_output=True)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 

@@ -3,14 +3,16 @@ item 4): the pairing and the snapshots' clocks, on toy runs."""
 
 from itertools import count
 
-from platcal.estimation.passes import pass_prefixes, run_with_takers
+from platcal.estimation.passes import pass_prefixes, run_with_takers, takers
 
 
 def test_the_longest_run_of_the_same_filter_gives_the_shorter_ones():
     passes = {"a1": 1, "a2": 2, "a3": 3, "a3b": 3, "b1": 1, "b2": 2, "c1": 1}
     family = lambda name: name[0]  # noqa: E731
     same = lambda x, y: family(x) == family(y) and x != "b1"  # noqa: E731  (b1's kind hands no snapshots)
-    assert pass_prefixes(passes, same) == {"a1": "a3", "a2": "a3"}   # a3 listed before a3b; b1 runs itself
+    prefixes = pass_prefixes(passes, same)
+    assert prefixes == {"a1": ("a3", 1), "a2": ("a3", 2)}   # a3 listed before a3b; b1 runs itself
+    assert takers(prefixes) == {"a3": {"a1": 1, "a2": 2}}
 
 
 def test_a_run_hands_the_takers_their_passes_and_clocks():

@@ -69,7 +69,7 @@ def test_which_runs_give_which_on_the_way():
                "iekf2": replace(f, estimator="iekf", estimator_options=(("iterations", 2),), passes=2),
                "ukf": replace(f, estimator="ukf"), "ukf2": replace(f, estimator="ukf", passes=2),
                "p0": replace(f, p0_sigma=2 * f.p0_sigma)}
-    assert pass_prefixes(filters) == {"ekf1": "ekf3", "ekf2": "ekf3", "iekf": "iekf2"}
+    assert pass_prefixes(filters) == {"ekf1": ("ekf3", 1), "ekf2": ("ekf3", 2), "iekf": ("iekf2", 1)}
     assert same_but_passes(f, replace(f, passes=4)) and not same_but_passes(f, filters["p0"])
 
 

@@ -16,17 +16,26 @@ from collections.abc import Callable, Hashable, Mapping
 from typing import Any
 
 
-def pass_prefixes(passes: Mapping[str, int], same: Callable[[str, str], bool]) -> dict[str, str]:
-    """Which estimators' runs another's gives on the way: name -> the estimator of ``passes``
-    (name -> its number of passes) with more passes for which ``same(name, other)`` holds (the
-    rig's word that ``name``'s kind hands snapshots of its passes and that the two differ in
-    nothing but passes); of several, the one with the most passes, the first listed on a tie.
-    Names that run themselves are not keys."""
+def pass_prefixes(passes: Mapping[str, int], same: Callable[[str, str], bool]) -> dict[str, tuple[str, int]]:
+    """Which estimators' runs another's gives on the way: name -> (the estimator of ``passes``
+    (name -> its number of passes) with more passes for which ``same(name, other)`` holds, the
+    name's passes); ``same`` is the rig's word that ``name``'s kind hands snapshots of its passes
+    and that the two differ in nothing but passes. Of several, the one with the most passes, the
+    first listed on a tie. Names that run themselves are not keys."""
     out = {}
     for name, p in passes.items():
         longer = [m for m, q in passes.items() if q > p and same(name, m)]
         if longer:
-            out[name] = max(longer, key=lambda m: passes[m])   # max keeps the first of a tie
+            out[name] = (max(longer, key=lambda m: passes[m]), p)   # max keeps the first of a tie
+    return out
+
+
+def takers(prefixes: Mapping[str, tuple[str, int]]) -> dict[str, dict[str, int]]:
+    """:func:`pass_prefixes` inverted: the estimator that runs -> {name: passes} of those its run
+    gives on the way (the ``takers`` of :func:`run_with_takers`)."""
+    out: dict[str, dict[str, int]] = {}
+    for name, (run, passes) in prefixes.items():
+        out.setdefault(run, {})[name] = passes
     return out
 
 

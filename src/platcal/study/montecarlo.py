@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from ..estimation.passes import run_with_takers
+from ..estimation.passes import run_with_takers, takers
 from ..estimation.relative import rel_err_pct
 from ..io import atomic_files, atomic_folder, json_safe
 from ..lighttable import Table
@@ -142,14 +142,15 @@ def replicate_seeds(hooks, cfg: dict, case, level: float, replicates) -> list[np
 
 
 def _run_chunk(rig_name: str, cells: dict, level: float, replicates, numba_threads: int,
-               on_the_way: dict | None = None) -> dict:
+               given: dict | None = None) -> dict:
     """One chunk of replicates of every estimator of ``cells`` (name -> (its checked config, its
     case)): simulated once for all when the rig has ``simulate_cell`` and there are several
     (the first estimator's case simulates; :mod:`platcal.rig`, "Monte Carlo hooks"), else each
-    estimator's ``run_batch``. ``on_the_way`` (the rig's ``pass_prefixes`` of the cells, with a
-    shared simulation only): an estimator that differs from another only by fewer passes is
-    tabled from that one's run after its own passes
-    (:func:`platcal.estimation.passes.run_with_takers`) instead of identifying the data again.
+    estimator's ``run_batch``. ``given`` (with a shared simulation only: the rig's
+    ``pass_prefixes`` of the cells inverted, :func:`platcal.estimation.passes.takers`): an
+    estimator that differs from another only by fewer passes is tabled from that one's run after
+    its own passes (:func:`platcal.estimation.passes.run_with_takers`) instead of identifying the
+    data again.
     Returns name -> (coef, runs, seconds): its identification's seconds (for one taken on the
     way, the run's at the end of its passes) plus an equal share of the shared simulation's. The
     rig is looked up by name so that a joblib worker can rebuild it."""
@@ -162,13 +163,13 @@ def _run_chunk(rig_name: str, cells: dict, level: float, replicates, numba_threa
         t0 = time.perf_counter()
         data = hooks.simulate_cell({e: c for e, (c, _) in cells.items()}, case, level, seeds)
         simulation = (time.perf_counter() - t0) / len(cells)
-        on_the_way = on_the_way or {}
+        given = given or {}
+        taken_on_the_way = {e for names in given.values() for e in names}
         for estimator, (cfg, case) in cells.items():
-            if estimator in on_the_way:
+            if estimator in taken_on_the_way:
                 continue
-            takers = {e: passes for e, (longer, passes) in on_the_way.items() if longer == estimator}
             batch, seconds, taken = run_with_takers(partial(hooks.identify_cell, cfg, case, level, estimator, data),
-                                                    takers)
+                                                    given.get(estimator, {}))
             parts.update(taken)
             parts[estimator] = (batch, seconds)
     else:
@@ -208,15 +209,15 @@ def cells_tables(rig: Rig, cells: dict, level: float, *, replicates: int | None 
     threads = max(1, int(threads))
     parts = chunks(R, batch)
     t0 = time.perf_counter()
-    # short -> (the estimator whose run gives it on the way, its passes): tabled from that run
-    on_the_way = (rig.montecarlo.pass_prefixes({e: c for e, (c, _) in cells.items()}, case, level)
-                  if len(cells) > 1 and hasattr(rig.montecarlo, "pass_prefixes") else {})
+    # the estimator that runs -> {estimator: passes} of those its run gives on the way
+    given = (takers(rig.montecarlo.pass_prefixes({e: c for e, (c, _) in cells.items()}, case, level))
+             if len(cells) > 1 and hasattr(rig.montecarlo, "pass_prefixes") else {})
     if backend in BACKENDS and threads > 1 and len(parts) > 1:
         # one numba thread and one BLAS thread per worker: threads workers use threads cores
-        results = resolve(BACKENDS[backend])(_run_chunk, [(rig.name, cells, level, p, 1, on_the_way) for p in parts],
+        results = resolve(BACKENDS[backend])(_run_chunk, [(rig.name, cells, level, p, 1, given) for p in parts],
                                              threads, lambda gen: _collect_progress(gen, R, t0, progress))
     else:
-        results = _collect_progress((_run_chunk(rig.name, cells, level, p, threads, on_the_way) for p in parts),
+        results = _collect_progress((_run_chunk(rig.name, cells, level, p, threads, given) for p in parts),
                                     R, t0, progress)
     wall = time.perf_counter() - t0
     spent = {e: float(sum(r[e][2] for r in results)) for e in cells}

@@ -25,7 +25,7 @@ from functools import partial
 import numpy as np
 
 from ...errors import InputError
-from ...estimation.passes import run_with_takers
+from ...estimation.passes import run_with_takers, takers
 from ...lighttable import Table
 from ...log import eta_line, job_logger
 from ...parallel import set_threads
@@ -174,9 +174,7 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
     simulation = np.zeros(2)
     t0 = time.perf_counter()
     on_the_way = pass_prefixes({name: st.filter for name, st in zip(names, studies)})
-    # name -> (index -> passes) of the estimators its run gives on the way
-    takers = {name: {j: studies[j].filter.passes for j, other in enumerate(names) if on_the_way.get(other) == name}
-              for name in names}
+    given = takers(on_the_way)   # name -> {name: passes} of the estimators its run gives on the way
     for reps in chunks(R, batch):
         c = clocks()
         records = simulate_shared(studies, scheme, replicate_seeds(hooks, cfg, scheme, level, reps))
@@ -184,8 +182,10 @@ def level_tables(cfg: dict, scheme, level: float, studies: dict, threads: int = 
         for i, (name, st) in enumerate(zip(names, studies)):
             if name in on_the_way:
                 continue   # tabled from on_the_way[name]'s run below
-            est, ran, taken = run_with_takers(partial(identify_shared, st, scheme, records), takers[name], clocks)
-            for j, (est_j, upto) in taken.items():
+            est, ran, taken = run_with_takers(partial(identify_shared, st, scheme, records), given.get(name, {}),
+                                              clocks)
+            for other, (est_j, upto) in taken.items():
+                j = names.index(other)
                 c = clocks()
                 parts[j].append(tidy_tables(replicate_batch(studies[j], est_j), scheme.name, level, names[j], reps))
                 spent[j] += upto + clocks() - c

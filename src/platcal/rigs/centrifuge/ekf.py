@@ -668,14 +668,23 @@ def drive_passes(run_pass, x: np.ndarray, P: np.ndarray, z: list | None, t: list
         pass_x[p] = x[:, :nc]
         pass_P[p] = P[:, :nc, :nc]
         if on_pass is not None and p < passes - 1:
-            h = total * (p + 1)   # a run of p + 1 passes has these history slots, pass by pass as here
-            on_pass(p + 1, Estimate(names=settings.state_names, x=x.copy(), P=P.copy(), history_t=hist_t[:h].copy(),
-                                    history_x=hist_x[:, :h].copy(), history_sigma=hist_s[:, :h].copy(),
-                                    pass_x=pass_x[:p + 1].copy(), pass_P=pass_P[:p + 1].copy(),
-                                    mean_nis=nis / max(int(offs[-1]), 1), failed_updates=n_bad.copy()))
-    return Estimate(names=settings.state_names, x=x, P=P, history_t=hist_t, history_x=hist_x,
-                    history_sigma=hist_s, pass_x=pass_x, pass_P=pass_P,
-                    mean_nis=nis / max(int(offs[-1]), 1), failed_updates=n_bad)
+            on_pass(p + 1, _estimate_after(p + 1, settings, total, int(offs[-1]), x, P, hist_t, hist_x, hist_s,
+                                           pass_x, pass_P, nis, n_bad, copy=True))
+    return _estimate_after(passes, settings, total, int(offs[-1]), x, P, hist_t, hist_x, hist_s, pass_x, pass_P,
+                           nis, n_bad, copy=False)
+
+
+def _estimate_after(done: int, settings: FilterSettings, total: int, n_obs: int, x, P, hist_t, hist_x, hist_s,
+                    pass_x, pass_P, nis, n_bad, copy: bool) -> Estimate:
+    """What a run of ``done`` passes returns (:func:`drive_passes`): its ``total`` history slots
+    per pass and its passes' x and P of the running arrays, the NIS over ``n_obs`` instants;
+    ``copy``: copies (a snapshot on the way, the later passes keep writing), else the arrays
+    themselves (the run's end)."""
+    h = total * done
+    own = np.copy if copy else (lambda a: a)
+    return Estimate(names=settings.state_names, x=own(x), P=own(P), history_t=own(hist_t[:h]),
+                    history_x=own(hist_x[:, :h]), history_sigma=own(hist_s[:, :h]), pass_x=own(pass_x[:done]),
+                    pass_P=own(pass_P[:done]), mean_nis=nis / max(n_obs, 1), failed_updates=own(n_bad))
 
 
 @dataclass(frozen=True)

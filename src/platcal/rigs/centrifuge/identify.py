@@ -131,10 +131,10 @@ def same_but_passes(a: FilterSettings, b: FilterSettings) -> bool:
     return True
 
 
-def pass_prefixes(filters: dict[str, FilterSettings]) -> dict[str, str]:
+def pass_prefixes(filters: dict[str, FilterSettings]) -> dict[str, tuple[str, int]]:
     """Which estimators' runs another's gives on the way (docs/centrifuge-model.md §9: pass p
-    reads nothing of the passes after it): name -> the estimator of ``filters`` (name -> its
-    filter) whose settings differ only by more passes, for a kind with pass snapshots
+    reads nothing of the passes after it): name -> (the estimator of ``filters`` (name -> its
+    filter) whose settings differ only by more passes, the name's passes), for a kind with pass snapshots
     (:func:`platcal.estimation.passes.pass_prefixes`: the most passes, the first listed on a tie).
     The estimators of one noise level run on the same records (:func:`simulate_shared`), so such a
     name's numbers are that run's after its own passes, bit for bit. Names that run themselves are

@@ -314,8 +314,7 @@ class CentrifugeMonteCarlo(StudySectionHooks):
     def pass_prefixes(self, cfgs: dict, case, noise: float) -> dict[str, tuple[str, int]]:
         # a cell's estimators are one config's variants (the same model and records): their
         # filters say whether one run gives another on the way
-        filters = {e: study_for_cell(c, noise, e).filter for e, c in cfgs.items()}
-        return {e: (longer, int(filters[e].passes)) for e, longer in pass_prefixes(filters).items()}
+        return pass_prefixes({e: study_for_cell(c, noise, e).filter for e, c in cfgs.items()})
 
 
 # ---------------------------------------------------------------------------------------------

@@ -220,5 +220,4 @@ class MultipositionMonteCarlo(StudySectionHooks):
                       for p in (params[a], params[b]))
             return pa == pb
 
-        passes = {e: int(p["filter"]["passes"]) for e, p in params.items()}
-        return {e: (longer, passes[e]) for e, longer in pass_prefixes(passes, same).items()}
+        return pass_prefixes({e: int(p["filter"]["passes"]) for e, p in params.items()}, same)

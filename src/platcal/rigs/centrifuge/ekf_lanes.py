@@ -91,7 +91,7 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
     :func:`platcal.rigs.centrifuge.ekf._filter_replicate` and ``_filter_one`` with the lanes
     innermost. Arguments up to ``seg_nis`` are those of the reference kernel (batch layout,
     read and written for the live lanes only); the rest are the block's lane-layout state and
-    scratch (:func:`_run_block`), distinct arrays as the ``noalias`` compile requires.
+    scratch (:func:`_block_scratch`), distinct arrays as the ``noalias`` compile requires.
 
     The lane loops run over the constant :data:`LANES` (so that LLVM unrolls them and merges
     the lanes into vector instructions); the sums over a row of Phi or H accumulate into the
@@ -310,28 +310,21 @@ def _relinearise_lane(l, b, mz, it_tol, z, Pl, xl, pidx, est_idx, hcols, hnnz, h
 
 
 @njit(cache=True)
-def _run_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
-               hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k, seg_t0,
-               seg_last, seg_nis, pidx):
-    """Block ``blk`` of one pass: allocates its lane-layout state and scratch and runs
-    :func:`_filter_block`."""
-    n = x.shape[1]
+def _block_scratch(n, npc, mh, nco, npar):
+    """A block's lane-layout state and scratch: :func:`_filter_block`'s arguments after ``pidx``,
+    for ``n`` states, ``npc`` columns of Phi's attitude rows, ``mh`` nonzeros per row of H, ``nco``
+    coefficients and ``npar`` centrifuge parameters per position; distinct arrays, as the block
+    kernel's ``noalias`` compile requires."""
     L = LANES
-    npc = pcols.shape[0]
-    mh = hcols.shape[1]
-    nco = coef_fixed.shape[1]
     f3 = np.empty
-    _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
-                  hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k, seg_t0,
-                  seg_last, seg_nis,
-                  pidx, f3((n, L)), f3((pidx[n - 1, n - 1] + 1, L)), f3((3, n, L)), f3((3, n, L)), f3((3, n, L)),
-                  f3((3, n, L)), f3((3, npc, L)), np.zeros((3, mh, L)), np.zeros((3, L)), f3((3, 3, L)),
-                  f3((3, 3, L)), f3((3, L)), f3(L), f3((6, L)), f3(L), f3(L),
-                  f3((L, nco)), f3((L, 3)), f3((L, 3)), f3((L, 3)), f3((L, 3, 3)), f3((L, params.shape[2])),
-                  f3((L, 3)), f3((L, 3, 3)), f3((L, 3, N_GYRO)), f3((L, 3)), np.zeros((L, 3, MEAS_COLS.shape[1])),
-                  f3((L, 3, 3)),
-                  f3((4, 3)), f3((4, 3, 3)), f3((4, 3, N_GYRO)), f3(42), f3((3, 3)), f3((3, 3)), f3(3), f3(3),
-                  f3(L), f3(3), f3((L, n)), f3(n), f3(nco))
+    return (f3((n, L)), f3((n * (n + 1) // 2, L)), f3((3, n, L)), f3((3, n, L)), f3((3, n, L)),
+            f3((3, n, L)), f3((3, npc, L)), np.zeros((3, mh, L)), np.zeros((3, L)), f3((3, 3, L)),
+            f3((3, 3, L)), f3((3, L)), f3(L), f3((6, L)), f3(L), f3(L),
+            f3((L, nco)), f3((L, 3)), f3((L, 3)), f3((L, 3)), f3((L, 3, 3)), f3((L, npar)),
+            f3((L, 3)), f3((L, 3, 3)), f3((L, 3, N_GYRO)), f3((L, 3)), np.zeros((L, 3, MEAS_COLS.shape[1])),
+            f3((L, 3, 3)),
+            f3((4, 3)), f3((4, 3, 3)), f3((4, 3, N_GYRO)), f3(42), f3((3, 3)), f3((3, 3)), f3(3), f3(3),
+            f3(L), f3(3), f3((L, n)), f3(n), f3(nco))
 
 
 @njit(parallel=True, cache=True)
@@ -341,9 +334,11 @@ def _run_blocks(nblk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, par
     """Every block of one pass, one block per ``prange`` iteration (threads)."""
     for blk in prange(nblk):
         # prange's index is unsigned: int64 as the serial loop's, so the block kernels compile once
-        _run_block(np.int64(blk), x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
-                   hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k,
-                   seg_t0, seg_last, seg_nis, pidx)
+        _filter_block(np.int64(blk), x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+                      update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec,
+                      seg_k, seg_t0, seg_last, seg_nis, pidx,
+                      *_block_scratch(x.shape[1], pcols.shape[0], hcols.shape[1], coef_fixed.shape[1],
+                                      params.shape[2]))
 
 
 def run_pass_lanes(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
@@ -356,9 +351,11 @@ def run_pass_lanes(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params
             hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, *seg, packed_index(n))
     with slp_vectorize():
         if nblk == 1 or numba.get_num_threads() == 1:
-            # block by block from here: a compiled serial loop would link and optimise the block
-            # kernel's whole module again (~4 s of a cold compile) to save a few us per block
+            # block by block from here, the block kernel called directly: a compiled caller (a
+            # serial loop, or a function allocating the scratch) links and optimises the block
+            # kernel's whole module again (3.7 s of a cold compile) to save a few us per block
+            sizes = (n, pcols.shape[0], hcols.shape[1], coef_fixed.shape[1], params.shape[2])
             for blk in range(nblk):
-                _run_block(blk, *args)
+                _filter_block(blk, *args, *_block_scratch(*sizes))
         else:
             _run_blocks(nblk, *args)

@@ -13,9 +13,6 @@ several processes share the machine (e.g. parallel workflow jobs)::
 ``NUMBA_NUM_THREADS`` (environment, read at import) caps what can be set. numba is imported by
 the first of these calls (:func:`platcal.jit.load_numba`), not by this module: a command whose
 kernels are compiled ahead of time (:mod:`platcal.aot`) never asks for threads.
-
-:func:`job_environment` is what the workflow puts in every job's environment (its memory
-allocator's settings, read when the job's process starts).
 """
 
 from __future__ import annotations
@@ -26,26 +23,6 @@ from contextlib import contextmanager
 import numpy as np
 
 from .jit import load_numba
-
-MMAP_THRESHOLD_BYTES = 1 << 30
-"""Allocations below this come from the allocator's heap (:func:`job_environment`), B."""
-TRIM_THRESHOLD_BYTES = 1 << 32
-"""Free memory at the heap's top kept for reuse up to this (:func:`job_environment`), B."""
-
-
-def job_environment() -> dict[str, str]:
-    """Environment variables for a process that allocates and frees large arrays over and over
-    (a Monte Carlo job: each run's records and outputs; issue 22 item 4): glibc's malloc serves
-    allocations below :data:`MMAP_THRESHOLD_BYTES` from its heap and keeps freed memory (up to
-    :data:`TRIM_THRESHOLD_BYTES` at the top) for the next allocation, and numpy does not ask for
-    transparent huge pages. By default every array above 128 kB-32 MB is a fresh ``mmap`` that
-    the kernel zeroes on first touch (in 2 MB pages when numpy asks for huge pages) and that
-    ``free`` unmaps again: the default study's heaviest Monte Carlo cells spent about 1 s of their
-    7-8 s of CPU zeroing pages. They are read when a process starts (glibc) or imports numpy, so the workflow
-    sets them for its jobs (``workflow/rules/common.smk``); they change no number, only where
-    memory comes from. Other C libraries ignore them."""
-    return {"MALLOC_MMAP_THRESHOLD_": str(MMAP_THRESHOLD_BYTES), "MALLOC_TRIM_THRESHOLD_": str(TRIM_THRESHOLD_BYTES),
-            "NUMPY_MADVISE_HUGEPAGE": "0"}
 
 
 def max_threads() -> int:

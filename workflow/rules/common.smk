@@ -7,16 +7,10 @@ from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
 from platcal.errors import InputError
-from platcal.parallel import job_environment
 from platcal.rig import get_rig, rig_config
 from platcal.study.campaign_file import campaign_content, load_campaign
 from platcal.study.montecarlo import code_hash, compute_code_hash
 from platcal.study.sweep import noise_label
-
-# every job's memory allocator reuses freed memory (platcal.parallel.job_environment; a variable
-# already set is the user's); the jobs inherit this process's environment
-for _var, _value in job_environment().items():
-    os.environ.setdefault(_var, _value)
 
 # config/config.yaml is the index: rigs: {name: config path or inline mapping}
 validate(config, "../schemas/config.schema.yaml")

@@ -328,17 +328,16 @@ def _block_scratch(n, npc, mh, nco, npar):
 
 
 @njit(parallel=True, cache=True)
-def _run_blocks(nblk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
-                hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k, seg_t0,
-                seg_last, seg_nis, pidx):
-    """Every block of one pass, one block per ``prange`` iteration (threads)."""
+def _run_blocks(nblk, sizes, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
+                update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, seg_k,
+                seg_t0, seg_last, seg_nis, pidx):
+    """Every block of one pass, one block per ``prange`` iteration (threads); ``sizes``: the
+    arguments of :func:`_block_scratch`."""
     for blk in prange(nblk):
         # prange's index is unsigned: int64 as the serial loop's, so the block kernels compile once
         _filter_block(np.int64(blk), x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
                       update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec,
-                      seg_k, seg_t0, seg_last, seg_nis, pidx,
-                      *_block_scratch(x.shape[1], pcols.shape[0], hcols.shape[1], coef_fixed.shape[1],
-                                      params.shape[2]))
+                      seg_k, seg_t0, seg_last, seg_nis, pidx, *_block_scratch(*sizes))
 
 
 def run_pass_lanes(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x,
@@ -349,13 +348,13 @@ def run_pass_lanes(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params
     nblk = -(-B // LANES)
     args = (x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x, hist_idx, hist_x,
             hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, *seg, packed_index(n))
+    sizes = (n, pcols.shape[0], hcols.shape[1], coef_fixed.shape[1], params.shape[2])
     with slp_vectorize():
         if nblk == 1 or numba.get_num_threads() == 1:
             # block by block from here, the block kernel called directly: a compiled caller (a
             # serial loop, or a function allocating the scratch) links and optimises the block
             # kernel's whole module again (3.7 s of a cold compile) to save a few us per block
-            sizes = (n, pcols.shape[0], hcols.shape[1], coef_fixed.shape[1], params.shape[2])
             for blk in range(nblk):
                 _filter_block(blk, *args, *_block_scratch(*sizes))
         else:
-            _run_blocks(nblk, *args)
+            _run_blocks(nblk, sizes, *args)

@@ -1,4 +1,7 @@
 """Snakemake wrapper: one noise level of the centrifuge's estimator comparison, every estimator of the level."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import os
 
 # one BLAS thread per process: the parallelism is numba's or Snakemake's jobs

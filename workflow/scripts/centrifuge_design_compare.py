@@ -1,4 +1,7 @@
 """Snakemake wrapper: table1, classical, random and GA schemes by criterion and Monte Carlo error."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path
 
 from platcal.rig import rig_config

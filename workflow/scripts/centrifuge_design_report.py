@@ -1,4 +1,7 @@
 """Snakemake wrapper: the design report (results/centrifuge/design/report.md)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path
 
 from platcal.rig import rig_config

@@ -1,4 +1,7 @@
 """Snakemake wrapper: the centrifuge's single run of Table 2 (platcal.rigs.centrifuge.study.single_job)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import os
 
 for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):

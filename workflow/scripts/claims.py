@@ -1,4 +1,7 @@
 """Snakemake wrapper: one rig's claims evaluated on its results (platcal.study.claims)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path
 
 from platcal.log import job_logger

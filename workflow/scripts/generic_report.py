@@ -1,4 +1,7 @@
 """Snakemake wrapper: the report of a rig without rules of its own (platcal.study.generic_report)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path
 
 from platcal.log import job_logger

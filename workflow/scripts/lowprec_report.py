@@ -1,4 +1,7 @@
 """Snakemake wrapper: tables, figures and report.md of the lowprec_centrifuge study from its tidy tables."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path
 
 from platcal.log import job_logger

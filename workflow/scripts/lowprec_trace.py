@@ -1,4 +1,7 @@
 """Snakemake wrapper: the figures' traces of the lowprec_centrifuge study (replicate 0, default scenario)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from platcal.log import job_logger
 from platcal.rigs.lowprec_centrifuge.montecarlo import study_trace
 from platcal.rigs.lowprec_centrifuge.traces import write_trace

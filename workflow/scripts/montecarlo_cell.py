@@ -1,5 +1,8 @@
 """Snakemake wrapper: one Monte Carlo cell (case, noise level; every estimator) of any rig
 (platcal.study.montecarlo.cell_job)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import os
 
 # one BLAS thread per process: the parallelism is numba's prange or joblib's workers

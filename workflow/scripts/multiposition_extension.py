@@ -1,4 +1,7 @@
 """Section 13: ranks with and without DOO, covariance-only sigma of the higher-order terms."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import json
 
 import pandas as pd

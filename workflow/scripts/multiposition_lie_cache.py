@@ -1,4 +1,7 @@
 """Build (or load) the cached symbolic Lie-derivative Jacobians once, before the jobs that use them."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import json, time  # noqa: E401
 
 from platcal.io import atomic_write_text

@@ -1,4 +1,7 @@
 """Scheme check of every rank scheme in one job: `platcal observability` for each (one import, not ten)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from types import SimpleNamespace
 
 from platcal.log import job_logger

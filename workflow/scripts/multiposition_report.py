@@ -1,4 +1,7 @@
 """Tables, figures and report.md of the multiposition study (its Monte Carlo from the collected tidy tables)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from platcal.log import job_logger
 from platcal.rigs.multiposition.report import report_job
 

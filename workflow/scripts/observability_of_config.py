@@ -1,4 +1,7 @@
 """`platcal observability` of a rule's config content (no config path: the content is the param)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import sys
 import tempfile
 from contextlib import redirect_stderr, redirect_stdout

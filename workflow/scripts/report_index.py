@@ -1,5 +1,8 @@
 """Snakemake wrapper: results/report.md, the claims ledger and the index linking each rig's report,
 closed by the "Where the time goes" table of the jobs' benchmark files (results/timing.*)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path
 
 from platcal.log import job_logger

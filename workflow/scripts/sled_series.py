@@ -1,4 +1,7 @@
 """Snakemake wrapper: one sled case's replicate 0 as time series (platcal.rigs.sled.series.write_series)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import os
 
 for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):

@@ -1,4 +1,7 @@
 """Snakemake wrapper: sled Table-1 analogue, §11 checks, figures and report.md (study.summarise)."""
+from platcal.study.forkserver import delegate
+
+delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path
 
 from platcal.log import job_logger

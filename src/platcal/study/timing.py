@@ -6,11 +6,15 @@ Every rule of the workflow writes ``results/benchmarks/<rig>/<rule>/<job>.tsv`` 
 study). Snakemake's file holds the job's wall time ``s`` (seconds, exact), ``cpu_time`` (CPU
 seconds of the job's processes, user + system, *sampled*: every 0.5 s for the first 30 s, then
 every 30 s, so a long job's last seconds are missing and the figure is a lower bound) and
-``max_rss`` (MB, sampled the same way).
+``max_rss`` (MB, sampled the same way). A job forked by the study's fork server
+(:mod:`platcal.study.forkserver`) ran in a child of the server, which Snakemake does not watch:
+its CPU s (exact, from ``wait4``) and peak RSS are in ``<job>.worker.json`` beside the file,
+written just before Snakemake writes ``<job>.tsv`` (:data:`WORKER_LAG_S`).
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pandas as pd
@@ -26,8 +30,22 @@ TIMING_NOTE = ("Job-seconds per rig and rule from the Snakemake benchmark files 
                "<rig>/<rule>/<job>.tsv) of the latest run of each job of this study's rigs: wall_s sums the "
                "jobs' wall seconds "
                "(jobs run side by side, so the sum exceeds the study's wall time), cpu_s their CPU seconds "
-               "as Snakemake samples them (a lower bound for jobs over 30 s), max_s the longest job. "
+               "(exact for a job the fork server ran, from its <job>.worker.json; else as Snakemake "
+               "samples them, a lower bound for jobs over 30 s), max_s the longest job. "
                "report_index, which writes this table, is not in it.")
+
+
+WORKER_LAG_S = 60.0
+"""A ``<job>.worker.json`` is the run's if Snakemake wrote ``<job>.tsv`` at most this long after it
+(a later run of the job in its own interpreter leaves an older one)."""
+
+
+def worker_cost(tsv: Path) -> dict | None:
+    """The fork server's figures of the job run ``tsv`` records (cpu_s, max_rss_mb), or None."""
+    side = tsv.with_suffix(".worker.json")
+    if not side.exists() or not 0.0 <= tsv.stat().st_mtime - side.stat().st_mtime <= WORKER_LAG_S:
+        return None
+    return json.loads(side.read_text())
 
 
 STUDY_WIDE = ("study", "campaign")
@@ -50,8 +68,9 @@ def read_benchmarks(root, rigs=None) -> pd.DataFrame:
             raise InputError(str(f), f"not a Snakemake benchmark file (no column {', '.join(missing)}); "
                              "delete it and rerun the rule")
         last = bench.iloc[-1]  # a --benchmark-repeats run holds several rows: the last is this run
+        cost = worker_cost(f) or {"cpu_s": float(last["cpu_time"]), "max_rss_mb": float(last["max_rss"])}
         rows.append({"rig": rig, "rule": rule, "job": f.stem, "wall_s": float(last["s"]),
-                     "cpu_s": float(last["cpu_time"]), "max_rss_mb": float(last["max_rss"])})
+                     "cpu_s": float(cost["cpu_s"]), "max_rss_mb": float(cost["max_rss_mb"])})
     return pd.DataFrame(rows, columns=["rig", "rule", "job", "wall_s", "cpu_s", "max_rss_mb"])
 
 

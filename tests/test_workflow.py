@@ -4,6 +4,7 @@ Each test copies the workflow (Snakefile, workflow/, config/) into a temporary f
 repository's results/ is never touched. The tiny study is ``config/test.yaml``.
 """
 
+import json
 import re
 import textwrap
 from pathlib import Path
@@ -11,6 +12,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from workflow_copy import ROOT, copy_workflow, needs_snakemake
+
+from platcal.study.timing import read_benchmarks
 from workflow_copy import snakemake as smk  # the tiny study's 29 jobs: ~2 min quiet, several times that loaded
 
 pytestmark = needs_snakemake
@@ -81,6 +84,14 @@ def test_tiny_study_end_to_end(tmp_path):
     cell = coef[(coef.scheme == "table1") & (coef.noise == 10) & (coef.estimator == "ekf1") & (coef.replicate == 0)]
     assert one["estimate"].tolist() == cell["estimate"].tolist()
     before = outputs(d)
+    # the jobs that started once the fork server was ready ran in it: the timing table has their
+    # children's own CPU seconds (platcal.study.forkserver), not their waiting clients'
+    workers = sorted((d / "results/benchmarks").rglob("*.worker.json"))
+    assert len(workers) >= 10, "the fork server ran no job"
+    jobs = read_benchmarks(d / "results/benchmarks").set_index(["rig", "rule", "job"])
+    for w in workers:
+        cpu = json.loads(w.read_text())["cpu_s"]
+        assert jobs.loc[(w.parent.parent.name, w.parent.name, w.name.split(".")[0]), "cpu_s"] == cpu, w
 
     # the HTML report embeds the figures and the HTML Table 2
     r = smk(d, "--configfile", "config/test.yaml", "--report", "results/report.html", timeout=200)

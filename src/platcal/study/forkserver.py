@@ -35,12 +35,14 @@ from __future__ import annotations
 import argparse
 import ast
 import atexit
+import gc
 import importlib
 import json
 import logging
 import os
 import runpy
 import selectors
+import shutil
 import signal
 import socket
 import struct
@@ -69,13 +71,20 @@ _HEADER = struct.Struct("!I")
 @dataclass(frozen=True)
 class Request:
     """What a client hands the server: the script to run as ``__main__`` (``argv[0]``), its
-    working directory and environment, and the benchmark file of its job (relative to ``cwd``;
-    empty when the rule has none)."""
+    working directory and environment, the benchmark file of its job (relative to ``cwd``; empty
+    when the rule has none) and its interpreter (:func:`interpreter`)."""
 
     argv: list
     cwd: str
     env: dict
     bench: str
+    python: list
+
+
+def interpreter() -> list:
+    """This interpreter: its executable, prefix and version. A job of a conda environment or a
+    container has another: the server (the workflow's own) cannot run it."""
+    return [sys.executable, sys.prefix, sys.version]
 
 
 def _send(sock: socket.socket, obj: dict, fds: tuple = ()) -> None:
@@ -131,7 +140,7 @@ def delegate(sm) -> None:
         sock.connect(path)
         env = {k: v for k, v in os.environ.items() if not k.startswith(ENV_VAR)}
         argv = [os.path.abspath(sys.argv[0]), *sys.argv[1:]]
-        _send(sock, {"argv": argv, "cwd": os.getcwd(), "env": env, "bench": bench},
+        _send(sock, {"argv": argv, "cwd": os.getcwd(), "env": env, "bench": bench, "python": interpreter()},
               (sys.stdout.fileno(), sys.stderr.fileno()))
         reply, _ = _recv(sock)
     except OSError:
@@ -240,7 +249,10 @@ def _run_child(req: Request, fds: list, conn: socket.socket) -> None:
 
 
 def refusal(req: Request, base: dict) -> str:
-    """Why the server cannot run this job ('' if it can): an import-time setting that differs."""
+    """Why the server cannot run this job ('' if it can): another interpreter, or an import-time
+    setting that differs."""
+    if req.python != interpreter():
+        return f"another interpreter ({req.python[0]})"
     for k in sorted(set(base) | {k for k in req.env if k.startswith(FIXED_AT_IMPORT)}):
         want = base.get(k)
         if k in JOB_THREADS:
@@ -292,8 +304,11 @@ def serve(path: str, log=sys.stderr) -> None:
                 _reap(key.data, sel, running)
     sel.close()
     listener.close()
-    if os.path.exists(path):
+    try:
         os.unlink(path)
+        os.rmdir(os.path.dirname(path))
+    except OSError:
+        pass
 
 
 def _accept(listener, sel, running, base, log) -> None:
@@ -356,20 +371,20 @@ def _reap(pidfd, sel, running) -> None:
 # ---- the workflow's side: start and stop (Snakefile onstart, onsuccess, onerror)
 
 def start(folder, scripts, rigs, bench: dict, wait_s: float = 0.0) -> subprocess.Popen:
-    """Start a server for this workflow run (socket in ``folder``), preloading what the scripts
+    """Start a server for this workflow run (its log in ``folder``), preloading what the scripts
     in ``scripts`` import and the ``rigs``' hooks, and point the jobs at it (``os.environ``: the
     socket and the rules' benchmark patterns ``bench``). It answers once its imports are done
     (about 3 s); jobs that start before run in their own interpreters. ``wait_s``: wait up to
     that long for it (tests)."""
     folder = Path(folder).resolve()
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"forkserver-{os.getpid()}.sock"
-    if path.exists():
-        path.unlink()
+    # a socket's path is at most 107 bytes (a workflow's folder may be longer); a folder of mode
+    # 0700, so that no other user can connect and have a script run as this one
+    path = Path(tempfile.mkdtemp(prefix="platcal-fs-"), "sock")
     env = dict(os.environ, **JOB_THREADS)
     env.pop(ENV_VAR, None)
     log = open(folder / f"forkserver-{os.getpid()}.log", "w")
-    cmd = [sys.executable, "-m", __name__, str(path), "--scripts", str(scripts), "--rigs", *rigs]
+    cmd = [sys.executable, "-m", __name__, str(path), "--rigs", *rigs] + (["--scripts", str(scripts)] if scripts else [])
     # a session of its own: a Ctrl-C goes to Snakemake and the clients, which forward it to their jobs
     proc = subprocess.Popen(cmd, env=env, stdout=log, stderr=log, stdin=subprocess.DEVNULL, start_new_session=True)
     log.close()
@@ -383,7 +398,7 @@ def start(folder, scripts, rigs, bench: dict, wait_s: float = 0.0) -> subprocess
 
 def stop(proc: subprocess.Popen | None) -> None:
     """Stop the server :func:`start` started (the jobs no longer look for it)."""
-    os.environ.pop(ENV_VAR, None)
+    path = os.environ.pop(ENV_VAR, None)
     os.environ.pop(f"{ENV_VAR}_BENCH", None)
     if proc is not None and proc.poll() is None:
         proc.terminate()
@@ -392,6 +407,8 @@ def stop(proc: subprocess.Popen | None) -> None:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+    if path and Path(path).parent.name.startswith("platcal-fs-"):  # a server that could not clean up
+        shutil.rmtree(Path(path).parent, ignore_errors=True)
 
 
 def main(argv=None) -> int:
@@ -402,6 +419,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     t0 = time.process_time()
     preload(script_imports(a.scripts) if a.scripts else [], a.rigs)
+    gc.freeze()  # the children's collections then skip the preloaded objects (and leave their pages shared)
     print(f"fork server {os.getpid()}: preloaded in {time.process_time() - t0:.2f} s CPU", file=sys.stderr, flush=True)
     serve(a.socket)
     return 0

@@ -35,7 +35,6 @@ from __future__ import annotations
 import argparse
 import ast
 import atexit
-import gc
 import importlib
 import json
 import logging
@@ -191,8 +190,8 @@ def preload(modules, rigs) -> None:
     rig_module = importlib.import_module("platcal.rig")
     for r in rigs:
         rig_module.get_rig(r).montecarlo
-    from numba.core.registry import cpu_target
-    cpu_target.target_context  # LLVM and the target's registries: 0.2 s a job
+    # by name: a client imports this module, and must not load numba (the server's alone does)
+    importlib.import_module("numba.core.registry").cpu_target.target_context  # LLVM and the registries: 0.2 s a job
 
 
 def _exit_code(exc: SystemExit) -> int:
@@ -283,6 +282,7 @@ def _write_cost(req: Request, wall: float, ru) -> None:
 def serve(path: str, log=sys.stderr) -> None:
     """Accept jobs on the Unix socket ``path`` until SIGTERM or until the parent process ends."""
     parent = os.getppid()
+    os.close(os.pidfd_open(os.getpid()))  # Linux >= 5.3; else this fails before any client connects
     base = {k: v for k, v in os.environ.items() if k.startswith(FIXED_AT_IMPORT)}
     listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     tmp = f"{path}.{os.getpid()}"
@@ -370,12 +370,15 @@ def _reap(pidfd, sel, running) -> None:
 
 # ---- the workflow's side: start and stop (Snakefile onstart, onsuccess, onerror)
 
-def start(folder, scripts, rigs, bench: dict, wait_s: float = 0.0) -> subprocess.Popen:
+def start(folder, scripts, rigs, bench: dict, wait_s: float = 0.0) -> subprocess.Popen | None:
     """Start a server for this workflow run (its log in ``folder``), preloading what the scripts
     in ``scripts`` import and the ``rigs``' hooks, and point the jobs at it (``os.environ``: the
     socket and the rules' benchmark patterns ``bench``). It answers once its imports are done
     (about 3 s); jobs that start before run in their own interpreters. ``wait_s``: wait up to
-    that long for it (tests)."""
+    that long for it (tests). None (every job in its own interpreter) where the system cannot
+    watch a child through a file descriptor (``os.pidfd_open``: Linux only)."""
+    if not hasattr(os, "pidfd_open"):
+        return None
     folder = Path(folder).resolve()
     folder.mkdir(parents=True, exist_ok=True)
     # a socket's path is at most 107 bytes (a workflow's folder may be longer); a folder of mode
@@ -419,7 +422,6 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     t0 = time.process_time()
     preload(script_imports(a.scripts) if a.scripts else [], a.rigs)
-    gc.freeze()  # the children's collections then skip the preloaded objects (and leave their pages shared)
     print(f"fork server {os.getpid()}: preloaded in {time.process_time() - t0:.2f} s CPU", file=sys.stderr, flush=True)
     serve(a.socket)
     return 0

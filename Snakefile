@@ -6,6 +6,8 @@
 # Rigs are found, not listed (platcal.rig.rig_modules): each rig of the index gets the generic
 # Monte Carlo rules when it has Monte Carlo hooks, its own rules file when it has one
 # (workflow/rules/<rig>.smk or Rig.rules, defining <RIG>_TARGETS), else the generic report.
+import os
+
 from snakemake.utils import min_version
 
 from platcal.study import forkserver
@@ -46,8 +48,8 @@ rule all:
 
 
 # One process imports what the jobs import, and forks each job's process (platcal.study.forkserver):
-# about 0.5-1.5 s CPU of imports less per job. Jobs that start before it is ready, or that it
-# refuses (more than one thread), run in their own interpreters as before.
+# about 0.3-1.5 s CPU of imports less per job. Jobs that start before it is ready, or that it
+# refuses (more than one thread, another interpreter), run in their own interpreters as before.
 FORKSERVER = []
 
 

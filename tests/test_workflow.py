@@ -91,7 +91,7 @@ def test_tiny_study_end_to_end(tmp_path):
     jobs = read_benchmarks(d / "results/benchmarks").set_index(["rig", "rule", "job"])
     for w in workers:
         cpu = json.loads(w.read_text())["cpu_s"]
-        assert jobs.loc[(w.parent.parent.name, w.parent.name, w.name.split(".")[0]), "cpu_s"] == cpu, w
+        assert jobs.loc[(w.parent.parent.name, w.parent.name, w.name[:-len(".worker.json")]), "cpu_s"] == cpu, w
 
     # the HTML report embeds the figures and the HTML Table 2
     r = smk(d, "--configfile", "config/test.yaml", "--report", "results/report.html", timeout=200)

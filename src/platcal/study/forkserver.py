@@ -116,6 +116,12 @@ def _recv(sock: socket.socket, nfds: int = 0) -> tuple[dict | None, list]:
     return json.loads(buf), fds
 
 
+def worker_file(bench) -> Path:
+    """Where the server writes a forked job's own cost: ``<job>.worker.json`` beside its
+    benchmark file ``<job>.tsv``."""
+    return Path(bench).with_suffix(".worker.json")
+
+
 # ---- the client: the first statement of every workflow script
 
 def bench_of(sm) -> str:
@@ -147,7 +153,7 @@ def delegate(sm) -> None:
     if reply is None or "pid" not in reply:  # no server, or refused: this interpreter runs the job
         sock.close()
         if bench:  # Snakemake's own figures are this job's: no stale worker's beside them
-            Path(bench).with_suffix(".worker.json").unlink(missing_ok=True)
+            worker_file(bench).unlink(missing_ok=True)
         return
     pid = reply["pid"]
 
@@ -270,7 +276,7 @@ def _write_cost(req: Request, wall: float, ru) -> None:
     """The child's CPU and peak RSS beside the job's benchmark file (written, then renamed)."""
     if not req.bench:
         return
-    path = Path(req.cwd, req.bench).with_suffix(".worker.json")
+    path = worker_file(Path(req.cwd, req.bench))
     path.parent.mkdir(parents=True, exist_ok=True)
     cost = {"cpu_s": ru.ru_utime + ru.ru_stime, "max_rss_mb": ru.ru_maxrss / 1024.0, "wall_s": wall}
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")

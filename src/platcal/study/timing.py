@@ -20,6 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import InputError
+from .forkserver import worker_file
 from .tables import write_table
 
 COLUMNS = ("s", "cpu_time", "max_rss")
@@ -42,7 +43,7 @@ WORKER_LAG_S = 60.0
 
 def worker_cost(tsv: Path) -> dict | None:
     """The fork server's figures of the job run ``tsv`` records (cpu_s, max_rss_mb), or None."""
-    side = tsv.with_suffix(".worker.json")
+    side = worker_file(tsv)
     if not side.exists() or not 0.0 <= tsv.stat().st_mtime - side.stat().st_mtime <= WORKER_LAG_S:
         return None
     return json.loads(side.read_text())

@@ -98,6 +98,8 @@ def test_a_job_with_other_threads_or_no_server_runs_in_its_own_interpreter(serve
     assert not stale.exists()  # Snakemake's figures are this run's: no worker's beside them
     r = run(script, dict(env, NUMBA_OPT="1"), tmp_path)
     assert r.returncode == 0 and facts(r.stdout)["ppid"] != proc.pid
+    r = run(script, {k: v for k, v in env.items() if k not in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS")}, tmp_path)
+    assert r.returncode == 0 and facts(r.stdout)["ppid"] != proc.pid  # no thread count: every core
     r = run(script, dict(env, **{forkserver.ENV_VAR: str(tmp_path / "none.sock")}), tmp_path)
     assert r.returncode == 0 and facts(r.stdout)["ppid"] != proc.pid
 

@@ -2,8 +2,8 @@
 they import (issue 22 item 4).
 
 A workflow job is a fresh interpreter (Snakemake's ``script:``), and before it computes anything
-it spends 0.5-1.5 s CPU importing numpy, numba and its target, scipy, pyarrow and platcal's
-modules: about a tenth of the default study's job-seconds over its 87 jobs. The workflow starts
+it spends 0.3-1.5 s CPU importing numpy, numba and its target, scipy, pyarrow and platcal's
+modules: about a sixth of the default study's job-seconds over its 87 jobs. The workflow starts
 one server per run (``onstart``, :func:`start`): it imports the modules that the workflow's
 scripts import at their top, the rigs' Monte Carlo hooks and numba's CPU target, then waits on a
 Unix socket. Each job's script opens with :func:`delegate`: the job's interpreter (the client)
@@ -261,8 +261,8 @@ def refusal(req: Request, base: dict) -> str:
     for k in sorted(set(base) | {k for k in req.env if k.startswith(FIXED_AT_IMPORT)}):
         want = base.get(k)
         if k in JOB_THREADS:
-            # the job's threads: Snakemake's OMP_NUM_THREADS; the scripts then set the BLAS ones to 1
-            if k == "OMP_NUM_THREADS" and req.env.get(k, want) != want:
+            # the job's threads: Snakemake sets OMP_NUM_THREADS (and the BLAS ones) to the rule's
+            if k == "OMP_NUM_THREADS" and req.env.get(k) != want:
                 return f"{k}={req.env.get(k)} (the server runs one-thread jobs)"
             continue
         if req.env.get(k) != want:

@@ -15,14 +15,14 @@ from pathlib import Path
 
 import pytest
 
-from platcal.study import forkserver, timing
+from platcal.study import forkclient, forkserver, timing
 
 # a job script as Snakemake writes it: a preamble defining ``snakemake``, then the script, whose
 # first statement hands the job to the server
 SCRIPT = textwrap.dedent("""\
     import types
     snakemake = types.SimpleNamespace(rule="work", wildcards={"case": "a1"})
-    from platcal.study.forkserver import delegate
+    from platcal.study.forkclient import delegate
     delegate(snakemake)
     import os, sys, time
     print("pid", os.getpid(), "ppid", os.getppid(), "cwd", os.getcwd(), "foo", os.environ.get("FOO"), flush=True)
@@ -49,7 +49,7 @@ def server(tmp_path_factory):
     env = dict(os.environ, OMP_NUM_THREADS="1")
     os.environ.clear()
     os.environ.update(saved)
-    assert proc.poll() is None and Path(env[forkserver.ENV_VAR]).exists(), "the server did not start"
+    assert proc.poll() is None and Path(env[forkclient.ENV_VAR]).exists(), "the server did not start"
     yield proc, env, d
     forkserver.stop(proc)
 
@@ -100,7 +100,7 @@ def test_a_job_with_other_threads_or_no_server_runs_in_its_own_interpreter(serve
     assert r.returncode == 0 and facts(r.stdout)["ppid"] != proc.pid
     r = run(script, {k: v for k, v in env.items() if k not in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS")}, tmp_path)
     assert r.returncode == 0 and facts(r.stdout)["ppid"] != proc.pid  # no thread count: every core
-    r = run(script, dict(env, **{forkserver.ENV_VAR: str(tmp_path / "none.sock")}), tmp_path)
+    r = run(script, dict(env, **{forkclient.ENV_VAR: str(tmp_path / "none.sock")}), tmp_path)
     assert r.returncode == 0 and facts(r.stdout)["ppid"] != proc.pid
 
 
@@ -180,11 +180,11 @@ def test_a_job_of_another_interpreter_is_refused(server, tmp_path):
     script = tmp_path / "job.py"
     script.write_text(SCRIPT)
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    sock.connect(env[forkserver.ENV_VAR])
-    other = ["/opt/env/bin/python", "/opt/env", forkserver.interpreter()[2]]
-    forkserver._send(sock, {"argv": [str(script)], "cwd": str(tmp_path), "env": env, "bench": "",
+    sock.connect(env[forkclient.ENV_VAR])
+    other = ["/opt/env/bin/python", "/opt/env", forkclient.interpreter()[2]]
+    forkclient.send_message(sock, {"argv": [str(script)], "cwd": str(tmp_path), "env": env, "bench": "",
                             "python": other}, (1, 2))
-    reply, _ = forkserver._recv(sock)
+    reply, _ = forkclient.recv_message(sock)
     sock.close()
     assert reply == {"refused": "another interpreter (/opt/env/bin/python)"}
 
@@ -195,11 +195,11 @@ def test_a_workflow_folder_of_any_length_gets_a_server_and_leaves_no_socket(tmp_
     saved = dict(os.environ)
     try:
         proc = forkserver.start(deep, None, [], {}, wait_s=120)
-        path = Path(os.environ[forkserver.ENV_VAR])
+        path = Path(os.environ[forkclient.ENV_VAR])
         assert path.exists() and proc.poll() is None
         assert path.parent.stat().st_mode & 0o077 == 0  # no other user may connect
         forkserver.stop(proc)
-        assert not path.parent.exists() and forkserver.ENV_VAR not in os.environ
+        assert not path.parent.exists() and forkclient.ENV_VAR not in os.environ
     finally:
         os.environ.clear()
         os.environ.update(saved)

@@ -1,5 +1,5 @@
 """Snakemake wrapper: one noise level of the centrifuge's estimator comparison, every estimator of the level."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import os

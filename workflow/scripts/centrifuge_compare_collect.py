@@ -1,5 +1,5 @@
 """Snakemake wrapper: the estimator comparison's cells into results/centrifuge/compare/."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from platcal.study.collect import collect_job

@@ -1,5 +1,5 @@
 """Snakemake wrapper: table1, classical, random and GA schemes by criterion and Monte Carlo error."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path

@@ -1,5 +1,5 @@
 """Snakemake wrapper: one GA scheme design (results/centrifuge/design/<name>.yaml)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from platcal.rig import rig_config

@@ -4,7 +4,7 @@ docs/centrifuge-model.md §11 reports Spearman(J, actual RMS relative error) = 0
 repeats that design (table1 + random_1..20, one replicate per scheme) for 8 draws, and pools
 them. Run: python workflow/scripts/centrifuge_design_single_draw_check.py [config/centrifuge.yaml]
 """
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import sys

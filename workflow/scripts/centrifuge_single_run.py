@@ -1,5 +1,5 @@
 """Snakemake wrapper: the centrifuge's single run of Table 2 (platcal.rigs.centrifuge.study.single_job)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import os

@@ -1,5 +1,5 @@
 """Snakemake wrapper: one rig's claims evaluated on its results (platcal.study.claims)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path

@@ -1,6 +1,6 @@
 """Snakemake wrapper: concatenate a rig's cells (one folder per estimator in each) into its
 study-wide tidy tables."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from platcal.study.collect import collect_job

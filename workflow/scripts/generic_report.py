@@ -1,5 +1,5 @@
 """Snakemake wrapper: the report of a rig without rules of its own (platcal.study.generic_report)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path

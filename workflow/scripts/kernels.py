@@ -1,5 +1,5 @@
 """Snakemake wrapper: compile (or load from numba's cache) a rig's kernels once, before the jobs that run its estimators (the rig's Monte Carlo hook ``warm_kernels``)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import json

@@ -1,6 +1,6 @@
 """Snakemake wrapper: results/claims.{csv,md,html}, the ledger of every rig's claims, and
 results/claims_front.html, its short form on the HTML report's front page."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path

@@ -1,5 +1,5 @@
 """Snakemake wrapper: tables, figures and report.md of the lowprec_centrifuge study from its tidy tables."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path

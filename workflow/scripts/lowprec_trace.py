@@ -1,5 +1,5 @@
 """Snakemake wrapper: the figures' traces of the lowprec_centrifuge study (replicate 0, default scenario)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from platcal.log import job_logger

@@ -1,6 +1,6 @@
 """Snakemake wrapper: one Monte Carlo cell (case, noise level; every estimator) of any rig
 (platcal.study.montecarlo.cell_job)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import os

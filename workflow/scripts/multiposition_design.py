@@ -1,5 +1,5 @@
 """A-optimal GA designs (one per number of positions), compared with S8 and TET4."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import pandas as pd

@@ -1,5 +1,5 @@
 """Section 13: ranks with and without DOO, covariance-only sigma of the higher-order terms."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import json

@@ -1,5 +1,5 @@
 """Build (or load) the cached symbolic Lie-derivative Jacobians once, before the jobs that use them."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import json, time  # noqa: E401

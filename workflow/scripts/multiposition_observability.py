@@ -1,5 +1,5 @@
 """Scheme check of every rank scheme in one job: `platcal observability` for each (one import, not ten)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from types import SimpleNamespace

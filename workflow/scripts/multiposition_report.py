@@ -1,5 +1,5 @@
 """Tables, figures and report.md of the multiposition study (its Monte Carlo from the collected tidy tables)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from platcal.log import job_logger

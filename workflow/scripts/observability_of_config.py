@@ -1,5 +1,5 @@
 """`platcal observability` of a rule's config content (no config path: the content is the param)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import sys

@@ -1,6 +1,6 @@
 """Snakemake wrapper: results/report.md, the claims ledger and the index linking each rig's report,
 closed by the "Where the time goes" table of the jobs' benchmark files (results/timing.*)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path

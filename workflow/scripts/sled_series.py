@@ -1,5 +1,5 @@
 """Snakemake wrapper: one sled case's replicate 0 as time series (platcal.rigs.sled.series.write_series)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 import os

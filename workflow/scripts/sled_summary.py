@@ -1,5 +1,5 @@
 """Snakemake wrapper: sled Table-1 analogue, §11 checks, figures and report.md (study.summarise)."""
-from platcal.study.forkserver import delegate
+from platcal.study.forkclient import delegate
 
 delegate(snakemake)  # noqa: F821  (run by the study's fork server when one runs: the job ends here)
 from pathlib import Path

@@ -6,9 +6,9 @@ it spends 0.3-1.5 s CPU importing numpy, numba and its target, scipy, pyarrow an
 modules: about a sixth of the default study's job-seconds over its 87 jobs. The workflow starts
 one server per run (``onstart``, :func:`start`): it imports the modules that the workflow's
 scripts import at their top, the rigs' Monte Carlo hooks and numba's CPU target, then waits on a
-Unix socket. Each job's script opens with :func:`delegate`: the job's interpreter (the client)
-hands the server its script, arguments, working directory, environment, standard output and
-error; the server forks, the child runs the script as ``__main__`` exactly as the interpreter
+Unix socket. Each job's script opens with :func:`platcal.study.forkclient.delegate`: the job's
+interpreter (the client) hands the server its script, arguments, working directory, environment,
+standard output and error; the server forks, the child runs the script as ``__main__`` exactly as the interpreter
 would, and the client waits, forwards SIGINT and SIGTERM to the child, and exits with the child's
 status. The numbers do not change: the same code runs on the same inputs, each job in a process
 of its own; only the imports are done once.
@@ -44,7 +44,6 @@ import selectors
 import shutil
 import signal
 import socket
-import struct
 import subprocess
 import sys
 import tempfile
@@ -54,17 +53,16 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-from snakemake.io import apply_wildcards
+from ..io import atomic_write_text
+from .forkclient import ENV_VAR, interpreter, recv_message, send_message, worker_file
 
-ENV_VAR = "PLATCAL_FORKSERVER"
-"""The environment variable naming the server's socket in the workflow's jobs."""
+
 FIXED_AT_IMPORT = ("NUMBA_", "OMP_", "OPENBLAS_", "MKL_", "PYTHON")
 """Prefixes of the environment variables read when numba, BLAS, OpenMP or the interpreter start:
 a job whose values differ from the server's runs in its own interpreter."""
 JOB_THREADS = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 """The server runs as a one-thread job does (the workflow's jobs set one BLAS thread; a job given
 more threads differs in ``OMP_NUM_THREADS`` and runs in its own interpreter)."""
-_HEADER = struct.Struct("!I")
 
 
 @dataclass(frozen=True)
@@ -78,100 +76,6 @@ class Request:
     env: dict
     bench: str
     python: list
-
-
-def interpreter() -> list:
-    """This interpreter: its executable, prefix and version. A job of a conda environment or a
-    container has another: the server (the workflow's own) cannot run it."""
-    return [sys.executable, sys.prefix, sys.version]
-
-
-def _send(sock: socket.socket, obj: dict, fds: tuple = ()) -> None:
-    data = json.dumps(obj).encode()
-    msg = _HEADER.pack(len(data)) + data
-    if fds:
-        socket.send_fds(sock, [msg], list(fds))
-    else:
-        sock.sendall(msg)
-
-
-def _recv(sock: socket.socket, nfds: int = 0) -> tuple[dict | None, list]:
-    """One message (and up to ``nfds`` file descriptors); ``(None, [])`` when the peer closed."""
-    buf, fds = b"", []
-    while len(buf) < _HEADER.size:
-        if nfds and not fds:
-            chunk, fds, _, _ = socket.recv_fds(sock, 65536, nfds)
-        else:
-            chunk = sock.recv(65536)
-        if not chunk:
-            return None, fds
-        buf += chunk
-    (size,) = _HEADER.unpack(buf[:_HEADER.size])
-    buf = buf[_HEADER.size:]
-    while len(buf) < size:
-        chunk = sock.recv(size - len(buf))
-        if not chunk:
-            return None, fds
-        buf += chunk
-    return json.loads(buf), fds
-
-
-def worker_file(bench) -> Path:
-    """Where the server writes a forked job's own cost: ``<job>.worker.json`` beside its
-    benchmark file ``<job>.tsv``."""
-    return Path(bench).with_suffix(".worker.json")
-
-
-# ---- the client: the first statement of every workflow script
-
-def bench_of(sm) -> str:
-    """The job's benchmark file, from the pattern the workflow gives the server's environment
-    (``PLATCAL_FORKSERVER_BENCH``: rule -> pattern) and the job's wildcards; empty if none."""
-    patterns = json.loads(os.environ.get(f"{ENV_VAR}_BENCH", "{}"))
-    pattern = patterns.get(getattr(sm, "rule", ""), "")
-    return apply_wildcards(pattern, dict(sm.wildcards.items())) if pattern else ""
-
-
-def delegate(sm) -> None:
-    """Run this job's script in the study's fork server and exit with its status; return (and so
-    run the job here) when no server answers or it refuses the job. ``sm``: the script's
-    ``snakemake`` object (for the job's benchmark file)."""
-    path = os.environ.get(ENV_VAR)
-    if not path:
-        return
-    bench = bench_of(sm)
-    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    try:
-        sock.connect(path)
-        env = {k: v for k, v in os.environ.items() if not k.startswith(ENV_VAR)}
-        argv = [os.path.abspath(sys.argv[0]), *sys.argv[1:]]
-        _send(sock, {"argv": argv, "cwd": os.getcwd(), "env": env, "bench": bench, "python": interpreter()},
-              (sys.stdout.fileno(), sys.stderr.fileno()))
-        reply, _ = _recv(sock)
-    except OSError:
-        reply = None
-    if reply is None or "pid" not in reply:  # no server, or refused: this interpreter runs the job
-        sock.close()
-        if bench:  # Snakemake's own figures are this job's: no stale worker's beside them
-            worker_file(bench).unlink(missing_ok=True)
-        return
-    pid = reply["pid"]
-
-    def forward(signum, frame):
-        try:
-            os.kill(pid, signum)
-        except ProcessLookupError:
-            pass
-
-    for s in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(s, forward)
-    done, _ = _recv(sock)
-    sys.stdout.flush()
-    sys.stderr.flush()
-    if done is None:
-        sys.stderr.write("platcal fork server: the server closed the connection before the job ended\n")
-        os._exit(1)
-    os._exit(int(done["status"]))
 
 
 # ---- the server
@@ -279,10 +183,7 @@ def _write_cost(req: Request, wall: float, ru) -> None:
     path = worker_file(Path(req.cwd, req.bench))
     path.parent.mkdir(parents=True, exist_ok=True)
     cost = {"cpu_s": ru.ru_utime + ru.ru_stime, "max_rss_mb": ru.ru_maxrss / 1024.0, "wall_s": wall}
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(cost, f)
-    os.replace(tmp, path)
+    atomic_write_text(path, json.dumps(cost))
 
 
 def serve(path: str, log=sys.stderr) -> None:
@@ -321,7 +222,7 @@ def _accept(listener, sel, running, base, log) -> None:
     conn, _ = listener.accept()
     conn.settimeout(10.0)
     try:
-        msg, fds = _recv(conn, 2)
+        msg, fds = recv_message(conn, 2)
     except OSError:
         conn.close()
         return
@@ -332,7 +233,7 @@ def _accept(listener, sel, running, base, log) -> None:
             os.close(fd)
         print(f"fork server: refused {req.argv[0] if req else '?'}: {why}", file=log, flush=True)
         try:
-            _send(conn, {"refused": why})
+            send_message(conn, {"refused": why})
         except OSError:
             pass
         conn.close()
@@ -355,7 +256,7 @@ def _accept(listener, sel, running, base, log) -> None:
     running[pidfd] = (pid, conn, req, t0)
     sel.register(pidfd, selectors.EVENT_READ, pidfd)
     try:
-        _send(conn, {"pid": pid})
+        send_message(conn, {"pid": pid})
     except OSError:
         os.kill(pid, signal.SIGKILL)
 
@@ -368,7 +269,7 @@ def _reap(pidfd, sel, running) -> None:
     _write_cost(req, time.perf_counter() - t0, ru)
     code = os.waitstatus_to_exitcode(status)
     try:
-        _send(conn, {"status": code if code >= 0 else 128 - code})  # killed by signal s: 128 + s, as a shell says
+        send_message(conn, {"status": code if code >= 0 else 128 - code})  # killed by signal s: 128 + s, as a shell says
     except OSError:
         pass
     conn.close()

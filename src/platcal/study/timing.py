@@ -20,7 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import InputError
-from .forkserver import worker_file
+from .forkclient import worker_file
 from .tables import write_table
 
 COLUMNS = ("s", "cpu_time", "max_rss")

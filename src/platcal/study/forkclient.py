@@ -90,7 +90,7 @@ def delegate(sm) -> None:
         env = {k: v for k, v in os.environ.items() if not k.startswith(ENV_VAR)}
         argv = [os.path.abspath(sys.argv[0]), *sys.argv[1:]]
         send_message(sock, {"argv": argv, "cwd": os.getcwd(), "env": env, "bench": bench, "python": interpreter()},
-              (sys.stdout.fileno(), sys.stderr.fileno()))
+                     (sys.stdout.fileno(), sys.stderr.fileno()))
         reply, _ = recv_message(sock)
     except OSError:
         reply = None

@@ -3,8 +3,9 @@
 Variants of :mod:`platcal.rigs.centrifuge.ekf_lanes` are written to a temporary directory, each
 with one part of the filter step done on a segment's first step only (its numbers are then
 wrong; only its time counts): the model (base specific force, the RK4 map and its exact
-Jacobian, lane by lane), the outputs and H, W = Phi P, U = H P, and the Joseph update of the
-packed P. Every variant and the kernel itself run the Table 1 case (6 x 60 s) at ``--batch``
+Jacobian, lane by lane), the outputs and H, W = Phi P, U = H P with S, and K, D, x with the
+Joseph update of the packed P (the last three are calls of the shared lane pieces,
+:mod:`platcal.estimation.lanes`, which the variant skips after a segment's first step). Every variant and the kernel itself run the Table 1 case (6 x 60 s) at ``--batch``
 replicates on one numba thread, alternating over ``--rounds`` rounds in one process (so that the
 machine's load falls on all alike); prints the best CPU s per replicate of each, the share of
 the step the part takes (1 - variant / kernel) and the load average.
@@ -23,7 +24,6 @@ import sys
 import tempfile
 import time
 
-import platcal.rigs.centrifuge.ekf as ekf
 import platcal.rigs.centrifuge.ekf_lanes as ekf_lanes
 from bench_filter import table1_case
 from platcal.parallel import set_threads
@@ -39,18 +39,20 @@ PARTS = {
     "outputs and H (scalar, per lane)": (
         "            for l in range(nact):\n                b = b0 + l\n                g = pb_l[l, P_G]",
         "            for l in range(nact if m == 0 else 0):\n                b = b0 + l\n                g = pb_l[l, P_G]"),
+    # the covariance algebra is in the shared lane pieces (platcal.estimation.lanes), inlined: the
+    # kernel's call is skipped after a segment's first step
     "W = Phi P (3 attitude rows)": (
-        "                for kk in range(0, npc - 1, 2):",
-        "                for kk in range(0, npc - 1 if m == 0 else 0, 2):"),
-    "U = H P": (
-        "            for r in range(3):\n                for kk in range(hnnz[r]):\n                    hc = hcols[r, kk]",
-        "            for r in range(3 if m == 0 else 0):\n                for kk in range(hnnz[r]):\n"
-        "                    hc = hcols[r, kk]"),
-    "Joseph update of the packed P": (
-        "            for i in range(n):\n                for j in range(i + 1):\n                    for l in range(L):\n"
-        "                        Pl[e + j, l] -=",
-        "            for i in range(n if m == 0 else 0):\n                for j in range(i + 1):\n"
-        "                    for l in range(L):\n                        Pl[e + j, l] -="),
+        "                propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, nc)",
+        "                if m == 0:\n                    propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, nc)"),
+    "U = H P and S": (
+        "            innovation_covariance_lanes(Pl, pidx, hcols, hnnz, hval, r_var, U, S, acc[0])\n"
+        "            _cholesky_inverse_lanes(",
+        "            if m == 0:\n"
+        "                innovation_covariance_lanes(Pl, pidx, hcols, hnnz, hval, r_var, U, S, acc[0])\n"
+        "            _cholesky_inverse_lanes("),
+    "K, D, x and the Joseph update of the packed P": (
+        "            joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x)",
+        "            if m == 0:\n                joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x)"),
 }
 
 
@@ -87,18 +89,19 @@ def main(argv=None) -> None:
                                  "update PARTS to the kernel's code")
             runs[part] = variant(src.replace(old, new), f"ekf_lanes_ablate{i}", folder).run_pass_lanes
         best = dict.fromkeys(runs, float("inf"))
-        for kernel in runs.values():  # compile
-            ekf.run_pass_lanes = kernel
-            run_ekf(small, settings, lanes=True)
+        # run_ekf imports run_pass_lanes from ekf_lanes at each call: the module's name is swapped
         try:
+            for kernel in runs.values():  # compile
+                ekf_lanes.run_pass_lanes = kernel
+                run_ekf(small, settings, lanes=True)
             for _ in range(a.rounds):
                 for name, kernel in runs.items():
-                    ekf.run_pass_lanes = kernel
+                    ekf_lanes.run_pass_lanes = kernel
                     c0 = time.process_time()
                     run_ekf(data, settings, lanes=True)
                     best[name] = min(best[name], (time.process_time() - c0) / a.batch)
         finally:
-            ekf.run_pass_lanes = ekf_lanes.run_pass_lanes
+            ekf_lanes.run_pass_lanes = runs["whole kernel"]
     whole = best["whole kernel"]
     steps = sum(len(tk) for tk in t)
     print(f"state-major EKF kernel, B = {a.batch}, one numba thread, Table 1 case 6 x 60 s ({steps} steps), "
@@ -110,7 +113,7 @@ def main(argv=None) -> None:
         saved = whole - best[part]
         print(f"| {part} | {best[part]:.4f} | {100 * saved / whole:.0f} % | {saved / steps * 1e9:.0f} |")
     rest = whole - sum(whole - best[p] for p in PARTS)
-    print(f"| rest (reset, S, K, D, x, NIS, history, block layout) | | {100 * rest / whole:.0f} % | "
+    print(f"| rest (reset, Cholesky, NIS, history, coefficient scatter, block layout) | | {100 * rest / whole:.0f} % | "
           f"{rest / steps * 1e9:.0f} |")
 
 

@@ -160,7 +160,7 @@ def main(argv=None) -> None:
             times[n].append((r["lanes"], r["default"]))
             loads.append(r["load"])
             print(f"round {i // len(names) + 1} {n}: lanes {r['lanes']:.4f} default {r['default']:.4f} "
-                  f"CPU s per replicate, load {r['load']:.2f}", flush=True)
+                  f"CPU s per replicate of 6 x {args.dwell:g} s, load {r['load']:.2f}", flush=True)
         ref = np.load(tmp / f"{names[0]}.npz")
         same = {n: all(np.array_equal(ref[f], np.load(tmp / f"{n}.npz")[f]) for f in ref.files) for n in names}
     scale = 60.0 / args.dwell

@@ -1,0 +1,180 @@
+"""Would forming W = Phi P inside the Joseph pass pay? A probe for issue 22 item 1.
+
+The centrifuge's state-major EKF (:mod:`platcal.rigs.centrifuge.ekf_lanes`) reads the block's
+packed P (1176 x 4 doubles) in the Joseph update and again, at the next step, in W = Phi P
+(:func:`platcal.estimation.lanes.propagate_rows_lanes`: the 30 columns of Phi's attitude rows). A
+kernel that accumulated the next step's W while the Joseph pass writes each entry would read P
+once, and each entry of W would still sum its terms in column order (``pcols`` ascending, the
+rows of P visited in order), so the numbers would be the same bit for bit; but the part of
+W[r, i] that runs along row i of P becomes a chain of dependent additions, row by row.
+
+This probe times, on the kernel's own shapes (``pcols`` from ``ekf._structure`` of the 45
+identified coefficients, 4 lanes, random K, U, D and Phi, a positive definite P), one numba
+thread, compiled as the block kernel is (``noalias`` arrays, LLVM's SLP vectoriser on), ``--steps``
+calls per variant, alternating over ``--rounds`` rounds in one process:
+
+- ``joseph``: :func:`~platcal.estimation.lanes.joseph_correct_lanes` alone;
+- ``joseph + W``: it, then W as :func:`~platcal.estimation.lanes.propagate_rows_lanes` forms it
+  (the kernel today, without writing W back into P);
+- ``fused``: one pass that writes each entry of P and adds it to W where Phi has a column;
+
+and checks that the fused W equals the separate one (``np.array_equal``). It prints ns per call.
+
+    python benchmarks/fused_w_probe.py [--steps 20000] [--rounds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+from numba import njit
+
+from platcal.estimation.lanes import LANES, NoAliasCompiler, joseph_correct_lanes, packed_index, slp_vectorize
+from platcal.model.instruments import N_IDENTIFIED
+from platcal.parallel import set_threads
+from platcal.rigs.centrifuge.ekf import _structure
+
+
+@njit(cache=True, pipeline_class=NoAliasCompiler)
+def w_rows(Pl, pidx, pcols, phi, W):
+    """W = Phi[attitude rows] P (3, n, LANES), every entry summed in ``pcols`` order, as
+    ``propagate_rows_lanes`` forms it (two columns a pass), without writing it into P."""
+    n = W.shape[1]
+    npc = pcols.shape[0]
+    W[:] = 0.0
+    for kk in range(0, npc - 1, 2):
+        ea0 = pcols[kk]
+        eb0 = pcols[kk + 1]
+        for j in range(n):
+            ea = pidx[ea0, j]
+            eb = pidx[eb0, j]
+            for l in range(LANES):
+                W[0, j, l] = (W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
+            for l in range(LANES):
+                W[1, j, l] = (W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
+            for l in range(LANES):
+                W[2, j, l] = (W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
+    if npc % 2:
+        kk = npc - 1
+        ea0 = pcols[kk]
+        for j in range(n):
+            ea = pidx[ea0, j]
+            for l in range(LANES):
+                W[0, j, l] += phi[0, kk, l] * Pl[ea, l]
+            for l in range(LANES):
+                W[1, j, l] += phi[1, kk, l] * Pl[ea, l]
+            for l in range(LANES):
+                W[2, j, l] += phi[2, kk, l] * Pl[ea, l]
+
+
+@njit(cache=True, pipeline_class=NoAliasCompiler)
+def joseph(xl, Pl, U, K, D, S, Sinv, innov, steps):
+    for _ in range(steps):
+        joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, False)
+
+
+@njit(cache=True, pipeline_class=NoAliasCompiler)
+def joseph_then_w(xl, Pl, U, K, D, S, Sinv, innov, pidx, pcols, phi, W, steps):
+    for _ in range(steps):
+        joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, False)
+        w_rows(Pl, pidx, pcols, phi, W)
+
+
+@njit(cache=True, pipeline_class=NoAliasCompiler)
+def fused(Pl, U, K, D, pos, phi, W, steps):
+    """K and D are taken as given (the Joseph update's own K = S^-1 U, D = U - S K come first);
+    each packed entry of P is corrected as ``joseph_correct_lanes`` does and added to W: to
+    W[:, j] when row i is a column of Phi (term kk = i), to W[:, i] when j < i is (term kk = j)."""
+    n = W.shape[1]
+    for _ in range(steps):
+        W[:] = 0.0
+        e = 0
+        for i in range(n):
+            pi = pos[i]
+            for j in range(i + 1):
+                for l in range(LANES):
+                    Pl[e + j, l] -= ((K[0, i, l] * U[0, j, l] + K[1, i, l] * U[1, j, l] + K[2, i, l] * U[2, j, l])
+                                     + (D[0, i, l] * K[0, j, l] + D[1, i, l] * K[1, j, l]
+                                        + D[2, i, l] * K[2, j, l]))
+                pj = pos[j]
+                if pj >= 0 and j < i:
+                    for r in range(3):
+                        for l in range(LANES):
+                            W[r, i, l] += phi[r, pj, l] * Pl[e + j, l]
+                if pi >= 0:
+                    for r in range(3):
+                        for l in range(LANES):
+                            W[r, j, l] += phi[r, pi, l] * Pl[e + j, l]
+            e += i + 1
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--steps", type=int, default=20000)
+    ap.add_argument("--rounds", type=int, default=5)
+    a = ap.parse_args(argv)
+    set_threads(1)
+    with slp_vectorize():  # compiled as the kernel is: noalias arrays, LLVM's SLP vectoriser on
+        probe(a)
+
+
+def probe(a) -> None:
+    pcols = _structure(np.arange(N_IDENTIFIED))[0]
+    if np.any(np.diff(pcols) <= 0):
+        raise SystemExit(f"pcols not ascending ({pcols}): the fused pass would sum W in another order")
+    n, L = N_IDENTIFIED + 3, LANES
+    pidx = packed_index(n)
+    rng = np.random.default_rng(0)
+    A = rng.standard_normal((n, n))
+    P0 = A @ A.T / n + np.eye(n)
+    Pl0 = np.empty((n * (n + 1) // 2, L))
+    for i in range(n):
+        for j in range(i + 1):
+            Pl0[pidx[i, j]] = P0[i, j]
+    U, K, D = (1e-4 * rng.standard_normal((3, n, L)) for _ in range(3))
+    phi = rng.standard_normal((3, pcols.size, L))
+    pos = np.full(n, -1, dtype=np.int64)
+    pos[pcols] = np.arange(pcols.size)
+    S, Sinv = np.zeros((3, 3, L)), np.zeros((3, 3, L))
+    for l in range(L):
+        S[:, :, l] = np.eye(3)
+        Sinv[:, :, l] = np.eye(3)
+    xl, innov, W = np.zeros((n, L)), np.zeros((3, L)), np.zeros((3, n, L))
+    # the Joseph update forms K and D from U, S, Sinv: the fused pass takes that K and D
+    joseph_correct_lanes_args = (xl, Pl0.copy(), U, K, D, S, Sinv, innov)
+    joseph(*joseph_correct_lanes_args, 1)
+    Ks, Ds = K.copy(), D.copy()
+    # the same P+ and W both ways
+    Pa, Wa = Pl0.copy(), np.zeros_like(W)
+    joseph_then_w(xl, Pa, U, K, D, S, Sinv, innov, pidx, pcols, phi, Wa, 1)
+    Pb, Wb = Pl0.copy(), np.zeros_like(W)
+    fused(Pb, U, Ks, Ds, pos, phi, Wb, 1)
+    same = np.array_equal(Pa, Pb) and np.array_equal(Wa, Wb)
+    runs = {
+        "joseph": lambda P: joseph(xl, P, U, K, D, S, Sinv, innov, a.steps),
+        "joseph + W": lambda P: joseph_then_w(xl, P, U, K, D, S, Sinv, innov, pidx, pcols, phi, W, a.steps),
+        "fused": lambda P: fused(P, U, Ks, Ds, pos, phi, W, a.steps),
+    }
+    best = dict.fromkeys(runs, np.inf)
+    for _ in range(a.rounds):
+        for name, run in runs.items():
+            P = Pl0.copy()
+            c0 = time.process_time()
+            run(P)
+            best[name] = min(best[name], (time.process_time() - c0) / a.steps * 1e9)
+    print(f"4 lanes, n = {n}, {pcols.size} columns of Phi, one numba thread, {a.steps} calls, best of {a.rounds} "
+          f"alternating rounds; load average {os.getloadavg()[0]:.2f}")
+    print("| variant | ns per call |")
+    print("|---|---:|")
+    for name, v in best.items():
+        print(f"| {name} | {v:.0f} |")
+    print(f"fused P and W equal to the Joseph update then W (np.array_equal): {'yes' if same else 'NO'}")
+    print("(the fused variant does not form K and D, which the Joseph update does: compare it with "
+          "'joseph + W' less about the K, D and x share of 'joseph')")
+
+
+if __name__ == "__main__":
+    main()

@@ -14,8 +14,8 @@ thread, compiled as the block kernel is (``noalias`` arrays, LLVM's SLP vectoris
 calls per variant, alternating over ``--rounds`` rounds in one process:
 
 - ``joseph``: :func:`~platcal.estimation.lanes.joseph_correct_lanes` alone;
-- ``joseph + W``: it, then W as :func:`~platcal.estimation.lanes.propagate_rows_lanes` forms it
-  (the kernel today, without writing W back into P);
+- ``joseph + W``: it, then :func:`~platcal.estimation.lanes.propagate_rows_lanes` (W, the 3 x 3
+  block and W written into P's attitude rows: the kernel today);
 - ``fused``: one pass that writes each entry of P and adds it to W where Phi has a column;
 
 and checks that the fused W equals the separate one (``np.array_equal``). It prints ns per call.
@@ -32,42 +32,11 @@ import time
 import numpy as np
 from numba import njit
 
-from platcal.estimation.lanes import LANES, NoAliasCompiler, joseph_correct_lanes, packed_index, slp_vectorize
+from platcal.estimation.lanes import (LANES, NoAliasCompiler, joseph_correct_lanes, packed_index,
+                                     propagate_rows_lanes, slp_vectorize)
 from platcal.model.instruments import N_IDENTIFIED
 from platcal.parallel import set_threads
 from platcal.rigs.centrifuge.ekf import _structure
-
-
-@njit(cache=True, pipeline_class=NoAliasCompiler)
-def w_rows(Pl, pidx, pcols, phi, W):
-    """W = Phi[attitude rows] P (3, n, LANES), every entry summed in ``pcols`` order, as
-    ``propagate_rows_lanes`` forms it (two columns a pass), without writing it into P."""
-    n = W.shape[1]
-    npc = pcols.shape[0]
-    W[:] = 0.0
-    for kk in range(0, npc - 1, 2):
-        ea0 = pcols[kk]
-        eb0 = pcols[kk + 1]
-        for j in range(n):
-            ea = pidx[ea0, j]
-            eb = pidx[eb0, j]
-            for l in range(LANES):
-                W[0, j, l] = (W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
-            for l in range(LANES):
-                W[1, j, l] = (W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
-            for l in range(LANES):
-                W[2, j, l] = (W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
-    if npc % 2:
-        kk = npc - 1
-        ea0 = pcols[kk]
-        for j in range(n):
-            ea = pidx[ea0, j]
-            for l in range(LANES):
-                W[0, j, l] += phi[0, kk, l] * Pl[ea, l]
-            for l in range(LANES):
-                W[1, j, l] += phi[1, kk, l] * Pl[ea, l]
-            for l in range(LANES):
-                W[2, j, l] += phi[2, kk, l] * Pl[ea, l]
 
 
 @njit(cache=True, pipeline_class=NoAliasCompiler)
@@ -77,10 +46,10 @@ def joseph(xl, Pl, U, K, D, S, Sinv, innov, steps):
 
 
 @njit(cache=True, pipeline_class=NoAliasCompiler)
-def joseph_then_w(xl, Pl, U, K, D, S, Sinv, innov, pidx, pcols, phi, W, steps):
+def joseph_then_w(xl, Pl, U, K, D, S, Sinv, innov, pidx, pcols, phi, W, acc, steps):
     for _ in range(steps):
         joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, False)
-        w_rows(Pl, pidx, pcols, phi, W)
+        propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, W.shape[1] - 3)
 
 
 @njit(cache=True, pipeline_class=NoAliasCompiler)
@@ -135,27 +104,31 @@ def probe(a) -> None:
         for j in range(i + 1):
             Pl0[pidx[i, j]] = P0[i, j]
     U, K, D = (1e-4 * rng.standard_normal((3, n, L)) for _ in range(3))
-    phi = rng.standard_normal((3, pcols.size, L))
+    # Phi's attitude rows as in the filter: 1 on their own angle, small elsewhere (P stays bounded)
+    phi = 1e-3 * rng.standard_normal((3, pcols.size, L))
+    for r in range(3):
+        phi[r, pcols.size - 3 + r] = 1.0
     pos = np.full(n, -1, dtype=np.int64)
     pos[pcols] = np.arange(pcols.size)
     S, Sinv = np.zeros((3, 3, L)), np.zeros((3, 3, L))
     for l in range(L):
         S[:, :, l] = np.eye(3)
         Sinv[:, :, l] = np.eye(3)
-    xl, innov, W = np.zeros((n, L)), np.zeros((3, L)), np.zeros((3, n, L))
+    xl, innov, W, acc = np.zeros((n, L)), np.zeros((3, L)), np.zeros((3, n, L)), np.zeros((6, L))
     # the Joseph update forms K and D from U, S, Sinv: the fused pass takes that K and D
     joseph_correct_lanes_args = (xl, Pl0.copy(), U, K, D, S, Sinv, innov)
     joseph(*joseph_correct_lanes_args, 1)
     Ks, Ds = K.copy(), D.copy()
-    # the same P+ and W both ways
+    # the same P+ and W both ways (W before the kernel writes it into P's attitude rows)
     Pa, Wa = Pl0.copy(), np.zeros_like(W)
-    joseph_then_w(xl, Pa, U, K, D, S, Sinv, innov, pidx, pcols, phi, Wa, 1)
+    joseph(xl, Pa, U, K, D, S, Sinv, innov, 1)
+    joseph_then_w(xl, Pl0.copy(), U, K, D, S, Sinv, innov, pidx, pcols, phi, Wa, acc, 1)
     Pb, Wb = Pl0.copy(), np.zeros_like(W)
     fused(Pb, U, Ks, Ds, pos, phi, Wb, 1)
     same = np.array_equal(Pa, Pb) and np.array_equal(Wa, Wb)
     runs = {
         "joseph": lambda P: joseph(xl, P, U, K, D, S, Sinv, innov, a.steps),
-        "joseph + W": lambda P: joseph_then_w(xl, P, U, K, D, S, Sinv, innov, pidx, pcols, phi, W, a.steps),
+        "joseph + W": lambda P: joseph_then_w(xl, P, U, K, D, S, Sinv, innov, pidx, pcols, phi, W, acc, a.steps),
         "fused": lambda P: fused(P, U, Ks, Ds, pos, phi, W, a.steps),
     }
     best = dict.fromkeys(runs, np.inf)

@@ -203,3 +203,22 @@ def test_a_workflow_folder_of_any_length_gets_a_server_and_leaves_no_socket(tmp_
     finally:
         os.environ.clear()
         os.environ.update(saved)
+
+
+@pytest.mark.parametrize("payload", [b"not json", b"[1, 2]", b'{"argv": ["x.py"]}',
+                                     b'{"argv": [1], "cwd": "/", "env": {}, "bench": "", "python": []}'])
+def test_a_malformed_request_is_refused_and_the_server_goes_on(server, tmp_path, payload):
+    proc, env, _ = server
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+        sock.connect(env[forkclient.ENV_VAR])
+        msg = len(payload).to_bytes(4, "big") + payload
+        socket.send_fds(sock, [msg], [sys.stdout.fileno(), sys.stderr.fileno()])
+        sock.settimeout(30)
+        reply = sock.recv(65536)
+    assert b"pid" not in reply  # refused (or closed), never run
+    assert proc.poll() is None  # the server lives
+    script = tmp_path / "job.py"
+    script.write_text(SCRIPT)
+    r = run(script, env, tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert facts(r.stdout)["ppid"] == proc.pid  # and still serves

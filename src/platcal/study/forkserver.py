@@ -218,15 +218,28 @@ def serve(path: str, log=sys.stderr) -> None:
         pass
 
 
+def _request(msg) -> Request | None:
+    """The client's message as a :class:`Request`, or None if it is not one (the job is then
+    refused and the server goes on serving)."""
+    try:
+        req = Request(**msg)
+    except TypeError:  # not a dict, or keys missing or unknown
+        return None
+    ok = (isinstance(req.argv, list) and req.argv and all(isinstance(a, str) for a in req.argv)
+          and isinstance(req.cwd, str) and isinstance(req.bench, str) and isinstance(req.env, dict)
+          and all(isinstance(k, str) and isinstance(v, str) for k, v in req.env.items()))
+    return req if ok else None
+
+
 def _accept(listener, sel, running, base, log) -> None:
     conn, _ = listener.accept()
     conn.settimeout(10.0)
     try:
         msg, fds = recv_message(conn, 2)
-    except OSError:
+    except (OSError, ValueError):  # ValueError: not JSON
         conn.close()
         return
-    req = Request(**msg) if msg else None
+    req = _request(msg)
     why = "bad request" if req is None or len(fds) != 2 else refusal(req, base)
     if why:
         for fd in fds:

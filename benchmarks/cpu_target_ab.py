@@ -69,12 +69,9 @@ print(json.dumps({"lanes": best[True], "default": best[False], "load": os.getloa
 
 def features(edits: str, host: str) -> str:
     """The host's feature string ``host`` (``+a,-b,...``) with ``edits`` applied (``-pattern``:
-    matching host features turned off; ``+name``: added); empty ``edits`` gives ``""`` (numba then
-    uses the host's own)."""
-    if not edits:
-        return ""
+    matching host features turned off; ``+name``: added)."""
     feats = host.split(",")
-    for e in edits.split(","):
+    for e in filter(None, edits.split(",")):
         sign, pat = e[0], e[1:]
         if sign not in "+-" or not pat:
             raise SystemExit(f"--variant: feature edit {e!r} must be +name or -pattern")
@@ -137,12 +134,9 @@ def main(argv=None) -> None:
     for v in args.variant:
         name, _, spec = v.partition("=")
         cpu, _, edits = spec.partition(":")
-        env = {}
-        if cpu or edits:
-            env = {"NUMBA_CPU_NAME": cpu or ll.get_host_cpu_name(), "NUMBA_CPU_FEATURES": features(edits, host)}
-            if not env["NUMBA_CPU_FEATURES"]:
-                env["NUMBA_CPU_FEATURES"] = host
-        variants[name] = env
+        # neither given: numba's own choice of the host's (no variable set)
+        variants[name] = ({"NUMBA_CPU_NAME": cpu or ll.get_host_cpu_name(), "NUMBA_CPU_FEATURES": features(edits, host)}
+                          if cpu or edits else {})
     names = list(variants)
     times = {n: [] for n in names}
     with tempfile.TemporaryDirectory(prefix="cpu_target_ab-") as tmp:

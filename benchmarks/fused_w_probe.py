@@ -116,8 +116,7 @@ def probe(a) -> None:
         Sinv[:, :, l] = np.eye(3)
     xl, innov, W, acc = np.zeros((n, L)), np.zeros((3, L)), np.zeros((3, n, L)), np.zeros((6, L))
     # the Joseph update forms K and D from U, S, Sinv: the fused pass takes that K and D
-    joseph_correct_lanes_args = (xl, Pl0.copy(), U, K, D, S, Sinv, innov)
-    joseph(*joseph_correct_lanes_args, 1)
+    joseph(xl, Pl0.copy(), U, K, D, S, Sinv, innov, 1)
     Ks, Ds = K.copy(), D.copy()
     # the same P+ and W both ways (W before the kernel writes it into P's attitude rows)
     Pa, Wa = Pl0.copy(), np.zeros_like(W)

@@ -38,7 +38,13 @@ def slp_vectorize():
     """LLVM's SLP vectoriser on for numba compilations in this block (numba's default is off).
     It turns identical scalar operations on adjacent lanes into vector operations; it changes
     no floating-point result (no reassociation), so it is safe for any function compiled
-    meanwhile."""
+    meanwhile.
+
+    numba rereads every ``NUMBA_*`` setting from the environment at a compile whenever the
+    environment changed since its last reading, which would put SLP back off for the first
+    compile inside this block (numba imported before platcal set ``NUMBA_CACHE_LOCATOR_CLASSES``,
+    or any ``NUMBA_*`` variable set since); so that reading is done here first."""
+    numba_config.reload_config()
     old = numba_config.SLP_VECTORIZE
     numba_config.SLP_VECTORIZE = 1
     try:

@@ -1,0 +1,152 @@
+"""Is the lanes kernel's W = Phi P pass bound by its stores of W? A probe for issue 22 item 1.
+
+:func:`platcal.estimation.lanes.propagate_rows_lanes` forms W = Phi[attitude rows] P (3 x 48 x 4
+lanes) over the 30 columns of Phi two at a time: each pass over the 48 columns of W loads and
+stores W once per two columns of Phi. Taking 3, 5 or 6 columns per pass stores W fewer times with
+every entry's terms still added in column order (the same numbers bit for bit; checked here with
+``np.array_equal``). This probe times the kernel's loop (copied: ``w2``) against those variants on
+the kernel's shapes (``pcols`` of the 45 identified coefficients, 4 lanes), one numba thread,
+compiled as the block kernel is (``noalias`` arrays, SLP on), ``steps`` calls per variant,
+alternating over ``rounds`` rounds in one process. Prints ns per 4-lane call.
+
+    python benchmarks/w_columns_probe.py [steps] [rounds]
+"""
+import os
+import sys
+import time
+
+import numpy as np
+from numba import njit
+from platcal.estimation.lanes import LANES, NoAliasCompiler, packed_index, slp_vectorize
+from platcal.model.instruments import N_IDENTIFIED
+from platcal.parallel import set_threads
+from platcal.rigs.centrifuge.ekf import _structure
+
+
+# a copy of the W loop of platcal.estimation.lanes.propagate_rows_lanes
+@njit(pipeline_class=NoAliasCompiler)
+def w2(Pl, pidx, pcols, phi, W, steps):
+    n = W.shape[1]
+    npc = pcols.shape[0]
+    for _ in range(steps):
+        W[:] = 0.0
+        for kk in range(0, npc - 1, 2):
+            ea0 = pcols[kk]
+            eb0 = pcols[kk + 1]
+            for j in range(n):
+                ea = pidx[ea0, j]
+                eb = pidx[eb0, j]
+                for l in range(LANES):
+                    W[0, j, l] = (W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
+                for l in range(LANES):
+                    W[1, j, l] = (W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
+                for l in range(LANES):
+                    W[2, j, l] = (W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
+
+
+@njit(pipeline_class=NoAliasCompiler)
+def w3(Pl, pidx, pcols, phi, W, steps):
+    n = W.shape[1]
+    npc = pcols.shape[0]
+    for _ in range(steps):
+        W[:] = 0.0
+        for kk in range(0, npc - 2, 3):
+            ea0 = pcols[kk]
+            eb0 = pcols[kk + 1]
+            ec0 = pcols[kk + 2]
+            for j in range(n):
+                ea = pidx[ea0, j]
+                eb = pidx[eb0, j]
+                ec = pidx[ec0, j]
+                for r in range(3):
+                    for l in range(LANES):
+                        W[r, j, l] = ((W[r, j, l] + phi[r, kk, l] * Pl[ea, l]) + phi[r, kk + 1, l] * Pl[eb, l]) + phi[r, kk + 2, l] * Pl[ec, l]
+
+
+@njit(pipeline_class=NoAliasCompiler)
+def w5(Pl, pidx, pcols, phi, W, steps):
+    n = W.shape[1]
+    npc = pcols.shape[0]
+    for _ in range(steps):
+        W[:] = 0.0
+        for kk in range(0, npc - 4, 5):
+            ea0 = pcols[kk]
+            eb0 = pcols[kk + 1]
+            ec0 = pcols[kk + 2]
+            ed0 = pcols[kk + 3]
+            ee0 = pcols[kk + 4]
+            for j in range(n):
+                ea = pidx[ea0, j]
+                eb = pidx[eb0, j]
+                ec = pidx[ec0, j]
+                ed = pidx[ed0, j]
+                ee = pidx[ee0, j]
+                for l in range(LANES):
+                    W[0, j, l] = ((((W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]) + phi[0, kk + 2, l] * Pl[ec, l]) + phi[0, kk + 3, l] * Pl[ed, l]) + phi[0, kk + 4, l] * Pl[ee, l]
+                for l in range(LANES):
+                    W[1, j, l] = ((((W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]) + phi[1, kk + 2, l] * Pl[ec, l]) + phi[1, kk + 3, l] * Pl[ed, l]) + phi[1, kk + 4, l] * Pl[ee, l]
+                for l in range(LANES):
+                    W[2, j, l] = ((((W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]) + phi[2, kk + 2, l] * Pl[ec, l]) + phi[2, kk + 3, l] * Pl[ed, l]) + phi[2, kk + 4, l] * Pl[ee, l]
+
+
+@njit(pipeline_class=NoAliasCompiler)
+def w6(Pl, pidx, pcols, phi, W, steps):
+    n = W.shape[1]
+    npc = pcols.shape[0]
+    for _ in range(steps):
+        W[:] = 0.0
+        for kk in range(0, npc - 5, 6):
+            ea0 = pcols[kk]
+            eb0 = pcols[kk + 1]
+            ec0 = pcols[kk + 2]
+            ed0 = pcols[kk + 3]
+            ee0 = pcols[kk + 4]
+            ef0 = pcols[kk + 5]
+            for j in range(n):
+                ea = pidx[ea0, j]
+                eb = pidx[eb0, j]
+                ec = pidx[ec0, j]
+                ed = pidx[ed0, j]
+                ee = pidx[ee0, j]
+                ef = pidx[ef0, j]
+                for l in range(LANES):
+                    W[0, j, l] = (((((W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]) + phi[0, kk + 2, l] * Pl[ec, l]) + phi[0, kk + 3, l] * Pl[ed, l]) + phi[0, kk + 4, l] * Pl[ee, l]) + phi[0, kk + 5, l] * Pl[ef, l]
+                for l in range(LANES):
+                    W[1, j, l] = (((((W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]) + phi[1, kk + 2, l] * Pl[ec, l]) + phi[1, kk + 3, l] * Pl[ed, l]) + phi[1, kk + 4, l] * Pl[ee, l]) + phi[1, kk + 5, l] * Pl[ef, l]
+                for l in range(LANES):
+                    W[2, j, l] = (((((W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]) + phi[2, kk + 2, l] * Pl[ec, l]) + phi[2, kk + 3, l] * Pl[ed, l]) + phi[2, kk + 4, l] * Pl[ee, l]) + phi[2, kk + 5, l] * Pl[ef, l]
+
+
+def main():
+    steps = int(sys.argv[1]) if len(sys.argv) > 1 else 20000
+    rounds = int(sys.argv[2]) if len(sys.argv) > 2 else 5
+    set_threads(1)
+    with slp_vectorize():
+        pcols = _structure(np.arange(N_IDENTIFIED))[0]
+        n, L = N_IDENTIFIED + 3, LANES
+        pidx = packed_index(n)
+        rng = np.random.default_rng(0)
+        Pl0 = rng.standard_normal((n * (n + 1) // 2, L))
+        phi = rng.standard_normal((3, pcols.size, L))
+        variants = {"2 columns a pass (the kernel)": w2, "3 columns": w3, "5 columns": w5, "6 columns": w6}
+        ref = np.zeros((3, n, L))
+        w2(Pl0, pidx, pcols, phi, ref, 1)
+        for name, f in variants.items():
+            W = np.full((3, n, L), np.nan)
+            f(Pl0, pidx, pcols, phi, W, 1)
+            print(f"{name}: W equal to the kernel's loop (np.array_equal): {np.array_equal(W, ref)}")
+        best = {k: np.inf for k in variants}
+        for _ in range(rounds):
+            for name, f in variants.items():
+                W = np.zeros((3, n, L))
+                c0 = time.process_time()
+                f(Pl0, pidx, pcols, phi, W, steps)
+                best[name] = min(best[name], (time.process_time() - c0) / steps * 1e9)
+        print(f"4 lanes, n = {n}, {pcols.size} columns of Phi, one numba thread, {steps} calls, best of {rounds} "
+              f"alternating rounds; load average {os.getloadavg()[0]:.2f}")
+        for k, v in best.items():
+            print(f"{k}: {v:.0f} ns per 4-lane call ({v/4:.0f} per replicate)")
+
+
+if __name__ == "__main__":
+    main()

@@ -44,77 +44,25 @@ def w2(Pl, pidx, pcols, phi, W, steps):
                     W[2, j, l] = (W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
 
 
-@njit(pipeline_class=NoAliasCompiler)
-def w3(Pl, pidx, pcols, phi, W, steps):
-    n = W.shape[1]
-    npc = pcols.shape[0]
-    for _ in range(steps):
-        W[:] = 0.0
-        for kk in range(0, npc - 2, 3):
-            ea0 = pcols[kk]
-            eb0 = pcols[kk + 1]
-            ec0 = pcols[kk + 2]
-            for j in range(n):
-                ea = pidx[ea0, j]
-                eb = pidx[eb0, j]
-                ec = pidx[ec0, j]
-                for r in range(3):
-                    for l in range(LANES):
-                        W[r, j, l] = ((W[r, j, l] + phi[r, kk, l] * Pl[ea, l]) + phi[r, kk + 1, l] * Pl[eb, l]) + phi[r, kk + 2, l] * Pl[ec, l]
+def columns_per_pass(m: int):
+    """W's loop taking ``m`` columns of Phi per pass over W (``m`` divides their number): each
+    entry's ``m`` terms added in column order into one running value, stored once per pass."""
 
-
-@njit(pipeline_class=NoAliasCompiler)
-def w5(Pl, pidx, pcols, phi, W, steps):
-    n = W.shape[1]
-    npc = pcols.shape[0]
-    for _ in range(steps):
-        W[:] = 0.0
-        for kk in range(0, npc - 4, 5):
-            ea0 = pcols[kk]
-            eb0 = pcols[kk + 1]
-            ec0 = pcols[kk + 2]
-            ed0 = pcols[kk + 3]
-            ee0 = pcols[kk + 4]
-            for j in range(n):
-                ea = pidx[ea0, j]
-                eb = pidx[eb0, j]
-                ec = pidx[ec0, j]
-                ed = pidx[ed0, j]
-                ee = pidx[ee0, j]
-                for l in range(LANES):
-                    W[0, j, l] = ((((W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]) + phi[0, kk + 2, l] * Pl[ec, l]) + phi[0, kk + 3, l] * Pl[ed, l]) + phi[0, kk + 4, l] * Pl[ee, l]
-                for l in range(LANES):
-                    W[1, j, l] = ((((W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]) + phi[1, kk + 2, l] * Pl[ec, l]) + phi[1, kk + 3, l] * Pl[ed, l]) + phi[1, kk + 4, l] * Pl[ee, l]
-                for l in range(LANES):
-                    W[2, j, l] = ((((W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]) + phi[2, kk + 2, l] * Pl[ec, l]) + phi[2, kk + 3, l] * Pl[ed, l]) + phi[2, kk + 4, l] * Pl[ee, l]
-
-
-@njit(pipeline_class=NoAliasCompiler)
-def w6(Pl, pidx, pcols, phi, W, steps):
-    n = W.shape[1]
-    npc = pcols.shape[0]
-    for _ in range(steps):
-        W[:] = 0.0
-        for kk in range(0, npc - 5, 6):
-            ea0 = pcols[kk]
-            eb0 = pcols[kk + 1]
-            ec0 = pcols[kk + 2]
-            ed0 = pcols[kk + 3]
-            ee0 = pcols[kk + 4]
-            ef0 = pcols[kk + 5]
-            for j in range(n):
-                ea = pidx[ea0, j]
-                eb = pidx[eb0, j]
-                ec = pidx[ec0, j]
-                ed = pidx[ed0, j]
-                ee = pidx[ee0, j]
-                ef = pidx[ef0, j]
-                for l in range(LANES):
-                    W[0, j, l] = (((((W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]) + phi[0, kk + 2, l] * Pl[ec, l]) + phi[0, kk + 3, l] * Pl[ed, l]) + phi[0, kk + 4, l] * Pl[ee, l]) + phi[0, kk + 5, l] * Pl[ef, l]
-                for l in range(LANES):
-                    W[1, j, l] = (((((W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]) + phi[1, kk + 2, l] * Pl[ec, l]) + phi[1, kk + 3, l] * Pl[ed, l]) + phi[1, kk + 4, l] * Pl[ee, l]) + phi[1, kk + 5, l] * Pl[ef, l]
-                for l in range(LANES):
-                    W[2, j, l] = (((((W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]) + phi[2, kk + 2, l] * Pl[ec, l]) + phi[2, kk + 3, l] * Pl[ed, l]) + phi[2, kk + 4, l] * Pl[ee, l]) + phi[2, kk + 5, l] * Pl[ef, l]
+    @njit(pipeline_class=NoAliasCompiler)
+    def w(Pl, pidx, pcols, phi, W, steps):
+        n = W.shape[1]
+        npc = pcols.shape[0]
+        for _ in range(steps):
+            W[:] = 0.0
+            for kk in range(0, npc - m + 1, m):
+                for j in range(n):
+                    for r in range(3):
+                        for l in range(LANES):
+                            v = W[r, j, l]
+                            for q in range(m):  # m is a constant of the compile: unrolled
+                                v = v + phi[r, kk + q, l] * Pl[pidx[pcols[kk + q], j], l]
+                            W[r, j, l] = v
+    return w
 
 
 def main():
@@ -128,7 +76,7 @@ def main():
         rng = np.random.default_rng(0)
         Pl0 = rng.standard_normal((n * (n + 1) // 2, L))
         phi = rng.standard_normal((3, pcols.size, L))
-        variants = {"2 columns a pass (the kernel)": w2, "3 columns": w3, "5 columns": w5, "6 columns": w6}
+        variants = {"2 columns a pass (the kernel)": w2, **{f"{m} columns": columns_per_pass(m) for m in (3, 5, 6)}}
         ref = np.zeros((3, n, L))
         w2(Pl0, pidx, pcols, phi, ref, 1)
         for name, f in variants.items():

@@ -1,10 +1,11 @@
 """Is the lanes kernel's W = Phi P pass bound by its stores of W? A probe for issue 22 item 1.
 
-:func:`platcal.estimation.lanes.propagate_rows_lanes` forms W = Phi[attitude rows] P (3 x 48 x 4
+:func:`platcal.estimation.lanes.phi_rows_times_p_lanes` (the first part of
+``propagate_rows_lanes``) forms W = Phi[attitude rows] P (3 x 48 x 4
 lanes) over the 30 columns of Phi two at a time: each pass over the 48 columns of W loads and
 stores W once per two columns of Phi. Taking 3, 5 or 6 columns per pass stores W fewer times with
 every entry's terms still added in column order (the same numbers bit for bit; checked here with
-``np.array_equal``). This probe times the kernel's loop (copied: ``w2``) against those variants on
+``np.array_equal``). This probe times the kernel's loop against those variants on
 the kernel's shapes (``pcols`` of the 45 identified coefficients, 4 lanes), one numba thread,
 compiled as the block kernel is (``noalias`` arrays, SLP on), ``steps`` calls per variant,
 alternating over ``rounds`` rounds in one process. Prints ns per 4-lane call.
@@ -17,31 +18,17 @@ import time
 
 import numpy as np
 from numba import njit
-from platcal.estimation.lanes import LANES, NoAliasCompiler, packed_index, slp_vectorize
+from platcal.estimation.lanes import LANES, NoAliasCompiler, packed_index, phi_rows_times_p_lanes, slp_vectorize
 from platcal.model.instruments import N_IDENTIFIED
 from platcal.parallel import set_threads
 from platcal.rigs.centrifuge.ekf import _structure
 
 
-# a copy of the W loop of platcal.estimation.lanes.propagate_rows_lanes
 @njit(pipeline_class=NoAliasCompiler)
-def w2(Pl, pidx, pcols, phi, W, steps):
-    n = W.shape[1]
-    npc = pcols.shape[0]
+def kernel_loop(Pl, pidx, pcols, phi, W, steps):
+    """The kernel's own loop (two columns of Phi a pass), :func:`phi_rows_times_p_lanes`."""
     for _ in range(steps):
-        W[:] = 0.0
-        for kk in range(0, npc - 1, 2):
-            ea0 = pcols[kk]
-            eb0 = pcols[kk + 1]
-            for j in range(n):
-                ea = pidx[ea0, j]
-                eb = pidx[eb0, j]
-                for l in range(LANES):
-                    W[0, j, l] = (W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
-                for l in range(LANES):
-                    W[1, j, l] = (W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
-                for l in range(LANES):
-                    W[2, j, l] = (W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
+        phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W)
 
 
 def columns_per_pass(m: int):
@@ -78,9 +65,9 @@ def main():
         phi = rng.standard_normal((3, pcols.size, L))
         if pcols.size % 30:
             raise SystemExit(f"{pcols.size} columns of Phi: 2, 3, 5 and 6 columns a pass need a multiple of 30")
-        variants = {"2 columns a pass (the kernel)": w2, **{f"{m} columns": columns_per_pass(m) for m in (3, 5, 6)}}
+        variants = {"2 columns a pass (the kernel)": kernel_loop, **{f"{m} columns": columns_per_pass(m) for m in (3, 5, 6)}}
         ref = np.zeros((3, n, L))
-        w2(Pl0, pidx, pcols, phi, ref, 1)
+        kernel_loop(Pl0, pidx, pcols, phi, ref, 1)
         for name, f in variants.items():
             W = np.full((3, n, L), np.nan)
             f(Pl0, pidx, pcols, phi, W, 1)

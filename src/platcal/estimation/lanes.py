@@ -176,14 +176,12 @@ def joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x):
 
 
 @njit(cache=True, inline="always")
-def propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, r0):
-    """Per lane, ``P <- Phi P Phi^T`` where Phi is the identity but for the 3 rows ``r0 .. r0 + 2``,
-    nonzero at the columns ``pcols`` with the values ``phi`` (3, len(pcols), LANES): ``W = Phi[rows] P``
-    (3, n, LANES) through the packed index, written as the rows (= the columns) of the packed
-    ``Pl``, and in ``acc`` (6, LANES) the six sums of the 3 x 3 block ``Phi P Phi^T`` on those rows
-    (rows 00, 10, 11, 20, 21, 22), which the caller writes with its process noise. Every entry
-    sums in column order, as :func:`platcal.estimation.kalman.propagate_sparse` does (the same
-    numbers)."""
+def phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W):
+    """Per lane, ``W = Phi[rows] P`` (3, n, LANES): the 3 rows of Phi nonzero at the columns ``pcols``
+    with the values ``phi`` (3, len(pcols), LANES), P packed (``Pl``, through the index ``pidx``).
+    Every entry sums in column order (``pcols`` as given), as
+    :func:`platcal.estimation.kalman.propagate_sparse` does. The first part of
+    :func:`propagate_rows_lanes`; apart so that ``benchmarks/w_columns_probe.py`` times this loop."""
     n = W.shape[1]
     npc = pcols.shape[0]
     W[:] = 0.0
@@ -213,6 +211,20 @@ def propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, r0):
                 W[1, j, l] += phi[1, kk, l] * Pl[ea, l]
             for l in range(LANES):
                 W[2, j, l] += phi[2, kk, l] * Pl[ea, l]
+
+
+@njit(cache=True, inline="always")
+def propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, r0):
+    """Per lane, ``P <- Phi P Phi^T`` where Phi is the identity but for the 3 rows ``r0 .. r0 + 2``,
+    nonzero at the columns ``pcols`` with the values ``phi`` (3, len(pcols), LANES): ``W = Phi[rows] P``
+    (3, n, LANES) through the packed index, written as the rows (= the columns) of the packed
+    ``Pl``, and in ``acc`` (6, LANES) the six sums of the 3 x 3 block ``Phi P Phi^T`` on those rows
+    (rows 00, 10, 11, 20, 21, 22), which the caller writes with its process noise. Every entry
+    sums in column order, as :func:`platcal.estimation.kalman.propagate_sparse` does (the same
+    numbers)."""
+    phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W)
+    npc = pcols.shape[0]
+    n = W.shape[1]
     for l in range(LANES):
         acc[0, l] = 0.0
         acc[1, l] = 0.0

@@ -65,7 +65,8 @@ def main():
         phi = rng.standard_normal((3, pcols.size, L))
         if pcols.size % 30:
             raise SystemExit(f"{pcols.size} columns of Phi: 2, 3, 5 and 6 columns a pass need a multiple of 30")
-        variants = {"2 columns a pass (the kernel)": kernel_loop, **{f"{m} columns": columns_per_pass(m) for m in (3, 5, 6)}}
+        variants = {"2 columns a pass (the kernel)": kernel_loop,
+                    **{f"{m} columns": columns_per_pass(m) for m in (3, 5, 6)}}
         ref = np.zeros((3, n, L))
         kernel_loop(Pl0, pidx, pcols, phi, ref, 1)
         for name, f in variants.items():

@@ -412,18 +412,17 @@ def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations
 def _matmul(a, b, out):
     """out = a b for square matrices, each sum in index order with a's zeros skipped (F T and its
     powers are sparse: 22 of 196 entries of F; adding an exact 0 changes no sum, so the result is
-    the dense loop's bit for bit)."""
+    the dense loop's bit for bit). Indexed in 2-D: a row view would take two atomic reference counts
+    (half the product's time at 14 x 14, issue 22)."""
     n = a.shape[0]
     for i in range(n):
-        oi = out[i]
         for j in range(n):
-            oi[j] = 0.0
+            out[i, j] = 0.0
         for k in range(n):
             c = a[i, k]
             if c != 0.0:
-                bk = b[k]
                 for j in range(n):
-                    oi[j] += c * bk[j]
+                    out[i, j] += c * b[k, j]
 
 
 def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float,

@@ -267,19 +267,26 @@ def sled(B: int, repeat: int) -> dict:
                                         "and add to platcal's time: benchmarks/profile_sled.py")
 
 
-def lowprec_centrifuge(B: int, repeat: int) -> dict:
-    """The low-precision centrifuge's proposed method on one run of platform P1 (window means, then
-    the 14-state filter); bench_lowprec_centrifuge times the whole scenario of which it is a part."""
-    from filterpy.kalman import KalmanFilter
-
-    from platcal.rigs.lowprec_centrifuge import proposed
+def lowprec_case(B: int):
+    """The low-precision centrifuge's case: platform P1's first proposed run of the default config,
+    B seeds (``[1, i]``) simulated. Returns ``(study, platform, run, run batch)``."""
     from platcal.rigs.lowprec_centrifuge.config import load_config
     from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
 
     study = load_config({"rig": "lowprec_centrifuge"})
     p = study.platform_names()[0]
     r = [r for r in study.run_names(p) if r != "traditional"][0]
-    rb = simulate_batch(study, p, r, [np.random.SeedSequence([1, i]) for i in range(B)])
+    return study, p, r, simulate_batch(study, p, r, [np.random.SeedSequence([1, i]) for i in range(B)])
+
+
+def lowprec_centrifuge(B: int, repeat: int) -> dict:
+    """The low-precision centrifuge's proposed method on one run of platform P1 (window means, then
+    the 14-state filter); bench_lowprec_centrifuge times the whole scenario of which it is a part."""
+    from filterpy.kalman import KalmanFilter
+
+    from platcal.rigs.lowprec_centrifuge import proposed
+
+    study, p, r, rb = lowprec_case(B)
 
     def ident(b0, b1):
         return proposed.identify_proposed(rb.prof.t, rb.v_ind[b0:b1], rb.p_ind[b0:b1], rb.psi[b0:b1],

@@ -19,6 +19,8 @@ calls per variant, alternating over ``--rounds`` rounds in one process:
 - ``fused``: one pass that writes each entry of P and adds it to W where Phi has a column;
 
 and checks that the fused W equals the separate one (``np.array_equal``). It prints ns per call.
+Its kernels are compiled afresh in each run, not cached: numba's cache key does not hold the SLP
+setting, and this probe once timed scalar code compiled before ``slp_vectorize`` was mended (stop 46).
 
     python benchmarks/fused_w_probe.py [--steps 20000] [--rounds 5]
 """
@@ -39,20 +41,20 @@ from platcal.parallel import set_threads
 from platcal.rigs.centrifuge.ekf import _structure
 
 
-@njit(cache=True, pipeline_class=NoAliasCompiler)
+@njit(pipeline_class=NoAliasCompiler)
 def joseph(xl, Pl, U, K, D, S, Sinv, innov, steps):
     for _ in range(steps):
         joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, False)
 
 
-@njit(cache=True, pipeline_class=NoAliasCompiler)
+@njit(pipeline_class=NoAliasCompiler)
 def joseph_then_w(xl, Pl, U, K, D, S, Sinv, innov, pidx, pcols, phi, W, acc, steps):
     for _ in range(steps):
         joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, False)
         propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, W.shape[1] - 3)
 
 
-@njit(cache=True, pipeline_class=NoAliasCompiler)
+@njit(pipeline_class=NoAliasCompiler)
 def fused(Pl, U, K, D, pos, phi, W, steps):
     """K and D are taken as given (the Joseph update's own K = S^-1 U, D = U - S K come first);
     each packed entry of P is corrected as ``joseph_correct_lanes`` does and added to W: to

@@ -1,7 +1,7 @@
 """The low-precision centrifuge's window filter alone (issue 22 items 1-2): CPU per window of
 :func:`platcal.rigs.lowprec_centrifuge.proposed.run_filter` on the windows that
-``identify_proposed`` forms from platform P1's first proposed run (the case of
-``bench_all.py``), ``--seeds`` seeds, best of ``--repeat`` calls after the compile. ``--dump F``
+``identify_proposed`` forms from platform P1's first proposed run
+(``bench_all.lowprec_case``), ``--seeds`` seeds, best of ``--repeat`` calls after the compile. ``--dump F``
 writes the result (x, P, mean NIS, innovations) to F (.npz) so that two source trees can be
 compared bit for bit (``--compare A B``).
 
@@ -14,34 +14,21 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from unittest import mock
 
 import numpy as np
 
+from bench_all import lowprec_case
 from platcal.rigs.lowprec_centrifuge import proposed
-from platcal.rigs.lowprec_centrifuge.config import load_config
-from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
 
 
 def window_inputs(seeds: int) -> tuple:
     """The arguments ``identify_proposed`` hands to ``run_filter`` (T, z, m, valid, lat_rad)."""
-    study = load_config({"rig": "lowprec_centrifuge"})
-    p = study.platform_names()[0]
-    r = [r for r in study.run_names(p) if r != "traditional"][0]
-    rb = simulate_batch(study, p, r, [np.random.SeedSequence([1, i]) for i in range(seeds)])
-    seen = []
-    real = proposed.run_filter
-
-    def spy(*args, **kwargs):
-        seen.append(args[:5])
-        return real(*args, **kwargs)
-
-    proposed.run_filter = spy
-    try:
+    study, _, _, rb = lowprec_case(seeds)
+    with mock.patch.object(proposed, "run_filter", wraps=proposed.run_filter) as spy:
         proposed.identify_proposed(rb.prof.t, rb.v_ind, rb.p_ind, rb.psi, rb.f_meas, rb.prof.schedule,
                                    study.centrifuge.arm_m, study.latitude_deg)
-    finally:
-        proposed.run_filter = real
-    return seen[0]
+    return spy.call_args.args[:5]
 
 
 def main(argv=None) -> None:

@@ -51,15 +51,16 @@ def joseph(xl, Pl, U, K, D, S, Sinv, innov, steps):
 def joseph_then_w(xl, Pl, U, K, D, S, Sinv, innov, pidx, pcols, phi, W, acc, steps):
     for _ in range(steps):
         joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, False)
-        propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, W.shape[1] - 3)
+        propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, W.shape[0] - 3)
 
 
 @njit(pipeline_class=NoAliasCompiler)
 def fused(Pl, U, K, D, pos, phi, W, steps):
     """K and D are taken as given (the Joseph update's own K = S^-1 U, D = U - S K come first);
     each packed entry of P is corrected as ``joseph_correct_lanes`` does and added to W: to
-    W[:, j] when row i is a column of Phi (term kk = i), to W[:, i] when j < i is (term kk = j)."""
-    n = W.shape[1]
+    W's column j when row i is a column of Phi (term kk = i), to its column i when j < i is (term kk = j)."""
+    n = W.shape[0]
+    L = LANES
     for _ in range(steps):
         W[:] = 0.0
         e = 0
@@ -67,18 +68,18 @@ def fused(Pl, U, K, D, pos, phi, W, steps):
             pi = pos[i]
             for j in range(i + 1):
                 for l in range(LANES):
-                    Pl[e + j, l] -= ((K[0, i, l] * U[0, j, l] + K[1, i, l] * U[1, j, l] + K[2, i, l] * U[2, j, l])
-                                     + (D[0, i, l] * K[0, j, l] + D[1, i, l] * K[1, j, l]
-                                        + D[2, i, l] * K[2, j, l]))
+                    Pl[e + j, l] -= ((K[i, l] * U[j, l] + K[i, L + l] * U[j, L + l] + K[i, 2 * L + l] * U[j, 2 * L + l])
+                                     + (D[i, l] * K[j, l] + D[i, L + l] * K[j, L + l]
+                                        + D[i, 2 * L + l] * K[j, 2 * L + l]))
                 pj = pos[j]
                 if pj >= 0 and j < i:
                     for r in range(3):
                         for l in range(LANES):
-                            W[r, i, l] += phi[r, pj, l] * Pl[e + j, l]
+                            W[i, r * L + l] += phi[r, pj, l] * Pl[e + j, l]
                 if pi >= 0:
                     for r in range(3):
                         for l in range(LANES):
-                            W[r, j, l] += phi[r, pi, l] * Pl[e + j, l]
+                            W[j, r * L + l] += phi[r, pi, l] * Pl[e + j, l]
             e += i + 1
 
 
@@ -105,7 +106,7 @@ def probe(a) -> None:
     for i in range(n):
         for j in range(i + 1):
             Pl0[pidx[i, j]] = P0[i, j]
-    U, K, D = (1e-4 * rng.standard_normal((3, n, L)) for _ in range(3))
+    U, K, D = (1e-4 * rng.standard_normal((n, 3 * L)) for _ in range(3))
     # Phi's attitude rows as in the filter: 1 on their own angle, small elsewhere (P stays bounded)
     phi = 1e-3 * rng.standard_normal((3, pcols.size, L))
     for r in range(3):
@@ -116,7 +117,7 @@ def probe(a) -> None:
     for l in range(L):
         S[:, :, l] = np.eye(3)
         Sinv[:, :, l] = np.eye(3)
-    xl, innov, W, acc = np.zeros((n, L)), np.zeros((3, L)), np.zeros((3, n, L)), np.zeros((6, L))
+    xl, innov, W, acc = np.zeros((n, L)), np.zeros((3, L)), np.zeros((n, 3 * L)), np.zeros((6, L))
     # the Joseph update forms K and D from U, S, Sinv: the fused pass takes that K and D
     joseph(xl, Pl0.copy(), U, K, D, S, Sinv, innov, 1)
     Ks, Ds = K.copy(), D.copy()

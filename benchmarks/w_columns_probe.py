@@ -37,7 +37,7 @@ def columns_per_pass(m: int):
 
     @njit(pipeline_class=NoAliasCompiler)
     def w(Pl, pidx, pcols, phi, W, steps):
-        n = W.shape[1]
+        n = W.shape[0]
         npc = pcols.shape[0]
         for _ in range(steps):
             W[:] = 0.0
@@ -45,10 +45,10 @@ def columns_per_pass(m: int):
                 for j in range(n):
                     for r in range(3):
                         for l in range(LANES):
-                            v = W[r, j, l]
+                            v = W[j, r * LANES + l]
                             for q in range(m):  # m is a constant of the compile: unrolled
                                 v = v + phi[r, kk + q, l] * Pl[pidx[pcols[kk + q], j], l]
-                            W[r, j, l] = v
+                            W[j, r * LANES + l] = v
     return w
 
 
@@ -67,16 +67,16 @@ def main():
             raise SystemExit(f"{pcols.size} columns of Phi: 2, 3, 5 and 6 columns a pass need a multiple of 30")
         variants = {"2 columns a pass (the kernel)": kernel_loop,
                     **{f"{m} columns": columns_per_pass(m) for m in (3, 5, 6)}}
-        ref = np.zeros((3, n, L))
+        ref = np.zeros((n, 3 * L))
         kernel_loop(Pl0, pidx, pcols, phi, ref, 1)
         for name, f in variants.items():
-            W = np.full((3, n, L), np.nan)
+            W = np.full((n, 3 * L), np.nan)
             f(Pl0, pidx, pcols, phi, W, 1)
             print(f"{name}: W equal to the kernel's loop (np.array_equal): {np.array_equal(W, ref)}")
         best = {k: np.inf for k in variants}
         for _ in range(rounds):
             for name, f in variants.items():
-                W = np.zeros((3, n, L))
+                W = np.zeros((n, 3 * L))
                 c0 = time.process_time()
                 f(Pl0, pidx, pcols, phi, W, steps)
                 best[name] = min(best[name], (time.process_time() - c0) / steps * 1e9)

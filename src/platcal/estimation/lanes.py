@@ -3,7 +3,13 @@
 A state-major kernel runs a block of :data:`LANES` replicates with the lanes innermost: a
 block's symmetric covariance is ``P[e, l]``, entry ``e`` of the lower triangle packed by rows
 (:func:`packed_index`), lane ``l``; every covariance operation is then one vector instruction
-over the lanes, and P is stored once (no mirror). The kernels are compiled with their array
+over the lanes, and P is stored once (no mirror). A 3 x n matrix of the update or the propagation
+(``U = H P``, the gain ``K``, ``D``, ``W = Phi[rows] P``) is held column-major as ``A[j, r * LANES + l]``
+(shape ``(n, 3 * LANES)``): entry (r, j) of lane l. Its three rows at column j are then at fixed
+offsets from one address, the last axis's stride being the item size, which the compiler knows;
+in a (3, n, LANES) array each row's offset is a stride known only at run time, and the Joseph
+update's loop spilled those to the stack (issue 22: the update 23 % faster in this layout, bit for
+bit). The kernels are compiled with their array
 arguments ``noalias`` (:class:`NoAliasCompiler`) and LLVM's SLP vectoriser on
 (:func:`slp_vectorize`), which is what merges the lanes' scalar operations into vectors.
 """
@@ -118,27 +124,29 @@ def cholesky_inverse_lanes(S, Sinv, innov, nu, ok):
 @njit(cache=True, inline="always")
 def innovation_covariance_lanes(Pl, pidx, hcols, hnnz, hval, r_var, U, S, acc):
     """Per lane, :func:`platcal.estimation.kalman.innovation_covariance` for a 3-row sparse H:
-    ``U = H P`` (3, n, LANES) through the packed index ``pidx`` and ``S = H U^T + R`` (3, 3, LANES),
-    the same sums in the same order. H's rows ``hcols``, ``hnnz`` are shared by the lanes, their
-    values ``hval`` (3, w, LANES) are the lanes' own; ``r_var`` (3,) the noise variances; ``acc``
-    (LANES,) scratch."""
-    n = U.shape[1]
+    ``U = H P`` (n, 3 * LANES: entry (r, j) of lane l at ``U[j, r * LANES + l]``) through the packed
+    index ``pidx`` and ``S = H U^T + R`` (3, 3, LANES), the same sums in the same order. H's rows
+    ``hcols``, ``hnnz`` are shared by the lanes, their values ``hval`` (3, w, LANES) are the lanes'
+    own; ``r_var`` (3,) the noise variances; ``acc`` (LANES,) scratch."""
+    n = U.shape[0]
     U[:] = 0.0
     for r in range(3):
+        u0 = r * LANES
         for kk in range(hnnz[r]):
             hc = hcols[r, kk]
             for j in range(n):
                 e = pidx[hc, j]
                 for l in range(LANES):
-                    U[r, j, l] += hval[r, kk, l] * Pl[e, l]
+                    U[j, u0 + l] += hval[r, kk, l] * Pl[e, l]
     for r in range(3):
+        u0 = r * LANES
         for c in range(r + 1):
             for l in range(LANES):
                 acc[l] = 0.0
             for kk in range(hnnz[c]):
                 hc = hcols[c, kk]
                 for l in range(LANES):
-                    acc[l] += U[r, hc, l] * hval[c, kk, l]
+                    acc[l] += U[hc, u0 + l] * hval[c, kk, l]
             for l in range(LANES):
                 S[r, c, l] = acc[l]
                 S[c, r, l] = acc[l]
@@ -150,40 +158,43 @@ def innovation_covariance_lanes(Pl, pidx, hcols, hnnz, hval, r_var, U, S, acc):
 def joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x):
     """Per lane, the Joseph-form correction of :func:`platcal.estimation.kalman._correct3`:
     ``K = S^-1 U``, ``D = U - S K``, ``x += K innov`` (with ``update_x``) and ``P -= K U^T + D K^T``
-    on the packed lower triangle (``xl`` (n, LANES), ``Pl`` (n (n + 1) / 2, LANES)), the same
-    operations in the same order. A lane with ``Sinv = 0`` keeps its x and P."""
+    on the packed lower triangle (``xl`` (n, LANES), ``Pl`` (n (n + 1) / 2, LANES); ``U``, ``K``, ``D``
+    (n, 3 * LANES), entry (r, j) of lane l at ``[j, r * LANES + l]``), the same operations in the same
+    order. A lane with ``Sinv = 0`` keeps its x and P."""
     n = xl.shape[0]
-    for c in range(3):
-        for j in range(n):
-            for l in range(LANES):
-                K[c, j, l] = Sinv[c, 0, l] * U[0, j, l] + Sinv[c, 1, l] * U[1, j, l] + Sinv[c, 2, l] * U[2, j, l]
-    for c in range(3):
-        for j in range(n):
-            for l in range(LANES):
-                D[c, j, l] = U[c, j, l] - (S[c, 0, l] * K[0, j, l] + S[c, 1, l] * K[1, j, l]
-                                           + S[c, 2, l] * K[2, j, l])
+    L = LANES
+    for j in range(n):
+        for c in range(3):
+            for l in range(L):
+                K[j, c * L + l] = Sinv[c, 0, l] * U[j, l] + Sinv[c, 1, l] * U[j, L + l] + Sinv[c, 2, l] * U[j, 2 * L + l]
+    for j in range(n):
+        for c in range(3):
+            for l in range(L):
+                D[j, c * L + l] = U[j, c * L + l] - (S[c, 0, l] * K[j, l] + S[c, 1, l] * K[j, L + l]
+                                                     + S[c, 2, l] * K[j, 2 * L + l])
     if update_x:
         for j in range(n):
-            for l in range(LANES):
-                xl[j, l] += K[0, j, l] * innov[0, l] + K[1, j, l] * innov[1, l] + K[2, j, l] * innov[2, l]
+            for l in range(L):
+                xl[j, l] += K[j, l] * innov[0, l] + K[j, L + l] * innov[1, l] + K[j, 2 * L + l] * innov[2, l]
     e = 0
     for i in range(n):
         for j in range(i + 1):
-            for l in range(LANES):
-                Pl[e + j, l] -= ((K[0, i, l] * U[0, j, l] + K[1, i, l] * U[1, j, l] + K[2, i, l] * U[2, j, l])
-                                 + (D[0, i, l] * K[0, j, l] + D[1, i, l] * K[1, j, l] + D[2, i, l] * K[2, j, l]))
+            for l in range(L):
+                Pl[e + j, l] -= ((K[i, l] * U[j, l] + K[i, L + l] * U[j, L + l] + K[i, 2 * L + l] * U[j, 2 * L + l])
+                                 + (D[i, l] * K[j, l] + D[i, L + l] * K[j, L + l] + D[i, 2 * L + l] * K[j, 2 * L + l]))
         e += i + 1
 
 
 @njit(cache=True, inline="always")
 def phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W):
-    """Per lane, ``W = Phi[rows] P`` (3, n, LANES): the 3 rows of Phi nonzero at the columns ``pcols``
-    with the values ``phi`` (3, len(pcols), LANES), P packed (``Pl``, through the index ``pidx``).
-    Every entry sums in column order (``pcols`` as given), as
-    :func:`platcal.estimation.kalman.propagate_sparse` does. The first part of
+    """Per lane, ``W = Phi[rows] P`` (n, 3 * LANES: entry (r, j) of lane l at ``W[j, r * LANES + l]``):
+    the 3 rows of Phi nonzero at the columns ``pcols`` with the values ``phi`` (3, len(pcols), LANES),
+    P packed (``Pl``, through the index ``pidx``). Every entry sums in column order (``pcols`` as
+    given), as :func:`platcal.estimation.kalman.propagate_sparse` does. The first part of
     :func:`propagate_rows_lanes`; apart so that ``benchmarks/w_columns_probe.py`` times this loop."""
-    n = W.shape[1]
+    n = W.shape[0]
     npc = pcols.shape[0]
+    L = LANES
     W[:] = 0.0
     # two columns of Phi per pass over W (half its loads and stores), each row of W
     # in its own lane loop (one lane loop updating three rows is not vectorised);
@@ -194,38 +205,39 @@ def phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W):
         for j in range(n):
             ea = pidx[ea0, j]
             eb = pidx[eb0, j]
-            for l in range(LANES):
-                W[0, j, l] = (W[0, j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
-            for l in range(LANES):
-                W[1, j, l] = (W[1, j, l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
-            for l in range(LANES):
-                W[2, j, l] = (W[2, j, l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
+            for l in range(L):
+                W[j, l] = (W[j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
+            for l in range(L):
+                W[j, L + l] = (W[j, L + l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
+            for l in range(L):
+                W[j, 2 * L + l] = (W[j, 2 * L + l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
     if npc % 2:
         kk = npc - 1
         ea0 = pcols[kk]
         for j in range(n):
             ea = pidx[ea0, j]
-            for l in range(LANES):
-                W[0, j, l] += phi[0, kk, l] * Pl[ea, l]
-            for l in range(LANES):
-                W[1, j, l] += phi[1, kk, l] * Pl[ea, l]
-            for l in range(LANES):
-                W[2, j, l] += phi[2, kk, l] * Pl[ea, l]
+            for l in range(L):
+                W[j, l] += phi[0, kk, l] * Pl[ea, l]
+            for l in range(L):
+                W[j, L + l] += phi[1, kk, l] * Pl[ea, l]
+            for l in range(L):
+                W[j, 2 * L + l] += phi[2, kk, l] * Pl[ea, l]
 
 
 @njit(cache=True, inline="always")
 def propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, r0):
     """Per lane, ``P <- Phi P Phi^T`` where Phi is the identity but for the 3 rows ``r0 .. r0 + 2``,
     nonzero at the columns ``pcols`` with the values ``phi`` (3, len(pcols), LANES): ``W = Phi[rows] P``
-    (3, n, LANES) through the packed index, written as the rows (= the columns) of the packed
-    ``Pl``, and in ``acc`` (6, LANES) the six sums of the 3 x 3 block ``Phi P Phi^T`` on those rows
-    (rows 00, 10, 11, 20, 21, 22), which the caller writes with its process noise. Every entry
-    sums in column order, as :func:`platcal.estimation.kalman.propagate_sparse` does (the same
-    numbers)."""
+    (n, 3 * LANES, as :func:`phi_rows_times_p_lanes`) through the packed index, written as the rows
+    (= the columns) of the packed ``Pl``, and in ``acc`` (6, LANES) the six sums of the 3 x 3 block
+    ``Phi P Phi^T`` on those rows (rows 00, 10, 11, 20, 21, 22), which the caller writes with its
+    process noise. Every entry sums in column order, as
+    :func:`platcal.estimation.kalman.propagate_sparse` does (the same numbers)."""
     phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W)
     npc = pcols.shape[0]
-    n = W.shape[1]
-    for l in range(LANES):
+    n = W.shape[0]
+    L = LANES
+    for l in range(L):
         acc[0, l] = 0.0
         acc[1, l] = 0.0
         acc[2, l] = 0.0
@@ -234,8 +246,8 @@ def propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, r0):
         acc[5, l] = 0.0
     for kk in range(npc):
         c = pcols[kk]
-        for l in range(LANES):
-            w0, w1_, w2 = W[0, c, l], W[1, c, l], W[2, c, l]
+        for l in range(L):
+            w0, w1_, w2 = W[c, l], W[c, L + l], W[c, 2 * L + l]
             p0, p1, p2 = phi[0, kk, l], phi[1, kk, l], phi[2, kk, l]
             acc[0, l] += w0 * p0
             acc[1, l] += w1_ * p0
@@ -246,5 +258,5 @@ def propagate_rows_lanes(Pl, pidx, pcols, phi, W, acc, r0):
     for r in range(3):
         for j in range(n):
             e = pidx[r0 + r, j]
-            for l in range(LANES):
-                Pl[e, l] = W[r, j, l]
+            for l in range(L):
+                Pl[e, l] = W[j, r * L + l]

@@ -269,7 +269,7 @@ def _coef_ratio_lane(Pl, pidx, it_ctl, nc, l):
 def _relinearise_lane(l, b, mz, it_tol, z, Pl, xl, pidx, est_idx, hcols, hnnz, hsrc, hval, innov, U, S,
                       coef_l, fr_now, g, S1, F1, nu1, in1, w1, xi, xnew, coef_i, out, hm, ha):
     """One Gauss-Newton step of the iterated EKF (the reference kernel's loop in ``_filter_one``)
-    for lane ``l`` (replicate ``b``, output row ``mz``), from ``U = H_i P`` and ``S`` (3, n, LANES),
+    for lane ``l`` (replicate ``b``, output row ``mz``), from ``U = H_i P`` and ``S`` (n, 3 * LANES),
     (3, 3, LANES) at its current linearisation: ``x_{i+1} = x_pred + U^T S^-1 innov`` into
     ``xi[l]``, then H and the innovation at ``x_{i+1}`` into ``hval[:, :, l]`` and ``innov[:, l]``.
     x and P are untouched (the Joseph update that follows uses them). Returns whether the lane
@@ -287,7 +287,7 @@ def _relinearise_lane(l, b, mz, it_tol, z, Pl, xl, pidx, est_idx, hcols, hnnz, h
         w1[r] = F1[r, 0] * in1[0] + F1[r, 1] * in1[1] + F1[r, 2] * in1[2]
     dmax = 0.0
     for j in range(n):
-        xnew[j] = xl[j, l] + U[0, j, l] * w1[0] + U[1, j, l] * w1[1] + U[2, j, l] * w1[2]
+        xnew[j] = xl[j, l] + U[j, l] * w1[0] + U[j, LANES + l] * w1[1] + U[j, 2 * LANES + l] * w1[2]
         d = abs(xnew[j] - xi[l, j]) / np.sqrt(Pl[pidx[j, j], l])
         if d > dmax:
             dmax = d
@@ -317,8 +317,8 @@ def _block_scratch(n, npc, mh, nco, npar):
     kernel's ``noalias`` compile requires."""
     L = LANES
     f3 = np.empty
-    return (f3((n, L)), f3((n * (n + 1) // 2, L)), f3((3, n, L)), f3((3, n, L)), f3((3, n, L)),
-            f3((3, n, L)), f3((3, npc, L)), np.zeros((3, mh, L)), np.zeros((3, L)), f3((3, 3, L)),
+    return (f3((n, L)), f3((n * (n + 1) // 2, L)), f3((n, 3 * L)), f3((n, 3 * L)), f3((n, 3 * L)),
+            f3((n, 3 * L)), f3((3, npc, L)), np.zeros((3, mh, L)), np.zeros((3, L)), f3((3, 3, L)),
             f3((3, 3, L)), f3((3, L)), f3(L), f3((6, L)), f3(L), f3(L),
             f3((L, nco)), f3((L, 3)), f3((L, 3)), f3((L, 3)), f3((L, 3, 3)), f3((L, npar)),
             f3((L, 3)), f3((L, 3, 3)), f3((L, 3, N_GYRO)), f3((L, 3)), np.zeros((L, 3, MEAS_COLS.shape[1])),

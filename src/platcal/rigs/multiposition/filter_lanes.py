@@ -232,8 +232,8 @@ def _ekf_blocks(lo, hi, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_v
     e = np.empty
     for blk in range(lo, hi):
         _ekf_block(blk, X, Ps, phi0s, tk, Z, nk, lay, wn, wu, r_var, arw2, set_var, cols, update_x, iters, tol, sums,
-                   rec, pidx, e((n, L)), e((n * (n + 1) // 2, L)), e(n), e((n, n)), e((3, n, L)), e((3, n, L)),
-                   e((3, n, L)), e((3, n, L)), e((3, m, L)), e((3, 3, L)), np.zeros((3, 10, L)), hvala, e((3, L)),
+                   rec, pidx, e((n, L)), e((n * (n + 1) // 2, L)), e(n), e((n, n)), e((n, 3 * L)), e((n, 3 * L)),
+                   e((n, 3 * L)), e((n, 3 * L)), e((3, m, L)), e((3, 3, L)), np.zeros((3, 10, L)), hvala, e((3, L)),
                    e((3, 3, L)), e((3, 3, L)), e((3, L)), e(L), e((6, L)), e((4, L)), e((2, L)), e((6, L)),
                    np.zeros((3, n)), e(3), C, dC, T, dT, f, eps, deps, greg, e((3, m)), e((3, 3)), e(6),
                    e((3, 10)), np.empty((3, 10), dtype=np.int64), np.empty(3, dtype=np.int64), hca,

@@ -2,8 +2,8 @@
 
 Variants of :mod:`platcal.rigs.centrifuge.ekf_lanes` are written to a temporary directory, each
 with one part of the filter step done on a segment's first step only (its numbers are then
-wrong; only its time counts): the model (base specific force, the RK4 map and its exact
-Jacobian, lane by lane), the outputs and H, W = Phi P, U = H P with S, and K, D, x with the
+wrong; only its time counts): the model (the base specific force lane by lane, the RK4 map and
+its exact Jacobian for the block's lanes at once), the outputs and H, W = Phi P, U = H P with S, and K, D, x with the
 Joseph update of the packed P (the last three are calls of the shared lane pieces,
 :mod:`platcal.estimation.lanes`, which the variant skips after a segment's first step). Every variant and the kernel itself run the Table 1 case (6 x 60 s) at ``--batch``
 replicates on one numba thread, alternating over ``--rounds`` rounds in one process (so that the
@@ -29,13 +29,14 @@ from bench_filter import table1_case
 from platcal.parallel import set_threads
 from platcal.rigs.centrifuge.ekf import EstimatorInput, run_ekf
 
-# part -> (the kernel's loop header, the same loop run on a segment's first step only)
+# part -> (the kernel's code, the same code run on a segment's first step only), or a tuple of such pairs
 PARTS = {
-    "model (specific force, RK4 + Jacobian; scalar, per lane)": (
-        "                for l in range(nact):\n                    for r in range(3):\n"
-        "                        fr3[l, 0, r] = fr_now[l, r]",
-        "                for l in range(nact if m == 0 else 0):\n                    for r in range(3):\n"
-        "                        fr3[l, 0, r] = fr_now[l, r]"),
+    "model (specific force per lane; the RK4 map and its Jacobian, all lanes at once)": (
+        ("                for l in range(nact):\n                    for r in range(3):\n"
+         "                        fr3[l, 0, r] = fr_now[l, r]",
+         "                for l in range(nact if m == 0 else 0):\n                    for r in range(3):\n"
+         "                        fr3[l, 0, r] = fr_now[l, r]"),
+        ("                rk4_jac_lanes(m_ang,", "                if m == 0:\n                    rk4_jac_lanes(m_ang,")),
     "outputs and H (scalar, per lane)": (
         "            for l in range(nact):\n                b = b0 + l\n                g = pb_l[l, P_G]",
         "            for l in range(nact if m == 0 else 0):\n                b = b0 + l\n                g = pb_l[l, P_G]"),
@@ -83,11 +84,14 @@ def main(argv=None) -> None:
     load0 = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as folder:
         runs = {"whole kernel": ekf_lanes.run_pass_lanes}
-        for i, (part, (old, new)) in enumerate(PARTS.items()):
-            if src.count(old) != 1:
-                raise SystemExit(f"ekf_lanes_ablation: the loop of {part!r} is not found once in ekf_lanes.py; "
-                                 "update PARTS to the kernel's code")
-            runs[part] = variant(src.replace(old, new), f"ekf_lanes_ablate{i}", folder).run_pass_lanes
+        for i, (part, pairs) in enumerate(PARTS.items()):
+            text = src
+            for old, new in (pairs if isinstance(pairs[0], tuple) else (pairs,)):
+                if text.count(old) != 1:
+                    raise SystemExit(f"ekf_lanes_ablation: the code of {part!r} is not found once in ekf_lanes.py; "
+                                     "update PARTS to the kernel's code")
+                text = text.replace(old, new)
+            runs[part] = variant(text, f"ekf_lanes_ablate{i}", folder).run_pass_lanes
         best = dict.fromkeys(runs, float("inf"))
         # run_ekf imports run_pass_lanes from ekf_lanes at each call: the module's name is swapped
         try:

@@ -166,7 +166,8 @@ def joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x):
     for j in range(n):
         for c in range(3):
             for l in range(L):
-                K[j, c * L + l] = Sinv[c, 0, l] * U[j, l] + Sinv[c, 1, l] * U[j, L + l] + Sinv[c, 2, l] * U[j, 2 * L + l]
+                K[j, c * L + l] = (Sinv[c, 0, l] * U[j, l] + Sinv[c, 1, l] * U[j, L + l]
+                                   + Sinv[c, 2, l] * U[j, 2 * L + l])
     for j in range(n):
         for c in range(3):
             for l in range(L):

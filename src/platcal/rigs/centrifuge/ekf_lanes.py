@@ -27,8 +27,12 @@ kernel is therefore compiled with every array argument declared ``noalias``
 (:class:`NoAliasCompiler`: all its arrays, scratch included, are distinct arguments) and with
 SLP vectorisation on (:func:`slp_vectorize` around every call, so that a first compile or a
 cache miss compiles it that way; SLP merges identical scalar operations and changes no number).
-The model (the RK4 map with its Jacobian, the accelerometer outputs and Jacobian) stays the
-reference kernel's scalar code, run once per live lane.
+The RK4 map with its exact Jacobian runs for the block's lanes at once (:func:`rk4_jac_lanes`,
+the reference's operations per lane on 1-D lane arrays, which SLP merges; the block kernel is
+compiled with numpy's error model, so its divisions carry no zero checks and vectorise too: a
+divisor there is never zero, and none of the kernel's numbers changes); the base specific force
+and the accelerometer outputs and Jacobian stay the reference kernel's scalar code, once per live
+lane (issue 22: the step 1927 -> 1772 ns, the model 617 -> 418 ns, `benchmarks/ekf_lanes_ablation.py`).
 """
 
 from __future__ import annotations
@@ -37,9 +41,12 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from .attitude import MEAS_COLS, N_GYRO, P_G, make_sc_rk4_scratch, measure_jac_sc, rk4_jac_sc
+from .attitude import (MEAS_COLS, N_GYRO, P_G, P_OMEGA_N, P_OMEGA_U, SHIFT_SMALL, V_A, V_DU, V_JA, V_RATE, V_T, V_U,
+                       _force_p, c_rp_sc, measure_jac_sc, shift_small)
 from .base import specific_force_into
 from ...estimation.kalman import cholesky_inverse
+from ...model.frames import DEG_PER_HOUR
+from ...model.instruments import GYRO_AXES, I_DOO, gyro_axis_components, gyro_drift_terms
 from ...estimation.lanes import (LANES, NoAliasCompiler, innovation_covariance_lanes, joseph_correct_lanes,
                                  packed_index, propagate_rows_lanes, slp_vectorize)
 from ...estimation.lanes import cholesky_inverse_lanes as _cholesky_inverse_lanes
@@ -47,6 +54,248 @@ from ...estimation.lanes import cholesky_inverse_lanes as _cholesky_inverse_lane
 FASTMATH = False
 """LLVM fast-math flags of the block kernel: none (``{"contract"}``, fused multiply-adds, was 13 %
 faster but made the numbers depend on the build: see the module docstring)."""
+
+
+# The same map for a block of replicates in SIMD lanes (the state-major EKF kernel, issue 22):
+# every lane's operations are rk4_jac_sc's, so its numbers are too (tests/test_ekf_lanes.py).
+@njit(cache=True, inline="always")
+def rate_jac_lanes(sc, coef, fr, g, wn, wu, v, w):
+    """:func:`rate_jac_sc` for :data:`LANES` replicates at once, the same operations in the same
+    order per lane (bit for bit). Every array is 1-D with the lanes innermost, entry ``q`` of lane
+    ``l`` at ``[q * LANES + l]``: ``sc`` (6 LANES) the sines and cosines of alpha, beta, gamma,
+    ``coef`` (ncoef LANES), ``fr`` (3 LANES) the base specific force (m/s^2), ``g``, ``wn``, ``wu``
+    (LANES) m/s^2 and rad/s; results into ``v`` (42 LANES) as :data:`V_RATE` ...; ``w`` (40 LANES)
+    scratch (C, dC/dbeta, f, d f / d alpha, d f / d beta, T, 1 / cos beta, tan beta, slopes).
+
+    Why this form (issue 22): LLVM's SLP vectoriser merges the lanes' identical operations only
+    where it can tell their memory apart, i.e. at constant offsets from one base (a 2-D array's row
+    stride is a run-time value), and only in lane loops small enough to be unrolled; hence 1-D
+    arrays and the body cut into short lane loops that hand their values on through ``w``."""
+    L = LANES
+    for l in range(L):
+        sa, ca, sb = sc[l], sc[L + l], sc[2 * L + l]
+        cb, sg, cg = sc[3 * L + l], sc[4 * L + l], sc[5 * L + l]
+        c00, c01, c02, c10, c11, c12, c20, c21, c22 = c_rp_sc(sa, ca, sb, cb, sg, cg)
+        w[l] = c00
+        w[L + l] = c01
+        w[2 * L + l] = c02
+        w[3 * L + l] = c10
+        w[4 * L + l] = c11
+        w[5 * L + l] = c12
+        w[6 * L + l] = c20
+        w[7 * L + l] = c21
+        w[8 * L + l] = c22
+        w[9 * L + l] = -cg * sb
+        w[10 * L + l] = cg * cb * sa
+        w[11 * L + l] = -cg * cb * ca
+        w[12 * L + l] = sg * sb
+        w[13 * L + l] = -sg * cb * sa
+        w[14 * L + l] = sg * cb * ca
+        w[15 * L + l] = cb
+        w[16 * L + l] = sb * sa
+        w[17 * L + l] = -sb * ca
+    for l in range(L):
+        fr0, fr1, fr2 = fr[l], fr[L + l], fr[2 * L + l]
+        gl = g[l]
+        f0, f1, f2 = _force_p(w[l], w[L + l], w[2 * L + l], w[3 * L + l], w[4 * L + l], w[5 * L + l],
+                              w[6 * L + l], w[7 * L + l], w[8 * L + l],
+                              fr0, fr1, fr2, gl)
+        w[18 * L + l] = f0
+        w[19 * L + l] = f1
+        w[20 * L + l] = f2
+        w[21 * L + l] = (-w[2 * L + l] * fr1 + w[L + l] * fr2) / gl
+        w[22 * L + l] = (-w[5 * L + l] * fr1 + w[4 * L + l] * fr2) / gl
+        w[23 * L + l] = (-w[8 * L + l] * fr1 + w[7 * L + l] * fr2) / gl
+        w[24 * L + l] = (w[9 * L + l] * fr0 + w[10 * L + l] * fr1 + w[11 * L + l] * fr2) / gl
+        w[25 * L + l] = (w[12 * L + l] * fr0 + w[13 * L + l] * fr1 + w[14 * L + l] * fr2) / gl
+        w[26 * L + l] = (w[15 * L + l] * fr0 + w[16 * L + l] * fr1 + w[17 * L + l] * fr2) / gl
+    for l in range(L):
+        sb, cb, sg, cg = sc[2 * L + l], sc[3 * L + l], sc[4 * L + l], sc[5 * L + l]
+        ib = 1.0 / cb
+        tb = sb * ib
+        w[27 * L + l] = cg * ib
+        w[28 * L + l] = -sg * ib
+        w[29 * L + l] = sg
+        w[30 * L + l] = cg
+        w[31 * L + l] = -tb * cg
+        w[32 * L + l] = tb * sg
+        w[33 * L + l] = ib
+        w[34 * L + l] = tb
+    for j in range(3):
+        for l in range(L):
+            f0, f1, f2 = w[18 * L + l], w[19 * L + l], w[20 * L + l]
+            aI, aO, aS = gyro_axis_components(j, f0, f1, f2)
+            v[(V_A + 3 * j) * L + l] = aI
+            v[(V_A + 3 * j + 1) * L + l] = aO
+            v[(V_A + 3 * j + 2) * L + l] = aS
+            D, DI = coef[j * L + l], coef[(3 + j) * L + l]
+            DO, DS = coef[(6 + j) * L + l], coef[(9 + j) * L + l]
+            DII, DSS, DIO = coef[(12 + j) * L + l], coef[(15 + j) * L + l], coef[(18 + j) * L + l]
+            DIS, DOS, DOO = coef[(21 + j) * L + l], coef[(24 + j) * L + l], coef[(I_DOO + j) * L + l]
+            e = gyro_drift_terms(D, DI, DO, DS, DII, DSS, DIO, DIS, DOS, DOO, aI, aO, aS)
+            v[(V_U + j) * L + l] = e * DEG_PER_HOUR
+            w[35 * L + l] = DI + 2.0 * DII * aI + DIO * aO + DIS * aS
+            w[36 * L + l] = DO + 2.0 * DOO * aO + DIO * aI + DOS * aS
+            w[37 * L + l] = DS + 2.0 * DSS * aS + DIS * aI + DOS * aO
+        for l in range(L):
+            gI, gO, gS = w[35 * L + l], w[36 * L + l], w[37 * L + l]
+            d0 = gI * GYRO_AXES[j, 0, 0] + gO * GYRO_AXES[j, 1, 0] + gS * GYRO_AXES[j, 2, 0]
+            d1 = gI * GYRO_AXES[j, 0, 1] + gO * GYRO_AXES[j, 1, 1] + gS * GYRO_AXES[j, 2, 1]
+            d2 = gI * GYRO_AXES[j, 0, 2] + gO * GYRO_AXES[j, 1, 2] + gS * GYRO_AXES[j, 2, 2]
+            fg0 = w[19 * L + l]
+            fg1 = -w[18 * L + l]
+            fg2 = 0.0
+            v[(V_DU + 3 * j) * L + l] = DEG_PER_HOUR * (d0 * w[21 * L + l] + d1 * w[22 * L + l]
+                                                        + d2 * w[23 * L + l])
+            v[(V_DU + 3 * j + 1) * L + l] = DEG_PER_HOUR * (d0 * w[24 * L + l] + d1 * w[25 * L + l]
+                                                            + d2 * w[26 * L + l])
+            v[(V_DU + 3 * j + 2) * L + l] = DEG_PER_HOUR * (d0 * fg0 + d1 * fg1 + d2 * fg2)
+    for l in range(L):
+        wnl = wn[l]
+        wul = wu[l]
+        c01, c02, c11 = w[L + l], w[2 * L + l], w[4 * L + l]
+        c12, c21, c22 = w[5 * L + l], w[7 * L + l], w[8 * L + l]
+        b01, b02, b11 = w[10 * L + l], w[11 * L + l], w[13 * L + l]
+        b12, b21, b22 = w[14 * L + l], w[16 * L + l], w[17 * L + l]
+        w[35 * L + l] = v[V_U * L + l] + c01 * wnl + c02 * wul
+        w[36 * L + l] = v[(V_U + 1) * L + l] + c11 * wnl + c12 * wul
+        w[37 * L + l] = v[(V_U + 2) * L + l] + c21 * wnl + c22 * wul
+        v[V_DU * L + l] += -c02 * wnl + c01 * wul
+        v[(V_DU + 3) * L + l] += -c12 * wnl + c11 * wul
+        v[(V_DU + 6) * L + l] += -c22 * wnl + c21 * wul
+        v[(V_DU + 1) * L + l] += b01 * wnl + b02 * wul
+        v[(V_DU + 4) * L + l] += b11 * wnl + b12 * wul
+        v[(V_DU + 7) * L + l] += b21 * wnl + b22 * wul
+        v[(V_DU + 2) * L + l] += c11 * wnl + c12 * wul
+        v[(V_DU + 5) * L + l] += -c01 * wnl - c02 * wul
+    for l in range(L):
+        u0, u1, u2 = w[35 * L + l], w[36 * L + l], w[37 * L + l]
+        t00, t01, t10 = w[27 * L + l], w[28 * L + l], w[29 * L + l]
+        t11, t20, t21 = w[30 * L + l], w[31 * L + l], w[32 * L + l]
+        sg, cg = sc[4 * L + l], sc[5 * L + l]
+        ib, tb = w[33 * L + l], w[34 * L + l]
+        v[V_RATE * L + l] = -(t00 * u0 + t01 * u1)
+        v[(V_RATE + 1) * L + l] = -(t10 * u0 + t11 * u1)
+        v[(V_RATE + 2) * L + l] = -(t20 * u0 + t21 * u1 + u2)
+        w[38 * L + l] = cg * tb * ib * u0 - sg * tb * ib * u1
+        w[39 * L + l] = -cg * ib * ib * u0 + sg * ib * ib * u1
+    for i in range(3):
+        for l in range(L):
+            t00, t01, t10 = w[27 * L + l], w[28 * L + l], w[29 * L + l]
+            t11, t20, t21 = w[30 * L + l], w[31 * L + l], w[32 * L + l]
+            v[(V_JA + i) * L + l] = -(t00 * v[(V_DU + i) * L + l] + t01 * v[(V_DU + 3 + i) * L + l])
+            v[(V_JA + 3 + i) * L + l] = -(t10 * v[(V_DU + i) * L + l] + t11 * v[(V_DU + 3 + i) * L + l])
+            v[(V_JA + 6 + i) * L + l] = -(t20 * v[(V_DU + i) * L + l] + t21 * v[(V_DU + 3 + i) * L + l]
+                                          + v[(V_DU + 6 + i) * L + l])
+    for l in range(L):
+        u0, u1 = w[35 * L + l], w[36 * L + l]
+        sg, cg = sc[4 * L + l], sc[5 * L + l]
+        ib, tb = w[33 * L + l], w[34 * L + l]
+        dtg0 = -sg * ib * u0 - cg * ib * u1
+        dtg1 = cg * u0 - sg * u1
+        dtg2 = tb * sg * u0 + tb * cg * u1
+        v[(V_JA + 1) * L + l] -= w[38 * L + l]
+        v[(V_JA + 7) * L + l] -= w[39 * L + l]
+        v[(V_JA + 2) * L + l] -= dtg0
+        v[(V_JA + 5) * L + l] -= dtg1
+        v[(V_JA + 8) * L + l] -= dtg2
+        v[V_T * L + l] = w[27 * L + l]
+        v[(V_T + 1) * L + l] = w[28 * L + l]
+        v[(V_T + 2) * L + l] = 0.0
+        v[(V_T + 3) * L + l] = w[29 * L + l]
+        v[(V_T + 4) * L + l] = w[30 * L + l]
+        v[(V_T + 5) * L + l] = 0.0
+        v[(V_T + 6) * L + l] = w[31 * L + l]
+        v[(V_T + 7) * L + l] = w[32 * L + l]
+        v[(V_T + 8) * L + l] = 1.0
+
+
+@njit(cache=True, inline="always")
+def rk4_jac_lanes(ang, coef, fr3, h, g, wn, wu, out, phi_a, phi_g, k, ka, kg, v, sc0, sc, fr, w):
+    """:func:`rk4_jac_sc` for :data:`LANES` replicates at once, the same operations in the same order
+    per lane (bit for bit), on 1-D lane arrays as :func:`rate_jac_lanes` takes them: ``ang`` (3 LANES)
+    rad, ``coef`` (ncoef LANES), ``fr3`` (3 stages x 3 LANES) the base specific force at the step's
+    start, middle and end (m/s^2), ``h`` s, ``g``, ``wn``, ``wu`` (LANES); writes ``out`` (3 LANES)
+    rad, ``phi_a`` (3 x 3 LANES) and ``phi_g`` (3 x :data:`N_GYRO` LANES); scratch ``k`` (4 x 3 LANES),
+    ``ka`` (4 x 9 LANES), ``kg`` (4 x 3 x N_GYRO LANES), ``v`` (42 LANES), ``sc0``, ``sc`` (6 LANES),
+    ``fr`` (3 LANES), ``w`` (40 LANES)."""
+    L = LANES
+    G = N_GYRO
+    for l in range(L):
+        sc0[l], sc0[L + l] = np.sin(ang[l]), np.cos(ang[l])
+        sc0[2 * L + l], sc0[3 * L + l] = np.sin(ang[L + l]), np.cos(ang[L + l])
+        sc0[4 * L + l], sc0[5 * L + l] = np.sin(ang[2 * L + l]), np.cos(ang[2 * L + l])
+    for s in range(4):
+        fs = 0 if s == 0 else (1 if s < 3 else 2)
+        step = 0.0 if s == 0 else (0.5 * h if s < 3 else h)
+        for l in range(L):
+            for r in range(3):
+                fr[r * L + l] = fr3[(fs * 3 + r) * L + l]
+        if s == 0:
+            for q in range(6):
+                for l in range(L):
+                    sc[q * L + l] = sc0[q * L + l]
+        else:
+            # _shift per lane: the Taylor form below SHIFT_SMALL, else sin and cos
+            for a in range(3):
+                for l in range(L):
+                    d = step * k[((s - 1) * 3 + a) * L + l]
+                    i0, i1 = 2 * a * L + l, (2 * a + 1) * L + l
+                    if abs(d) < SHIFT_SMALL:
+                        sc[i0], sc[i1] = shift_small(sc0[i0], sc0[i1], d)
+                    else:
+                        sc[i0] = sc0[i0] * np.cos(d) + sc0[i1] * np.sin(d)
+                        sc[i1] = sc0[i1] * np.cos(d) - sc0[i0] * np.sin(d)
+        rate_jac_lanes(sc, coef, fr, g, wn, wu, v, w)
+        for r in range(3):
+            for l in range(L):
+                k[(s * 3 + r) * L + l] = v[(V_RATE + r) * L + l]
+        for r in range(3):
+            j0, j1, j2 = (V_JA + 3 * r) * L, (V_JA + 3 * r + 1) * L, (V_JA + 3 * r + 2) * L
+            for i in range(3):
+                p0, p1, p2 = ((s - 1) * 9 + i) * L, ((s - 1) * 9 + 3 + i) * L, ((s - 1) * 9 + 6 + i) * L
+                for l in range(L):
+                    d = v[(V_JA + 3 * r + i) * L + l]
+                    if s > 0:
+                        d += step * (v[j0 + l] * ka[p0 + l] + v[j1 + l] * ka[p1 + l] + v[j2 + l] * ka[p2 + l])
+                    ka[(s * 9 + 3 * r + i) * L + l] = d
+            o = (s * 3 + r) * G
+            for j in range(3):
+                for l in range(L):
+                    tj = -v[(V_T + 3 * r + j) * L + l] * DEG_PER_HOUR
+                    aI, aO, aS = v[(V_A + 3 * j) * L + l], v[(V_A + 3 * j + 1) * L + l], v[(V_A + 3 * j + 2) * L + l]
+                    kg[(o + j) * L + l] = tj
+                    kg[(o + 3 + j) * L + l] = tj * aI
+                    kg[(o + 6 + j) * L + l] = tj * aO
+                    kg[(o + 9 + j) * L + l] = tj * aS
+                    kg[(o + 12 + j) * L + l] = tj * (aI * aI)
+                    kg[(o + 15 + j) * L + l] = tj * (aS * aS)
+                    kg[(o + 18 + j) * L + l] = tj * (aI * aO)
+                    kg[(o + 21 + j) * L + l] = tj * (aI * aS)
+                    kg[(o + 24 + j) * L + l] = tj * (aO * aS)
+                    kg[(o + 27 + j) * L + l] = tj * (aO * aO)
+            if s > 0:
+                q0, q1, q2 = (s - 1) * 3 * G, ((s - 1) * 3 + 1) * G, ((s - 1) * 3 + 2) * G
+                for i in range(G):
+                    for l in range(L):
+                        kg[(o + i) * L + l] += step * (v[j0 + l] * kg[(q0 + i) * L + l]
+                                                       + v[j1 + l] * kg[(q1 + i) * L + l]
+                                                       + v[j2 + l] * kg[(q2 + i) * L + l])
+    h6 = h / 6.0
+    for r in range(3):
+        for l in range(L):
+            out[r * L + l] = ang[r * L + l] + h6 * (k[r * L + l] + 2.0 * k[(3 + r) * L + l] + 2.0 * k[(6 + r) * L + l]
+                                                    + k[(9 + r) * L + l])
+        for i in range(3):
+            e = 3 * r + i
+            for l in range(L):
+                phi_a[e * L + l] = (1.0 if r == i else 0.0) + h6 * (
+                    ka[e * L + l] + 2.0 * ka[(9 + e) * L + l] + 2.0 * ka[(18 + e) * L + l] + ka[(27 + e) * L + l])
+        for i in range(G):
+            e = r * G + i
+            for l in range(L):
+                phi_g[e * L + l] = h6 * (kg[e * L + l] + 2.0 * kg[(3 * G + e) * L + l] + 2.0 * kg[(6 * G + e) * L + l]
+                                         + kg[(9 * G + e) * L + l])
 
 
 @njit(cache=True)
@@ -80,13 +329,14 @@ def _from_lanes(xl, Pl, blk, x, P, pidx):
                 P[b, i, j] = Pl[pidx[i, j], l]
 
 
-@njit(cache=True, fastmath=FASTMATH, pipeline_class=NoAliasCompiler)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", pipeline_class=NoAliasCompiler)
 def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate,
                   update_x, hist_idx, hist_x, hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl,
                   rec, seg_k, seg_t0, seg_last, seg_nis,
                   pidx, xl, Pl, W, U, K, D, phi, hval, innov, S, Sinv, nu, ok, acc, nis, bad,
-                  coef_l, ang_l, fr_now, fr_mid, fr3, pb_l, ang_new, pa, pgyro, out, hm, ha,
-                  rk_k, rk_ka, rk_kg, rk_v, S1, F1, nu1, in1, it_on, w1, xi, xnew, coef_i):
+                  coef_l, ang_l, fr_now, fr_mid, fr3, pb_l, out, hm, ha,
+                  S1, F1, nu1, in1, it_on, w1, xi, xnew, coef_i, m_coef, m_ang, m_fr3, m_g, m_wn, m_wu,
+                  m_out, m_pa, m_pg, m_k, m_ka, m_kg, m_v, m_sc0, m_sc, m_fr, m_w):
     """Block ``blk`` (replicates ``blk * L .. blk * L + L - 1``) through every segment of one pass:
     :func:`platcal.rigs.centrifuge.ekf._filter_replicate` and ``_filter_one`` with the lanes
     innermost. Arguments up to ``seg_nis`` are those of the reference kernel (batch layout,
@@ -116,6 +366,9 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
     for l in range(nact):
         for i in range(coef_fixed.shape[1]):
             coef_l[l, i] = coef_fixed[b0 + l, i]
+    for i in range(coef_fixed.shape[1]):
+        for l in range(L):
+            m_coef[i * L + l] = coef_fixed[b0 + l if l < nact else b0, i]
     for s in range(offs.shape[0] - 1):
         o0, o1 = offs[s], offs[s + 1]
         k = seg_k[s]
@@ -128,6 +381,11 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
             for c in range(params.shape[2]):
                 pb_l[l, c] = params[b, k, c]
             specific_force_into(t_prev, pb_l[l], fr_now[l])
+        for l in range(L):
+            b = b0 + l if l < nact else b0
+            m_g[l] = params[b, k, P_G]
+            m_wn[l] = params[b, k, P_OMEGA_N]
+            m_wu[l] = params[b, k, P_OMEGA_U]
         if reset:
             # the position's start (docs/centrifuge-model.md §9): attitude = commanded angles,
             # variance reset_var, no cross-covariance
@@ -159,20 +417,32 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                     for r in range(3):
                         fr3[l, 1, r] = fr_mid[l, r]
                         fr3[l, 2, r] = fr_now[l, r]
-                    rk4_jac_sc(ang_l[l], coef_l[l], fr3[l], h, pb_l[l], ang_new[l], pa[l], pgyro[l],
-                               (rk_k, rk_ka, rk_kg, rk_v))
+                # the RK4 map and its Jacobian for every lane at once (the filler lanes on lane 0's
+                # inputs, so with lane 0's numbers)
+                for l in range(L):
+                    src = l if l < nact else 0
+                    for q in range(3):
+                        for r in range(3):
+                            m_fr3[(q * 3 + r) * L + l] = fr3[src, q, r]
                     for r in range(3):
-                        for kk in range(npc - 3):
-                            phi[r, kk, l] = pgyro[l, r, pg[kk]]
-                        for i in range(3):
-                            phi[r, npc - 3 + i, l] = pa[l, r, i]
-                        ang_l[l, r] = ang_new[l, r]
-                        xl[nc + r, l] = ang_new[l, r]
-                for l in range(nact, L):  # the filler lanes repeat lane 0
+                        m_ang[r * L + l] = xl[nc + r, l]
+                for kk in range(nc):
+                    for l in range(L):
+                        m_coef[est_idx[kk] * L + l] = xl[kk, l]
+                rk4_jac_lanes(m_ang, m_coef, m_fr3, h, m_g, m_wn, m_wu, m_out, m_pa, m_pg, m_k, m_ka, m_kg, m_v,
+                              m_sc0, m_sc, m_fr, m_w)
+                for r in range(3):
+                    for kk in range(npc - 3):
+                        for l in range(L):
+                            phi[r, kk, l] = m_pg[(r * N_GYRO + pg[kk]) * L + l]
+                    for i in range(3):
+                        for l in range(L):
+                            phi[r, npc - 3 + i, l] = m_pa[(r * 3 + i) * L + l]
+                    for l in range(L):
+                        xl[nc + r, l] = m_out[r * L + l]
+                for l in range(nact):
                     for r in range(3):
-                        for kk in range(npc):
-                            phi[r, kk, l] = phi[r, kk, 0]
-                        xl[nc + r, l] = xl[nc + r, 0]
+                        ang_l[l, r] = xl[nc + r, l]
                 # P <- Phi P Phi^T + Q on the 3 attitude rows: W = Phi[dyn] P (rows through
                 # the packed index), the 3 x 3 block, then the rows (= the columns) written
                 qd = q_rate * h
@@ -321,10 +591,10 @@ def _block_scratch(n, npc, mh, nco, npar):
             f3((n, 3 * L)), f3((3, npc, L)), np.zeros((3, mh, L)), np.zeros((3, L)), f3((3, 3, L)),
             f3((3, 3, L)), f3((3, L)), f3(L), f3((6, L)), f3(L), f3(L),
             f3((L, nco)), f3((L, 3)), f3((L, 3)), f3((L, 3)), f3((L, 3, 3)), f3((L, npar)),
-            f3((L, 3)), f3((L, 3, 3)), f3((L, 3, N_GYRO)), f3((L, 3)), np.zeros((L, 3, MEAS_COLS.shape[1])),
-            f3((L, 3, 3)),
-            f3((4, 3)), f3((4, 3, 3)), f3((4, 3, N_GYRO)), f3(42), f3((3, 3)), f3((3, 3)), f3(3), f3(3),
-            f3(L), f3(3), f3((L, n)), f3(n), f3(nco))
+            f3((L, 3)), np.zeros((L, 3, MEAS_COLS.shape[1])), f3((L, 3, 3)),
+            f3((3, 3)), f3((3, 3)), f3(3), f3(3), f3(L), f3(3), f3((L, n)), f3(n), f3(nco),
+            f3(nco * L), f3(3 * L), f3(9 * L), f3(L), f3(L), f3(L), f3(3 * L), f3(9 * L), f3(3 * N_GYRO * L),
+            f3(12 * L), f3(36 * L), f3(12 * N_GYRO * L), f3(42 * L), f3(6 * L), f3(6 * L), f3(3 * L), f3(40 * L))
 
 
 @njit(parallel=True, cache=True)

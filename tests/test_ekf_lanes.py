@@ -4,13 +4,16 @@ replicate's numbers independent of its lane, the batch size and the thread count
 
 import numpy as np
 import pytest
+from numba import njit
 
+from platcal.estimation.lanes import NoAliasCompiler, slp_vectorize
 from platcal.model.instruments import N_IDENTIFIED
 from platcal.parallel import threads
+from platcal.rigs.centrifuge.attitude import N_GYRO, P_G, P_OMEGA_N, P_OMEGA_U, make_sc_rk4_scratch, rk4_jac_sc
 from platcal.rigs.centrifuge.base import Centrifuge
 from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, run_ekf, run_iekf
-from platcal.rigs.centrifuge.ekf_lanes import LANES, packed_index
+from platcal.rigs.centrifuge.ekf_lanes import LANES, packed_index, rk4_jac_lanes
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 from platcal.scheme import TABLE1_POSITIONS, check_scheme
 
@@ -86,3 +89,33 @@ def test_lane_batch_and_threads_change_nothing(case):
     for name in ("x", "P", "history_x", "mean_nis", "innovations"):
         assert np.array_equal(getattr(serial, name), getattr(full, name), equal_nan=True), name
         assert np.array_equal(getattr(permuted, name), getattr(full, name)[perm], equal_nan=True), name
+
+
+@njit(pipeline_class=NoAliasCompiler, error_model="numpy")
+def _rk4_lanes_once(ang, coef, fr3, h, g, wn, wu, out, pa, pg, k, ka, kg, v, sc0, sc, fr, w):
+    rk4_jac_lanes(ang, coef, fr3, h, g, wn, wu, out, pa, pg, k, ka, kg, v, sc0, sc, fr, w)
+
+
+@pytest.mark.parametrize("h", [0.02, 2000.0])  # the Taylor shift of the angles, and sin/cos for a large step
+def test_rk4_map_in_lanes_equals_the_scalar_map_lane_by_lane(h):
+    """The lanes' RK4 map and Jacobian (compiled as the block kernel is) are :func:`rk4_jac_sc`'s
+    numbers bit for bit in every lane, each lane with its own angles, coefficients and forces."""
+    rng = np.random.default_rng(47)
+    L, G = LANES, N_GYRO
+    coef = np.array([full_truth() * (1.0 + 0.1 * rng.standard_normal(full_truth().size)) for _ in range(L)])
+    ang = rng.uniform(-1.2, 1.2, (L, 3))
+    fr3 = rng.normal(0.0, 40.0, (L, 3, 3))
+    params = np.array([CEN.params()] * L)
+    params[:, P_G] *= 1.0 + 0.01 * rng.standard_normal(L)
+    want = [np.empty((L, 3)), np.empty((L, 3, 3)), np.empty((L, 3, G))]
+    for lane in range(L):
+        rk4_jac_sc(ang[lane], coef[lane], fr3[lane], h, params[lane], want[0][lane], want[1][lane], want[2][lane],
+                   make_sc_rk4_scratch())
+    got = [np.full(3 * L, np.nan), np.full(9 * L, np.nan), np.full(3 * G * L, np.nan)]
+    with slp_vectorize():
+        _rk4_lanes_once(ang.T.ravel().copy(), coef.T.ravel().copy(), fr3.transpose(1, 2, 0).ravel().copy(), h,
+                        params[:, P_G].copy(), params[:, P_OMEGA_N].copy(), params[:, P_OMEGA_U].copy(), *got,
+                        *(np.empty(m * L) for m in (12, 36, 12 * G, 42, 6, 6, 3, 40)))
+    assert np.array_equal(got[0].reshape(3, L).T, want[0])
+    assert np.array_equal(got[1].reshape(9, L).T.reshape(L, 3, 3), want[1])
+    assert np.array_equal(got[2].reshape(3 * G, L).T.reshape(L, 3, G), want[2])

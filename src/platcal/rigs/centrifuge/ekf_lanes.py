@@ -27,14 +27,14 @@ kernel is therefore compiled with every array argument declared ``noalias``
 (:class:`NoAliasCompiler`: all its arrays, scratch included, are distinct arguments) and with
 SLP vectorisation on (:func:`slp_vectorize` around every call, so that a first compile or a
 cache miss compiles it that way; SLP merges identical scalar operations and changes no number).
-The RK4 map with its exact Jacobian runs for the block's lanes at once (:func:`rk4_jac_lanes`,
-the reference's operations per lane on 1-D lane arrays, which SLP merges; the block kernel is
-compiled with numpy's error model, so its divisions carry no zero checks and vectorise too;
-its divisors are g, cos beta, the Cholesky pivots (1 where not positive) and the coefficients'
-prior variances, and only cos beta = 0 exactly, at gimbal lock, would give inf where the reference
-kernel raises); the base specific force
-and the accelerometer outputs and Jacobian stay the reference kernel's scalar code, once per live
-lane (issue 22: the step 1927 -> 1772 ns, the model 617 -> 418 ns, `benchmarks/ekf_lanes_ablation.py`).
+The RK4 map with its exact Jacobian runs for the block's lanes at once (:func:`rk4_jac_lanes`:
+the reference's operations per lane on 1-D lane arrays, which SLP merges). The block kernel is
+compiled with numpy's error model, so its divisions carry no zero checks and vectorise too; its
+divisors are g, cos beta, the Cholesky pivots (1 where not positive) and the coefficients' prior
+variances, and only cos beta = 0 exactly, at gimbal lock, would give inf where the reference kernel
+raises. The base specific force and the accelerometer outputs and Jacobian stay the reference
+kernel's scalar code, once per live lane (issue 22: the step 1927 -> 1772 ns, the model 617 -> 418
+ns, `benchmarks/ekf_lanes_ablation.py`).
 """
 
 from __future__ import annotations
@@ -47,11 +47,11 @@ from .attitude import (MEAS_COLS, N_GYRO, P_G, P_OMEGA_N, P_OMEGA_U, SHIFT_SMALL
                        _force_p, c_rp_sc, measure_jac_sc, shift_small)
 from .base import specific_force_into
 from ...estimation.kalman import cholesky_inverse
-from ...model.frames import DEG_PER_HOUR
-from ...model.instruments import GYRO_AXES, I_DOO, gyro_axis_components, gyro_drift_terms
 from ...estimation.lanes import (LANES, NoAliasCompiler, innovation_covariance_lanes, joseph_correct_lanes,
                                  packed_index, propagate_rows_lanes, slp_vectorize)
 from ...estimation.lanes import cholesky_inverse_lanes as _cholesky_inverse_lanes
+from ...model.frames import DEG_PER_HOUR
+from ...model.instruments import GYRO_AXES, I_DOO, gyro_axis_components, gyro_drift_terms
 
 FASTMATH = False
 """LLVM fast-math flags of the block kernel: none (``{"contract"}``, fused multiply-adds, was 13 %

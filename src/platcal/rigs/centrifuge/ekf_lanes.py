@@ -43,8 +43,8 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from .attitude import (MEAS_COLS, N_GYRO, P_G, P_OMEGA_N, P_OMEGA_U, SHIFT_SMALL, V_A, V_DU, V_JA, V_RATE, V_T, V_U,
-                       _force_p, c_rp_sc, measure_jac_sc, shift_small)
+from .attitude import (MEAS_COLS, N_GYRO, P_G, P_OMEGA_N, P_OMEGA_U, V_A, V_DU, V_JA, V_RATE, V_T, V_U, _force_p,
+                       _shift, c_rp_sc, measure_jac_sc)
 from .base import specific_force_into
 from ...estimation.kalman import cholesky_inverse
 from ...estimation.lanes import (LANES, NoAliasCompiler, innovation_covariance_lanes, joseph_correct_lanes,
@@ -238,16 +238,10 @@ def rk4_jac_lanes(ang, coef, fr3, h, g, wn, wu, out, phi_a, phi_g, k, ka, kg, v,
                 for l in range(L):
                     sc[q * L + l] = sc0[q * L + l]
         else:
-            # _shift per lane: the Taylor form below SHIFT_SMALL, else sin and cos
             for a in range(3):
                 for l in range(L):
-                    d = step * k[((s - 1) * 3 + a) * L + l]
                     i0, i1 = 2 * a * L + l, (2 * a + 1) * L + l
-                    if abs(d) < SHIFT_SMALL:
-                        sc[i0], sc[i1] = shift_small(sc0[i0], sc0[i1], d)
-                    else:
-                        sc[i0] = sc0[i0] * np.cos(d) + sc0[i1] * np.sin(d)
-                        sc[i1] = sc0[i1] * np.cos(d) - sc0[i0] * np.sin(d)
+                    sc[i0], sc[i1] = _shift(sc0[i0], sc0[i1], step * k[((s - 1) * 3 + a) * L + l])
         rate_jac_lanes(sc, coef, fr, g, wn, wu, v, w)
         for r in range(3):
             for l in range(L):

@@ -9,9 +9,9 @@ over the lanes, and P is stored once (no mirror). A 3 x n matrix of the update o
 offsets from one address, the last axis's stride being the item size, which the compiler knows;
 in a (3, n, LANES) array each row's offset is a stride known only at run time, and the Joseph
 update's loop spilled those to the stack (issue 22: the update 23 % faster in this layout, bit for
-bit). The kernels are compiled with their array
-arguments ``noalias`` (:class:`NoAliasCompiler`) and LLVM's SLP vectoriser on
-(:func:`slp_vectorize`), which is what merges the lanes' scalar operations into vectors.
+bit). The kernels are compiled with their array arguments ``noalias`` (:class:`NoAliasCompiler`)
+and LLVM's SLP vectoriser on (:func:`slp_vectorize`), which is what merges the lanes' scalar
+operations into vectors.
 """
 
 from __future__ import annotations

@@ -129,10 +129,21 @@ def innovation_covariance_lanes(Pl, pidx, hcols, hnnz, hval, r_var, U, S, acc):
     ``hcols``, ``hnnz`` are shared by the lanes, their values ``hval`` (3, w, LANES) are the lanes'
     own; ``r_var`` (3,) the noise variances; ``acc`` (LANES,) scratch."""
     n = U.shape[0]
-    U[:] = 0.0
     for r in range(3):
         u0 = r * LANES
-        for kk in range(hnnz[r]):
+        if hnnz[r] == 0:
+            for j in range(n):
+                for l in range(LANES):
+                    U[j, u0 + l] = 0.0
+            continue
+        # the first term written (0.0 + it, the sum's start, so a zero keeps its sign as the
+        # running sum from zero did), not added to a zeroed U: a load and a store less per entry
+        hc = hcols[r, 0]
+        for j in range(n):
+            e = pidx[hc, j]
+            for l in range(LANES):
+                U[j, u0 + l] = 0.0 + hval[r, 0, l] * Pl[e, l]
+        for kk in range(1, hnnz[r]):
             hc = hcols[r, kk]
             for j in range(n):
                 e = pidx[hc, j]
@@ -196,11 +207,26 @@ def phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W):
     n = W.shape[0]
     npc = pcols.shape[0]
     L = LANES
-    W[:] = 0.0
     # two columns of Phi per pass over W (half its loads and stores), each row of W
     # in its own lane loop (one lane loop updating three rows is not vectorised);
-    # every entry still sums in column order
-    for kk in range(0, npc - 1, 2):
+    # every entry still sums in column order; the first pass writes W (0.0 + its first term,
+    # the running sum's start, so that a zero keeps the sign it had) instead of adding to zeros
+    kk0 = 2 if npc >= 2 else 0
+    if npc >= 2:
+        ea0 = pcols[0]
+        eb0 = pcols[1]
+        for j in range(n):
+            ea = pidx[ea0, j]
+            eb = pidx[eb0, j]
+            for l in range(L):
+                W[j, l] = (0.0 + phi[0, 0, l] * Pl[ea, l]) + phi[0, 1, l] * Pl[eb, l]
+            for l in range(L):
+                W[j, L + l] = (0.0 + phi[1, 0, l] * Pl[ea, l]) + phi[1, 1, l] * Pl[eb, l]
+            for l in range(L):
+                W[j, 2 * L + l] = (0.0 + phi[2, 0, l] * Pl[ea, l]) + phi[2, 1, l] * Pl[eb, l]
+    else:
+        W[:] = 0.0
+    for kk in range(kk0, npc - 1, 2):
         ea0 = pcols[kk]
         eb0 = pcols[kk + 1]
         for j in range(n):

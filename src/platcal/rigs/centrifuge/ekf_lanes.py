@@ -33,8 +33,10 @@ compiled with numpy's error model, so its divisions carry no zero checks and vec
 divisors are g, cos beta, the Cholesky pivots (1 where not positive) and the coefficients' prior
 variances, and only cos beta = 0 exactly, at gimbal lock, would give inf where the reference kernel
 raises. The base specific force and the accelerometer outputs and Jacobian stay the reference
-kernel's scalar code, once per live lane (issue 22: the step 1927 -> 1772 ns, the model 617 -> 418
-ns, `benchmarks/ekf_lanes_ablation.py`).
+kernel's scalar code, the outputs once per live lane, the force once per block when the block's
+lanes share one centrifuge (a study's replicates do), else once per lane (issue 22: the step 1927 ->
+1772 ns, the model 617 -> 418 ns, `benchmarks/ekf_lanes_ablation.py`; the shared force 3 % of the
+step).
 """
 
 from __future__ import annotations
@@ -370,12 +372,16 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
         k = seg_k[s]
         reset = np.isnan(seg_t0[s])
         t_prev = 0.0 if reset else seg_t0[s]
+        # one centrifuge for the block's lanes (a study's replicates share it): its specific
+        # force is then computed once a step, for lane 0, and copied
+        one_base = True
         for l in range(nact):
             b = b0 + l
             nis[l] = 0.0 if reset else seg_nis[b]
             bad[l] = 0.0
             for c in range(params.shape[2]):
                 pb_l[l, c] = params[b, k, c]
+                one_base = one_base and params[b, k, c] == params[b0, k, c]
             specific_force_into(t_prev, pb_l[l], fr_now[l])
         for l in range(L):
             b = b0 + l if l < nact else b0
@@ -408,8 +414,13 @@ def _filter_block(blk, x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, pa
                 for l in range(nact):
                     for r in range(3):
                         fr3[l, 0, r] = fr_now[l, r]
-                    specific_force_into(t_prev + 0.5 * h, pb_l[l], fr_mid[l])
-                    specific_force_into(tm, pb_l[l], fr_now[l])
+                    if l == 0 or not one_base:
+                        specific_force_into(t_prev + 0.5 * h, pb_l[l], fr_mid[l])
+                        specific_force_into(tm, pb_l[l], fr_now[l])
+                    else:
+                        for r in range(3):
+                            fr_mid[l, r] = fr_mid[0, r]
+                            fr_now[l, r] = fr_now[0, r]
                     for r in range(3):
                         fr3[l, 1, r] = fr_mid[l, r]
                         fr3[l, 2, r] = fr_now[l, r]

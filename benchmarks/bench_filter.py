@@ -21,7 +21,11 @@ Usage::
     pip install -e '.[bench]'
     python benchmarks/bench_filter.py                # about a minute on 2 cores
     python benchmarks/bench_filter.py --dwell 10     # quicker, shorter dwell
-    python benchmarks/bench_filter.py --lanes        # run_ekf rows with the state-major kernel
+    python benchmarks/bench_filter.py --lanes        # every run_ekf row on the state-major kernel
+    python benchmarks/bench_filter.py --default-kernel   # every run_ekf row on the default kernel
+
+Without either, ``run_ekf`` chooses (``FilterSettings.lanes`` None): the state-major kernel from
+B = 8 (:data:`platcal.rigs.centrifuge.ekf.LANES_FROM_BATCH`), the default kernel below.
 
 Wall-clock times; the load average at start and end is printed because other processes on the
 machine slow every figure down.
@@ -42,7 +46,7 @@ from platcal.parallel import get_threads, set_threads
 from platcal.rigs.centrifuge.base import Centrifuge, specific_force
 from platcal.rigs.centrifuge.catalogue import full_truth
 from platcal.rigs.centrifuge import ekf as centrifuge_ekf
-from platcal.rigs.centrifuge.ekf import FilterSettings, _structure, first_instant, run_ekf
+from platcal.rigs.centrifuge.ekf import LANES_FROM_BATCH, FilterSettings, _structure, first_instant, run_ekf
 from platcal.rigs.centrifuge.estimators import KINDS
 from platcal.scheme import check_scheme
 from platcal.scheme import TABLE1_POSITIONS
@@ -176,6 +180,10 @@ def filterpy_run(z, t, cmd_rad, params, settings: FilterSettings):
     return ekf.x[:, 0].copy(), ekf.P.copy()
 
 
+KERNEL_CHOICE = {None: f"run_ekf's choice (the state-major kernel from B = {LANES_FROM_BATCH})",
+                 True: "the state-major kernel (lanes=True)", False: "the default kernel (lanes=False)"}
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dwell", type=float, default=60.0, help="dwell per position, s (60)")
@@ -183,8 +191,11 @@ def main(argv=None) -> None:
     ap.add_argument("--population", type=int, default=64, help="schemes per covariance-only batch")
     ap.add_argument("--threads", type=int, default=None, help="numba threads (default: all)")
     ap.add_argument("--repeat", type=int, default=2, help="timed repeats per platcal figure (best)")
-    ap.add_argument("--lanes", action="store_true",
-                    help="platcal run_ekf rows (and the agreement) with the state-major kernel, run_ekf(..., lanes=True)")
+    kernel = ap.add_mutually_exclusive_group()
+    kernel.add_argument("--lanes", action="store_const", const=True, default=None,
+                        help="every run_ekf row (and the agreement) on the state-major kernel, run_ekf(..., lanes=True)")
+    kernel.add_argument("--default-kernel", dest="lanes", action="store_const", const=False,
+                        help="every run_ekf row on the default kernel, run_ekf(..., lanes=False)")
     args = ap.parse_args(argv)
 
     set_threads(args.threads)
@@ -219,10 +230,11 @@ def main(argv=None) -> None:
     warm = check_scheme("w", {"dwell_s": 0.2, "positions": [list(p) for p in TABLE1_POSITIONS[:2]]})
     wd = simulate(truth, warm, cen.scheme_params(warm), Noise(), seeds[:2], keep_every=keep)
     wparams = cen.scheme_params(warm)
-    run_ekf(centrifuge_ekf.EstimatorInput([wd.A[:, k] for k in range(2)], [wd.t] * 2, warm.angles_deg, wparams), settings,
-            lanes=args.lanes)
-    run_ekf(centrifuge_ekf.EstimatorInput([None] * 2, [wd.t] * 2, warm.angles_deg, wparams), settings,
-            linearise_about=np.repeat(truth[None], 2, axis=0))
+    for lanes in (True, False) if args.lanes is None else (args.lanes,):
+        run_ekf(centrifuge_ekf.EstimatorInput([wd.A[:, k] for k in range(2)], [wd.t] * 2, warm.angles_deg, wparams),
+                settings, lanes=lanes)
+        run_ekf(centrifuge_ekf.EstimatorInput([None] * 2, [wd.t] * 2, warm.angles_deg, wparams), settings,
+                linearise_about=np.repeat(truth[None], 2, axis=0), lanes=lanes)
 
     peak = matmul_peak()
     n_steps = K * (int(round(args.dwell / settings.period_s)) - i0)
@@ -230,7 +242,7 @@ def main(argv=None) -> None:
     print(f"platcal filter benchmark: Table 1 scheme, {K} x {args.dwell:g} s, {n_steps} filter steps "
           f"of {settings.period_s * 1e3:g} ms per replicate, numba threads {get_threads()}, "
           f"cores {os.cpu_count()}, load average {load0[0]:.2f}"
-          f"{', run_ekf rows: the state-major kernel (lanes=True)' if args.lanes else ''}")
+          f", run_ekf rows: {KERNEL_CHOICE[args.lanes]}")
     print(f"matrix-multiply peak (numpy BLAS, float64, 1500^3): {peak:.1f} GFLOP/s")
 
     data = sim(Bmax)

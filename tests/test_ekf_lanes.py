@@ -12,7 +12,8 @@ from platcal.parallel import threads
 from platcal.rigs.centrifuge.attitude import N_GYRO, P_G, P_OMEGA_N, P_OMEGA_U, make_sc_rk4_scratch, rk4_jac_sc
 from platcal.rigs.centrifuge.base import P_RADIUS, Centrifuge
 from platcal.rigs.centrifuge.catalogue import full_truth
-from platcal.rigs.centrifuge.ekf import EstimatorInput, FilterSettings, run_ekf, run_iekf
+from platcal.rigs.centrifuge import ekf_lanes
+from platcal.rigs.centrifuge.ekf import LANES_FROM_BATCH, EstimatorInput, FilterSettings, run_ekf, run_iekf, takes_lanes
 from platcal.rigs.centrifuge.ekf_lanes import LANES, packed_index, rk4_jac_lanes
 from platcal.rigs.centrifuge.simulate import Noise, simulate
 from platcal.scheme import TABLE1_POSITIONS, check_scheme
@@ -69,6 +70,34 @@ def test_lanes_equal_the_reference_bit_for_bit(case, kind):
     if kind == "ekf":
         # not trivially equal: the estimates moved far from the start
         assert np.max(np.abs(new.x[:, :N_IDENTIFIED])) > 1.0
+
+
+def test_a_batch_takes_the_lanes_by_itself(case, monkeypatch):
+    """``FilterSettings.lanes`` None (the default): a batch of ``LANES_FROM_BATCH`` replicates or
+    more runs on the state-major kernel, a smaller one on the default kernel; True or False
+    decides whatever the batch (issue 22: the same numbers, a cost)."""
+    assert LANES_FROM_BATCH == 2 * LANES
+    assert [takes_lanes(None, b) for b in (1, LANES_FROM_BATCH - 1, LANES_FROM_BATCH, 64)] == [False, False, True, True]
+    assert takes_lanes(True, 1) and not takes_lanes(False, 64)
+    calls = []
+    kernel = ekf_lanes.run_pass_lanes
+
+    def counted(x, *args):
+        calls.append(x.shape[0])
+        return kernel(x, *args)
+
+    monkeypatch.setattr(ekf_lanes, "run_pass_lanes", counted)
+    scheme, params, z, t = case
+    s = FilterSettings(history_every_s=None)
+    assert s.lanes is None
+    big = [np.concatenate([zk, zk[: LANES_FROM_BATCH - B]]) for zk in z]
+    run_ekf(EstimatorInput(big, t, scheme.angles_deg, params), s)
+    assert calls and set(calls) == {LANES_FROM_BATCH}
+    calls.clear()
+    run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), s)
+    assert not calls
+    run_ekf(EstimatorInput(z, t, scheme.angles_deg, params), s, lanes=True)
+    assert calls
 
 
 def test_lanes_with_a_centrifuge_per_replicate(case):

@@ -84,7 +84,9 @@ class FilterSettings:
         posterior handed on (``platcal plan``'s Monte Carlo). None: 0 and ``diag(p0_sigma^2)`` (§9).
     lanes : :func:`run_ekf`'s passes (the EKF, the IEKF, the ML's EKF start and the
         covariance-only runs) on the state-major kernel (:func:`run_ekf` ``lanes``): the same
-        numbers bit for bit, so it chooses a cost, not a result.
+        numbers bit for bit, so it chooses a cost, not a result. None (the default): the
+        state-major kernel for a batch of at least :data:`LANES_FROM_BATCH` replicates
+        (:func:`takes_lanes`).
     """
 
     period_s: float = 0.02
@@ -101,7 +103,7 @@ class FilterSettings:
     innovations: bool = False
     prior_x: np.ndarray | None = None
     prior_P: np.ndarray | None = None
-    lanes: bool = False
+    lanes: bool | None = None
 
     @property
     def coef_index(self) -> np.ndarray:
@@ -726,6 +728,20 @@ class StreamedInstants:
         return cls(tuple(len(tk) for tk in t), tuple(float(tk[-1]) if len(tk) else 0.0 for tk in t))
 
 
+LANES_FROM_BATCH = 8
+"""The smallest batch that :func:`run_ekf` runs on the state-major kernel by itself: two blocks
+of its 4 lanes (``platcal.estimation.lanes.LANES``), one per thread of a 2-core machine. Below it
+the default kernel's one replicate per thread is the quicker in wall time (a block costs its 4
+lanes whatever number of them are live); from it the lanes take about 25 % less CPU (issue 22)."""
+
+
+def takes_lanes(lanes: bool | None, batch: int) -> bool:
+    """Whether :func:`run_ekf` runs a batch of ``batch`` replicates on the state-major kernel:
+    ``lanes`` where given, else (None) from :data:`LANES_FROM_BATCH` replicates on. Either kernel
+    gives the same numbers bit for bit (``tests/test_ekf_lanes.py``): this chooses a cost."""
+    return batch >= LANES_FROM_BATCH if lanes is None else bool(lanes)
+
+
 def run_ekf(
     data: EstimatorInput,
     settings: FilterSettings,
@@ -772,10 +788,11 @@ def run_ekf(
         Estimate (whose history is then empty): a 6 h history is 17 MB (issue 22 item 3).
     lanes : run the state-major kernel (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in
         SIMD lanes of 4; the same numbers bit for bit, about 25 % less CPU per replicate at
-        B >= 8, 2.2x more at B = 1; issue 22) instead of the default kernel (:func:`_run_pass`:
-        one replicate per thread). None: ``settings.lanes``. A lone record is fast on the
-        default kernel, which is the one compiled ahead of time (an identify); the simulated
-        batches (:func:`.identify.simulate_identify`) take the lanes.
+        B >= 8, 3.8x more at B = 1; issue 22) instead of the default kernel (:func:`_run_pass`:
+        one replicate per thread). None: ``settings.lanes``, and where that is None too, the
+        lanes for a batch of at least :data:`LANES_FROM_BATCH` (:func:`takes_lanes`). A lone
+        record is fast on the default kernel, which is the one compiled ahead of time (an
+        identify); the simulated batches (:func:`.identify.simulate_identify`) take the lanes.
     on_pass : called ``on_pass(p, estimate)`` after each pass p < ``settings.passes`` with the
         Estimate (copies, innovations included when kept) that this run with ``passes = p`` returns,
         bit for bit (:func:`drive_passes`), so that one run gives the estimates of fewer passes
@@ -805,7 +822,7 @@ def run_ekf(
     structure = _structure(est_idx)
     p0 = np.asarray(settings.p0_sigma, float)
     it_ctl = iteration_control(p0) if iterate is None or cov_only else np.ascontiguousarray(iterate, float)
-    if settings.lanes if lanes is None else lanes:
+    if takes_lanes(settings.lanes if lanes is None else lanes, B):
         # imported here: its pipeline class subclasses numba's compiler, which an identify whose
         # kernels were compiled ahead of time does not load (platcal.aot)
         from .ekf_lanes import run_pass_lanes

@@ -2,9 +2,9 @@
 
 Variants of :mod:`platcal.rigs.centrifuge.ekf_lanes` are written to a temporary directory, each
 with one part of the filter step done on a segment's first step only (its numbers are then
-wrong; only its time counts): the model (the base specific force lane by lane, the RK4 map and
-its exact Jacobian for the block's lanes at once), the outputs and H, W = Phi P, U = H P with S, and K, D, x with the
-Joseph update of the packed P (the last three are calls of the shared lane pieces,
+wrong; only its time counts): the model (the base specific force, once per block when its lanes
+share a centrifuge; the RK4 map and its exact Jacobian for the block's lanes at once), the outputs
+and H, W = Phi P, U = H P with S, and K, D, x with the Joseph update of the packed P (the last three are calls of the shared lane pieces,
 :mod:`platcal.estimation.lanes`, which the variant skips after a segment's first step). Every variant and the kernel itself run the Table 1 case (6 x 60 s) at ``--batch``
 replicates on one numba thread, alternating over ``--rounds`` rounds in one process (so that the
 machine's load falls on all alike); prints the best CPU s per replicate of each, the share of
@@ -31,7 +31,7 @@ from platcal.rigs.centrifuge.ekf import EstimatorInput, run_ekf
 
 # part -> (the kernel's code, the same code run on a segment's first step only), or a tuple of such pairs
 PARTS = {
-    "model (specific force per lane; the RK4 map and its Jacobian, all lanes at once)": (
+    "model (the base specific force; the RK4 map and its Jacobian, all lanes at once)": (
         ("                for l in range(nact):\n                    for r in range(3):\n"
          "                        fr3[l, 0, r] = fr_now[l, r]",
          "                for l in range(nact if m == 0 else 0):\n                    for r in range(3):\n"

@@ -732,7 +732,8 @@ LANES_FROM_BATCH = 8
 """The smallest batch that :func:`run_ekf` runs on the state-major kernel by itself: two blocks
 of its 4 lanes (``platcal.estimation.lanes.LANES``), one per thread of a 2-core machine. Below it
 the default kernel's one replicate per thread is the quicker in wall time (a block costs its 4
-lanes whatever number of them are live); from it the lanes take about 25 % less CPU (issue 22)."""
+lanes whatever number of them are live); from it the lanes take about a third less CPU per
+replicate (issue 22: 0.0313 against 0.0482 s at B = 64, ``benchmarks/bench_filter.py``, stop 47)."""
 
 
 def takes_lanes(lanes: bool | None, batch: int) -> bool:
@@ -787,7 +788,7 @@ def run_ekf(
         history rows of each block, in order (every pass), instead of keeping them in the
         Estimate (whose history is then empty): a 6 h history is 17 MB (issue 22 item 3).
     lanes : run the state-major kernel (:mod:`platcal.rigs.centrifuge.ekf_lanes`: replicates in
-        SIMD lanes of 4; the same numbers bit for bit, about 25 % less CPU per replicate at
+        SIMD lanes of 4; the same numbers bit for bit, about a third less CPU per replicate at
         B >= 8, 3.8x more at B = 1; issue 22) instead of the default kernel (:func:`_run_pass`:
         one replicate per thread). None: ``settings.lanes``, and where that is None too, the
         lanes for a batch of at least :data:`LANES_FROM_BATCH` (:func:`takes_lanes`). A lone

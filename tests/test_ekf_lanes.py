@@ -9,10 +9,10 @@ from numba import njit
 from platcal.estimation.lanes import NoAliasCompiler, slp_vectorize
 from platcal.model.instruments import N_IDENTIFIED
 from platcal.parallel import threads
+from platcal.rigs.centrifuge import ekf_lanes
 from platcal.rigs.centrifuge.attitude import N_GYRO, P_G, P_OMEGA_N, P_OMEGA_U, make_sc_rk4_scratch, rk4_jac_sc
 from platcal.rigs.centrifuge.base import P_RADIUS, Centrifuge
 from platcal.rigs.centrifuge.catalogue import full_truth
-from platcal.rigs.centrifuge import ekf_lanes
 from platcal.rigs.centrifuge.ekf import LANES_FROM_BATCH, EstimatorInput, FilterSettings, run_ekf, run_iekf, takes_lanes
 from platcal.rigs.centrifuge.ekf_lanes import LANES, packed_index, rk4_jac_lanes
 from platcal.rigs.centrifuge.simulate import Noise, simulate

@@ -136,19 +136,11 @@ def innovation_covariance_lanes(Pl, pidx, hcols, hnnz, hval, r_var, U, S, acc):
                 for l in range(LANES):
                     U[j, u0 + l] = 0.0
             continue
-        # the first term written (0.0 + it, the sum's start, so a zero keeps its sign as the
-        # running sum from zero did), not added to a zeroed U: a load and a store less per entry
-        hc = hcols[r, 0]
-        for j in range(n):
-            e = pidx[hc, j]
-            for l in range(LANES):
-                U[j, u0 + l] = 0.0 + hval[r, 0, l] * Pl[e, l]
+        # the first term starts each sum at 0.0 instead of reading U zeroed beforehand (the same
+        # rounding and sign of a zero, a load and a store less per entry)
+        _u_term_pass(Pl, pidx, hcols, hval, U, r, 0, True)
         for kk in range(1, hnnz[r]):
-            hc = hcols[r, kk]
-            for j in range(n):
-                e = pidx[hc, j]
-                for l in range(LANES):
-                    U[j, u0 + l] += hval[r, kk, l] * Pl[e, l]
+            _u_term_pass(Pl, pidx, hcols, hval, U, r, kk, False)
     for r in range(3):
         u0 = r * LANES
         for c in range(r + 1):
@@ -163,6 +155,19 @@ def innovation_covariance_lanes(Pl, pidx, hcols, hnnz, hval, r_var, U, S, acc):
                 S[c, r, l] = acc[l]
         for l in range(LANES):
             S[r, r, l] += r_var[r]
+
+
+@njit(cache=True, inline="always")
+def _u_term_pass(Pl, pidx, hcols, hval, U, r, kk, first):
+    """Term ``kk`` of H's row ``r`` added into row r of ``U = H P`` (:func:`innovation_covariance_lanes`);
+    ``first``, a constant at each call: the sums start at 0.0."""
+    u0 = r * LANES
+    hc = hcols[r, kk]
+    for j in range(U.shape[0]):
+        e = pidx[hc, j]
+        for l in range(LANES):
+            u = 0.0 if first else U[j, u0 + l]
+            U[j, u0 + l] = u + hval[r, kk, l] * Pl[e, l]
 
 
 @njit(cache=True, inline="always")
@@ -207,37 +212,15 @@ def phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W):
     n = W.shape[0]
     npc = pcols.shape[0]
     L = LANES
-    # two columns of Phi per pass over W (half its loads and stores), each row of W
-    # in its own lane loop (one lane loop updating three rows is not vectorised);
-    # every entry still sums in column order; the first pass writes W (0.0 + its first term,
-    # the running sum's start, so that a zero keeps the sign it had) instead of adding to zeros
-    kk0 = 2 if npc >= 2 else 0
-    if npc >= 2:
-        ea0 = pcols[0]
-        eb0 = pcols[1]
-        for j in range(n):
-            ea = pidx[ea0, j]
-            eb = pidx[eb0, j]
-            for l in range(L):
-                W[j, l] = (0.0 + phi[0, 0, l] * Pl[ea, l]) + phi[0, 1, l] * Pl[eb, l]
-            for l in range(L):
-                W[j, L + l] = (0.0 + phi[1, 0, l] * Pl[ea, l]) + phi[1, 1, l] * Pl[eb, l]
-            for l in range(L):
-                W[j, 2 * L + l] = (0.0 + phi[2, 0, l] * Pl[ea, l]) + phi[2, 1, l] * Pl[eb, l]
+    # two columns of Phi per pass over W (half its loads and stores); the first pass starts each
+    # sum at 0.0 instead of reading W zeroed beforehand (the same rounding and sign of a zero, a
+    # load and a store less per entry)
+    if npc < 2:
+        W[:] = 0.0  # a lone column of Phi (or none) is added to zeros below
     else:
-        W[:] = 0.0
-    for kk in range(kk0, npc - 1, 2):
-        ea0 = pcols[kk]
-        eb0 = pcols[kk + 1]
-        for j in range(n):
-            ea = pidx[ea0, j]
-            eb = pidx[eb0, j]
-            for l in range(L):
-                W[j, l] = (W[j, l] + phi[0, kk, l] * Pl[ea, l]) + phi[0, kk + 1, l] * Pl[eb, l]
-            for l in range(L):
-                W[j, L + l] = (W[j, L + l] + phi[1, kk, l] * Pl[ea, l]) + phi[1, kk + 1, l] * Pl[eb, l]
-            for l in range(L):
-                W[j, 2 * L + l] = (W[j, 2 * L + l] + phi[2, kk, l] * Pl[ea, l]) + phi[2, kk + 1, l] * Pl[eb, l]
+        _w_pair_pass(Pl, pidx, pcols, phi, W, 0, True)
+    for kk in range(2, npc - 1, 2):
+        _w_pair_pass(Pl, pidx, pcols, phi, W, kk, False)
     if npc % 2:
         kk = npc - 1
         ea0 = pcols[kk]
@@ -249,6 +232,25 @@ def phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W):
                 W[j, L + l] += phi[1, kk, l] * Pl[ea, l]
             for l in range(L):
                 W[j, 2 * L + l] += phi[2, kk, l] * Pl[ea, l]
+
+
+@njit(cache=True, inline="always")
+def _w_pair_pass(Pl, pidx, pcols, phi, W, kk, first):
+    """Columns ``kk`` and ``kk + 1`` of Phi's rows added into every entry of W, in that order
+    (:func:`phi_rows_times_p_lanes`), each row of W in its own lane loop (one lane loop updating
+    three rows is not vectorised); ``first``, a constant at each call: the sums start at 0.0."""
+    n = W.shape[0]
+    L = LANES
+    ea0 = pcols[kk]
+    eb0 = pcols[kk + 1]
+    for j in range(n):
+        ea = pidx[ea0, j]
+        eb = pidx[eb0, j]
+        for r in range(3):
+            c = r * L
+            for l in range(L):
+                w = 0.0 if first else W[j, c + l]
+                W[j, c + l] = (w + phi[r, kk, l] * Pl[ea, l]) + phi[r, kk + 1, l] * Pl[eb, l]
 
 
 @njit(cache=True, inline="always")

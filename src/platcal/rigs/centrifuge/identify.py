@@ -76,7 +76,7 @@ def identify_simulated(study: Study, scheme: Scheme, outputs: list, times: list,
     :func:`simulate_outputs` gives them at the study's filter period (docs/centrifuge-model.md
     §8-9); ``settings`` as :func:`simulate_identify`'s; ``on_pass`` as
     :func:`~.estimators.run_estimator`'s."""
-    # the state-major kernel: the same numbers bit for bit, a quarter less CPU at B >= 8, and every
+    # the state-major kernel: the same numbers bit for bit, a third less CPU at B >= 8, and every
     # job of a study (cells, design, campaign, single run) then loads the one kernel the study's
     # kernels job compiled (issue 22 item 4); an identify of one record keeps the default kernel
     fs = replace(replace(study.filter, history_every_s=None) if settings is None else settings, lanes=True)

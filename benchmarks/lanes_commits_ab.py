@@ -17,9 +17,7 @@ the median CPU s per replicate (and ns per replicate-step) and the load average.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
-import re
 import subprocess
 import sys
 import tempfile
@@ -30,6 +28,7 @@ import numpy as np
 
 import platcal.rigs.centrifuge.ekf_lanes as ekf_lanes
 from bench_filter import table1_case
+from ekf_lanes_ablation import variant
 from platcal.parallel import set_threads
 from platcal.rigs.centrifuge.ekf import EstimatorInput, run_ekf
 
@@ -46,30 +45,16 @@ def source(commit: str, path: str) -> str:
                           text=True).stdout
 
 
-def load(path: str, name: str):
-    """The module in file ``path`` as ``name``."""
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def kernels(commits: list[str], folder: str) -> dict:
     """``run_pass_lanes`` of each commit, its kernel and lane pieces as modules ``ab_lanes_<i>`` and
-    ``ab_ekf_lanes_<i>`` in ``folder`` (relative imports made absolute to the installed platcal)."""
+    ``ab_ekf_lanes_<i>`` in ``folder`` (:func:`ekf_lanes_ablation.variant`: relative imports made
+    absolute to the installed platcal)."""
     sys.path.insert(0, folder)
     runs = {}
     for i, commit in enumerate(commits):
-        pieces = os.path.join(folder, f"ab_lanes_{i}.py")
-        Path(pieces).write_text(source(commit, PIECES))
+        variant(source(commit, PIECES), f"ab_lanes_{i}", folder)
         text = source(commit, KERNEL).replace("from ...estimation.lanes import", f"from ab_lanes_{i} import")
-        text = re.sub(r"from \.(\w+) import", r"from platcal.rigs.centrifuge.\1 import",
-                      text.replace("from ...", "from platcal."))
-        kernel = os.path.join(folder, f"ab_ekf_lanes_{i}.py")
-        Path(kernel).write_text(text)
-        load(pieces, f"ab_lanes_{i}")
-        runs[commit] = load(kernel, f"ab_ekf_lanes_{i}").run_pass_lanes
+        runs[commit] = variant(text, f"ab_ekf_lanes_{i}", folder).run_pass_lanes
     return runs
 
 

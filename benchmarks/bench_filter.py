@@ -21,8 +21,8 @@ Usage::
     pip install -e '.[bench]'
     python benchmarks/bench_filter.py                # about a minute on 2 cores
     python benchmarks/bench_filter.py --dwell 10     # quicker, shorter dwell
-    python benchmarks/bench_filter.py --lanes        # every run_ekf row on the state-major kernel
-    python benchmarks/bench_filter.py --default-kernel   # every run_ekf row on the default kernel
+    python benchmarks/bench_filter.py --lanes        # every filter row on the state-major kernel
+    python benchmarks/bench_filter.py --default-kernel   # every filter row on the default kernel
 
 Without either, ``run_ekf`` chooses (``FilterSettings.lanes`` None): the state-major kernel from
 B = 8 (:data:`platcal.rigs.centrifuge.ekf.LANES_FROM_BATCH`), the default kernel below.
@@ -193,9 +193,9 @@ def main(argv=None) -> None:
     ap.add_argument("--repeat", type=int, default=2, help="timed repeats per platcal figure (best)")
     kernel = ap.add_mutually_exclusive_group()
     kernel.add_argument("--lanes", action="store_const", const=True, default=None,
-                        help="every run_ekf row (and the agreement) on the state-major kernel, run_ekf(..., lanes=True)")
+                        help="every platcal filter row (and the agreement) on the state-major kernel (lanes=True)")
     kernel.add_argument("--default-kernel", dest="lanes", action="store_const", const=False,
-                        help="every run_ekf row on the default kernel, run_ekf(..., lanes=False)")
+                        help="every platcal filter row on the default kernel (lanes=False)")
     args = ap.parse_args(argv)
 
     set_threads(args.threads)
@@ -203,7 +203,9 @@ def main(argv=None) -> None:
     scheme = check_scheme("table1", {"dwell_s": args.dwell, "positions": [list(p) for p in TABLE1_POSITIONS]})
     cen = Centrifuge()
     params = cen.scheme_params(scheme)
-    settings = FilterSettings()
+    # the kernel choice travels in the settings: the run_ekf rows, the registry's estimators and
+    # the covariance-only run all follow it
+    settings = FilterSettings(lanes=args.lanes)
     K = scheme.n_positions
     truth = full_truth()
     Bmax = max(args.batches)
@@ -221,7 +223,7 @@ def main(argv=None) -> None:
                                              scheme.angles_deg, params)
 
     def ekf(data, B):
-        return run_ekf(record(data, B), settings, lanes=args.lanes)
+        return run_ekf(record(data, B), settings)
 
     def estimator(kind, data, B):
         return KINDS[kind].run(record(data, B), settings)
@@ -242,7 +244,7 @@ def main(argv=None) -> None:
     print(f"platcal filter benchmark: Table 1 scheme, {K} x {args.dwell:g} s, {n_steps} filter steps "
           f"of {settings.period_s * 1e3:g} ms per replicate, numba threads {get_threads()}, "
           f"cores {os.cpu_count()}, load average {load0[0]:.2f}"
-          f", run_ekf rows: {KERNEL_CHOICE[args.lanes]}")
+          f", filter rows: {KERNEL_CHOICE[args.lanes]}")
     print(f"matrix-multiply peak (numpy BLAS, float64, 1500^3): {peak:.1f} GFLOP/s")
 
     data = sim(Bmax)
@@ -289,7 +291,7 @@ def main(argv=None) -> None:
     cmd[:, :, 0] = rng.integers(0, 360, (P, K))
     cmd[:, :, 2] = rng.integers(0, 360, (P, K))
     lin = np.repeat(truth[None], P, axis=0)
-    cov_settings = FilterSettings(history_every_s=None)
+    cov_settings = FilterSettings(history_every_s=None, lanes=args.lanes)
     cov_input = centrifuge_ekf.EstimatorInput([None] * K, [data.t[i0:]] * K, cmd, params)
     tc, cc, _ = best_times(lambda: run_ekf(cov_input, cov_settings, linearise_about=lin), args.repeat)
 

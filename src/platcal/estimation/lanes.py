@@ -193,13 +193,33 @@ def joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x):
         for j in range(n):
             for l in range(L):
                 xl[j, l] += K[j, l] * innov[0, l] + K[j, L + l] * innov[1, l] + K[j, 2 * L + l] * innov[2, l]
-    e = 0
-    for i in range(n):
+    # two rows of P a pass: column j's K and U are loaded once for both (4 vector loads an entry
+    # instead of 7); each row is a view, so its entries' indices are the loop's own (no
+    # negative-index code) and the two rows' stores and loads stay apart for the vectoriser
+    for ii in range(n // 2):
+        i = 2 * ii
+        e = i * (i + 1) // 2
+        Pa = Pl[e:e + i + 1]
+        Pb = Pl[e + i + 1:e + 2 * i + 3]
         for j in range(i + 1):
-            for l in range(L):
-                Pl[e + j, l] -= ((K[i, l] * U[j, l] + K[i, L + l] * U[j, L + l] + K[i, 2 * L + l] * U[j, 2 * L + l])
-                                 + (D[i, l] * K[j, l] + D[i, L + l] * K[j, L + l] + D[i, 2 * L + l] * K[j, 2 * L + l]))
-        e += i + 1
+            _joseph_entry(Pa, K, U, D, i, j)
+            _joseph_entry(Pb, K, U, D, i + 1, j)
+        _joseph_entry(Pb, K, U, D, i + 1, i + 1)
+    if n % 2:
+        i = n - 1
+        Pa = Pl[i * (i + 1) // 2:]
+        for j in range(i + 1):
+            _joseph_entry(Pa, K, U, D, i, j)
+
+
+@njit(cache=True, inline="always")
+def _joseph_entry(Prow, K, U, D, i, j):
+    """Entry (i, j) of the Joseph correction (:func:`joseph_correct_lanes`), ``Prow`` row i of the
+    packed P: ``P[i, j] -= K[i] . U[j] + D[i] . K[j]`` per lane, the terms in this order."""
+    L = LANES
+    for l in range(L):
+        Prow[j, l] -= ((K[i, l] * U[j, l] + K[i, L + l] * U[j, L + l] + K[i, 2 * L + l] * U[j, 2 * L + l])
+                       + (D[i, l] * K[j, l] + D[i, L + l] * K[j, L + l] + D[i, 2 * L + l] * K[j, 2 * L + l]))
 
 
 @njit(cache=True, inline="always")

@@ -24,7 +24,7 @@ import time
 import numpy as np
 from numba import njit
 
-from platcal.estimation.lanes import LANES, NoAliasCompiler, joseph_correct_lanes, slp_vectorize
+from platcal.estimation.lanes import LANES, NoAliasCompiler, gain_lanes, joseph_correct_lanes, slp_vectorize
 from platcal.parallel import set_threads
 
 L = LANES
@@ -42,16 +42,7 @@ def one_row(xl, Pl, U, K, D, S, Sinv, innov, steps):
     """The same K and D, then the triangle one row a pass (stop 48's loop)."""
     n = xl.shape[0]
     for _ in range(steps):
-        for j in range(n):
-            for c in range(3):
-                for l in range(L):
-                    K[j, c * L + l] = (Sinv[c, 0, l] * U[j, l] + Sinv[c, 1, l] * U[j, L + l]
-                                       + Sinv[c, 2, l] * U[j, 2 * L + l])
-        for j in range(n):
-            for c in range(3):
-                for l in range(L):
-                    D[j, c * L + l] = U[j, c * L + l] - (S[c, 0, l] * K[j, l] + S[c, 1, l] * K[j, L + l]
-                                                         + S[c, 2, l] * K[j, 2 * L + l])
+        gain_lanes(U, S, Sinv, K, D)
         e = 0
         for i in range(n):
             for j in range(i + 1):

@@ -179,16 +179,7 @@ def joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x):
     order. A lane with ``Sinv = 0`` keeps its x and P."""
     n = xl.shape[0]
     L = LANES
-    for j in range(n):
-        for c in range(3):
-            for l in range(L):
-                K[j, c * L + l] = (Sinv[c, 0, l] * U[j, l] + Sinv[c, 1, l] * U[j, L + l]
-                                   + Sinv[c, 2, l] * U[j, 2 * L + l])
-    for j in range(n):
-        for c in range(3):
-            for l in range(L):
-                D[j, c * L + l] = U[j, c * L + l] - (S[c, 0, l] * K[j, l] + S[c, 1, l] * K[j, L + l]
-                                                     + S[c, 2, l] * K[j, 2 * L + l])
+    gain_lanes(U, S, Sinv, K, D)
     if update_x:
         for j in range(n):
             for l in range(L):
@@ -210,6 +201,24 @@ def joseph_correct_lanes(xl, Pl, U, K, D, S, Sinv, innov, update_x):
         Pa = Pl[i * (i + 1) // 2:]
         for j in range(i + 1):
             _joseph_entry(Pa, K, U, D, i, j)
+
+
+@njit(cache=True, inline="always")
+def gain_lanes(U, S, Sinv, K, D):
+    """Per lane, the gain ``K = S^-1 U`` and ``D = U - S K`` of :func:`joseph_correct_lanes` (``U``,
+    ``K``, ``D`` (n, 3 * LANES), entry (r, j) of lane l at ``[j, r * LANES + l]``; ``S``, ``Sinv``
+    (3, 3, LANES)), the operations of :func:`platcal.estimation.kalman.gain3` in its order."""
+    L = LANES
+    for j in range(U.shape[0]):
+        for c in range(3):
+            for l in range(L):
+                K[j, c * L + l] = (Sinv[c, 0, l] * U[j, l] + Sinv[c, 1, l] * U[j, L + l]
+                                   + Sinv[c, 2, l] * U[j, 2 * L + l])
+    for j in range(U.shape[0]):
+        for c in range(3):
+            for l in range(L):
+                D[j, c * L + l] = U[j, c * L + l] - (S[c, 0, l] * K[j, l] + S[c, 1, l] * K[j, L + l]
+                                                     + S[c, 2, l] * K[j, 2 * L + l])
 
 
 @njit(cache=True, inline="always")

@@ -87,16 +87,16 @@ def matmul_peak(n: int = 1500, repeat: int = 3) -> float:
     return 2.0 * n**3 / t / 1e9
 
 
-def adjacent_pairs(run, B: int, pairs: int) -> list[tuple[float, float, float]]:
+def adjacent_pairs(run, B: int, pairs: int) -> list[tuple[float, float]]:
     """``pairs`` times, the matrix-multiply peak (:func:`matmul_peak`) and right after it one call
-    of ``run`` (a batch of ``B``): ``(peak GFLOP/s, wall s, CPU s per replicate)`` each. A pair's
+    of ``run`` (a batch of ``B``): ``(peak GFLOP/s, wall s per replicate)`` each. A pair's
     normalised cost compares the filter with the peak of the same seconds, which a single peak
     at the start of the run does not: on a shared VM both move by up to 1.8x minute to minute."""
     out = []
     for _ in range(pairs):
         peak = matmul_peak()
-        wall, cpu, _ = best_times(run, 1)
-        out.append((peak, wall / B, cpu / B))
+        wall, _ = best_time(run, 1)
+        out.append((peak, wall / B))
     return out
 
 
@@ -344,9 +344,9 @@ def main(argv=None) -> None:
           f"GFLOP/s = {best[2] * peak:.2f}; CPU s per replicate x peak = {best[6] * peak:.2f}")
     if args.pairs > 0:
         adj = adjacent_pairs(lambda: ekf(data, Bmax), Bmax, args.pairs)
-        each = ", ".join(f"{p * w:.2f} ({p:.1f} GFLOP/s, {w:.4f} s)" for p, w, _ in adj)
+        each = ", ".join(f"{p * w:.2f} ({p:.1f} GFLOP/s, {w:.4f} s)" for p, w in adj)
         print(f"normalised cost, {args.pairs} adjacent pairs (the peak, then run_ekf at B={Bmax}): {each}; "
-              f"median {float(np.median([p * w for p, w, _ in adj])):.2f}")
+              f"median {float(np.median([p * w for p, w in adj])):.2f}")
     print(f"speedup on CPU time (FilterPy CPU s / platcal CPU s per replicate, B={best[0]}): "
           f"{c_fp / best[6]:.1f}")
     print(f"speedup_vs_filterpy={t_fp / best[2]:.1f}")

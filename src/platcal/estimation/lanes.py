@@ -40,7 +40,7 @@ class NoAliasCompiler(CompilerBase):
 
 
 @contextmanager
-def slp_vectorize():
+def slp_vectorize(loop_vectorize: bool = True):
     """LLVM's SLP vectoriser on for numba compilations in this block (numba's default is off).
     It turns identical scalar operations on adjacent lanes into vector operations; it changes
     no floating-point result (no reassociation), so it is safe for any function compiled
@@ -49,14 +49,19 @@ def slp_vectorize():
     numba rereads every ``NUMBA_*`` setting from the environment at a compile whenever the
     environment changed since its last reading, which would put SLP back off for the first
     compile inside this block (numba imported before platcal set ``NUMBA_CACHE_LOCATOR_CLASSES``,
-    or any ``NUMBA_*`` variable set since); so that reading is done here first."""
+    or any ``NUMBA_*`` variable set since); so that reading is done here first.
+
+    ``loop_vectorize=False`` turns LLVM's loop vectoriser off meanwhile (numba's default is on): a
+    kernel whose lane loops SLP merges can lose to it, when it takes such a loop across its other
+    index with gathers (the centrifuge's block kernel, issue 22). Neither changes a number."""
     numba_config.reload_config()
-    old = numba_config.SLP_VECTORIZE
+    old = numba_config.SLP_VECTORIZE, numba_config.LOOP_VECTORIZE
     numba_config.SLP_VECTORIZE = 1
+    numba_config.LOOP_VECTORIZE = int(loop_vectorize)
     try:
         yield
     finally:
-        numba_config.SLP_VECTORIZE = old
+        numba_config.SLP_VECTORIZE, numba_config.LOOP_VECTORIZE = old
 
 
 def packed_index(n: int) -> np.ndarray:

@@ -26,7 +26,11 @@ knowing that the arrays do not overlap LLVM cannot merge the lanes' loads and st
 kernel is therefore compiled with every array argument declared ``noalias``
 (:class:`NoAliasCompiler`: all its arrays, scratch included, are distinct arguments) and with
 SLP vectorisation on (:func:`slp_vectorize` around every call, so that a first compile or a
-cache miss compiles it that way; SLP merges identical scalar operations and changes no number).
+cache miss compiles it that way; SLP merges identical scalar operations and changes no number),
+and with LLVM's loop vectoriser off: it took loops whose lanes SLP merges across their other index
+instead, with gathers and scatters (the gyro-coefficient columns of the RK4 map, :func:`_kg_stage`),
+and the kernel's lane loops are short enough to be unrolled and merged by SLP (issue 22, stop 50:
+the kernel 7 % faster, ``benchmarks/lanes_commits_ab.py``).
 The RK4 map with its exact Jacobian runs for the block's lanes at once (:func:`rk4_jac_lanes`:
 the reference's operations per lane on 1-D lane arrays, which SLP merges). The block kernel is
 compiled with numpy's error model, so its divisions carry no zero checks and vectorise too; its
@@ -107,9 +111,15 @@ def rate_jac_lanes(sc, coef, fr, g, wn, wu, v, w):
         w[18 * L + l] = f0
         w[19 * L + l] = f1
         w[20 * L + l] = f2
+    for l in range(L):
+        fr0, fr1, fr2 = fr[l], fr[L + l], fr[2 * L + l]
+        gl = g[l]
         w[21 * L + l] = (-w[2 * L + l] * fr1 + w[L + l] * fr2) / gl
         w[22 * L + l] = (-w[5 * L + l] * fr1 + w[4 * L + l] * fr2) / gl
         w[23 * L + l] = (-w[8 * L + l] * fr1 + w[7 * L + l] * fr2) / gl
+    for l in range(L):
+        fr0, fr1, fr2 = fr[l], fr[L + l], fr[2 * L + l]
+        gl = g[l]
         w[24 * L + l] = (w[9 * L + l] * fr0 + w[10 * L + l] * fr1 + w[11 * L + l] * fr2) / gl
         w[25 * L + l] = (w[12 * L + l] * fr0 + w[13 * L + l] * fr1 + w[14 * L + l] * fr2) / gl
         w[26 * L + l] = (w[15 * L + l] * fr0 + w[16 * L + l] * fr1 + w[17 * L + l] * fr2) / gl
@@ -132,12 +142,21 @@ def rate_jac_lanes(sc, coef, fr, g, wn, wu, v, w):
             v[(V_A + 3 * j) * L + l] = aI
             v[(V_A + 3 * j + 1) * L + l] = aO
             v[(V_A + 3 * j + 2) * L + l] = aS
+        # short lane loops, which LLVM unrolls and SLP merges (one loop with the drift and its
+        # gradient was left rolled, and ran scalar with the loop vectoriser off)
+        for l in range(L):
+            aI, aO, aS = v[(V_A + 3 * j) * L + l], v[(V_A + 3 * j + 1) * L + l], v[(V_A + 3 * j + 2) * L + l]
             D, DI = coef[j * L + l], coef[(3 + j) * L + l]
             DO, DS = coef[(6 + j) * L + l], coef[(9 + j) * L + l]
             DII, DSS, DIO = coef[(12 + j) * L + l], coef[(15 + j) * L + l], coef[(18 + j) * L + l]
             DIS, DOS, DOO = coef[(21 + j) * L + l], coef[(24 + j) * L + l], coef[(I_DOO + j) * L + l]
             e = gyro_drift_terms(D, DI, DO, DS, DII, DSS, DIO, DIS, DOS, DOO, aI, aO, aS)
             v[(V_U + j) * L + l] = e * DEG_PER_HOUR
+        for l in range(L):
+            aI, aO, aS = v[(V_A + 3 * j) * L + l], v[(V_A + 3 * j + 1) * L + l], v[(V_A + 3 * j + 2) * L + l]
+            DI, DO, DS = coef[(3 + j) * L + l], coef[(6 + j) * L + l], coef[(9 + j) * L + l]
+            DII, DSS, DIO = coef[(12 + j) * L + l], coef[(15 + j) * L + l], coef[(18 + j) * L + l]
+            DIS, DOS, DOO = coef[(21 + j) * L + l], coef[(24 + j) * L + l], coef[(I_DOO + j) * L + l]
             w[35 * L + l] = DI + 2.0 * DII * aI + DIO * aO + DIS * aS
             w[36 * L + l] = DO + 2.0 * DOO * aO + DIO * aI + DOS * aS
             w[37 * L + l] = DS + 2.0 * DSS * aS + DIS * aI + DOS * aO
@@ -215,16 +234,74 @@ def rate_jac_lanes(sc, coef, fr, g, wn, wu, v, w):
 
 
 @njit(cache=True, inline="always")
+def _kg_stage(kg, phi_g, v, w, step, h6, kind):
+    """RK4 stage's columns of the gyro coefficients in :func:`rk4_jac_lanes`, for the 3 rows at once:
+    ``k_s = T_s dm + step J_s k_{s-1}`` (the drift terms' monomials ``dm``, ``v`` the stage's
+    :func:`rate_jac_lanes` values), written over ``k_{s-1}`` in ``kg[:3 N_GYRO LANES]`` (row r,
+    coefficient i of lane l at ``[(r N_GYRO + i) LANES + l]``) and summed into ``phi_g`` with RK4's
+    weights, ``phi_g = h6 (k_0 + 2 k_1 + 2 k_2 + k_3)`` summed left to right as that expression is;
+    ``kind`` (a constant at each call): 0 the first stage (no k_{s-1}), 1 the middle two, 2 the
+    last. ``w`` holds T's rows and the monomials (the stage's :func:`rate_jac_lanes` scratch, free
+    by then). The operations and their order are :func:`rk4_jac_sc`'s, each entry's own.
+
+    Why this form (issue 22): a stage's coefficients at offsets from one base that depend only on
+    the loop's own indices, and T and the monomials in another array, so that LLVM can tell the
+    stores from the loads and merge the lanes; with each stage in its own rows of ``kg`` (offsets
+    that depend on the stage) the recursion ran scalar, 35 % of the map's time (``perf`` samples).
+    The map 1.3x faster with the loop vectoriser off, the block kernel 7 % (issue 22, stop 50)."""
+    L = LANES
+    G = N_GYRO
+    for r in range(3):
+        for j in range(3):
+            for l in range(L):
+                w[(3 * r + j) * L + l] = -v[(V_T + 3 * r + j) * L + l] * DEG_PER_HOUR
+    for j in range(3):
+        for l in range(L):
+            aI, aO, aS = v[(V_A + 3 * j) * L + l], v[(V_A + 3 * j + 1) * L + l], v[(V_A + 3 * j + 2) * L + l]
+            w[(9 + j) * L + l] = 1.0  # t * 1.0 is t: the constant term's column
+            w[(12 + j) * L + l] = aI
+            w[(15 + j) * L + l] = aO
+            w[(18 + j) * L + l] = aS
+            w[(21 + j) * L + l] = aI * aI
+            w[(24 + j) * L + l] = aS * aS
+            w[(27 + j) * L + l] = aI * aO
+            w[(30 + j) * L + l] = aI * aS
+            w[(33 + j) * L + l] = aO * aS
+            w[(36 + j) * L + l] = aO * aO
+    # the block kernel compiles with LLVM's loop vectoriser off (run_pass_lanes): it took this loop
+    # across the coefficients with gathers and scatters, 2.6x slower than the lanes merged by SLP
+    for m in range(G // 3):
+        for j in range(3):
+            i = 3 * m + j
+            for l in range(L):
+                dm = w[(9 + i) * L + l]
+                k0, k1, k2 = kg[i * L + l], kg[(G + i) * L + l], kg[(2 * G + i) * L + l]
+                for r in range(3):
+                    d = w[(3 * r + j) * L + l] * dm
+                    if kind > 0:
+                        d += step * (v[(V_JA + 3 * r) * L + l] * k0 + v[(V_JA + 3 * r + 1) * L + l] * k1
+                                     + v[(V_JA + 3 * r + 2) * L + l] * k2)
+                    e = (r * G + i) * L + l
+                    kg[e] = d
+                    if kind == 0:
+                        phi_g[e] = d
+                    elif kind == 1:
+                        phi_g[e] += 2.0 * d
+                    else:
+                        phi_g[e] = h6 * (phi_g[e] + d)
+
+
+@njit(cache=True, inline="always")
 def rk4_jac_lanes(ang, coef, fr3, h, g, wn, wu, out, phi_a, phi_g, k, ka, kg, v, sc0, sc, fr, w):
     """:func:`rk4_jac_sc` for :data:`LANES` replicates at once, the same operations in the same order
     per lane (bit for bit), on 1-D lane arrays as :func:`rate_jac_lanes` takes them: ``ang`` (3 LANES)
     rad, ``coef`` (ncoef LANES), ``fr3`` (3 stages x 3 LANES) the base specific force at the step's
     start, middle and end (m/s^2), ``h`` s, ``g``, ``wn``, ``wu`` (LANES); writes ``out`` (3 LANES)
     rad, ``phi_a`` (3 x 3 LANES) and ``phi_g`` (3 x :data:`N_GYRO` LANES); scratch ``k`` (4 x 3 LANES),
-    ``ka`` (4 x 9 LANES), ``kg`` (4 x 3 x N_GYRO LANES), ``v`` (42 LANES), ``sc0``, ``sc`` (6 LANES),
+    ``ka`` (4 x 9 LANES), ``kg`` (3 x N_GYRO LANES: :func:`_kg_stage`), ``v`` (42 LANES), ``sc0``, ``sc`` (6 LANES),
     ``fr`` (3 LANES), ``w`` (40 LANES)."""
     L = LANES
-    G = N_GYRO
+    h6 = h / 6.0
     for l in range(L):
         sc0[l], sc0[L + l] = np.sin(ang[l]), np.cos(ang[l])
         sc0[2 * L + l], sc0[3 * L + l] = np.sin(ang[L + l]), np.cos(ang[L + l])
@@ -248,6 +325,13 @@ def rk4_jac_lanes(ang, coef, fr3, h, g, wn, wu, out, phi_a, phi_g, k, ka, kg, v,
         for r in range(3):
             for l in range(L):
                 k[(s * 3 + r) * L + l] = v[(V_RATE + r) * L + l]
+        # the gyro coefficients' columns: this stage's over the last one's, in place, and into phi_g
+        if s == 0:
+            _kg_stage(kg, phi_g, v, w, step, h6, 0)
+        elif s < 3:
+            _kg_stage(kg, phi_g, v, w, step, h6, 1)
+        else:
+            _kg_stage(kg, phi_g, v, w, step, h6, 2)
         for r in range(3):
             j0, j1, j2 = (V_JA + 3 * r) * L, (V_JA + 3 * r + 1) * L, (V_JA + 3 * r + 2) * L
             for i in range(3):
@@ -257,29 +341,6 @@ def rk4_jac_lanes(ang, coef, fr3, h, g, wn, wu, out, phi_a, phi_g, k, ka, kg, v,
                     if s > 0:
                         d += step * (v[j0 + l] * ka[p0 + l] + v[j1 + l] * ka[p1 + l] + v[j2 + l] * ka[p2 + l])
                     ka[(s * 9 + 3 * r + i) * L + l] = d
-            o = (s * 3 + r) * G
-            for j in range(3):
-                for l in range(L):
-                    tj = -v[(V_T + 3 * r + j) * L + l] * DEG_PER_HOUR
-                    aI, aO, aS = v[(V_A + 3 * j) * L + l], v[(V_A + 3 * j + 1) * L + l], v[(V_A + 3 * j + 2) * L + l]
-                    kg[(o + j) * L + l] = tj
-                    kg[(o + 3 + j) * L + l] = tj * aI
-                    kg[(o + 6 + j) * L + l] = tj * aO
-                    kg[(o + 9 + j) * L + l] = tj * aS
-                    kg[(o + 12 + j) * L + l] = tj * (aI * aI)
-                    kg[(o + 15 + j) * L + l] = tj * (aS * aS)
-                    kg[(o + 18 + j) * L + l] = tj * (aI * aO)
-                    kg[(o + 21 + j) * L + l] = tj * (aI * aS)
-                    kg[(o + 24 + j) * L + l] = tj * (aO * aS)
-                    kg[(o + 27 + j) * L + l] = tj * (aO * aO)
-            if s > 0:
-                q0, q1, q2 = (s - 1) * 3 * G, ((s - 1) * 3 + 1) * G, ((s - 1) * 3 + 2) * G
-                for i in range(G):
-                    for l in range(L):
-                        kg[(o + i) * L + l] += step * (v[j0 + l] * kg[(q0 + i) * L + l]
-                                                       + v[j1 + l] * kg[(q1 + i) * L + l]
-                                                       + v[j2 + l] * kg[(q2 + i) * L + l])
-    h6 = h / 6.0
     for r in range(3):
         for l in range(L):
             out[r * L + l] = ang[r * L + l] + h6 * (k[r * L + l] + 2.0 * k[(3 + r) * L + l] + 2.0 * k[(6 + r) * L + l]
@@ -289,11 +350,6 @@ def rk4_jac_lanes(ang, coef, fr3, h, g, wn, wu, out, phi_a, phi_g, k, ka, kg, v,
             for l in range(L):
                 phi_a[e * L + l] = (1.0 if r == i else 0.0) + h6 * (
                     ka[e * L + l] + 2.0 * ka[(9 + e) * L + l] + 2.0 * ka[(18 + e) * L + l] + ka[(27 + e) * L + l])
-        for i in range(G):
-            e = r * G + i
-            for l in range(L):
-                phi_g[e * L + l] = h6 * (kg[e * L + l] + 2.0 * kg[(3 * G + e) * L + l] + 2.0 * kg[(6 * G + e) * L + l]
-                                         + kg[(9 * G + e) * L + l])
 
 
 @njit(cache=True)
@@ -601,7 +657,7 @@ def _block_scratch(n, npc, mh, nco, npar):
             f3((L, 3)), np.zeros((L, 3, MEAS_COLS.shape[1])), f3((L, 3, 3)),
             f3((3, 3)), f3((3, 3)), f3(3), f3(3), f3(L), f3(3), f3((L, n)), f3(n), f3(nco),
             f3(nco * L), f3(3 * L), f3(9 * L), f3(L), f3(L), f3(L), f3(3 * L), f3(9 * L), f3(3 * N_GYRO * L),
-            f3(12 * L), f3(36 * L), f3(12 * N_GYRO * L), f3(42 * L), f3(6 * L), f3(6 * L), f3(3 * L), f3(40 * L))
+            f3(12 * L), f3(36 * L), f3(3 * N_GYRO * L), f3(42 * L), f3(6 * L), f3(6 * L), f3(3 * L), f3(40 * L))
 
 
 @njit(parallel=True, cache=True)
@@ -626,7 +682,7 @@ def run_pass_lanes(x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params
     args = (x, P, z, t, offs, cmd, reset_var, est_idx, coef_fixed, params, r_var, q_rate, update_x, hist_idx, hist_x,
             hist_s, nis_sum, n_bad, pcols, pg, hcols, hsrc, hnnz, it_ctl, rec, *seg, packed_index(n))
     sizes = (n, pcols.shape[0], hcols.shape[1], coef_fixed.shape[1], params.shape[2])
-    with slp_vectorize():
+    with slp_vectorize(loop_vectorize=False):
         if nblk == 1 or numba.get_num_threads() == 1:
             # block by block from here, the block kernel called directly: a compiled caller (a
             # serial loop, or a function allocating the scratch) links and optimises the block

@@ -260,12 +260,10 @@ def phi_rows_times_p_lanes(Pl, pidx, pcols, phi, W):
         ea0 = pcols[kk]
         for j in range(n):
             ea = pidx[ea0, j]
-            for l in range(L):
-                W[j, l] += phi[0, kk, l] * Pl[ea, l]
-            for l in range(L):
-                W[j, L + l] += phi[1, kk, l] * Pl[ea, l]
-            for l in range(L):
-                W[j, 2 * L + l] += phi[2, kk, l] * Pl[ea, l]
+            for r in range(3):
+                c = r * L
+                for l in range(L):
+                    W[j, c + l] = W[j, c + l] + phi[r, kk, l] * Pl[ea, l]
 
 
 @njit(cache=True, inline="always")

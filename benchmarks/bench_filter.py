@@ -15,7 +15,7 @@ checks that platcal's estimate of replicate 0 agrees with FilterPy's, and report
 GFLOP/s of the filter's covariance algebra against this machine's measured matrix-multiply peak.
 Issue 22's normalised cost (wall s per replicate x peak GFLOP/s, run_ekf at the largest batch) is
 printed twice: with the peak measured once at the start, and as the median of ``--pairs``
-adjacent pairs (the peak, then one run_ekf), each pair's figure printed too.
+adjacent pairs (the peak, a pause of :data:`BLAS_SETTLE_S`, then one run_ekf), each pair's figure printed too.
 The last line is ``speedup_vs_filterpy=<ratio>`` (FilterPy s per replicate / platcal s per
 replicate at the largest batch).
 
@@ -87,6 +87,13 @@ def matmul_peak(n: int = 1500, repeat: int = 3) -> float:
     return 2.0 * n**3 / t / 1e9
 
 
+BLAS_SETTLE_S = 0.3
+"""Seconds between a pair's peak and its filter call: OpenBLAS's threads spin on after a call (0.10 s
+of CPU in the 0.5 s after a 1500^3 product on this machine, stop 50), taking a core from the
+filter's first tenth of a second: without the pause, the filter's median wall over 5 calls right
+after a product was 0.0240 s per replicate against 0.0185 s away from one, alternating in one run."""
+
+
 def adjacent_pairs(run, B: int, pairs: int) -> list[tuple[float, float]]:
     """``pairs`` times, the matrix-multiply peak (:func:`matmul_peak`) and right after it one call
     of ``run`` (a batch of ``B``): ``(peak GFLOP/s, wall s per replicate)`` each. A pair's
@@ -95,6 +102,7 @@ def adjacent_pairs(run, B: int, pairs: int) -> list[tuple[float, float]]:
     out = []
     for _ in range(pairs):
         peak = matmul_peak()
+        time.sleep(BLAS_SETTLE_S)
         wall, _ = best_time(run, 1)
         out.append((peak, wall / B))
     return out
@@ -345,7 +353,7 @@ def main(argv=None) -> None:
     if args.pairs > 0:
         adj = adjacent_pairs(lambda: ekf(data, Bmax), Bmax, args.pairs)
         each = ", ".join(f"{p * w:.2f} ({p:.1f} GFLOP/s, {w:.4f} s)" for p, w in adj)
-        print(f"normalised cost, {args.pairs} adjacent pairs (the peak, then run_ekf at B={Bmax}): {each}; "
+        print(f"normalised cost, {args.pairs} adjacent pairs (the peak, {BLAS_SETTLE_S:g} s, then run_ekf at B={Bmax}): {each}; "
               f"median {float(np.median([p * w for p, w in adj])):.2f}")
     print(f"speedup on CPU time (FilterPy CPU s / platcal CPU s per replicate, B={best[0]}): "
           f"{c_fp / best[6]:.1f}")

@@ -111,8 +111,8 @@ def rate_jac_lanes(sc, coef, fr, g, wn, wu, v, w):
         w[18 * L + l] = f0
         w[19 * L + l] = f1
         w[20 * L + l] = f2
-    for l in range(L):
-        fr0, fr1, fr2 = fr[l], fr[L + l], fr[2 * L + l]
+    for l in range(L):  # short lane loops, which LLVM unrolls and SLP merges (as below)
+        fr1, fr2 = fr[L + l], fr[2 * L + l]
         gl = g[l]
         w[21 * L + l] = (-w[2 * L + l] * fr1 + w[L + l] * fr2) / gl
         w[22 * L + l] = (-w[5 * L + l] * fr1 + w[4 * L + l] * fr2) / gl
@@ -248,7 +248,8 @@ def _kg_stage(kg, phi_g, v, w, step, h6, kind):
     the loop's own indices, and T and the monomials in another array, so that LLVM can tell the
     stores from the loads and merge the lanes; with each stage in its own rows of ``kg`` (offsets
     that depend on the stage) the recursion ran scalar, 35 % of the map's time (``perf`` samples).
-    The map 1.3x faster with the loop vectoriser off, the block kernel 7 % (issue 22, stop 50)."""
+    The map 16 % faster (1328 against 1576 ns a 4-lane call, each compiled as its kernel is:
+    ``benchmarks/rk4_map_ab.py``), the block kernel 7 % (issue 22, stop 50)."""
     L = LANES
     G = N_GYRO
     for r in range(3):
@@ -269,7 +270,7 @@ def _kg_stage(kg, phi_g, v, w, step, h6, kind):
             w[(33 + j) * L + l] = aO * aS
             w[(36 + j) * L + l] = aO * aO
     # the block kernel compiles with LLVM's loop vectoriser off (run_pass_lanes): it took this loop
-    # across the coefficients with gathers and scatters, 2.6x slower than the lanes merged by SLP
+    # across the coefficients with gathers and scatters, 2.5-3x slower than the lanes merged by SLP
     for m in range(G // 3):
         for j in range(3):
             i = 3 * m + j

@@ -95,8 +95,9 @@ after a product was 0.0240 s per replicate against 0.0185 s away from one, alter
 
 
 def adjacent_pairs(run, B: int, pairs: int) -> list[tuple[float, float]]:
-    """``pairs`` times, the matrix-multiply peak (:func:`matmul_peak`) and right after it one call
-    of ``run`` (a batch of ``B``): ``(peak GFLOP/s, wall s per replicate)`` each. A pair's
+    """``pairs`` times, the matrix-multiply peak (:func:`matmul_peak`), a pause of
+    :data:`BLAS_SETTLE_S`, then one call of ``run`` (a batch of ``B``): ``(peak GFLOP/s, wall s per
+    replicate)`` each. A pair's
     normalised cost compares the filter with the peak of the same seconds, which a single peak
     at the start of the run does not: on a shared VM both move by up to 1.8x minute to minute."""
     out = []

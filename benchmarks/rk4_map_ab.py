@@ -26,6 +26,7 @@ from ekf_lanes_ablation import variant
 from lanes_commits_ab import KERNEL, source
 from platcal.estimation.lanes import LANES, NoAliasCompiler, slp_vectorize
 from platcal.rigs.centrifuge.attitude import N_GYRO
+from platcal.rigs.centrifuge.catalogue import full_truth
 
 LOOP = '''
 @njit(pipeline_class=NoAliasCompiler, error_model="numpy")
@@ -60,7 +61,7 @@ def main(argv=None) -> None:
     L = LANES
     rng = np.random.default_rng(0)
     ang0 = rng.uniform(-0.5, 2.0, 3 * L)
-    coef = rng.normal(0.0, 1e-3, 48 * L)
+    coef = rng.normal(0.0, 1e-3, full_truth().size * L)  # every coefficient the map reads, as the kernel's
     fr3 = np.tile([98.0, 1.0, 9.8], 3 * L) + rng.normal(0.0, 1.0, 9 * L)
     g, wn, wu = np.full(L, 9.8), np.full(L, 5e-5), np.full(L, 5e-5)
     with tempfile.TemporaryDirectory() as folder:

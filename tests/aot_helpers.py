@@ -27,14 +27,15 @@ def built_folder(tmp_path_factory, kernels: aot.KernelSet) -> Path:
     return folder
 
 
-def run_probe(probe: str, folder, cfg, data, out: Path, chunk_rows: str, aot_on: bool) -> tuple[dict, dict]:
-    """``platcal identify --config cfg --data data --chunk-rows chunk_rows --out out`` run by
+def run_probe(probe: str, folder, cfg, data, out: Path, chunk_rows: str, aot_on: bool,
+              options: tuple[str, ...] = ()) -> tuple[dict, dict]:
+    """``platcal identify --config cfg [options] --data data --chunk-rows chunk_rows --out out`` run by
     ``probe`` (whose first argument is the .npz it saves its arrays to; its last line
     :data:`REPORT`'s) in a fresh interpreter on the kernels built in ``folder`` (``aot_on``) or on
     the JIT: the probe's report with the command's messages (``stderr``), and its arrays."""
     env = {**os.environ, "PLATCAL_AOT_DIR": str(folder), "PLATCAL_AOT": "1" if aot_on else "0"}
     arrays = out.with_name(out.name + ".npz")
-    res = subprocess.run([sys.executable, "-c", probe, str(arrays), "identify", "--config", str(cfg),
+    res = subprocess.run([sys.executable, "-c", probe, str(arrays), "identify", "--config", str(cfg), *options,
                           "--data", str(data), "--chunk-rows", chunk_rows, "--out", str(out)],
                          capture_output=True, text=True, env=env)
     assert res.returncode == 0, res.stderr

@@ -2,7 +2,6 @@
 built with numba.pycc, it loads neither numba nor llvmlite and gives the JIT's numbers bit for bit;
 a module built from other sources is never loaded (the JIT runs instead)."""
 
-import json
 import os
 import shutil
 import subprocess
@@ -11,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from aot_helpers import built_folder
+from aot_helpers import REPORT, built_folder, run_probe
 from centrifuge_short import short_config
 from platcal import aot
 from platcal.cli import main
@@ -34,8 +33,7 @@ def keep(out_dir, est, *args, **kw):  # the run's arrays, before the tables roun
 
 commands.write_identification = keep
 code = main(sys.argv[2:])
-print(json.dumps({"code": code, "numba": "numba" in sys.modules, "llvmlite": "llvmlite" in sys.modules}))
-"""
+""" + REPORT
 
 
 @pytest.fixture(scope="module")
@@ -58,16 +56,7 @@ def record(tmp_path_factory):
 def identify(record, folder, out, chunk_rows: str, aot_on: bool) -> tuple[dict, dict]:
     """Run identify in a fresh interpreter with the kernels of ``folder``; its modules and arrays."""
     cfg, rec = record
-    env = {**os.environ, "PLATCAL_AOT_DIR": str(folder), "PLATCAL_AOT": "1" if aot_on else "0"}
-    arrays = out.with_name(out.name + ".npz")
-    res = subprocess.run([sys.executable, "-c", PROBE, str(arrays), "identify", "--config", str(cfg),
-                          "--scheme", "short", "--data", str(rec), "--chunk-rows", chunk_rows, "--out", str(out)],
-                         capture_output=True, text=True, env=env)
-    assert res.returncode == 0, res.stderr
-    info = json.loads(res.stdout.splitlines()[-1])
-    assert info["code"] == 0, res.stderr
-    with np.load(arrays) as z:
-        return info, {k: z[k] for k in z.files}
+    return run_probe(PROBE, folder, cfg, rec, out, chunk_rows, aot_on, ("--scheme", "short"))
 
 
 @pytest.mark.parametrize("chunk_rows", ["0", "500"])
@@ -80,7 +69,9 @@ def test_aot_identify_loads_no_numba_and_equals_the_jit(built, record, tmp_path,
     info_a, a = identify(record, built, tmp_path / "aot", chunk_rows, True)
     info_j, j = identify(record, built, tmp_path / "jit", chunk_rows, False)
     assert not info_a["numba"] and not info_a["llvmlite"]
+    assert "(kernels compiled ahead of time)" in info_a["stderr"] and "platcal kernels" not in info_a["stderr"]
     assert info_j["numba"] and info_j["llvmlite"]
+    assert "ahead of time" not in info_j["stderr"]
     assert a.keys() == j.keys()
     for k in a:
         assert np.array_equal(a[k], j[k]), k
@@ -99,7 +90,8 @@ def test_aot_identify_loads_no_numba_and_equals_the_jit(built, record, tmp_path,
 
 def test_a_module_built_from_other_sources_is_not_loaded(built, record, tmp_path):
     """A module whose name carries another source key (any edit of the package changes it) is
-    ignored: identify falls back to the JIT, with the same numbers."""
+    ignored: identify falls back to the JIT, with the same numbers, and its line says how to build
+    the kernels (:func:`platcal.aot.kernels_note`)."""
     stale = tmp_path / "stale"
     stale.mkdir()
     name = aot.module_name(KERNELS)
@@ -109,6 +101,8 @@ def test_a_module_built_from_other_sources_is_not_loaded(built, record, tmp_path
     assert not aot.module_path(KERNELS, stale).exists()
     info, s = identify(record, stale, tmp_path / "stale_out", "0", True)
     assert info["numba"]
+    assert "JIT kernels: `platcal kernels` with this --config" in info["stderr"]
+    assert "(kernels compiled ahead of time)" not in info["stderr"]
     _, a = identify(record, built, tmp_path / "aot", "0", True)
     for k in a:
         assert np.array_equal(a[k], s[k]), k

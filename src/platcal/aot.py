@@ -167,6 +167,26 @@ def in_use() -> tuple[str, ...]:
     return tuple(name for name, mod in _LOADED.items() if not name.endswith(".spec") and mod is not None)
 
 
+def missing() -> tuple[str, ...]:
+    """The kernel sets this process asked for (enabled) and found not built for the current
+    sources (:func:`source_key`): it ran their JIT kernels."""
+    return tuple(name for name, mod in _LOADED.items() if not name.endswith(".spec") and mod is None)
+
+
+def kernels_note() -> str:
+    """What a command's summary line says of its kernels: how to build them when a set it asked
+    for is not built for the current sources (:func:`missing`: numba and LLVM were loaded, about
+    100 MB of peak memory that ``platcal kernels`` saves, README "Long records in bounded
+    memory"), that they were compiled ahead of time when it ran on them (:func:`in_use`), else
+    nothing (``PLATCAL_AOT=0``, or a command that asked for none)."""
+    if missing():
+        return (" (JIT kernels: `platcal kernels` with this --config compiles them ahead of time, once;"
+                " identify then loads no numba and needs less memory)")
+    if in_use():
+        return " (kernels compiled ahead of time)"
+    return ""
+
+
 def _load(kset: KernelSet):
     """The set's current module (imported once per process), or None when it is not built."""
     if kset.name in _LOADED:

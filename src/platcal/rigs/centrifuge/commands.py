@@ -156,11 +156,10 @@ def identified(study: Study, args: argparse.Namespace, scheme, est, fit, used: d
            f"{min(used.values())}-{max(used.values())} samples per position, {seconds:.2f} s -> {args.out}")
     if segmentation is not None:
         msg += " (dwells found in the continuous log: dwells.png)"
-    if aot.in_use():
-        msg += " (kernels compiled ahead of time)"
     if "nees" in summary:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.2f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.3f} %, NEES {summary['nees']:.1f} (dof {summary['nees_dof']})")
+    msg += aot.kernels_note()
     print(msg, file=sys.stderr)
     warning = consistency_warning(summary)
     if warning:

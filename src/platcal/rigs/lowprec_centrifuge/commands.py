@@ -144,7 +144,7 @@ def identify(study: Study, args) -> int:
         tmp("summary.json").write_text(json_text(summary))
     print(f"platcal identify: lowprec_centrifuge {method} ({extra}), {seconds:.2f} s -> {args.out}; "
           + ", ".join(f"{n} {e:.3f}" for n, e in zip(COEFFS, est))
-          + (" (kernels compiled ahead of time)" if aot.in_use() else ""), file=sys.stderr)
+          + aot.kernels_note(), file=sys.stderr)
     return fit_exit_status(fit, args.data, args.out)
 
 

@@ -315,8 +315,7 @@ def cmd_identify(cfg, args) -> int:
     if use_truth:
         msg += (f"; max |rel err| gyro {summary['max_abs_rel_err_pct_gyro']:.3f} %, accel "
                 f"{summary['max_abs_rel_err_pct_accel']:.4f} %, NEES {summary['nees']:.1f} (dof 24)")
-    if aot.in_use():
-        msg += " (kernels compiled ahead of time)"
+    msg += aot.kernels_note()
     print(msg, file=sys.stderr)
     return fit_exit_status(fit, args.data, out)
 

@@ -114,8 +114,7 @@ def cmd_identify(cfg: SledConfig, args) -> int:
                 f"rest move {name} by up to {max(w_est['shift_at_tolerance_sigmas']):.1f} sigma: its sigma with "
                 f"the gyros' own errors is {w_est['sigma_with_gyro_arcsec']:.3g} arcsec (metrics.json "
                 "gyro_rate_error)")
-    if aot.in_use():
-        msg += " (kernels compiled ahead of time)"
+    msg += aot.kernels_note()
     print(msg, file=sys.stderr)
     return fit_exit_status(fit, args.data, out, "metrics.json")
 

@@ -8,7 +8,9 @@ Stages: the run filter's kernel alone, with the seeds in lanes (F formed from th
 and one seed at a time (the reference kernel, main's before issue 22, on the dense F: the
 before/after of the filter in one run); the mechanisation (§4), the epoch means of the computed
 force, the run and stop filters (§6), metric B's model (§8) and the X compensation of both modes
-(§7); ``identify`` is the whole, the rest of it (Python glue, array slicing) being the difference. Per replicate, best of ``--repeat``; the load average is printed with them.
+(§7); the mechanisation's kernel with its outputs allocated once (the state carried on from call
+to call: the same work), and the allocation and first touch of its outputs (72 bytes a sample),
+which ``mechanise`` pays per call; ``identify`` is the whole, the rest of it (Python glue, array slicing) being the difference. Per replicate, best of ``--repeat``; the load average is printed with them.
 """
 
 from __future__ import annotations
@@ -24,7 +26,9 @@ from platcal.rigs.sled import filters
 from platcal.rigs.sled.config import load_config
 from platcal.rigs.sled.errmodel import propagate_run_model
 from platcal.rigs.sled.identify import identify, phi_hold, x_corrections_held
-from platcal.rigs.sled.ins import mechanise
+from platcal.rigs.sled.aot_kernels import run_seeds
+from platcal.rigs.sled.config import G
+from platcal.rigs.sled.ins import _initial_attitude, _mechanise, mechanise
 from platcal.rigs.sled.montecarlo import replicate_seeds
 from platcal.rigs.sled.simulate import simulate
 
@@ -67,10 +71,26 @@ def main(argv=None) -> None:
         return lambda: filters.KalmanRun(x0, tun, cfg.period_ms / 1000.0).step(Fs, z, ep.T[:js])
 
     kernel(dense)()
+    S = a.batch
+    f = np.ascontiguousarray(sb.f, dtype=np.float64)
+    w = np.ascontiguousarray(np.broadcast_to(sb.w, f.shape), dtype=np.float64)
+    C, vr = np.empty((S, 3, 3)), np.zeros((S, 6))
+    _initial_attitude(np.zeros((S, 3)), C)
+    wie = np.asarray(cfg.omega_ie, dtype=np.float64)
+    dts = np.ascontiguousarray(np.broadcast_to(ep.dts, (N,)), dtype=np.float64)
+    outs = np.empty((S, N + 1, 3)), np.empty((S, N + 1, 3)), np.empty((S, N, 3))
+
+    def touched_outputs():
+        for o in (np.empty((S, N + 1, 3)), np.empty((S, N + 1, 3)), np.empty((S, N, 3))):
+            o.fill(0.0)
+
     stages = {
         "run filter kernel alone, lanes": kernel(dyn),
         "run filter kernel alone, one seed at a time": kernel(dense),
         "mechanisation": lambda: mechanise(sb.f, sb.w, np.zeros((a.batch, 3)), cfg.omega_ie, ep.dts),
+        "mechanisation kernel, outputs allocated once": lambda: run_seeds("mechanise", _mechanise, S, f, w, C, vr,
+                                                                          wie, G, dts, *outs),
+        "mechanisation's outputs: allocate, first touch": touched_outputs,
         "epoch means": lambda: (filters.epoch_mean(fl, ep, 0, js), filters.epoch_mean(fl, ep, js, je)),
         "run + stop filters (incl. epoch means)": filt,
         "metric B model": lambda: propagate_run_model(fl[:, :idn.n_stop], cfg.omega_ie, np.nan_to_num(idn.phi_run),

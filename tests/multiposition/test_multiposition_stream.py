@@ -16,9 +16,10 @@ import pytest
 from platcal.cli import main
 from platcal import records
 from platcal.io import read_yaml
+from platcal.rigs.multiposition import commands
 from platcal.rigs.multiposition.commands import NominalPosition
 from platcal.rigs.multiposition.config import load_config
-from platcal.rigs.multiposition.filter import simulate
+from platcal.rigs.multiposition.filter import simulate, simulate_positions
 from platcal.rigs.multiposition.record import to_frame
 
 CONFIG = """rig: multiposition
@@ -99,6 +100,39 @@ def test_simulate_position_by_position_writes_the_whole_record(tmp_path, noise_f
     scheme = c.scheme("odd")
     t, phi, z = simulate(c, scheme, [5], noise_free=noise_free)
     assert out.read_text() == to_frame(scheme, t, phi[0], z[0]).to_csv(index=False)
+
+
+@pytest.mark.parametrize("noise_free", [False, True])
+def test_simulate_in_blocks_writes_the_same_bytes(tmp_path, monkeypatch, noise_free):
+    """``platcal simulate`` holds a block of a position's samples at a time: in blocks of 777
+    samples (3 positions x 40 s at 20 ms, 2001 samples a position: blocks of 777, 777, 447, the
+    RK4 state and the ARW and noise streams carried across each boundary) it writes the bytes it
+    writes in blocks longer than a position, which are the batch simulator's whole replicate
+    (docs/multiposition-1g.md §12, §14)."""
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(CONFIG.replace("PASSES", "1").replace("dwell_s: 2", "dwell_s: 40"))
+    lengths = []
+
+    def written(path, block):
+        def in_blocks(*args, **kw):
+            for k, t, phi, z in simulate_positions(*args, block=block, **kw):
+                lengths.append((k, len(t)))
+                yield k, t, phi, z
+        monkeypatch.setattr(commands, "simulate_positions", in_blocks)
+        assert main(["simulate", "--config", str(cfg), "--scheme", "odd", "--seed", "4", "--out", str(path)]
+                    + (["--noise-free"] if noise_free else [])) == 0
+        return path.read_bytes()
+
+    small = written(tmp_path / "small.csv", 777)
+    assert lengths == [(k, m) for k in range(3) for m in (777, 777, 447)]
+    lengths.clear()
+    large = written(tmp_path / "large.csv", 10_000)
+    assert lengths == [(k, 2001) for k in range(3)]
+    assert small == large
+    c = load_config(read_yaml(cfg.read_text()))
+    scheme = c.scheme("odd")
+    t, phi, z = simulate(c, scheme, [4], noise_free=noise_free)
+    assert small.decode() == to_frame(scheme, t, phi[0], z[0]).to_csv(index=False)
 
 
 def test_nominal_position_in_blocks():

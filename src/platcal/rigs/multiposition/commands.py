@@ -45,8 +45,8 @@ def cmd_simulate(cfg, args) -> int:
     check_writable(args.out, "--out")
     t0 = time.perf_counter()
     # --seed N is replicate N of the study's cell (this scheme, noise.sigma_a_ug): the same SeedSequence
-    # position by position (the numbers and CSV text of the whole record), so a long test does not
-    # need its record in memory
+    # block by block of each position (the numbers and CSV text of the whole record), so a long test
+    # does not need its record, nor a whole position, in memory
     with record_writer(args.out) as write:
         for k, t, phi, z in simulate_positions(cfg, scheme, replicate_seeds(cfg, scheme.name, [replicate])[0],
                                                noise_free=bool(args.noise_free)):
@@ -112,7 +112,7 @@ class NominalPosition:
         i = 0
         while i < idx.size:
             while idx[i] >= self._j0 + len(self._z):  # the next block of the simulation
-                self._j0, self._z = next(self._blocks)
+                self._j0, _, self._z = next(self._blocks)
             hi = int(np.searchsorted(idx, self._j0 + len(self._z)))
             out[i:hi] = self._z[idx[i:hi] - self._j0]
             i = hi

@@ -172,25 +172,38 @@ def _check_gimbal(cfg, scheme, phi0s, phi, first: int = 0) -> None:
                          f"beta leaves the gimbal range {lim:g} deg during the dwell (§3)")
 
 
-NORMAL_BLOCK = 1 << 20
+NORMAL_BLOCK = 1 << 16
 """Normal draws skipped at a time when :func:`simulate_positions` moves a stream past the draws of
-the other positions (8 MB)."""
+the other positions (0.5 MB: the skip of a long record's ARW draws is then no peak of its own)."""
+
+SIM_BLOCK = 1 << 12
+"""Samples of a position :func:`simulate_positions` holds at a time (docs/multiposition-1g.md §12):
+its phi, z and noise draws and the record rows formatted from them (about 2 MB), the same whatever
+the dwell, so a long record is simulated in bounded memory (peak RSS of ``simulate``,
+``benchmarks/bench_memory.py``: 251, 259, 260, 262 MB at 1 min, 10 min, 1 h, 6 h; blocks of 16384
+samples gave 273 MB at 1 h and 275 at 6 h, the CSV text of a block growing with it)."""
 
 
-def simulate_positions(cfg, scheme, seed, noise_free: bool = False):
+def simulate_positions(cfg, scheme, seed, noise_free: bool = False, block: int = SIM_BLOCK):
     """:func:`simulate` of one replicate (``seed``: a SeedSequence or replicate number), position by
-    position: yields ``(k, t (n,) s, phi (n, 3) rad, z (n, 6) ug / arcsec)`` for k = 0 .. K-1 with
-    the numbers :func:`simulate` gives, holding one position's samples (docs/multiposition-1g.md
-    §12). The draws are §14's order
-    of use (:func:`draw_noise`: setting errors, then every position's ARW, then every position's
-    sensor noise, from one stream): the sensor noise comes from a copy of the stream moved past
-    all the ARW draws (drawn in blocks and dropped), so each position's ARW and noise are the
-    slices of the whole draw."""
-    t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, scheme.dwell_s, scheme.angles_deg, 0, None)
+    position in blocks of at most ``block`` samples: yields ``(k, t (m,) s, phi (m, 3) rad,
+    z (m, 6) ug / arcsec)``, consecutive samples of position k = 0 .. K-1, with the numbers
+    :func:`simulate` gives, holding one block (:func:`simulate_blocks`; docs/multiposition-1g.md
+    §12). The draws are §14's order of use (:func:`draw_noise`: setting errors, then every
+    position's ARW, then every position's sensor noise, from one stream): the sensor noise comes
+    from a copy of the stream moved past all the ARW draws (drawn in blocks and dropped), and a
+    Generator's draws in consecutive blocks are the draws of one call, so each block's ARW and
+    noise are the rows of the whole draw. Raises InputError naming the position when beta leaves
+    the gimbal range (+ margin) during its dwell (§3)."""
+    t, phi0s, _, _, _, _ = _sim_setup(cfg, scheme.dwell_s, scheme.angles_deg, 0, None)
     ns, K = t.size, phi0s.shape[0]
     sig = np.array([cfg.sigma_a_ug] * 3 + [cfg.sigma_an_arcsec] * 3)
     if noise_free:
         init = np.zeros((K, 3))
+
+        def noise(steps: int, samples: int):
+            # z + 0.0, as the whole-position simulator always added: it writes -0.0 as 0.0
+            return np.zeros((steps, 3)), 0.0
     else:
         rng_w = np.random.default_rng(_seed_sequences(cfg, scheme, [seed])[0])
         init = rng_w.standard_normal((K, 3)) * cfg.sigma_set_rad
@@ -200,41 +213,48 @@ def simulate_positions(cfg, scheme, seed, noise_free: bool = False):
         while skip > 0:  # draws of a Generator in blocks are the draws of one call
             rng_v.standard_normal(min(skip, NORMAL_BLOCK))
             skip -= NORMAL_BLOCK
+
+        def noise(steps: int, samples: int):
+            return (rng_w.standard_normal((steps, 3)) * (cfg.arw_rad / math.sqrt(cfg.ts)),
+                    rng_v.standard_normal((samples, 6)) * sig)
     for k in range(K):
-        if noise_free:
-            w, v = np.zeros((ns - 1, 3)), 0.0
-        else:
-            w = rng_w.standard_normal((ns - 1, 3)) * (cfg.arw_rad / math.sqrt(cfg.ts))
-            v = rng_v.standard_normal((ns, 6)) * sig
-        phi = np.empty((1, 1, ns, 3))
-        z = np.empty((1, 1, ns, 6))
-        _simulate_range(0, 1, phi0s[k:k + 1], coef, lay, wn, wu, cfg.ts, cfg.n_sub, init[None, k:k + 1], w[None, None],
-                        phi, z)
-        z += v
-        _check_gimbal(cfg, scheme, phi0s[k:k + 1], phi, k)
-        yield k, t, phi[0, 0], z[0, 0]
+        for j0, phi, z in simulate_blocks(cfg, scheme.angles_deg[k], scheme.dwell_s, block=block,
+                                          phi_init=init[k], noise=noise):
+            _check_gimbal(cfg, scheme, phi0s[k:k + 1], phi[None, None], k)
+            yield k, t[j0:j0 + len(z)], phi, z
 
 
-def simulate_blocks(cfg, cmd_deg, dwell_s: float, truth=None, block: int = 100_000):
-    """The noise-free simulation (docs/multiposition-1g.md §12) of one position (commanded angles ``cmd_deg`` (3,) deg,
-    dwell ``dwell_s`` s, coefficients ``truth`` (default the config's)) in blocks of at most
-    ``block`` samples: yields ``(j0, z (m, 6) ug / arcsec)``, samples j0 .. j0 + m - 1. Each block
-    starts from the attitude the previous one ended at (the state is phi and the constant
-    coefficients, so the numbers are :func:`simulate`'s) and only one block is held."""
+def simulate_blocks(cfg, cmd_deg, dwell_s: float, truth=None, block: int = 100_000, phi_init=None, noise=None):
+    """The simulation (docs/multiposition-1g.md §12) of one position (commanded angles ``cmd_deg``
+    (3,) deg, dwell ``dwell_s`` s, coefficients ``truth`` (default the config's), setting error
+    ``phi_init`` (3,) rad, default 0) in blocks of at most ``block`` samples: yields
+    ``(j0, phi (m, 3) rad, z (m, 6) ug / arcsec)``, samples j0 .. j0 + m - 1. ``noise(steps, m)``,
+    when given, returns a block's ARW rates (steps, 3) rad/s, held over its sample steps in order,
+    and the sensor noise added to its z ((m, 6) ug / arcsec, or a scalar); without, the
+    simulation is noise-free. Each block starts from the attitude the previous one ended at (the
+    state is phi and the constant coefficients, so the numbers are :func:`simulate`'s) and only
+    one block is held."""
     t, phi0s, coef, lay, wn, wu = _sim_setup(cfg, dwell_s, np.asarray(cmd_deg, float).reshape(1, 3), 0, truth)
     ns = t.size
-    phi_start = np.zeros((1, 1, 3))
+    phi_start = np.zeros((1, 1, 3)) if phi_init is None else np.array(phi_init, float).reshape(1, 1, 3)
     j0 = 0
     while j0 < ns:
-        m = min(block, ns - j0) + (1 if j0 else 0)  # a later block repeats the sample it starts from
+        skip = 1 if j0 else 0  # a later block repeats the sample it starts from
+        m = min(block, ns - j0) + skip
+        if noise is None:
+            w, v = np.zeros((m - 1, 3)), None
+        else:
+            w, v = noise(m - 1, m - skip)
         phi = np.empty((1, 1, m, 3))
         z = np.empty((1, 1, m, 6))
         # one replicate: the kernel compiled ahead of time when an identify enabled it (.aot_kernels)
         one_replicate("simulate_range", _simulate_range)(0, 1, phi0s, coef, lay, wn, wu, float(cfg.ts), int(cfg.n_sub),
-                                                         phi_start, np.zeros((1, 1, m - 1, 3)), phi, z)
+                                                         phi_start, np.ascontiguousarray(w)[None, None], phi, z)
         phi_start = phi[:, :, -1].copy()
-        skip = 1 if j0 else 0
-        yield j0, z[0, 0, skip:]
+        zb = z[0, 0, skip:]
+        if v is not None:
+            zb += v
+        yield j0, phi[0, 0, skip:], zb
         j0 += m - skip
 
 

@@ -10,8 +10,8 @@ low-precision centrifuge with its rests between spin-ups (``profile.rest_between
 has two), each from its natural length up (a sled record lasts 86 s, its stop at 26 s; a
 low-precision run 17 min). The centrifuge and the multi-position rig are measured streamed
 (``--chunk-rows``, default) and, up to 1 h, read whole (``--chunk-rows 0``) for comparison (the
-multi-position rig's simulate has no ``--chunk-rows``: it writes one position at a time in both
-rows); so are the sled beyond its natural length (a natural record fits one chunk) and the
+multi-position rig's simulate has no ``--chunk-rows``: it holds a block of at most
+``filter.SIM_BLOCK`` samples of a position at a time in both rows); so are the sled beyond its natural length (a natural record fits one chunk) and the
 low-precision centrifuge. The ``import`` rows
 are ``platcal identify --config <rig> --help``: the command's imports and nothing else, the floor
 under every other row.
@@ -155,7 +155,7 @@ def all_cases(max_minutes: float, folder: Path):
             cfg, sim_opts, id_opts = case
             yield rig, minutes, "streamed", cfg, sim_opts, id_opts
             if minutes <= 60:
-                # the multi-position rig's simulate has no --chunk-rows (one position at a time in both)
+                # the multi-position rig's simulate has no --chunk-rows (a block of a position at a time in both)
                 yield rig, minutes, "whole", cfg, sim_opts + ([] if rig == "multiposition" else whole), id_opts + whole
 
 

@@ -250,3 +250,25 @@ def test_a_streamed_identify_is_sized_by_one_position(rig_name):
     with pytest.raises(InputError) as e:
         check_sizes(rig.sizes("identify", cfg, whole), DEFAULT_MAX_MEMORY_GB, DEFAULT_MAX_HOURS)
     assert e.value.field == "schemes.s.dwell_s"
+
+
+def test_the_multiposition_simulate_is_sized_by_one_block():
+    """The multi-position rig's simulate holds a block of a position, not the position
+    (issue 22 item 3; ``filter.SIM_BLOCK``): a day at each of six positions (4.3e6 samples a
+    position, 1.7 GB held as one) passes a 1 GB limit and is timed by every sample; identify of
+    the same scheme, streamed one position at a time, is refused by that limit, naming the dwell."""
+    raw = {"rig": "multiposition", "schemes": {"s": {"dwell_s": 86400, "positions": [list(map(float, p)) for p in
+                                                                                     eval(SIX)]}}}
+    rig = rig_of(raw)
+    cfg = rig.load_config(raw)
+    sim = rig.sizes("simulate", cfg, build_parser(rig).parse_args(["simulate", "--config", "c.yaml", "--scheme", "s",
+                                                                   "--out", "r.csv"]))
+    check_sizes(sim, 1.0, DEFAULT_MAX_HOURS)
+    (size,) = sim
+    assert size.gigabytes < 0.01
+    assert size.samples * size.runs == pytest.approx(6 * (86400 / cfg.ts + 1))
+    streamed = build_parser(rig).parse_args(["identify", "--config", "c.yaml", "--scheme", "s", "--data", "r.csv",
+                                             "--out", "o"])
+    with pytest.raises(InputError) as e:
+        check_sizes(rig.sizes("identify", cfg, streamed), 1.0, DEFAULT_MAX_HOURS)
+    assert e.value.field == "schemes.s.dwell_s"

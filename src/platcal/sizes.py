@@ -91,6 +91,14 @@ def one_at_a_time(size: Size, parts: int) -> Size:
                    what=f"{size.what}, streamed: one of {parts} positions held at a time")
 
 
+def in_blocks(size: Size, block: float) -> Size:
+    """``size`` of work streamed in blocks of at most ``block`` samples: the memory of one block
+    held, the time of all of ``size``'s samples (every replicate's)."""
+    held = min(float(block), float(size.samples))
+    return replace(size, samples=held, replicates=1, runs=float(size.samples) * float(size.replicates) / held,
+                   what=f"{size.what}, streamed: {held:g} samples held at a time")
+
+
 def samples_in(seconds: float, period_s: float) -> float:
     """Samples of a span of ``seconds`` at ``period_s`` (the end sample included), as a float."""
     return math.floor(seconds / period_s) + 1.0

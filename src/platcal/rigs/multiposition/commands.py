@@ -30,9 +30,9 @@ from ...logs.summary import inspect_log
 from ...mapping import RecordMapping
 from ...plausibility import clock_rate_tolerance, refuse_clock_rate, refuse_recognised, refuse_recognised_moments
 from ...records import CHUNK_OPTION, chunk_rows_of, chunks_beyond_one, record_writer
-from ...sizes import Costs, Size, one_at_a_time, samples_in
+from ...sizes import Costs, Size, in_blocks, one_at_a_time, samples_in
 from .estimators import estimate, estimate_positions, variant_choice
-from .filter import nees, replicate_seeds, simulate_blocks, simulate_positions
+from .filter import SIM_BLOCK, nees, replicate_seeds, simulate_blocks, simulate_positions
 from .model import coef_names, group_of, unit_of
 from .record import (COLUMNS, COMPENSATE_COLUMNS, CONTINUOUS_COLUMNS, FILTER_BLOCK, GYRO_COLUMNS, TRUTH_COLUMNS,
                      UG, UNITS, compensate_frame, position_frame, read_chunks, read_record, scan_record)
@@ -374,9 +374,10 @@ def sizes(command: str, cfg, args) -> list[Size]:
     size = Size(field, scheme.n_positions * samples_in(scheme.dwell_s, cfg.ts), held, 1,
                 f"scheme {scheme.name!r}, {scheme.n_positions} positions x {scheme.dwell_s:g} s at "
                 f"{cfg.ts * 1000:g} ms", COSTS.seconds[kind])
-    # simulate writes, and identify streams past --chunk-rows, one position at a time
-    streams = command == "simulate" or (command == "identify" and chunk_rows_of(args))
-    return [one_at_a_time(size, scheme.n_positions) if streams else size]
+    if command == "simulate":  # a block of a position at a time (.filter.simulate_positions)
+        return [in_blocks(size, SIM_BLOCK)]
+    # identify streams past --chunk-rows one position at a time
+    return [one_at_a_time(size, scheme.n_positions) if command == "identify" and chunk_rows_of(args) else size]
 
 
 SCHEME = option("--scheme", default=None, help="scheme name of the config or built in (S8, SIX, T1, TET4, ...); "

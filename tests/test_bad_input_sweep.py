@@ -28,12 +28,14 @@ SIX = "[[0, 0, 0], [90, 0, 0], [180, 0, 0], [270, 0, 0], [0, 0, 90], [0, 0, 180]
 CASES = {
     # a dwell or static period of 1e12 s: the schema's bound (a day)
     "centrifuge dwell 1e12": ("rig: centrifuge\nschemes: {s: {dwell_s: 1.0e12, positions: [[0, 0, 0]]}}\n",
-                              # written one position at a time: a day's dwell is 1.7 GB held, past a 1 GB limit
-                           ["simulate", "--scheme", "s", "--out", "out/r.csv", "--max-memory-gb", "1"],
+                              # identify streams one position at a time: a day's dwell is 3.3 GB held, past a
+                           # 1 GB limit (simulate holds a block of a position: test_sizes_every_command.py)
+                           ["identify", "--scheme", "s", "--data", "none.csv", "--out", "out", "--max-memory-gb", "1"],
                            "schemes.s.dwell_s"),
     "multiposition dwell 1e12": ("rig: multiposition\nschemes: {s: {dwell_s: 1.0e12, positions: [[0, 0, 0]]}}\n",
-                                 # written one position at a time: a day's dwell is 1.7 GB held, past a 1 GB limit
-                           ["simulate", "--scheme", "s", "--out", "out/r.csv", "--max-memory-gb", "1"],
+                                 # identify streams one position at a time: a day's dwell is 3.3 GB held, past a
+                           # 1 GB limit (simulate holds a block of a position: test_sizes_every_command.py)
+                           ["identify", "--scheme", "s", "--data", "none.csv", "--out", "out", "--max-memory-gb", "1"],
                            "schemes.s.dwell_s"),
     "sled static_after_s 1e12": ("rig: sled\ntrajectory: {static_after_s: 1.0e12}\n",
                                  ["simulate", "--out", "out/r.csv"], "trajectory.static_after_s"),
@@ -84,8 +86,9 @@ CASES = {
                                  ["identify", "--scheme", "s", "--data", "none.csv", "--out", "out"],
                                  "schemes.s.dwell_s"),
     "multiposition size": (f"rig: multiposition\nschemes: {{s: {{dwell_s: 86400, positions: {SIX}}}}}\n",
-                           # written one position at a time: a day's dwell is 1.7 GB held, past a 1 GB limit
-                           ["simulate", "--scheme", "s", "--out", "out/r.csv", "--max-memory-gb", "1"],
+                           # identify streams one position at a time: a day's dwell is 3.3 GB held, past a
+                           # 1 GB limit (simulate holds a block of a position: test_sizes_every_command.py)
+                           ["identify", "--scheme", "s", "--data", "none.csv", "--out", "out", "--max-memory-gb", "1"],
                            "schemes.s.dwell_s"),
     "sled size": ("rig: sled\ntrajectory: {static_after_s: 86400}\n", ["simulate", "--out", "out/r.csv"],
                   "trajectory.static_after_s"),

@@ -16,7 +16,8 @@ from platcal.errors import InputError
 from platcal.io import read_config
 from platcal.rig import get_rig
 from platcal.rigs.lowprec_centrifuge.montecarlo import SEED_KEY
-from platcal.rigs.lowprec_centrifuge.record import record_frame, truth_json, velocity_derivative, write_record
+from platcal.rigs.lowprec_centrifuge.record import (block_frame, record_frame, truth_json, velocity_derivative,
+                                                   write_record)
 from platcal.rigs.lowprec_centrifuge.stream import _unwrap_tail
 from platcal.records import truth_path
 from platcal.rigs.lowprec_centrifuge.truth import RecordBlock, RecordRun, simulate_batch
@@ -207,3 +208,21 @@ def test_record_run_is_the_monte_carlos_replicate(record):
     for f in ("k0_ug", "scale_ppm", "drift_deg_h", "phi0_rad", "gyro_g"):
         assert np.array_equal(getattr(run.draws, f)[0], getattr(rb.draws, f)[1]), f
 
+
+def test_record_run_internal_block_does_not_change_the_record(record):
+    """:class:`RecordRun` simulating 777 samples at a time (``work``: spans that divide neither
+    the 4321-sample blocks nor the run) gives the record of one span per block, CSV byte for byte,
+    and the same final errors (issue 22 item 3)."""
+    _, cfg, _ = record
+    study = get_rig("lowprec_centrifuge").load_config(read_config(cfg))
+    seed = replicate_seed(study.seed, SEED_KEY, study.residuals["accel_noise_ug_rthz"], 3)
+    runs = {work: RecordRun(study, "P1", "run1", seed, rows=4321, work=work) for work in (4321, 777)}
+    text = {}
+    for work, run in runs.items():
+        blocks = list(run.blocks())
+        assert len(blocks) > 2 and blocks[-1].t.size % 777
+        text[work] = "".join(block_frame(b.t, b.schedule, b.theta, b.err, b.phi, b.v_ind, b.f_meas, b.p_ind,
+                                         b.psi).to_csv(index=False, header=i == 0) for i, b in enumerate(blocks))
+    assert runs[777].work == 777 and runs[4321].work == 4321
+    assert text[777] == text[4321]
+    assert np.array_equal(runs[777].final, runs[4321].final)

@@ -303,17 +303,30 @@ class RecordBlock:
     psi: np.ndarray
 
 
+SIM_ROWS = 10_000
+"""Data samples :class:`RecordRun` simulates at a time (its internal block, at most the output
+block of ``rows``). The fine grid of 2 ``truth_steps`` samples per data sample, its true motion
+(some 30 arrays while :func:`.profile.motion` runs) and the kernel's truth table (13 columns)
+take over 1 kB a data sample: a block of :data:`platcal.records.CHUNK_ROWS` (100 000) simulated
+at once took some 130 MB of RSS, and the previous block's arrays were still held while the next
+was simulated (``platcal simulate`` of a 1 h record: 502 MB peak RSS, 339 MB at this size; the
+output block then holds only the data grid's 16 columns, 128 bytes a sample). The numbers do not
+depend on it (docs/lowprec-centrifuge.md §12; issue 22 item 3)."""
+
+
 class RecordRun:
     """One replicate's run simulated block by block (:meth:`blocks`): the numbers of
     :func:`simulate_batch` for that replicate alone (``sens=False``, no floor), bit for bit, in
     memory of one block of ``rows`` data samples, not the run's (docs/lowprec-centrifuge.md §12;
-    issue 22 item 3). Holds the run's draws and, once :meth:`blocks` is exhausted, its final
-    errors (``final``: dVE, dVN m/s, dpE, dpN m)."""
+    issue 22 item 3). Simulated ``work`` data samples at a time (:data:`SIM_ROWS`; the fine grid
+    of a block is the cost) and copied into the block. Holds the run's draws and, once
+    :meth:`blocks` is exhausted, its final errors (``final``: dVE, dVN m/s, dpE, dpN m)."""
 
     def __init__(self, study: Study, platform: str, run: str, seed: np.random.SeedSequence,
-                 noise_free: bool = False, keep_phi: bool = True, rows: int = CHUNK_ROWS):
+                 noise_free: bool = False, keep_phi: bool = True, rows: int = CHUNK_ROWS, work: int = SIM_ROWS):
         self.study, self.platform, self.run = study, platform, run
         self.noise_free, self.keep_phi, self.rows = bool(noise_free), bool(keep_phi), max(int(rows), 1)
+        self.work = min(max(int(work), 1), self.rows)
         self.param_seed, self.noise_seed = run_streams(seed, study.platform_index(platform),
                                                        study.run_index(platform, run))
         self.coeffs = coeff_vector(study, platform)
@@ -330,21 +343,21 @@ class RecordRun:
         """Five generators on the replicate's noise stream, each at the start of one of its
         full-length blocks (accelerometer (n, 2), gyro (n, 3), velocity (n, 2), position (n, 2),
         heading (n,): :func:`simulate_batch`'s order), reached by drawing the blocks before it
-        ``rows`` at a time (the normals do not depend on how a draw is split)."""
+        ``work`` samples at a time (the normals do not depend on how a draw is split)."""
         rng = np.random.default_rng(self.noise_seed)
         out = []
         for width in (2, 3, 2, 2, 1):
             out.append(copy.deepcopy(rng))
-            for a in range(0, self.n, self.rows):
-                rng.standard_normal((min(a + self.rows, self.n) - a) * width)
+            for a in range(0, self.n, self.work):
+                rng.standard_normal((min(a + self.work, self.n) - a) * width)
         return out
 
     def _uniform_step(self, substeps: int) -> float | None:
         """The fine grid's constant step (s) if all its steps are equal, else None (the spacing
         np.gradient chooses for the whole grid, :func:`.profile.grid_gradient`); checked
-        ``rows`` x substeps samples at a time."""
+        ``work`` x substeps samples at a time."""
         n, dt = profile_grid(self.study, self.platform, self.run, substeps)
-        step, first = self.rows * substeps, None
+        step, first = self.work * substeps, None
         for a in range(0, n - 1, step):
             d = np.diff(np.arange(a, min(a + step + 1, n)) * dt)
             first = d[0] if first is None else first
@@ -353,12 +366,37 @@ class RecordRun:
         return first
 
     def blocks(self):
-        """Yield the run's :class:`RecordBlock` s in order, ``rows`` data samples each."""
-        study, n, rows = self.study, self.n, self.rows
+        """Yield the run's :class:`RecordBlock` s in order, ``rows`` data samples each, each
+        simulated ``work`` samples at a time (:meth:`_pieces`) into the block's arrays."""
+        n, rows, work = self.n, self.rows, self.work
+        spans = [(a, min(a + work, k0 + rows, n)) for k0 in range(0, n, rows)
+                 for a in range(k0, min(k0 + rows, n), work)]
+        pieces = self._pieces(spans)
+        for k0 in range(0, n, rows):
+            k1 = min(k0 + rows, n)
+            grid = build_profile(self.study, self.platform, self.run, rows=(k0, k1))
+            if k1 - k0 <= work:
+                got = next(pieces)   # one piece: its arrays are the block's (no copy)
+            else:
+                m = k1 - k0
+                got = {"theta": np.empty(m), "err": np.empty((m, 4)),
+                       "phi": np.empty((m, 3)) if self.keep_phi else None, "v_ind": np.empty((m, 2)),
+                       "f_meas": np.empty((m, 2)), "p_ind": np.empty((m, 2)), "psi": np.empty(m)}
+                for a in range(0, m, work):
+                    for f, v in next(pieces).items():
+                        if v is not None:
+                            got[f][a:a + v.shape[0]] = v
+            yield RecordBlock(t=grid.t, schedule=grid.schedule, **got)
+
+    def _pieces(self, spans):
+        """The run's data samples a .. b - 1 of each of ``spans`` (consecutive, from 0 to n):
+        per span a dict of the :class:`RecordBlock` arrays but t and schedule (theta, err, phi,
+        v_ind, f_meas, p_ind, psi). The INS state, the arm angle and the noise generators run on
+        from span to span, so the numbers are the whole run's (§12)."""
+        study, n = self.study, self.n
         steps = int(study.profile["truth_steps"])
         sub = 2 * steps
         nf, _ = profile_grid(study, self.platform, self.run, sub)
-        cen, lat = study.centrifuge, study.latitude_deg
         dx = self._uniform_step(sub)
         res = study.residuals
         s_acc = res["accel_noise_ug_rthz"] * 1e-6 * G0 / np.sqrt(self.dt)
@@ -366,50 +404,60 @@ class RecordRun:
         gens = None if self.noise_free else self._noise_generators()
         coef, gcoef, eps, phi0 = self.lane
         L, y = _lanes_init(coef[:, None], gcoef[:, None], eps[:, None], quaternion_of(phi0)[:, None])
-        h = self.dt / steps
-        cos_lat0 = float(np.cos(np.radians(lat)))
-        theta_carry, p0 = 0.0, None
-        row0 = np.zeros(1, np.int64)   # the one lane's row of the block's outputs
-        for k0 in range(0, n, rows):
-            k1 = min(k0 + rows, n)
-            last = k1 == n
-            fa, fb = sub * k0, (sub * (k1 - 1) + 1 if last else sub * k1 + 1)
-            # the fine rows fa .. fb - 1 (through the next block's first sample), with one row of
-            # context each side for w'' (central differences)
-            ca, cb = max(fa - 1, 0), min(fb + 1, nf)
-            prof = build_profile(study, self.platform, self.run, sub, rows=(ca, cb))
-            w = prof.omega_nom * (1.0 + cen.rate_error)
-            wd = prof.omegadot_nom * (1.0 + cen.rate_error)
-            wdd = grid_gradient(wd, prof.t, dx)[fa - ca:fb - ca]
-            w, wd = w[fa - ca:fb - ca], wd[fa - ca:fb - ca]
-            # theta: the whole run's cumulative trapezoid continued from the block's first row
-            inc = 0.5 * (self.dt / sub) * (w[1:] + w[:-1])
-            theta = np.cumsum(np.concatenate([[theta_carry], inc]))
-            theta_carry = theta[-1] if not last else theta_carry
-            kin = motion(w, wd, wdd, theta, cen, lat)
-            m = k1 - k0
-            err, fm = np.empty((1, m, 4)), np.empty((1, m, 2))
-            phi = np.empty((1, m, 3)) if self.keep_phi else np.empty((0, m, 3))
-            if gens is None:
-                acc_w, gyro_w, noise_of = np.zeros((0, m, 2)), np.zeros((0, m, 3)), np.array([-1])
-            else:
-                acc_w = (gens[0].standard_normal((m, 2)) * s_acc)[None]
-                gyro_w = (gens[1].standard_normal((m, 3)) * s_gyro)[None]
-                noise_of = np.array([0])
-            _navigate_block(h, steps, truth_table(kin), cos_lat0, L, y, acc_w, gyro_w, noise_of, err, row0, phi, fm,
-                            row0, np.empty((1, 4)), last)
-            data = Kinematics(**{f: getattr(kin, f)[:sub * (m - 1) + 1:sub] for f in Kinematics.__dataclass_fields__})
-            if p0 is None:
-                p0 = data.p[0].copy()
-            v_ind = data.v + err[0, :, :2]
-            p_ind = data.p - p0 + err[0, :, 2:]
-            psi = data.theta.copy()
-            if gens is not None:
-                v_ind += gens[2].standard_normal((m, 2)) * res["velocity_noise_m_s"]
-                p_ind += gens[3].standard_normal((m, 2)) * res["position_noise_m"]
-                psi += gens[4].standard_normal(m) * res["heading_noise_arcsec"] * ARCSEC
-            grid = build_profile(study, self.platform, self.run, rows=(k0, k1))
-            if last:
-                self.final = err[0, -1].copy()
-            yield RecordBlock(t=grid.t, schedule=grid.schedule, theta=data.theta, err=err[0],
-                              phi=phi[0] if self.keep_phi else None, v_ind=v_ind, f_meas=fm[0], p_ind=p_ind, psi=psi)
+        state = {"theta": 0.0, "p0": None}
+        for k0, k1 in spans:
+            yield self._piece(k0, k1, sub, nf, dx, s_acc, s_gyro, gens, L, y, state)
+
+    def _piece(self, k0: int, k1: int, sub: int, nf: int, dx, s_acc: float, s_gyro: float, gens, L, y,
+               state: dict) -> dict:
+        """Data samples k0 .. k1 - 1 (:meth:`_pieces`): the fine grid's true motion there, the INS
+        through it (L, y: the lane's input and state, y advanced in place) and the outputs with
+        their noises (``gens``: :meth:`_noise_generators`, None: noise-free; s_acc m/s^2, s_gyro
+        rad/s per data interval). ``state``: the arm angle (rad) at k0's fine row and the
+        position at the run's start, carried to the next span. A function so that the fine
+        grid's arrays are freed when it returns (§12)."""
+        study, n, steps = self.study, self.n, sub // 2
+        cen, lat, res = study.centrifuge, study.latitude_deg, study.residuals
+        last = k1 == n
+        fa, fb = sub * k0, (sub * (k1 - 1) + 1 if last else sub * k1 + 1)
+        # the fine rows fa .. fb - 1 (through the next span's first sample), with one row of
+        # context each side for w'' (central differences)
+        ca, cb = max(fa - 1, 0), min(fb + 1, nf)
+        prof = build_profile(study, self.platform, self.run, sub, rows=(ca, cb))
+        w = prof.omega_nom * (1.0 + cen.rate_error)
+        wd = prof.omegadot_nom * (1.0 + cen.rate_error)
+        wdd = grid_gradient(wd, prof.t, dx)[fa - ca:fb - ca]
+        w, wd = w[fa - ca:fb - ca], wd[fa - ca:fb - ca]
+        # theta: the whole run's cumulative trapezoid continued from the span's first row
+        inc = 0.5 * (self.dt / sub) * (w[1:] + w[:-1])
+        theta = np.cumsum(np.concatenate([[state["theta"]], inc]))
+        if not last:
+            state["theta"] = theta[-1]
+        kin = motion(w, wd, wdd, theta, cen, lat)
+        m = k1 - k0
+        err, fm = np.empty((1, m, 4)), np.empty((1, m, 2))
+        phi = np.empty((1, m, 3)) if self.keep_phi else np.empty((0, m, 3))
+        if gens is None:
+            acc_w, gyro_w, noise_of = np.zeros((0, m, 2)), np.zeros((0, m, 3)), np.array([-1])
+        else:
+            acc_w = (gens[0].standard_normal((m, 2)) * s_acc)[None]
+            gyro_w = (gens[1].standard_normal((m, 3)) * s_gyro)[None]
+            noise_of = np.array([0])
+        row0 = np.zeros(1, np.int64)   # the one lane's row of the span's outputs
+        _navigate_block(self.dt / steps, steps, truth_table(kin), float(np.cos(np.radians(lat))), L, y, acc_w,
+                        gyro_w, noise_of, err, row0, phi, fm, row0, np.empty((1, 4)), last)
+        data = Kinematics(**{f: getattr(kin, f)[:sub * (m - 1) + 1:sub] for f in Kinematics.__dataclass_fields__})
+        if state["p0"] is None:
+            state["p0"] = data.p[0].copy()
+        v_ind = data.v + err[0, :, :2]
+        p_ind = data.p - state["p0"] + err[0, :, 2:]
+        psi = data.theta.copy()
+        if gens is not None:
+            v_ind += gens[2].standard_normal((m, 2)) * res["velocity_noise_m_s"]
+            p_ind += gens[3].standard_normal((m, 2)) * res["position_noise_m"]
+            psi += gens[4].standard_normal(m) * res["heading_noise_arcsec"] * ARCSEC
+        if last:
+            self.final = err[0, -1].copy()
+        # theta a copy: a view would hold the span's whole fine angle
+        return {"theta": data.theta.copy(), "err": err[0], "phi": phi[0] if self.keep_phi else None, "v_ind": v_ind,
+                "f_meas": fm[0], "p_ind": p_ind, "psi": psi}

@@ -303,6 +303,16 @@ class RecordBlock:
     psi: np.ndarray
 
 
+@dataclass
+class SpanCarry:
+    """What :meth:`RecordRun._piece` carries from one span to the next: the arm angle ``theta``
+    (rad) at the next span's first fine row, and the position at the run's start ``p0`` (m; None
+    before the first span)."""
+
+    theta: float = 0.0
+    p0: np.ndarray | None = None
+
+
 SIM_ROWS = 10_000
 """Data samples :class:`RecordRun` simulates at a time (its internal block, at most the output
 block of ``rows``). The fine grid of 2 ``truth_steps`` samples per data sample, its true motion
@@ -404,16 +414,16 @@ class RecordRun:
         gens = None if self.noise_free else self._noise_generators()
         coef, gcoef, eps, phi0 = self.lane
         L, y = _lanes_init(coef[:, None], gcoef[:, None], eps[:, None], quaternion_of(phi0)[:, None])
-        state = {"theta": 0.0, "p0": None}
+        carry = SpanCarry()
         for k0, k1 in spans:
-            yield self._piece(k0, k1, sub, nf, dx, s_acc, s_gyro, gens, L, y, state)
+            yield self._piece(k0, k1, sub, nf, dx, s_acc, s_gyro, gens, L, y, carry)
 
     def _piece(self, k0: int, k1: int, sub: int, nf: int, dx, s_acc: float, s_gyro: float, gens, L, y,
-               state: dict) -> dict:
+               carry: SpanCarry) -> dict:
         """Data samples k0 .. k1 - 1 (:meth:`_pieces`): the fine grid's true motion there, the INS
         through it (L, y: the lane's input and state, y advanced in place) and the outputs with
         their noises (``gens``: :meth:`_noise_generators`, None: noise-free; s_acc m/s^2, s_gyro
-        rad/s per data interval). ``state``: the arm angle (rad) at k0's fine row and the
+        rad/s per data interval). ``carry`` (:class:`SpanCarry`): the arm angle (rad) at k0's fine row and the
         position at the run's start, carried to the next span. A function so that the fine
         grid's arrays are freed when it returns (§12)."""
         study, n, steps = self.study, self.n, sub // 2
@@ -430,9 +440,9 @@ class RecordRun:
         w, wd = w[fa - ca:fb - ca], wd[fa - ca:fb - ca]
         # theta: the whole run's cumulative trapezoid continued from the span's first row
         inc = 0.5 * (self.dt / sub) * (w[1:] + w[:-1])
-        theta = np.cumsum(np.concatenate([[state["theta"]], inc]))
+        theta = np.cumsum(np.concatenate([[carry.theta], inc]))
         if not last:
-            state["theta"] = theta[-1]
+            carry.theta = theta[-1]
         kin = motion(w, wd, wdd, theta, cen, lat)
         m = k1 - k0
         err, fm = np.empty((1, m, 4)), np.empty((1, m, 2))
@@ -447,10 +457,10 @@ class RecordRun:
         _navigate_block(self.dt / steps, steps, truth_table(kin), float(np.cos(np.radians(lat))), L, y, acc_w,
                         gyro_w, noise_of, err, row0, phi, fm, row0, np.empty((1, 4)), last)
         data = Kinematics(**{f: getattr(kin, f)[:sub * (m - 1) + 1:sub] for f in Kinematics.__dataclass_fields__})
-        if state["p0"] is None:
-            state["p0"] = data.p[0].copy()
+        if carry.p0 is None:
+            carry.p0 = data.p[0].copy()
         v_ind = data.v + err[0, :, :2]
-        p_ind = data.p - state["p0"] + err[0, :, 2:]
+        p_ind = data.p - carry.p0 + err[0, :, 2:]
         psi = data.theta.copy()
         if gens is not None:
             v_ind += gens[2].standard_normal((m, 2)) * res["velocity_noise_m_s"]

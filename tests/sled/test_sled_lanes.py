@@ -169,6 +169,8 @@ def test_compensation_modes_in_one_pass_are_compensate_x(small_batch):
                     assert got.shape == (2, B, N)
                     for m in range(2):
                         assert np.array_equal(got[m], want[m])
+            odd = compensate_modes(fl, r_nav, held[0][0], holds[[1, 0, 1]], dts)   # an odd count of holds
+            assert all(np.array_equal(odd[m], want[i]) for m, i in enumerate((1, 0, 1)))
     assert not np.array_equal(want[0], want[1])   # the two holds differ
     xc = compensate_modes(fl, r_nav, held[0][0], holds, idn.epochs.dts)
     assert np.array_equal(idn.x_con, xc[0]) and np.array_equal(idn.x_con_other, xc[1])   # default: realtime

@@ -159,18 +159,25 @@ def _x_compensated(lo, hi, fl, r, est, holds, dts, out):
     """:func:`compensate_modes` for seeds ``lo .. hi - 1``: per hold row m, :func:`_x_corrections`'
     position sum from 0 (each term formed as there) subtracted from the navigation's X at each
     sample, ``out[m, s, k] = r[s, k, 0] − Σ_{i<k}`` (:func:`compensate_x`'s numbers, without the
-    (S,N+1) sums in memory)."""
+    (S,N+1) sums in memory). Two hold rows per pass over the samples: their sums are independent
+    chains the processor overlaps (an odd last row is paired with itself, written twice alike)."""
+    M = holds.shape[0]
     for s in range(lo, hi):
-        for m in range(holds.shape[0]):
-            v = 0.0
-            x = 0.0
+        for m0 in range(0, M, 2):
+            m1 = min(m0 + 1, M - 1)
+            va, xa, vb, xb = 0.0, 0.0, 0.0, 0.0
             for k in range(fl.shape[1]):
-                out[m, s, k] = r[s, k, 0] - x
-                p = holds[m, k]
-                da = fl[s, k, 1] * est[s, p, 2] - fl[s, k, 2] * est[s, p, 1]
-                nv = v + da * dts[k]
-                x = x + (v + nv) * 0.5 * dts[k]
-                v = nv
+                f1, f2, rx, dt = fl[s, k, 1], fl[s, k, 2], r[s, k, 0], dts[k]
+                out[m0, s, k] = rx - xa
+                out[m1, s, k] = rx - xb
+                pa, pb = holds[m0, k], holds[m1, k]
+                da = f1 * est[s, pa, 2] - f2 * est[s, pa, 1]
+                db = f1 * est[s, pb, 2] - f2 * est[s, pb, 1]
+                na = va + da * dt
+                nb = vb + db * dt
+                xa = xa + (va + na) * 0.5 * dt
+                xb = xb + (vb + nb) * 0.5 * dt
+                va, vb = na, nb
 
 
 def compensate_modes(fl: np.ndarray, r: np.ndarray, est: np.ndarray, holds: np.ndarray, dt) -> np.ndarray:

@@ -16,7 +16,8 @@ from platcal.rigs.sled import filters
 from platcal.rigs.sled.config import load_config
 from platcal.rigs.sled.identify import (compensate_modes, compensate_x, identify, phi_hold, x_corrections,
                                         x_corrections_held)
-from platcal.rigs.sled.ins import mechanise
+from platcal.rigs.sled.config import G
+from platcal.rigs.sled.ins import _initial_attitude, _mechanise, mechanise, nav_outputs
 from platcal.rigs.sled.montecarlo import replicate_seeds
 from platcal.rigs.sled.simulate import simulate
 
@@ -174,6 +175,29 @@ def test_compensation_modes_in_one_pass_are_compensate_x(small_batch):
     assert not np.array_equal(want[0], want[1])   # the two holds differ
     xc = compensate_modes(fl, r_nav, held[0][0], holds, idn.epochs.dts)
     assert np.array_equal(idn.x_con, xc[0]) and np.array_equal(idn.x_con_other, xc[1])   # default: realtime
+
+
+def test_mechanisation_outputs_in_one_block_are_separate_arrays_numbers(small_batch):
+    """:func:`nav_outputs` (v, r, f_l as views of one allocation): C-contiguous, disjoint, and
+    ``mechanise`` through them gives the kernel's numbers into three arrays allocated apart (and
+    pre-filled with NaN, so an unwritten element would show), bit for bit."""
+    sb = small_batch
+    cfg = load_config({"rig": "sled"})
+    S, N = sb.f.shape[:2]
+    outs = nav_outputs(S, N)
+    assert [o.shape for o in outs] == [(S, N + 1, 3), (S, N + 1, 3), (S, N, 3)]
+    assert all(o.flags.c_contiguous and o.flags.writeable for o in outs)
+    assert not any(np.shares_memory(a, b) for i, a in enumerate(outs) for b in outs[i + 1:])
+    phi0 = np.linspace(-1e-4, 1e-4, 3 * S).reshape(S, 3)
+    dts = np.full(N, cfg.dt)
+    got = mechanise(sb.f, sb.w, phi0, cfg.omega_ie, dts)
+    C = np.empty((S, 3, 3))
+    _initial_attitude(phi0, C)
+    apart = tuple(np.full(o.shape, np.nan) for o in outs)
+    _mechanise(0, S, np.ascontiguousarray(sb.f), np.ascontiguousarray(np.broadcast_to(sb.w, sb.f.shape)), C,
+               np.zeros((S, 6)), np.asarray(cfg.omega_ie, dtype=np.float64), G, dts, *apart)
+    for a, b in zip(got, apart):
+        assert np.array_equal(a, b)
 
 
 def test_mechanisation_does_not_depend_on_threads(small_batch):

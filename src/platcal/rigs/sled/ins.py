@@ -109,8 +109,9 @@ def _mechanise(lo, hi, f, w, C, vr, wie, g, dts, v_out, r_out, fl_out):
 
 
 def nav_outputs(S: int, N: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Uninitialised ``v``, ``r`` (S,N+1,3) and ``f_l`` (S,N,3), each C-contiguous, as views of one
-    allocation (72 bytes a sample). One block rather than three: glibc's malloc raises its mmap
+    """Uninitialised outputs of the mechanisation (§4) of S seeds' N samples: ``v`` (m/s), ``r`` (m)
+    (S,N+1,3) and ``f_l`` (m/s^2) (S,N,3), each C-contiguous, as views of one allocation (72 bytes
+    a sample). One block rather than three: glibc's malloc raises its mmap
     and trim thresholds to the largest block freed (up to 32 MB on 64 bits), so a loop of
     identifies (a Monte Carlo cell, a benchmark) gets the freed block back without faulting and
     zeroing its pages again, where three blocks of a third each were returned to the system on

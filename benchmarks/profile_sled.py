@@ -8,7 +8,8 @@ Stages: the run filter's kernel alone, with the seeds in lanes (F formed from th
 and one seed at a time (the reference kernel, main's before issue 22, on the dense F: the
 before/after of the filter in one run); the mechanisation (§4), the epoch means of the computed
 force, the run and stop filters (§6), metric B's model (§8) and the X compensation of both modes
-(§7); the mechanisation's kernel with its outputs allocated once (the state carried on from call
+(§7: identify's one pass of both modes, :func:`compensate_modes`, with their
+holds); the mechanisation's kernel with its outputs allocated once (the state carried on from call
 to call: the same work), and the allocation and first touch of its outputs (72 bytes a sample),
 which ``mechanise`` pays per call; ``identify`` is the whole, the rest of it (Python glue, array slicing) being the difference. Per replicate, best of ``--repeat``; the load average is printed with them.
 """
@@ -25,7 +26,7 @@ from platcal.parallel import set_threads
 from platcal.rigs.sled import filters
 from platcal.rigs.sled.config import load_config
 from platcal.rigs.sled.errmodel import propagate_run_model
-from platcal.rigs.sled.identify import identify, phi_hold, x_corrections_held
+from platcal.rigs.sled.identify import compensate_modes, identify, phi_hold
 from platcal.rigs.sled.aot_kernels import run_seeds
 from platcal.rigs.sled.config import G
 from platcal.rigs.sled.ins import _initial_attitude, _mechanise, mechanise
@@ -84,6 +85,9 @@ def main(argv=None) -> None:
         for o in (np.empty((S, N + 1, 3)), np.empty((S, N + 1, 3)), np.empty((S, N, 3))):
             o.fill(0.0)
 
+    r_nav = mechanise(sb.f, sb.w, np.zeros((a.batch, 3)), cfg.omega_ie, ep.dts)[1]   # (S,N+1,3), as identify's
+    held = [phi_hold(run, cfg.states, ep.k, js, N, m) for m in ("realtime", "post")]
+
     stages = {
         "run filter kernel alone, lanes": kernel(dyn),
         "run filter kernel alone, one seed at a time": kernel(dense),
@@ -95,8 +99,8 @@ def main(argv=None) -> None:
         "run + stop filters (incl. epoch means)": filt,
         "metric B model": lambda: propagate_run_model(fl[:, :idn.n_stop], cfg.omega_ie, np.nan_to_num(idn.phi_run),
                                                       cfg.states, ep.dts[:idn.n_stop]),
-        "X compensation (both modes)": lambda: [x_corrections_held(fl, *phi_hold(run, cfg.states, ep.k, js, N, m),
-                                                                   ep.dts) for m in ("realtime", "post")],
+        "X compensation (both modes)": lambda: compensate_modes(fl, r_nav, held[0][0],
+                                                                np.stack([h for _, h in held]), ep.dts),
         "identify (whole)": lambda: identify(cfg, sb.traj, sb.f, sb.w),
     }
     J = run.x.shape[1] + idn.stop.x.shape[1] - 2

@@ -17,8 +17,8 @@ kernels are compiled ahead of time (:mod:`platcal.aot`) never asks for threads.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
+from threading import Thread
 
 import numpy as np
 
@@ -61,7 +61,10 @@ def threads(n: int | None):
 def run_threaded(fn, n: int, threads: int | None, *args) -> None:
     """Run ``fn(lo, hi, *args)`` over the items [0, n) split into ``threads`` contiguous chunks
     (None or 0: the kernels' thread count now, :func:`get_threads`, which a job's threads set),
-    one Python thread each.
+    one Python thread each: the first chunk in the calling thread, the others in threads started
+    for this call (the caller would otherwise only wait; a pool started per call cost about twice
+    a thread's start, issue 22 item 2). Every chunk runs to its end before this returns; the
+    exception of the first chunk (in item order) that raised is raised then.
 
     For kernels compiled ``nogil`` over independent items (replicates, blocks of replicates):
     the numbers do not depend on the thread count, and there is no ``parallel=True`` compile
@@ -71,6 +74,23 @@ def run_threaded(fn, n: int, threads: int | None, *args) -> None:
     if threads == 1:
         fn(0, n, *args)
         return
-    bounds = np.linspace(0, n, threads + 1).astype(np.int64)
-    with ThreadPoolExecutor(threads) as pool:
-        list(pool.map(lambda i: fn(int(bounds[i]), int(bounds[i + 1]), *args), range(threads)))
+    bounds = [int(b) for b in np.linspace(0, n, threads + 1).astype(np.int64)]
+    errors: list[BaseException | None] = [None] * threads
+
+    def chunk(i: int) -> None:
+        try:
+            fn(bounds[i], bounds[i + 1], *args)
+        except BaseException as exc:  # re-raised by the caller, in chunk order
+            errors[i] = exc
+
+    workers = [Thread(target=chunk, args=(i,), daemon=True) for i in range(1, threads)]
+    for t in workers:
+        t.start()
+    try:
+        chunk(0)
+    finally:
+        for t in workers:
+            t.join()
+    first = next((e for e in errors if e is not None), None)
+    if first is not None:
+        raise first

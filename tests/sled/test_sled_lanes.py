@@ -14,8 +14,10 @@ from platcal.estimation.lanes import LANES
 from platcal.parallel import threads
 from platcal.rigs.sled import filters
 from platcal.rigs.sled.config import load_config
-from platcal.rigs.sled.identify import identify, phi_hold, x_corrections, x_corrections_held
-from platcal.rigs.sled.ins import mechanise
+from platcal.rigs.sled.identify import (compensate_modes, compensate_x, identify, phi_hold, x_corrections,
+                                        x_corrections_held)
+from platcal.rigs.sled.config import G
+from platcal.rigs.sled.ins import _initial_attitude, _mechanise, mechanise, nav_outputs
 from platcal.rigs.sled.montecarlo import replicate_seeds
 from platcal.rigs.sled.simulate import simulate
 
@@ -145,6 +147,57 @@ def test_x_corrections_are_numpys_cumsum(small_batch):
         for got in (x_corrections_held(fl, est, hold, dts, start), x_corrections(fl, phi, dts, start)):
             assert np.array_equal(got[0], dv) and np.array_equal(got[1], dr)
         assert np.abs(dr[:, -1] - start[1]).max() > 0
+
+
+def test_compensation_modes_in_one_pass_are_compensate_x(small_batch):
+    """identify's X compensation of both modes in one compiled pass (:func:`compensate_modes`,
+    reading X from the mechanisation's (S,N+1,3) positions) against :func:`compensate_x` per mode,
+    bit for bit, on unequal and equal intervals, a non-contiguous position view and 1 or 2 threads;
+    and identify's own x_con, x_con_other are those."""
+    sb = small_batch
+    cfg = load_config({"rig": "sled"})
+    idn = identify(cfg, sb.traj, sb.f, sb.w)
+    fl, N = idn.fl, idn.fl.shape[1]
+    _, r_nav, _ = mechanise(sb.f, sb.w, np.zeros((B, 3)), cfg.omega_ie, idn.epochs.dts)
+    held = [phi_hold(idn.run, cfg.states, idn.epochs.k, idn.j_stop, N, m) for m in ("realtime", "post")]
+    holds = np.stack([h for _, h in held])
+    for dts in (idn.epochs.dts * (1 + 1e-3 * np.sin(np.arange(N))), cfg.dt):
+        want = [compensate_x(fl, r_nav[:, :N, 0], est, hold, dts) for est, hold in held]
+        for n_threads in (1, 2):
+            with threads(n_threads):
+                for r in (r_nav, r_nav[:, :N]):
+                    got = compensate_modes(fl, r, held[0][0], holds, dts)
+                    assert got.shape == (2, B, N)
+                    for m in range(2):
+                        assert np.array_equal(got[m], want[m])
+            odd = compensate_modes(fl, r_nav, held[0][0], holds[[1, 0, 1]], dts)   # an odd count of holds
+            assert all(np.array_equal(odd[m], want[i]) for m, i in enumerate((1, 0, 1)))
+    assert not np.array_equal(want[0], want[1])   # the two holds differ
+    xc = compensate_modes(fl, r_nav, held[0][0], holds, idn.epochs.dts)
+    assert np.array_equal(idn.x_con, xc[0]) and np.array_equal(idn.x_con_other, xc[1])   # default: realtime
+
+
+def test_mechanisation_outputs_in_one_block_are_separate_arrays_numbers(small_batch):
+    """:func:`nav_outputs` (v, r, f_l as views of one allocation): C-contiguous, disjoint, and
+    ``mechanise`` through them gives the kernel's numbers into three arrays allocated apart (and
+    pre-filled with NaN, so an unwritten element would show), bit for bit."""
+    sb = small_batch
+    cfg = load_config({"rig": "sled"})
+    S, N = sb.f.shape[:2]
+    outs = nav_outputs(S, N)
+    assert [o.shape for o in outs] == [(S, N + 1, 3), (S, N + 1, 3), (S, N, 3)]
+    assert all(o.flags.c_contiguous and o.flags.writeable for o in outs)
+    assert not any(np.shares_memory(a, b) for i, a in enumerate(outs) for b in outs[i + 1:])
+    phi0 = np.linspace(-1e-4, 1e-4, 3 * S).reshape(S, 3)
+    dts = np.full(N, cfg.dt)
+    got = mechanise(sb.f, sb.w, phi0, cfg.omega_ie, dts)
+    C = np.empty((S, 3, 3))
+    _initial_attitude(phi0, C)
+    apart = tuple(np.full(o.shape, np.nan) for o in outs)
+    _mechanise(0, S, np.ascontiguousarray(sb.f), np.ascontiguousarray(np.broadcast_to(sb.w, sb.f.shape)), C,
+               np.zeros((S, 6)), np.asarray(cfg.omega_ie, dtype=np.float64), G, dts, *apart)
+    for a, b in zip(got, apart):
+        assert np.array_equal(a, b)
 
 
 def test_mechanisation_does_not_depend_on_threads(small_batch):

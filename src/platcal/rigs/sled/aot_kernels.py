@@ -4,7 +4,8 @@ An identify of one record runs the mechanisation (:func:`.ins._initial_attitude`
 :func:`.ins._mechanise`, docs/rocket-sled.md §4), the filters' mean forces and system matrices
 (:func:`.filters._epoch_mean`, :func:`.errmodel._fill_all`, §6), the run and stop filters
 (:func:`.filters._kalman`, §6.1-6.2), metric B's model (:func:`.errmodel._run_model`, §8) and the
-X compensation (:func:`.identify._x_corrections`, §7). Its seeds (the record, and with a constant
+X compensation (:func:`.identify._x_compensated`, both modes in one pass, and
+:func:`.identify._x_corrections`, §7). Its seeds (the record, and with a constant
 gyro error the record with each gyro offset: four lanes) run one at a time, each a batch of one
 (:func:`seed_kernel`, :func:`platcal.aot.pick`). The filters' JIT kernel runs the seeds in SIMD
 lanes (:mod:`.filter_lanes`: a ``noalias`` compiler pipeline and SLP vectorisation, which pycc
@@ -25,7 +26,7 @@ from ...aot import AotKernel, KernelSet, build, pick
 from ...parallel import run_threaded
 
 _F1, _F2, _F3, _F4 = "f8[::1]", "f8[:, ::1]", "f8[:, :, ::1]", "f8[:, :, :, ::1]"
-_I1 = "i8[::1]"
+_I1, _I2 = "i8[::1]", "i8[:, ::1]"
 
 KERNELS = KernelSet("sled", (
     # phi0 (S,3) rad, C (S,3,3)
@@ -44,6 +45,9 @@ KERNELS = KernelSet("sled", (
     # lo, hi, fl (S,N,3), est (S,M,3), hold (N,), dts (N,), dv0, dr0 (S,), dv, dr (S,N+1)
     AotKernel("x_corrections", f"{__package__}.identify:_x_corrections",
               f"none(i8, i8, {_F3}, {_F3}, {_I1}, {_F1}, {_F1}, {_F1}, {_F2}, {_F2})"),
+    # lo, hi, fl (S,N,3), r (S,N+1,3), est (S,M,3), holds (H,N), dts (N,), out (H,S,N)
+    AotKernel("x_compensated", f"{__package__}.identify:_x_compensated",
+              f"none(i8, i8, {_F3}, {_F3}, {_F3}, {_I2}, {_F1}, {_F3})"),
 ))
 """The kernels of the sled's identify, each run one seed at a time (a batch of one)."""
 

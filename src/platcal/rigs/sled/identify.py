@@ -154,6 +154,50 @@ def x_corrections_held(fl: np.ndarray, est: np.ndarray, hold: np.ndarray, dt,
     return dv, dr
 
 
+@njit(cache=True, nogil=True)
+def _x_compensated(lo, hi, fl, r, est, holds, dts, out):
+    """:func:`compensate_modes` for seeds ``lo .. hi - 1``: per hold row m, :func:`_x_corrections`'
+    position sum from 0 (each term formed as there) subtracted from the navigation's X at each
+    sample, ``out[m, s, k] = r[s, k, 0] − Σ_{i<k}`` (:func:`compensate_x`'s numbers, without the
+    (S,N+1) sums in memory). Two hold rows per pass over the samples: their sums are independent
+    chains the processor overlaps (an odd last row is paired with itself, written twice alike)."""
+    M = holds.shape[0]
+    for s in range(lo, hi):
+        for m0 in range(0, M, 2):
+            m1 = min(m0 + 1, M - 1)
+            va, xa, vb, xb = 0.0, 0.0, 0.0, 0.0
+            for k in range(fl.shape[1]):
+                f1, f2, rx, dt = fl[s, k, 1], fl[s, k, 2], r[s, k, 0], dts[k]
+                out[m0, s, k] = rx - xa
+                out[m1, s, k] = rx - xb
+                pa, pb = holds[m0, k], holds[m1, k]
+                da = f1 * est[s, pa, 2] - f2 * est[s, pa, 1]
+                db = f1 * est[s, pb, 2] - f2 * est[s, pb, 1]
+                na = va + da * dt
+                nb = vb + db * dt
+                xa = xa + (va + na) * 0.5 * dt
+                xb = xb + (vb + nb) * 0.5 * dt
+                va, vb = na, nb
+
+
+def compensate_modes(fl: np.ndarray, r: np.ndarray, est: np.ndarray, holds: np.ndarray, dt) -> np.ndarray:
+    """:func:`compensate_x` for several holds at once (§7, eqs. 20-21; identify's realtime and post
+    modes): ``holds`` (M,N) int, row m the estimate of ``est`` (S,J,3) rad each sample holds
+    (:func:`phi_hold`); ``r`` (S,≥N,3) the navigation position, m (its X column is read; the
+    mechanisation's own (S,N+1,3) array needs no copy); ``fl`` (S,N,3) m/s^2; ``dt`` s, the IMU
+    period or (N,) the sample intervals. Returns r_x^c (M,S,N), m: per row the numbers of
+    :func:`compensate_x`, bit for bit (one compiled pass per seed, the seeds over the numba
+    threads set, no (S,N+1) sums formed)."""
+    fl = np.ascontiguousarray(fl, dtype=np.float64)
+    S, N = fl.shape[:2]
+    holds = np.ascontiguousarray(holds, dtype=np.int64)
+    dts = kernel_input(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
+    out = np.empty((holds.shape[0], S, N))
+    run_seeds("x_compensated", _x_compensated, S, fl, np.ascontiguousarray(r, dtype=np.float64),
+              np.ascontiguousarray(est, dtype=np.float64), holds, dts, out)
+    return out
+
+
 def compensated_track(cfg: SledConfig, f: np.ndarray, w: np.ndarray, t: np.ndarray, phi: np.ndarray) -> pd.DataFrame:
     """The along-track position X(t) (m) and velocity V(t) (m/s) of one record, navigated (§4)
     and compensated open loop with the constant attitude errors ``phi`` (3,) rad [φ_x, φ_y, φ_z]
@@ -219,8 +263,8 @@ def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
         ep = record_epochs(t, cfg.period_ms / 1000.0)
         n_stop = stop_index(t, traj.stop_time_s)
     dts = ep.dts
-    v, r, fl = mechanise(f, w, np.zeros((f.shape[0], 3)), cfg.omega_ie, dts)
-    v, r = v[:, :N], r[:, :N]
+    v, r_nav, fl = mechanise(f, w, np.zeros((f.shape[0], 3)), cfg.omega_ie, dts)
+    v, r = v[:, :N], r_nav[:, :N]
     j_stop = int(min(np.searchsorted(ep.k, n_stop), ep.k.size - 1))
     j_end = ep.k.size - 1
     run = run_filter(cfg, fl, v, r, j_stop, ep)
@@ -229,8 +273,9 @@ def identify(cfg: SledConfig, traj: Trajectory, f: np.ndarray, w: np.ndarray,
     stop = stop_filter(cfg, fl, v, r, j_stop, j_end, run.x[:, -1, iy], run.P[:, iy, iy], ep)
     phi_b = np.nan_to_num(phi_run)
     r_model = propagate_run_model(fl[:, :n_stop], cfg.omega_ie, phi_b, cfg.states, dts[:n_stop])
-    xc = {mode: compensate_x(fl, r[..., 0], *phi_hold(run, cfg.states, ep.k, j_stop, N, mode), dts)
-          for mode in ("realtime", "post")}
+    modes = ("realtime", "post")
+    held = [phi_hold(run, cfg.states, ep.k, j_stop, N, mode) for mode in modes]   # the same est, two holds
+    xc = dict(zip(modes, compensate_modes(fl, r_nav, held[0][0], np.stack([h for _, h in held]), dts)))
     other = "post" if cfg.compensation == "realtime" else "realtime"
     nabla = G * (run.x[:, -1, iy] - stop.x[:, -1, 5])
     return Identification(cfg=cfg, traj=traj, v=v, r=r, fl=fl, run=run, stop=stop, j_stop=j_stop, j_end=j_end,

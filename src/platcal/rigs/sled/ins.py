@@ -108,6 +108,19 @@ def _mechanise(lo, hi, f, w, C, vr, wie, g, dts, v_out, r_out, fl_out):
         vr[s, 0], vr[s, 1], vr[s, 2], vr[s, 3], vr[s, 4], vr[s, 5] = v0, v1, v2, r0, r1, r2
 
 
+def nav_outputs(S: int, N: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Uninitialised outputs of the mechanisation (§4) of S seeds' N samples: ``v`` (m/s), ``r`` (m)
+    (S,N+1,3) and ``f_l`` (m/s^2) (S,N,3), each C-contiguous, as views of one allocation (72 bytes
+    a sample). One block rather than three: glibc's malloc raises its mmap
+    and trim thresholds to the largest block freed (up to 32 MB on 64 bits), so a loop of
+    identifies (a Monte Carlo cell, a benchmark) gets the freed block back without faulting and
+    zeroing its pages again, where three blocks of a third each were returned to the system on
+    every free (issue 22 item 2; ``benchmarks/profile_sled.py``)."""
+    nv = S * (N + 1) * 3
+    buf = np.empty(2 * nv + S * N * 3)
+    return buf[:nv].reshape(S, N + 1, 3), buf[nv:2 * nv].reshape(S, N + 1, 3), buf[2 * nv:].reshape(S, N, 3)
+
+
 class Navigator:
     """The mechanisation of a record read in blocks (issue 22 item 3): :meth:`step` navigates the
     next block's samples from where the previous one stopped (attitude, velocity, position
@@ -131,9 +144,7 @@ class Navigator:
         f = np.ascontiguousarray(f, dtype=np.float64)
         w = kernel_input(np.broadcast_to(w, f.shape))
         S, N = f.shape[:2]
-        v = np.empty((S, N + 1, 3))
-        r = np.empty((S, N + 1, 3))
-        fl = np.empty((S, N, 3))
+        v, r, fl = nav_outputs(S, N)
         dts = kernel_input(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
         run_seeds("mechanise", _mechanise, S, f, w, self.C, self.vr, self.wie, G, dts, v, r, fl)
         return v, r, fl

@@ -151,9 +151,10 @@ def test_x_corrections_are_numpys_cumsum(small_batch):
 
 def test_compensation_modes_in_one_pass_are_compensate_x(small_batch):
     """identify's X compensation of both modes in one compiled pass (:func:`compensate_modes`,
-    reading X from the mechanisation's (S,N+1,3) positions) against :func:`compensate_x` per mode,
-    bit for bit, on unequal and equal intervals, a non-contiguous position view and 1 or 2 threads;
-    and identify's own x_con, x_con_other are those."""
+    reading X from the mechanisation's (S,N+1,3) positions) against the formula per mode
+    (:func:`x_corrections_held`'s sums; :func:`compensate_x`, one hold, too), bit for bit, on
+    unequal and equal intervals, a non-contiguous position view and 1 or 2 threads; and identify's
+    own x_con, x_con_other are those."""
     sb = small_batch
     cfg = load_config({"rig": "sled"})
     idn = identify(cfg, sb.traj, sb.f, sb.w)
@@ -162,7 +163,10 @@ def test_compensation_modes_in_one_pass_are_compensate_x(small_batch):
     held = [phi_hold(idn.run, cfg.states, idn.epochs.k, idn.j_stop, N, m) for m in ("realtime", "post")]
     holds = np.stack([h for _, h in held])
     for dts in (idn.epochs.dts * (1 + 1e-3 * np.sin(np.arange(N))), cfg.dt):
-        want = [compensate_x(fl, r_nav[:, :N, 0], est, hold, dts) for est, hold in held]
+        # §7's sums as x_corrections_held forms them (numpy's cumsum's numbers: the test above)
+        want = [r_nav[:, :N, 0] - x_corrections_held(fl, est, hold, dts)[1][:, :N] for est, hold in held]
+        assert all(np.array_equal(compensate_x(fl, r_nav[:, :N, 0], est, hold, dts), w)
+                   for (est, hold), w in zip(held, want))
         for n_threads in (1, 2):
             with threads(n_threads):
                 for r in (r_nav, r_nav[:, :N]):

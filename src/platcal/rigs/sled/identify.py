@@ -99,11 +99,10 @@ def compensate_x(fl: np.ndarray, r_x: np.ndarray, est: np.ndarray, hold: np.ndar
     ``est[:, hold[k]]`` [φ_x, φ_y, φ_z] rad (:func:`phi_hold`).
 
     ``Δa_x = f_y φ̂_z − f_z φ̂_y``; ``v^c = v − Σ Δa dt`` (Euler), ``r^c = r − trapezoid`` (the
-    INS's rules). ``r_x`` (S,N) at t_k, m; ``dt`` the IMU period or (N,) the record's sample
-    intervals, s; returns r_x^c (S,N), m.
+    INS's rules). ``r_x`` (S,N) at t_k, m, with ``fl`` (S,N,3) m/s^2; ``dt`` the IMU period or (N,)
+    the record's sample intervals, s; returns r_x^c (S,N), m (one hold of :func:`compensate_modes`).
     """
-    _, dr = x_corrections_held(fl, est, hold, dt)
-    return r_x - dr[:, :r_x.shape[1]]
+    return compensate_modes(fl, np.asarray(r_x, dtype=np.float64)[..., None], est, np.asarray(hold)[None], dt)[0]
 
 
 def x_corrections(fl: np.ndarray, phi_hat: np.ndarray, dt, start: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:

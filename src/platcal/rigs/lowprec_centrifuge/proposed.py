@@ -27,6 +27,7 @@ from ...aot import pick as aot_pick
 from ...errors import InputError
 from ...estimation.kalman import joseph_update_sparse
 from ...jit import njit
+from ...parallel import get_threads, run_threaded
 from .aot_kernels import KERNELS
 from .config import G0, OMEGA_IE, R_EARTH
 from .profile import STATIC
@@ -135,7 +136,7 @@ def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return c
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _cumtrap(t, y, c):
     """c (N, m) = the cumulative trapezoid of y (N, m) over t (N,) s from 0, in one pass: the
     operations of numpy's ``cumsum(0.5 * diff(t)[:, None] * (y[1:] + y[:-1]))`` (the first
@@ -150,7 +151,7 @@ def _cumtrap(t, y, c):
             c[k, j] = term if k == 1 else c[k - 1, j] + term
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _window_integrands(t, v, p_rel, cos_psi, sin_psi, u0, arm_m, f, y, c, yf, cf):
     """One pass over a record of N samples: y (N, 4) = (VE, VN, :func:`arm_offset`) and, unless f
     has no rows, yf (N, 4) = :func:`force_integrand` of f (N, 2) m/s^2, with their cumulative
@@ -319,7 +320,7 @@ def predict(F: np.ndarray, T: np.ndarray, x: np.ndarray, P: np.ndarray, q: np.nd
     return phi, H, xp, Pp
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations):
     """The Kalman filter of docs/lowprec-centrifuge.md §7 over windows, compiled; the state is carried in place, so windows
     can come in blocks. Per seed s (leading axis, independent: batched over replicates) and
@@ -408,7 +409,7 @@ def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations
                     P[s, i, j] = Pp[i, j]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _matmul(a, b, out):
     """out = a b for square matrices, each sum in index order with a's zeros skipped (F T and its
     powers are sparse: 22 of 196 entries of F; adding an exact 0 changes no sum, so the result is
@@ -423,6 +424,22 @@ def _matmul(a, b, out):
             if c != 0.0:
                 for j in range(n):
                     out[i, j] += c * b[k, j]
+
+
+def batch_threads(nb: int) -> int:
+    """Threads a batch of ``nb`` replicates runs on: 1 for a single replicate (no thread count
+    asked, so numba stays unloaded beside an ahead-of-time kernel), else the job's numba threads
+    (:func:`platcal.parallel.get_threads`; docs/lowprec-centrifuge.md §7 batched over seeds)."""
+    return 1 if nb <= 1 else get_threads()
+
+
+def _filter_range(lo: int, hi: int, kernel, T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations) -> None:
+    """``kernel`` (:func:`filter_windows`, §7) on seeds ``lo .. hi - 1``: leading-axis slices of
+    the padded window arrays (T s, z m/s and m, m g and g^2) and of the state carried in place
+    (views: contiguous, written through); ``innovations`` sliced when kept (else its empty array)."""
+    keep = innovations.shape[0] == x.shape[0]
+    kernel(T[lo:hi], z[lo:hi], m[lo:hi], valid[lo:hi], fb, q, r_var, x[lo:hi], P[lo:hi], nis[lo:hi],
+           skipped[lo:hi], innovations[lo:hi] if keep else innovations)
 
 
 def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float,
@@ -441,11 +458,14 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     skipped = np.zeros(nb, dtype=np.int64)
     innovations = np.full((nb if keep_innovations else 0, nw, 8), np.nan)
     # one kernel for every batch (its loop over seeds is serial): at a batch of one the kernel
-    # compiled ahead of time when an identify enabled it and it is built (numba then not loaded)
+    # compiled ahead of time when an identify enabled it and it is built (numba then not loaded);
+    # a larger batch runs its seeds in contiguous ranges, one per thread of the job (the kernel is
+    # nogil, each seed's loop the same code: the numbers do not depend on the thread count)
     kernel = aot_pick(KERNELS, "filter_windows", filter_windows, filter_windows, nb)
-    kernel(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(z, dtype=float),
-           np.ascontiguousarray(m, dtype=float), np.ascontiguousarray(valid, dtype=np.bool_),
-           f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis, skipped, innovations)
+    run_threaded(_filter_range, nb, batch_threads(nb), kernel, np.ascontiguousarray(T, dtype=float),
+                 np.ascontiguousarray(z, dtype=float), np.ascontiguousarray(m, dtype=float),
+                 np.ascontiguousarray(valid, dtype=np.bool_), f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis,
+                 skipped, innovations)
     n_upd = valid.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_nis = nis / (n_upd - skipped)
@@ -466,7 +486,7 @@ def unwrap_heading(psi: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _unwrap_small_steps(p, out):
     """numpy.unwrap of p (N,) into out when every step |p[k] - p[k-1]| < pi (True), else False
     (out partly written): numpy then adds a correction of +0.0 to every sample after the first
@@ -480,17 +500,25 @@ def _unwrap_small_steps(p, out):
     return True
 
 
+def _window_data_range(lo: int, hi: int, t, v, p_rel, psi_u, f, schedule, arm_m: float, common, per: list) -> None:
+    """``per[s]`` = (T s, z, m) of :func:`window_data` (§7) for replicates ``lo .. hi - 1`` of the
+    batch (v m/s, p_rel m (S, N, 2); psi_u (S, N) rad unwrapped; f (N, 2) or (S, N, 2) m/s^2, its
+    :func:`force_terms` ``common`` when shared)."""
+    for s in range(lo, hi):
+        per[s] = window_data(t, v[s], p_rel[s], psi_u[s], f if f.ndim == 2 else f[s], schedule, arm_m, common)[1:]
+
+
 def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float,
                       keep_innovations: bool = False) -> FilterResult:
     """Proposed method on S records: t (N,), v, p_rel (S, N, 2), psi (S, N) rad, f (N, 2) or (S, N, 2);
     ``keep_innovations`` as :func:`run_filter`."""
     nb = v.shape[0]
-    per = []
     common = force_terms(t, f) if f.ndim == 2 else None
     psi_u = unwrap_heading(psi)
-    for s in range(nb):
-        fs = f if f.ndim == 2 else f[s]
-        per.append(window_data(t, v[s], p_rel[s], psi_u[s], fs, schedule, arm_m, common)[1:])
+    per = [None] * nb
+    # the replicates' window means over the job's threads (each replicate's the same code: the
+    # compiled pass is nogil, numpy's large ufuncs release the GIL)
+    run_threaded(_window_data_range, nb, batch_threads(nb), t, v, p_rel, psi_u, f, schedule, arm_m, common, per)
     nw = max(len(a[0]) for a in per)
     T = np.zeros((nb, nw))
     z = np.zeros((nb, nw, 4))

@@ -152,37 +152,83 @@ def _cumtrap(t, y, c):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _window_integrands(t, v, p_rel, cos_psi, sin_psi, u0, arm_m, f, y, c, yf, cf):
-    """One pass over a record of N samples: y (N, 4) = (VE, VN, :func:`arm_offset`) and, unless f
-    has no rows, yf (N, 4) = :func:`force_integrand` of f (N, 2) m/s^2, with their cumulative
-    trapezoids c, cf (:func:`_cumtrap`); v, p_rel (N, 2) m/s, m; cos_psi, sin_psi (N,) of the
-    unwrapped heading (numpy's, as :func:`arm_offset`); u0 (2,) and arm_m (m) as
-    :func:`arm_offset`. Each value by numpy's operations in numpy's order (bit for bit;
-    docs/lowprec-centrifuge.md §7)."""
+def _boundary_samples(t, v, p_rel, cos_psi, sin_psi, u0, arm_m, f, kb, yk, yk1, ck, fk, fk1, cfk):
+    """One pass over a record of N samples keeping only what :func:`boundary_value` reads at the
+    sample indices ``kb`` (M,) (non-decreasing, each in [0, N - 2]): row j of yk, yk1, ck (M, 4)
+    gets y at kb[j], at kb[j] + 1 and its cumulative trapezoid at kb[j], where y = (VE, VN,
+    :func:`arm_offset`) (m/s, m) from v, p_rel (N, 2), cos_psi, sin_psi (N,) of the unwrapped
+    heading (numpy's, as :func:`arm_offset`), u0 (2,) and arm_m (m); unless f (N, 2) m/s^2 has no
+    rows, fk, fk1, cfk the same of yf = :func:`force_integrand` (g and g^2). Each y value and each
+    running sum by the operations and in the order of :func:`_cumtrap` over the whole arrays (bit
+    for bit), without writing the (N, 4) arrays (docs/lowprec-centrifuge.md §7)."""
     force = f.shape[0] > 0
     o0, o1 = arm_m * u0[0], arm_m * u0[1]
+    m = kb.size
+    ja = 0          # the next boundary whose sample kb[ja] is still ahead
+    jb = 0          # the next boundary whose sample kb[jb] + 1 is still ahead
+    p0 = p1 = p2 = p3 = 0.0          # y at the sample before
+    q0 = q1 = q2 = q3 = 0.0          # yf at the sample before
+    c0 = c1 = c2 = c3 = 0.0          # running cumulative trapezoids of y (c[0] = 0)
+    d0 = d1 = d2 = d3 = 0.0          # and of yf
+    g0 = g1 = g2 = g3 = 0.0
     for k in range(t.size):
-        y[k, 0] = v[k, 0]
-        y[k, 1] = v[k, 1]
-        y[k, 2] = p_rel[k, 0] + o0 - arm_m * cos_psi[k]
-        y[k, 3] = p_rel[k, 1] + o1 - arm_m * sin_psi[k]
+        y0 = v[k, 0]
+        y1 = v[k, 1]
+        y2 = p_rel[k, 0] + o0 - arm_m * cos_psi[k]
+        y3 = p_rel[k, 1] + o1 - arm_m * sin_psi[k]
         if force:
             ae, an = f[k, 0] / G0, f[k, 1] / G0
-            yf[k, 0], yf[k, 1], yf[k, 2], yf[k, 3] = abs(ae), abs(an), ae * ae, an * an
-    _cumtrap(t, y, c)
-    if force:
-        _cumtrap(t, yf, cf)
+            g0, g1, g2, g3 = abs(ae), abs(an), ae * ae, an * an
+        if k >= 1:
+            h = 0.5 * (t[k] - t[k - 1])
+            if k == 1:
+                c0, c1, c2, c3 = h * (y0 + p0), h * (y1 + p1), h * (y2 + p2), h * (y3 + p3)
+                if force:
+                    d0, d1, d2, d3 = h * (g0 + q0), h * (g1 + q1), h * (g2 + q2), h * (g3 + q3)
+            else:
+                c0, c1, c2, c3 = c0 + h * (y0 + p0), c1 + h * (y1 + p1), c2 + h * (y2 + p2), c3 + h * (y3 + p3)
+                if force:
+                    d0, d1, d2, d3 = d0 + h * (g0 + q0), d1 + h * (g1 + q1), d2 + h * (g2 + q2), d3 + h * (g3 + q3)
+        while jb < m and kb[jb] + 1 == k:
+            yk1[jb, 0], yk1[jb, 1], yk1[jb, 2], yk1[jb, 3] = y0, y1, y2, y3
+            if force:
+                fk1[jb, 0], fk1[jb, 1], fk1[jb, 2], fk1[jb, 3] = g0, g1, g2, g3
+            jb += 1
+        while ja < m and kb[ja] == k:
+            yk[ja, 0], yk[ja, 1], yk[ja, 2], yk[ja, 3] = y0, y1, y2, y3
+            ck[ja, 0], ck[ja, 1], ck[ja, 2], ck[ja, 3] = c0, c1, c2, c3
+            if force:
+                fk[ja, 0], fk[ja, 1], fk[ja, 2], fk[ja, 3] = g0, g1, g2, g3
+                cfk[ja, 0], cfk[ja, 1], cfk[ja, 2], cfk[ja, 3] = d0, d1, d2, d3
+            ja += 1
+        p0, p1, p2, p3 = y0, y1, y2, y3
+        q0, q1, q2, q3 = g0, g1, g2, g3
+
+
+def boundary_index(t: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """The sample index k before each instant ``tb`` (s): t[k] <= tb < t[k + 1], clipped to
+    [0, N - 2] (docs/lowprec-centrifuge.md §7)."""
+    return np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
+
+
+def boundary_value(tb: np.ndarray, t0: np.ndarray, t1: np.ndarray, y0: np.ndarray, y1: np.ndarray,
+                   c0: np.ndarray) -> np.ndarray:
+    """(B, m) the integral to each instant ``tb`` (s) from the samples around it: times t0 <= tb <
+    t1 (s), values y0, y1 (B, m) there and the cumulative trapezoid c0 (B, m) at t0, plus the
+    trapezoid to ``tb`` with y linearly interpolated (docs/lowprec-centrifuge.md §7)."""
+    h = (tb - t0)[:, None]
+    yb = y0 + h / (t1 - t0)[:, None] * (y1 - y0)
+    return c0 + 0.5 * h * (y0 + yb)
 
 
 def boundary_integrals(t: np.ndarray, y: np.ndarray, c: np.ndarray, tb: np.ndarray) -> np.ndarray:
     """(B, m) the integral of y (N, m) from t[0] to each instant ``tb`` (s, within [t[0], t[-1]]):
     its cumulative trapezoid c at the sample before, plus the trapezoid to ``tb`` with y linearly
-    interpolated (docs/lowprec-centrifuge.md §7). Only the samples around each instant are read, so a streamed record
-    (:mod:`.stream`) evaluates it on a block holding them and gets the whole record's numbers."""
-    k = np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
-    h = (tb - t[k])[:, None]
-    yb = y[k] + h / (t[k + 1] - t[k])[:, None] * (y[k + 1] - y[k])
-    return c[k] + 0.5 * h * (y[k] + yb)
+    interpolated (:func:`boundary_value`, docs/lowprec-centrifuge.md §7). Only the samples around
+    each instant are read, so a streamed record (:mod:`.stream`) evaluates it on a block holding
+    them and gets the whole record's numbers."""
+    k = boundary_index(t, tb)
+    return boundary_value(tb, t[k], t[k + 1], y[k], y[k + 1], c[k])
 
 
 def interval_means(t: np.ndarray, y: np.ndarray, c: np.ndarray, ts: np.ndarray, te: np.ndarray) -> np.ndarray:
@@ -230,17 +276,29 @@ def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None):
     ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds).
     """
     win = find_windows(t, psi_u, schedule)
-    # y, yf and their integrals in one compiled pass (:func:`_window_integrands`), the heading's
-    # cos and sin by numpy as :func:`arm_offset` takes them
-    n = t.size
-    y, c = np.empty((n, 4)), np.empty((n, 4))
-    yf, cf = (np.empty((n, 4)), np.empty((n, 4))) if force is None else force
-    _window_integrands(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(v, dtype=float),
-                       np.ascontiguousarray(p_rel, dtype=float), np.cos(psi_u), np.sin(psi_u),
-                       np.array([np.cos(psi_u[0]), np.sin(psi_u[0])]), float(arm_m),
-                       np.ascontiguousarray(f, dtype=float) if force is None else np.empty((0, 2)), y, c, yf, cf)
-    tt, z, m = window_means(win.ts, win.te, boundary_integrals(t, y, c, win.ts), boundary_integrals(t, y, c, win.te),
-                            boundary_integrals(t, yf, cf, win.ts), boundary_integrals(t, yf, cf, win.te),
+    # the integrals at the windows' ends (both ends at once: every operation of
+    # :func:`boundary_value` is row by row) from one compiled pass that keeps only the samples
+    # around them (:func:`_boundary_samples`: no (N, 4) arrays), the heading's cos and sin by
+    # numpy as :func:`arm_offset` takes them
+    tb = np.concatenate([win.ts, win.te])
+    k = boundary_index(t, tb)
+    order = np.argsort(k, kind="stable")
+    ks = k[order]
+    nb = tb.size
+    yk, yk1, ck = np.empty((nb, 4)), np.empty((nb, 4)), np.empty((nb, 4))
+    fk, fk1, cfk = np.empty((nb, 4)), np.empty((nb, 4)), np.empty((nb, 4))
+    _boundary_samples(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(v, dtype=float),
+                      np.ascontiguousarray(p_rel, dtype=float), np.cos(psi_u), np.sin(psi_u),
+                      np.array([np.cos(psi_u[0]), np.sin(psi_u[0])]), float(arm_m),
+                      np.ascontiguousarray(f, dtype=float) if force is None else np.empty((0, 2)),
+                      ks, yk, yk1, ck, fk, fk1, cfk)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(nb)
+    iy = boundary_value(tb, t[k], t[k + 1], yk[inv], yk1[inv], ck[inv])
+    if_ = (boundary_value(tb, t[k], t[k + 1], fk[inv], fk1[inv], cfk[inv]) if force is None
+           else boundary_integrals(t, force[0], force[1], tb))
+    w = win.ts.size
+    tt, z, m = window_means(win.ts, win.te, iy[:w], iy[w:], if_[:w], if_[w:],
                             np.interp(win.ts, t, psi_u), np.interp(win.te, t, psi_u), arm_m)
     return win, tt, z, m
 

@@ -1,7 +1,8 @@
 """The proposed method's batch over the job's threads (issue 22 item 2): the window means and the
 window filter of a batch of replicates run in contiguous replicate ranges, one per numba thread
 (platcal.parallel.run_threaded); every replicate's numbers are those of one thread and of the
-replicate alone, bit for bit (docs/lowprec-centrifuge.md §7)."""
+replicate alone, bit for bit; the window means' compiled pass over the samples keeps the values
+of the whole arrays it no longer writes (docs/lowprec-centrifuge.md §7)."""
 
 import numpy as np
 import pytest
@@ -58,3 +59,38 @@ def test_each_replicate_alone_gives_its_batch_numbers(batch, n_threads):
                 assert np.isnan(want[:, nw:]).all()   # the batch's padding windows
                 want = want[:, :nw]
             assert same(getattr(part, name), np.ascontiguousarray(want)), (sl, name)
+
+
+@pytest.mark.parametrize("with_force", [True, False])
+def test_boundary_samples_are_the_whole_arrays_values(with_force):
+    """The compiled pass that keeps only the samples around the windows' ends (the window means'
+    kernel) gives the rows of the whole (N, 4) arrays of y, yf and their cumulative trapezoids at
+    any non-decreasing indices, repeated ones and the first and last allowed (0, N - 2) included,
+    bit for bit (signed zeros too)."""
+    from platcal.rigs.lowprec_centrifuge.proposed import (_boundary_samples, arm_offset, boundary_index,
+                                                          boundary_integrals, boundary_value, cumtrap,
+                                                          force_integrand)
+    rng = np.random.default_rng(np.random.SeedSequence(2203))
+    n = 500
+    t = np.cumsum(rng.uniform(0.005, 0.02, n))
+    v = rng.standard_normal((n, 2))
+    v[:2, 0] = -0.0
+    p = rng.standard_normal((n, 2)) * 100.0
+    psi = np.cumsum(rng.uniform(0.0, 0.3, n))
+    f = rng.standard_normal((n, 2)) * 30.0
+    u0 = np.array([np.cos(psi[0]), np.sin(psi[0])])
+    y = np.concatenate([v, arm_offset(p, psi, u0, 0.7)], axis=1)
+    yf = force_integrand(f)
+    c, cf = cumtrap(t, y), cumtrap(t, yf)
+    kb = np.sort(np.concatenate([[0, 0, 1, n - 2, n - 2], rng.integers(0, n - 1, 40)]))
+    out = [np.full((kb.size, 4), np.nan) for _ in range(6)]
+    _boundary_samples(t, v, p, np.cos(psi), np.sin(psi), u0, 0.7, f if with_force else np.empty((0, 2)), kb, *out)
+    want = [y[kb], y[kb + 1], c[kb], yf[kb], yf[kb + 1], cf[kb]]
+    for got, w in zip(out[:6 if with_force else 3], want):
+        assert same(got, w)
+        assert np.array_equal(np.signbit(got), np.signbit(w))
+    if not with_force:
+        assert all(np.isnan(o).all() for o in out[3:])      # untouched without force rows
+    tb = np.concatenate([t[kb] + 0.3 * (t[kb + 1] - t[kb]), [t[0], t[-1]]])
+    k = boundary_index(t, tb)
+    assert same(boundary_value(tb, t[k], t[k + 1], y[k], y[k + 1], c[k]), boundary_integrals(t, y, c, tb))

@@ -9,7 +9,8 @@ import pytest
 
 from platcal.parallel import threads
 from platcal.rigs.lowprec_centrifuge.config import load_config
-from platcal.rigs.lowprec_centrifuge.proposed import identify_proposed
+from platcal.rigs.lowprec_centrifuge.proposed import (_boundary_samples, arm_offset, boundary_index, boundary_integrals,
+                                                      boundary_value, cumtrap, force_integrand, identify_proposed)
 from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
 from platcal.study.montecarlo import replicate_seed
 
@@ -67,9 +68,6 @@ def test_boundary_samples_are_the_whole_arrays_values(with_force):
     kernel) gives the rows of the whole (N, 4) arrays of y, yf and their cumulative trapezoids at
     any non-decreasing indices, repeated ones and the first and last allowed (0, N - 2) included,
     bit for bit (signed zeros too)."""
-    from platcal.rigs.lowprec_centrifuge.proposed import (_boundary_samples, arm_offset, boundary_index,
-                                                          boundary_integrals, boundary_value, cumtrap,
-                                                          force_integrand)
     rng = np.random.default_rng(np.random.SeedSequence(2203))
     n = 500
     t = np.cumsum(rng.uniform(0.005, 0.02, n))

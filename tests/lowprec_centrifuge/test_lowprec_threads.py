@@ -1,7 +1,8 @@
 """The proposed method's batch over the job's threads (issue 22 item 2): the window means and the
 window filter of a batch of replicates run in contiguous replicate ranges, one per numba thread
 (platcal.parallel.run_threaded); every replicate's numbers are those of one thread and of the
-replicate alone, bit for bit; the window means' compiled pass over the samples keeps the values
+replicate alone, bit for bit; the windows' plan made once per batch gives each replicate's windows;
+the window means' compiled pass over the samples keeps the values
 of the whole arrays it no longer writes (docs/lowprec-centrifuge.md §7)."""
 
 import numpy as np
@@ -10,7 +11,8 @@ import pytest
 from platcal.parallel import threads
 from platcal.rigs.lowprec_centrifuge.config import load_config
 from platcal.rigs.lowprec_centrifuge.proposed import (_boundary_samples, arm_offset, boundary_index, boundary_integrals,
-                                                      boundary_value, cumtrap, force_integrand, identify_proposed)
+                                                      boundary_value, cumtrap, find_windows, force_integrand,
+                                                      identify_proposed, unwrap_heading, window_plan)
 from platcal.rigs.lowprec_centrifuge.truth import simulate_batch
 from platcal.study.montecarlo import replicate_seed
 
@@ -92,3 +94,18 @@ def test_boundary_samples_are_the_whole_arrays_values(with_force):
     tb = np.concatenate([t[kb] + 0.3 * (t[kb + 1] - t[kb]), [t[0], t[-1]]])
     k = boundary_index(t, tb)
     assert same(boundary_value(tb, t[k], t[k + 1], y[k], y[k + 1], c[k]), boundary_integrals(t, y, c, tb))
+
+
+def test_one_window_plan_gives_every_replicates_windows(batch):
+    """The batch's window plan (spins, tolerances, static edges: from t and the schedule alone),
+    made once and shared, gives each replicate the windows it finds alone; the plan's arrays are
+    not written."""
+    st, rb = batch
+    t, schedule = rb.prof.t, rb.prof.schedule
+    plan = window_plan(t, schedule)
+    before = [e.copy() for e in plan.static_edges]
+    for psi_u in unwrap_heading(rb.psi):
+        got, want = find_windows(t, psi_u, schedule, plan), find_windows(t, psi_u, schedule)
+        for name in ("ts", "te", "spinning"):
+            assert same(getattr(got, name), getattr(want, name)), name
+    assert len(plan.spins) == 2 and all(same(a, b) for a, b in zip(plan.static_edges, before))

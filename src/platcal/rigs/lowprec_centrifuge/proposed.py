@@ -107,22 +107,45 @@ def revolution_crossings(t: np.ndarray, psi_u: np.ndarray, ia: int, ib: int) -> 
     return tt[j - 1] + frac * (tt[j] - tt[j - 1])
 
 
-def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray) -> Windows:
-    """The variable-period windows of one record (§7)."""
+@dataclass(frozen=True)
+class WindowPlan:
+    """What a record's windows take from its times and schedule alone (§7), shared by the
+    replicates of a batch: per spin its sample-index bounds (ia, ib) (:func:`segments_of`) and half
+    the median sample step within it (s; a last crossing nearer the spin's stop than that moves
+    onto it), and the static windows' edges (s) before each spin and after the last
+    (:func:`_static_windows`)."""
+
+    spins: tuple          # ((ia, ib, half_step_s), ...)
+    static_edges: tuple   # len(spins) + 1 arrays of edges (s)
+
+
+def window_plan(t: np.ndarray, schedule: np.ndarray) -> WindowPlan:
+    """The :class:`WindowPlan` of a record's times t (N,) s and schedule (§7)."""
+    spins, static, last = [], [], 0
+    for ia, ib in segments_of(schedule):
+        static.append(_static_windows(t[last], t[ia]))
+        spins.append((ia, ib, 0.5 * float(np.median(np.diff(t[ia:ib + 1])))))   # half a sample (jitter-proof)
+        last = ib
+    static.append(_static_windows(t[last], t[-1]))
+    return WindowPlan(tuple(spins), tuple(static))
+
+
+def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray, plan: WindowPlan | None = None) -> Windows:
+    """The variable-period windows of one record (§7); ``plan``: its :func:`window_plan` when
+    already made (a batch of records sharing t and the schedule)."""
     # each stretch's window edges as one array (thousands of windows per record: a Python
     # loop per window was a tenth of a low-precision cell's CPU time, issue 22 item 4)
+    plan = window_plan(t, schedule) if plan is None else plan
     parts = []
-    last = 0
-    for ia, ib in segments_of(schedule):
-        parts.append((_static_windows(t[last], t[ia]), False))
+    for (ia, ib, half_step), static in zip(plan.spins, plan.static_edges):
+        parts.append((static, False))
         edges = np.append(t[ia], revolution_crossings(t, psi_u, ia, ib))
-        if t[ib] - edges[-1] < 0.5 * float(np.median(np.diff(t[ia:ib + 1]))):  # half a sample (jitter-proof)
+        if t[ib] - edges[-1] < half_step:
             edges[-1] = t[ib]
         else:
             edges = np.append(edges, t[ib])
         parts.append((edges, True))
-        last = ib
-    parts.append((_static_windows(t[last], t[-1]), False))
+    parts.append((plan.static_edges[-1], False))
     parts = [(e, s) for e, s in parts if e.size > 1]
     return Windows(np.concatenate([e[:-1] for e, _ in parts]), np.concatenate([e[1:] for e, _ in parts]),
                    np.concatenate([np.full(e.size - 1, s) for e, s in parts]))
@@ -270,12 +293,13 @@ def force_terms(t: np.ndarray, f: np.ndarray):
     return y, cumtrap(t, y)
 
 
-def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None):
+def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None, plan: WindowPlan | None = None):
     """Windows and, per window, T, the observation z (zVE, zVN, zPE, zPN) and m = (m1E, m1N, m2E, m2N) (§7).
 
-    ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds).
+    ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds);
+    ``plan``: :func:`window_plan` of t and the schedule when already made (:func:`find_windows`).
     """
-    win = find_windows(t, psi_u, schedule)
+    win = find_windows(t, psi_u, schedule, plan)
     # the integrals at the windows' ends (both ends at once: every operation of
     # :func:`boundary_value` is row by row) from one compiled pass that keeps only the samples
     # around them (:func:`_boundary_samples`: no (N, 4) arrays), the heading's cos and sin by
@@ -558,12 +582,14 @@ def _unwrap_small_steps(p, out):
     return True
 
 
-def _window_data_range(lo: int, hi: int, t, v, p_rel, psi_u, f, schedule, arm_m: float, common, per: list) -> None:
+def _window_data_range(lo: int, hi: int, t, v, p_rel, psi_u, f, schedule, arm_m: float, common, plan,
+                       per: list) -> None:
     """``per[s]`` = (T s, z, m) of :func:`window_data` (§7) for replicates ``lo .. hi - 1`` of the
     batch (v m/s, p_rel m (S, N, 2); psi_u (S, N) rad unwrapped; f (N, 2) or (S, N, 2) m/s^2, its
-    :func:`force_terms` ``common`` when shared)."""
+    :func:`force_terms` ``common`` when shared; ``plan`` the batch's :func:`window_plan`)."""
     for s in range(lo, hi):
-        per[s] = window_data(t, v[s], p_rel[s], psi_u[s], f if f.ndim == 2 else f[s], schedule, arm_m, common)[1:]
+        per[s] = window_data(t, v[s], p_rel[s], psi_u[s], f if f.ndim == 2 else f[s], schedule, arm_m, common,
+                             plan)[1:]
 
 
 def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float,
@@ -573,10 +599,12 @@ def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: floa
     nb = v.shape[0]
     common = force_terms(t, f) if f.ndim == 2 else None
     psi_u = unwrap_heading(psi)
+    plan = window_plan(t, schedule)      # t and the schedule are the batch's: once, not per replicate
     per = [None] * nb
     # the replicates' window means over the job's threads (each replicate's the same code: the
     # compiled pass is nogil, numpy's large ufuncs release the GIL)
-    run_threaded(_window_data_range, nb, batch_threads(nb), t, v, p_rel, psi_u, f, schedule, arm_m, common, per)
+    run_threaded(_window_data_range, nb, batch_threads(nb), t, v, p_rel, psi_u, f, schedule, arm_m, common, plan,
+                 per)
     nw = max(len(a[0]) for a in per)
     T = np.zeros((nb, nw))
     z = np.zeros((nb, nw, 4))

@@ -27,6 +27,7 @@ from ...aot import pick as aot_pick
 from ...errors import InputError
 from ...estimation.kalman import joseph_update_sparse
 from ...jit import njit
+from ...parallel import get_threads, run_threaded
 from .aot_kernels import KERNELS
 from .config import G0, OMEGA_IE, R_EARTH
 from .profile import STATIC
@@ -106,22 +107,45 @@ def revolution_crossings(t: np.ndarray, psi_u: np.ndarray, ia: int, ib: int) -> 
     return tt[j - 1] + frac * (tt[j] - tt[j - 1])
 
 
-def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray) -> Windows:
-    """The variable-period windows of one record (§7)."""
+@dataclass(frozen=True)
+class WindowPlan:
+    """What a record's windows take from its times and schedule alone (§7), shared by the
+    replicates of a batch: per spin its sample-index bounds (ia, ib) (:func:`segments_of`) and half
+    the median sample step within it (s; a last crossing nearer the spin's stop than that moves
+    onto it), and the static windows' edges (s) before each spin and after the last
+    (:func:`_static_windows`)."""
+
+    spins: tuple          # ((ia, ib, half_step_s), ...)
+    static_edges: tuple   # len(spins) + 1 arrays of edges (s)
+
+
+def window_plan(t: np.ndarray, schedule: np.ndarray) -> WindowPlan:
+    """The :class:`WindowPlan` of a record's times t (N,) s and schedule (§7)."""
+    spins, static, last = [], [], 0
+    for ia, ib in segments_of(schedule):
+        static.append(_static_windows(t[last], t[ia]))
+        spins.append((ia, ib, 0.5 * float(np.median(np.diff(t[ia:ib + 1])))))   # half a sample (jitter-proof)
+        last = ib
+    static.append(_static_windows(t[last], t[-1]))
+    return WindowPlan(tuple(spins), tuple(static))
+
+
+def find_windows(t: np.ndarray, psi_u: np.ndarray, schedule: np.ndarray, plan: WindowPlan | None = None) -> Windows:
+    """The variable-period windows of one record (§7); ``plan``: its :func:`window_plan` when
+    already made (a batch of records sharing t and the schedule)."""
     # each stretch's window edges as one array (thousands of windows per record: a Python
     # loop per window was a tenth of a low-precision cell's CPU time, issue 22 item 4)
+    plan = window_plan(t, schedule) if plan is None else plan
     parts = []
-    last = 0
-    for ia, ib in segments_of(schedule):
-        parts.append((_static_windows(t[last], t[ia]), False))
+    for (ia, ib, half_step), static in zip(plan.spins, plan.static_edges):
+        parts.append((static, False))
         edges = np.append(t[ia], revolution_crossings(t, psi_u, ia, ib))
-        if t[ib] - edges[-1] < 0.5 * float(np.median(np.diff(t[ia:ib + 1]))):  # half a sample (jitter-proof)
+        if t[ib] - edges[-1] < half_step:
             edges[-1] = t[ib]
         else:
             edges = np.append(edges, t[ib])
         parts.append((edges, True))
-        last = ib
-    parts.append((_static_windows(t[last], t[-1]), False))
+    parts.append((plan.static_edges[-1], False))
     parts = [(e, s) for e, s in parts if e.size > 1]
     return Windows(np.concatenate([e[:-1] for e, _ in parts]), np.concatenate([e[1:] for e, _ in parts]),
                    np.concatenate([np.full(e.size - 1, s) for e, s in parts]))
@@ -135,7 +159,7 @@ def cumtrap(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return c
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _cumtrap(t, y, c):
     """c (N, m) = the cumulative trapezoid of y (N, m) over t (N,) s from 0, in one pass: the
     operations of numpy's ``cumsum(0.5 * diff(t)[:, None] * (y[1:] + y[:-1]))`` (the first
@@ -150,38 +174,84 @@ def _cumtrap(t, y, c):
             c[k, j] = term if k == 1 else c[k - 1, j] + term
 
 
-@njit(cache=True, error_model="numpy")
-def _window_integrands(t, v, p_rel, cos_psi, sin_psi, u0, arm_m, f, y, c, yf, cf):
-    """One pass over a record of N samples: y (N, 4) = (VE, VN, :func:`arm_offset`) and, unless f
-    has no rows, yf (N, 4) = :func:`force_integrand` of f (N, 2) m/s^2, with their cumulative
-    trapezoids c, cf (:func:`_cumtrap`); v, p_rel (N, 2) m/s, m; cos_psi, sin_psi (N,) of the
-    unwrapped heading (numpy's, as :func:`arm_offset`); u0 (2,) and arm_m (m) as
-    :func:`arm_offset`. Each value by numpy's operations in numpy's order (bit for bit;
-    docs/lowprec-centrifuge.md §7)."""
+@njit(cache=True, nogil=True, error_model="numpy")
+def _boundary_samples(t, v, p_rel, cos_psi, sin_psi, u0, arm_m, f, kb, yk, yk1, ck, fk, fk1, cfk):
+    """One pass over a record of N samples keeping only what :func:`boundary_value` reads at the
+    sample indices ``kb`` (M,) (non-decreasing, each in [0, N - 2]): row j of yk, yk1, ck (M, 4)
+    gets y at kb[j], at kb[j] + 1 and its cumulative trapezoid at kb[j], where y = (VE, VN,
+    :func:`arm_offset`) (m/s, m) from v, p_rel (N, 2), cos_psi, sin_psi (N,) of the unwrapped
+    heading (numpy's, as :func:`arm_offset`), u0 (2,) and arm_m (m); unless f (N, 2) m/s^2 has no
+    rows, fk, fk1, cfk the same of yf = :func:`force_integrand` (g and g^2). Each y value and each
+    running sum by the operations and in the order of :func:`_cumtrap` over the whole arrays (bit
+    for bit), without writing the (N, 4) arrays (docs/lowprec-centrifuge.md §7)."""
     force = f.shape[0] > 0
     o0, o1 = arm_m * u0[0], arm_m * u0[1]
+    m = kb.size
+    ja = 0          # the next boundary whose sample kb[ja] is still ahead
+    jb = 0          # the next boundary whose sample kb[jb] + 1 is still ahead
+    p0 = p1 = p2 = p3 = 0.0          # y at the sample before
+    q0 = q1 = q2 = q3 = 0.0          # yf at the sample before
+    c0 = c1 = c2 = c3 = 0.0          # running cumulative trapezoids of y (c[0] = 0)
+    d0 = d1 = d2 = d3 = 0.0          # and of yf
+    g0 = g1 = g2 = g3 = 0.0
     for k in range(t.size):
-        y[k, 0] = v[k, 0]
-        y[k, 1] = v[k, 1]
-        y[k, 2] = p_rel[k, 0] + o0 - arm_m * cos_psi[k]
-        y[k, 3] = p_rel[k, 1] + o1 - arm_m * sin_psi[k]
+        y0 = v[k, 0]
+        y1 = v[k, 1]
+        y2 = p_rel[k, 0] + o0 - arm_m * cos_psi[k]
+        y3 = p_rel[k, 1] + o1 - arm_m * sin_psi[k]
         if force:
             ae, an = f[k, 0] / G0, f[k, 1] / G0
-            yf[k, 0], yf[k, 1], yf[k, 2], yf[k, 3] = abs(ae), abs(an), ae * ae, an * an
-    _cumtrap(t, y, c)
-    if force:
-        _cumtrap(t, yf, cf)
+            g0, g1, g2, g3 = abs(ae), abs(an), ae * ae, an * an
+        if k >= 1:
+            h = 0.5 * (t[k] - t[k - 1])
+            if k == 1:
+                c0, c1, c2, c3 = h * (y0 + p0), h * (y1 + p1), h * (y2 + p2), h * (y3 + p3)
+                if force:
+                    d0, d1, d2, d3 = h * (g0 + q0), h * (g1 + q1), h * (g2 + q2), h * (g3 + q3)
+            else:
+                c0, c1, c2, c3 = c0 + h * (y0 + p0), c1 + h * (y1 + p1), c2 + h * (y2 + p2), c3 + h * (y3 + p3)
+                if force:
+                    d0, d1, d2, d3 = d0 + h * (g0 + q0), d1 + h * (g1 + q1), d2 + h * (g2 + q2), d3 + h * (g3 + q3)
+        while jb < m and kb[jb] + 1 == k:
+            yk1[jb, 0], yk1[jb, 1], yk1[jb, 2], yk1[jb, 3] = y0, y1, y2, y3
+            if force:
+                fk1[jb, 0], fk1[jb, 1], fk1[jb, 2], fk1[jb, 3] = g0, g1, g2, g3
+            jb += 1
+        while ja < m and kb[ja] == k:
+            yk[ja, 0], yk[ja, 1], yk[ja, 2], yk[ja, 3] = y0, y1, y2, y3
+            ck[ja, 0], ck[ja, 1], ck[ja, 2], ck[ja, 3] = c0, c1, c2, c3
+            if force:
+                fk[ja, 0], fk[ja, 1], fk[ja, 2], fk[ja, 3] = g0, g1, g2, g3
+                cfk[ja, 0], cfk[ja, 1], cfk[ja, 2], cfk[ja, 3] = d0, d1, d2, d3
+            ja += 1
+        p0, p1, p2, p3 = y0, y1, y2, y3
+        q0, q1, q2, q3 = g0, g1, g2, g3
+
+
+def boundary_index(t: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """The sample index k before each instant ``tb`` (s): t[k] <= tb < t[k + 1], clipped to
+    [0, N - 2] (docs/lowprec-centrifuge.md §7)."""
+    return np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
+
+
+def boundary_value(tb: np.ndarray, t0: np.ndarray, t1: np.ndarray, y0: np.ndarray, y1: np.ndarray,
+                   c0: np.ndarray) -> np.ndarray:
+    """(B, m) the integral to each instant ``tb`` (s) from the samples around it: times t0 <= tb <
+    t1 (s), values y0, y1 (B, m) there and the cumulative trapezoid c0 (B, m) at t0, plus the
+    trapezoid to ``tb`` with y linearly interpolated (docs/lowprec-centrifuge.md §7)."""
+    h = (tb - t0)[:, None]
+    yb = y0 + h / (t1 - t0)[:, None] * (y1 - y0)
+    return c0 + 0.5 * h * (y0 + yb)
 
 
 def boundary_integrals(t: np.ndarray, y: np.ndarray, c: np.ndarray, tb: np.ndarray) -> np.ndarray:
     """(B, m) the integral of y (N, m) from t[0] to each instant ``tb`` (s, within [t[0], t[-1]]):
     its cumulative trapezoid c at the sample before, plus the trapezoid to ``tb`` with y linearly
-    interpolated (docs/lowprec-centrifuge.md §7). Only the samples around each instant are read, so a streamed record
-    (:mod:`.stream`) evaluates it on a block holding them and gets the whole record's numbers."""
-    k = np.clip(np.searchsorted(t, tb, side="right") - 1, 0, t.size - 2)
-    h = (tb - t[k])[:, None]
-    yb = y[k] + h / (t[k + 1] - t[k])[:, None] * (y[k + 1] - y[k])
-    return c[k] + 0.5 * h * (y[k] + yb)
+    interpolated (:func:`boundary_value`, docs/lowprec-centrifuge.md §7). Only the samples around
+    each instant are read, so a streamed record (:mod:`.stream`) evaluates it on a block holding
+    them and gets the whole record's numbers."""
+    k = boundary_index(t, tb)
+    return boundary_value(tb, t[k], t[k + 1], y[k], y[k + 1], c[k])
 
 
 def interval_means(t: np.ndarray, y: np.ndarray, c: np.ndarray, ts: np.ndarray, te: np.ndarray) -> np.ndarray:
@@ -223,23 +293,36 @@ def force_terms(t: np.ndarray, f: np.ndarray):
     return y, cumtrap(t, y)
 
 
-def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None):
+def window_data(t, v, p_rel, psi_u, f, schedule, arm_m, force=None, plan: WindowPlan | None = None):
     """Windows and, per window, T, the observation z (zVE, zVN, zPE, zPN) and m = (m1E, m1N, m2E, m2N) (§7).
 
-    ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds).
+    ``force``: :func:`force_terms` of f when already computed (f common to a batch of seeds);
+    ``plan``: :func:`window_plan` of t and the schedule when already made (:func:`find_windows`).
     """
-    win = find_windows(t, psi_u, schedule)
-    # y, yf and their integrals in one compiled pass (:func:`_window_integrands`), the heading's
-    # cos and sin by numpy as :func:`arm_offset` takes them
-    n = t.size
-    y, c = np.empty((n, 4)), np.empty((n, 4))
-    yf, cf = (np.empty((n, 4)), np.empty((n, 4))) if force is None else force
-    _window_integrands(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(v, dtype=float),
-                       np.ascontiguousarray(p_rel, dtype=float), np.cos(psi_u), np.sin(psi_u),
-                       np.array([np.cos(psi_u[0]), np.sin(psi_u[0])]), float(arm_m),
-                       np.ascontiguousarray(f, dtype=float) if force is None else np.empty((0, 2)), y, c, yf, cf)
-    tt, z, m = window_means(win.ts, win.te, boundary_integrals(t, y, c, win.ts), boundary_integrals(t, y, c, win.te),
-                            boundary_integrals(t, yf, cf, win.ts), boundary_integrals(t, yf, cf, win.te),
+    win = find_windows(t, psi_u, schedule, plan)
+    # the integrals at the windows' ends (both ends at once: every operation of
+    # :func:`boundary_value` is row by row) from one compiled pass that keeps only the samples
+    # around them (:func:`_boundary_samples`: no (N, 4) arrays), the heading's cos and sin by
+    # numpy as :func:`arm_offset` takes them
+    tb = np.concatenate([win.ts, win.te])
+    k = boundary_index(t, tb)
+    order = np.argsort(k, kind="stable")
+    ks = k[order]
+    nb = tb.size
+    yk, yk1, ck = np.empty((nb, 4)), np.empty((nb, 4)), np.empty((nb, 4))
+    fk, fk1, cfk = np.empty((nb, 4)), np.empty((nb, 4)), np.empty((nb, 4))
+    _boundary_samples(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(v, dtype=float),
+                      np.ascontiguousarray(p_rel, dtype=float), np.cos(psi_u), np.sin(psi_u),
+                      np.array([np.cos(psi_u[0]), np.sin(psi_u[0])]), float(arm_m),
+                      np.ascontiguousarray(f, dtype=float) if force is None else np.empty((0, 2)),
+                      ks, yk, yk1, ck, fk, fk1, cfk)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(nb)
+    iy = boundary_value(tb, t[k], t[k + 1], yk[inv], yk1[inv], ck[inv])
+    if_ = (boundary_value(tb, t[k], t[k + 1], fk[inv], fk1[inv], cfk[inv]) if force is None
+           else boundary_integrals(t, force[0], force[1], tb))
+    w = win.ts.size
+    tt, z, m = window_means(win.ts, win.te, iy[:w], iy[w:], if_[:w], if_[w:],
                             np.interp(win.ts, t, psi_u), np.interp(win.te, t, psi_u), arm_m)
     return win, tt, z, m
 
@@ -319,7 +402,7 @@ def predict(F: np.ndarray, T: np.ndarray, x: np.ndarray, P: np.ndarray, q: np.nd
     return phi, H, xp, Pp
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations):
     """The Kalman filter of docs/lowprec-centrifuge.md §7 over windows, compiled; the state is carried in place, so windows
     can come in blocks. Per seed s (leading axis, independent: batched over replicates) and
@@ -408,7 +491,7 @@ def filter_windows(T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations
                     P[s, i, j] = Pp[i, j]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _matmul(a, b, out):
     """out = a b for square matrices, each sum in index order with a's zeros skipped (F T and its
     powers are sparse: 22 of 196 entries of F; adding an exact 0 changes no sum, so the result is
@@ -423,6 +506,22 @@ def _matmul(a, b, out):
             if c != 0.0:
                 for j in range(n):
                     out[i, j] += c * b[k, j]
+
+
+def batch_threads(nb: int) -> int:
+    """Threads a batch of ``nb`` replicates runs on: 1 for a single replicate (no thread count
+    asked, so numba stays unloaded beside an ahead-of-time kernel), else the job's numba threads
+    (:func:`platcal.parallel.get_threads`; docs/lowprec-centrifuge.md §7 batched over seeds)."""
+    return 1 if nb <= 1 else get_threads()
+
+
+def _filter_range(lo: int, hi: int, kernel, T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations) -> None:
+    """``kernel`` (:func:`filter_windows`, §7) on seeds ``lo .. hi - 1``: leading-axis slices of
+    the padded window arrays (T s, z m/s and m, m g and g^2) and of the state carried in place
+    (views: contiguous, written through); ``innovations`` sliced when kept (else its empty array)."""
+    keep = innovations.shape[0] == x.shape[0]
+    kernel(T[lo:hi], z[lo:hi], m[lo:hi], valid[lo:hi], fb, q, r_var, x[lo:hi], P[lo:hi], nis[lo:hi],
+           skipped[lo:hi], innovations[lo:hi] if keep else innovations)
 
 
 def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, lat_rad: float,
@@ -441,11 +540,14 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     skipped = np.zeros(nb, dtype=np.int64)
     innovations = np.full((nb if keep_innovations else 0, nw, 8), np.nan)
     # one kernel for every batch (its loop over seeds is serial): at a batch of one the kernel
-    # compiled ahead of time when an identify enabled it and it is built (numba then not loaded)
+    # compiled ahead of time when an identify enabled it and it is built (numba then not loaded);
+    # a larger batch runs its seeds in contiguous ranges, one per thread of the job (the kernel is
+    # nogil, each seed's loop the same code: the numbers do not depend on the thread count)
     kernel = aot_pick(KERNELS, "filter_windows", filter_windows, filter_windows, nb)
-    kernel(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(z, dtype=float),
-           np.ascontiguousarray(m, dtype=float), np.ascontiguousarray(valid, dtype=np.bool_),
-           f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis, skipped, innovations)
+    run_threaded(_filter_range, nb, batch_threads(nb), kernel, np.ascontiguousarray(T, dtype=float),
+                 np.ascontiguousarray(z, dtype=float), np.ascontiguousarray(m, dtype=float),
+                 np.ascontiguousarray(valid, dtype=np.bool_), f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis,
+                 skipped, innovations)
     n_upd = valid.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_nis = nis / (n_upd - skipped)
@@ -466,7 +568,7 @@ def unwrap_heading(psi: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _unwrap_small_steps(p, out):
     """numpy.unwrap of p (N,) into out when every step |p[k] - p[k-1]| < pi (True), else False
     (out partly written): numpy then adds a correction of +0.0 to every sample after the first
@@ -480,17 +582,29 @@ def _unwrap_small_steps(p, out):
     return True
 
 
+def _window_data_range(lo: int, hi: int, t, v, p_rel, psi_u, f, schedule, arm_m: float, common, plan,
+                       per: list) -> None:
+    """``per[s]`` = (T s, z, m) of :func:`window_data` (§7) for replicates ``lo .. hi - 1`` of the
+    batch (v m/s, p_rel m (S, N, 2); psi_u (S, N) rad unwrapped; f (N, 2) or (S, N, 2) m/s^2, its
+    :func:`force_terms` ``common`` when shared; ``plan`` the batch's :func:`window_plan`)."""
+    for s in range(lo, hi):
+        per[s] = window_data(t, v[s], p_rel[s], psi_u[s], f if f.ndim == 2 else f[s], schedule, arm_m, common,
+                             plan)[1:]
+
+
 def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: float,
                       keep_innovations: bool = False) -> FilterResult:
     """Proposed method on S records: t (N,), v, p_rel (S, N, 2), psi (S, N) rad, f (N, 2) or (S, N, 2);
     ``keep_innovations`` as :func:`run_filter`."""
     nb = v.shape[0]
-    per = []
     common = force_terms(t, f) if f.ndim == 2 else None
     psi_u = unwrap_heading(psi)
-    for s in range(nb):
-        fs = f if f.ndim == 2 else f[s]
-        per.append(window_data(t, v[s], p_rel[s], psi_u[s], fs, schedule, arm_m, common)[1:])
+    plan = window_plan(t, schedule)      # t and the schedule are the batch's: once, not per replicate
+    per = [None] * nb
+    # the replicates' window means over the job's threads (each replicate's the same code: the
+    # compiled pass is nogil, numpy's large ufuncs release the GIL)
+    run_threaded(_window_data_range, nb, batch_threads(nb), t, v, p_rel, psi_u, f, schedule, arm_m, common, plan,
+                 per)
     nw = max(len(a[0]) for a in per)
     T = np.zeros((nb, nw))
     z = np.zeros((nb, nw, 4))

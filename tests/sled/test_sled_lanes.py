@@ -198,7 +198,7 @@ def test_mechanisation_outputs_in_one_block_are_separate_arrays_numbers(small_ba
     C = np.empty((S, 3, 3))
     _initial_attitude(phi0, C)
     apart = tuple(np.full(o.shape, np.nan) for o in outs)
-    _mechanise(0, S, np.ascontiguousarray(sb.f), np.ascontiguousarray(np.broadcast_to(sb.w, sb.f.shape)), C,
+    _mechanise(0, S, np.array(sb.f), np.array(np.broadcast_to(sb.w, sb.f.shape)), C,
                np.zeros((S, 6)), np.asarray(cfg.omega_ie, dtype=np.float64), G, dts, *apart)
     for a, b in zip(got, apart):
         assert np.array_equal(a, b)

@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 from platcal.rigs.sled.config import G, load_config
 from platcal.rigs.sled.errmodel import run_F, skew, stop_F
 from platcal.rigs.sled.filters import discretise
-from platcal.rigs.sled.identify import _x_corrections, x_corrections_held
+from platcal.rigs.sled.identify import _x_compensated, _x_corrections, compensate_modes, x_corrections_held
 from platcal.rigs.sled.ins import _mechanise, mechanise
 from platcal.rigs.sled.montecarlo import replicate_seeds
 from platcal.rigs.sled.observability import rank
@@ -128,7 +128,8 @@ def test_noise_free_record_has_no_errors():
 def test_kernel_types_do_not_depend_on_the_batch():
     """One seed (its rates a broadcast numpy hands over read-only), two seeds, a scalar period
     and a record's own sample intervals all reach the navigation and X-correction kernels as
-    writable arrays (``platcal.jit.kernel_input``), so numba compiles each once for all of them
+    writable arrays (``platcal.jit.kernel_input``), as do identify's X compensation's (read-only
+    broadcasts here), so numba compiles each once for all of them
     (issue 22 item 4), and the numbers are those of the same inputs passed as fresh copies."""
     rng = np.random.default_rng(3)
     N = 40
@@ -144,13 +145,20 @@ def test_kernel_types_do_not_depend_on_the_batch():
                             np.array(np.broadcast_to(np.asarray(dt, float), (N,))))
         for a, b in zip(got, ref):
             assert np.array_equal(a, b)
-        S = f.shape[0]
+        S, fl = f.shape[0], ref[2]
         est, hold = rng.normal(0.0, 1e-4, (S, 3, 3)), np.arange(N) % 3
         got = x_corrections_held(got[2], est, hold, dt, start=(0.1, 0.2))
         ref = x_corrections_held(ref[2], est, hold, np.array(np.broadcast_to(np.asarray(dt, float), (N,))),
                                  start=(np.full(S, 0.1), np.full(S, 0.2)))
         for a, b in zip(got, ref):
             assert np.array_equal(a, b)
-    readonly = [str(t) for k in (_mechanise, _x_corrections) for sig in k.signatures for t in sig
+        # identify's compensation: a read-only broadcast of one seed's positions and estimates
+        r_one = np.broadcast_to(np.zeros((1, N + 1, 3)), (S, N + 1, 3))
+        got = compensate_modes(np.broadcast_to(fl[:1], fl.shape), r_one,
+                               np.broadcast_to(est[:1], est.shape), np.broadcast_to(hold, (2, N)), dt)
+        ref = compensate_modes(np.array(np.broadcast_to(fl[:1], fl.shape)), np.zeros((S, N + 1, 3)),
+                               np.array(np.broadcast_to(est[:1], est.shape)), np.array([hold, hold]), dt)
+        assert np.array_equal(got, ref)
+    readonly = [str(t) for k in (_mechanise, _x_corrections, _x_compensated) for sig in k.signatures for t in sig
                 if hasattr(t, "ndim") and not t.mutable]
     assert readonly == []

@@ -187,13 +187,12 @@ def compensate_modes(fl: np.ndarray, r: np.ndarray, est: np.ndarray, holds: np.n
     period or (N,) the sample intervals. Returns r_x^c (M,S,N), m: per row the numbers of
     :func:`compensate_x`, bit for bit (one compiled pass per seed, the seeds over the numba
     threads set, no (S,N+1) sums formed)."""
-    fl = np.ascontiguousarray(fl, dtype=np.float64)
+    fl = kernel_input(fl)   # writable inputs: one compiled signature whatever the caller hands over
     S, N = fl.shape[:2]
-    holds = np.ascontiguousarray(holds, dtype=np.int64)
+    holds = np.require(holds, np.int64, ["C", "W"])
     dts = kernel_input(np.broadcast_to(np.asarray(dt, dtype=np.float64), (N,)))
     out = np.empty((holds.shape[0], S, N))
-    run_seeds("x_compensated", _x_compensated, S, fl, np.ascontiguousarray(r, dtype=np.float64),
-              np.ascontiguousarray(est, dtype=np.float64), holds, dts, out)
+    run_seeds("x_compensated", _x_compensated, S, fl, kernel_input(r), kernel_input(est), holds, dts, out)
     return out
 
 

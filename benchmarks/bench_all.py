@@ -338,7 +338,8 @@ def lowprec_centrifuge(B: int, repeat: int) -> dict:
                      "(filter_ratio): FilterPy's side steps a window, not a sample, in Python (a few numpy calls on "
                      "14 x 14 matrices, some 40 us a window); the window means at the data rate (the heading's "
                      "cos and sin, cumulative integrals, revolution crossings), shared by both sides, are about "
-                     "half of platcal's time, which bounds the ratio of the whole")
+                     "half of platcal's time and alone bound the ratio of the whole below 50x even with a free "
+                     "filter: benchmarks/profile_lowprec.py")
 
 
 RIGS = {"centrifuge": centrifuge, "multiposition": multiposition, "sled": sled,

@@ -23,13 +23,12 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import time
 from unittest import mock
 
 import numpy as np
 from numba import njit
 
-from bench_all import lowprec_case
+from bench_all import best_time, lowprec_case
 from platcal.parallel import set_threads
 from platcal.rigs.lowprec_centrifuge import proposed
 
@@ -40,16 +39,6 @@ def cos_sin(psi, c, s):
     for i in range(psi.size):
         c[i] = math.cos(psi[i])
         s[i] = math.sin(psi[i])
-
-
-def best(fn, repeat: int) -> tuple[float, float]:
-    """Smallest wall and process CPU time of ``repeat`` calls (s)."""
-    wall, cpu = np.inf, np.inf
-    for _ in range(repeat):
-        t0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        wall, cpu = min(wall, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
-    return wall, cpu
 
 
 def main(argv=None) -> None:
@@ -111,7 +100,7 @@ def main(argv=None) -> None:
           f"and {n_win / S:.0f} windows per replicate")
     cpu_of = {}
     for name, fn in stages.items():
-        wall, cpu = best(fn, a.repeat)
+        (wall, cpu), _ = best_time(fn, a.repeat)
         cpu_of[name] = cpu / S
         extra = f"  ({cpu / n_win * 1e6:.2f} us CPU per window)" if "filter" in name else ""
         print(f"  {name:36s} wall {wall / S * 1e3:7.3f} ms  CPU {cpu / S * 1e3:7.3f} ms per replicate{extra}")

@@ -222,3 +222,36 @@ def test_a_malformed_request_is_refused_and_the_server_goes_on(server, tmp_path,
     r = run(script, env, tmp_path)
     assert r.returncode == 0, r.stderr
     assert facts(r.stdout)["ppid"] == proc.pid  # and still serves
+
+
+def test_messages_sent_back_to_back_are_read_one_at_a_time():
+    """A job that ends before its client reads the server's first reply leaves both replies (the
+    pid, then the exit status) in the socket: each read takes one message, never the next one's
+    bytes (a quick job on a busy machine had failed with "Extra data")."""
+    a, b = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+    with a, b:
+        forkclient.send_message(a, {"pid": 12345})
+        forkclient.send_message(a, {"status": 3})
+        assert forkclient.recv_message(b) == ({"pid": 12345}, [])
+        assert forkclient.recv_message(b) == ({"status": 3}, [])
+        a.close()
+        assert forkclient.recv_message(b) == (None, [])
+
+
+def test_a_request_and_its_descriptors_are_read_alone():
+    """The server's read of a request (with the client's stdout and stderr) takes that message
+    and its descriptors only, whatever follows it in the socket."""
+    a, b = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+    r, w = os.pipe()
+    try:
+        with a, b:
+            forkclient.send_message(a, {"argv": ["job.py"]}, (r, w))
+            forkclient.send_message(a, {"next": 1})
+            msg, fds = forkclient.recv_message(b, 2)
+            assert msg == {"argv": ["job.py"]} and len(fds) == 2
+            for fd in fds:
+                os.close(fd)
+            assert forkclient.recv_message(b) == ({"next": 1}, [])
+    finally:
+        os.close(r)
+        os.close(w)

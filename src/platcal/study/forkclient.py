@@ -40,13 +40,16 @@ def send_message(sock: socket.socket, obj: dict, fds: tuple = ()) -> None:
 
 
 def recv_message(sock: socket.socket, nfds: int = 0) -> tuple[dict | None, list]:
-    """One message (and up to ``nfds`` file descriptors); ``(None, [])`` when the peer closed."""
+    """One message (and up to ``nfds`` file descriptors); ``(None, [])`` when the peer closed.
+
+    Reads no byte past the message: the server sends a job's pid and then its exit status, and
+    a quick job's status may already wait behind the pid when the client reads."""
     buf, fds = b"", []
     while len(buf) < _HEADER.size:
         if nfds and not fds:
-            chunk, fds, _, _ = socket.recv_fds(sock, 65536, nfds)
+            chunk, fds, _, _ = socket.recv_fds(sock, _HEADER.size - len(buf), nfds)
         else:
-            chunk = sock.recv(65536)
+            chunk = sock.recv(_HEADER.size - len(buf))
         if not chunk:
             return None, fds
         buf += chunk

@@ -7,6 +7,7 @@ import time
 import numpy as np
 import pytest
 
+from platcal import parallel
 from platcal.parallel import run_threaded
 
 
@@ -51,3 +52,16 @@ def test_first_exception_in_item_order_after_every_chunk():
 
     with pytest.raises(KeyError, match="3"):
         run_threaded(late, 9, 3)                                      # chunk at 3 before chunk at 6
+
+
+@pytest.mark.parametrize("n", [0, 1])
+def test_one_item_runs_here_without_asking_for_threads(monkeypatch, n):
+    """A batch of one (an identify of one record) runs in the calling thread and never asks
+    numba for a thread count, which would load numba beside a kernel compiled ahead of time."""
+    def no_numba():
+        raise AssertionError("asked numba for threads")
+
+    monkeypatch.setattr(parallel, "get_threads", no_numba)
+    seen = []
+    run_threaded(lambda lo, hi: seen.append((lo, hi, threading.current_thread().name)), n, None)
+    assert seen == [(0, n, threading.current_thread().name)]

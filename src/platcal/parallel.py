@@ -60,7 +60,8 @@ def threads(n: int | None):
 
 def run_threaded(fn, n: int, threads: int | None, *args) -> None:
     """Run ``fn(lo, hi, *args)`` over the items [0, n) split into ``threads`` contiguous chunks
-    (None or 0: the kernels' thread count now, :func:`get_threads`, which a job's threads set),
+    (None or 0: the kernels' thread count now, :func:`get_threads`, which a job's threads set;
+    never more chunks than items, and one item runs in the calling thread without asking),
     one Python thread each: the first chunk in the calling thread, the others in threads started
     for this call (the caller would otherwise only wait; a pool started per call cost about twice
     a thread's start, issue 22 item 2). Every chunk runs to its end before this returns; the
@@ -70,7 +71,9 @@ def run_threaded(fn, n: int, threads: int | None, *args) -> None:
     the numbers do not depend on the thread count, and there is no ``parallel=True`` compile
     (which would cost a much longer compile).
     """
-    threads = max(1, min(int(threads or get_threads()), n))
+    # one item or none runs here whatever was asked, and asks no thread count (numba then stays
+    # unloaded beside a kernel compiled ahead of time)
+    threads = 1 if n <= 1 else max(1, min(int(threads or get_threads()), n))
     if threads == 1:
         fn(0, n, *args)
         return

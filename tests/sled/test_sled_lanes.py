@@ -13,10 +13,9 @@ import pytest
 from platcal.estimation.lanes import LANES
 from platcal.parallel import threads
 from platcal.rigs.sled import filters
-from platcal.rigs.sled.config import load_config
+from platcal.rigs.sled.config import G, load_config
 from platcal.rigs.sled.identify import (compensate_modes, compensate_x, identify, phi_hold, x_corrections,
                                         x_corrections_held)
-from platcal.rigs.sled.config import G
 from platcal.rigs.sled.ins import _initial_attitude, _mechanise, mechanise, nav_outputs
 from platcal.rigs.sled.montecarlo import replicate_seeds
 from platcal.rigs.sled.simulate import simulate

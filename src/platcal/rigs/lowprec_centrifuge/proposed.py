@@ -27,7 +27,7 @@ from ...aot import pick as aot_pick
 from ...errors import InputError
 from ...estimation.kalman import joseph_update_sparse
 from ...jit import njit
-from ...parallel import get_threads, run_threaded
+from ...parallel import run_threaded
 from .aot_kernels import KERNELS
 from .config import G0, OMEGA_IE, R_EARTH
 from .profile import STATIC
@@ -508,13 +508,6 @@ def _matmul(a, b, out):
                     out[i, j] += c * b[k, j]
 
 
-def batch_threads(nb: int) -> int:
-    """Threads a batch of ``nb`` replicates runs on: 1 for a single replicate (no thread count
-    asked, so numba stays unloaded beside an ahead-of-time kernel), else the job's numba threads
-    (:func:`platcal.parallel.get_threads`; docs/lowprec-centrifuge.md §7 batched over seeds)."""
-    return 1 if nb <= 1 else get_threads()
-
-
 def _filter_range(lo: int, hi: int, kernel, T, z, m, valid, fb, q, r_var, x, P, nis, skipped, innovations) -> None:
     """``kernel`` (:func:`filter_windows`, §7) on seeds ``lo .. hi - 1``: leading-axis slices of
     the padded window arrays (T s, z m/s and m, m g and g^2) and of the state carried in place
@@ -544,7 +537,7 @@ def run_filter(T: np.ndarray, z: np.ndarray, m: np.ndarray, valid: np.ndarray, l
     # a larger batch runs its seeds in contiguous ranges, one per thread of the job (the kernel is
     # nogil, each seed's loop the same code: the numbers do not depend on the thread count)
     kernel = aot_pick(KERNELS, "filter_windows", filter_windows, filter_windows, nb)
-    run_threaded(_filter_range, nb, batch_threads(nb), kernel, np.ascontiguousarray(T, dtype=float),
+    run_threaded(_filter_range, nb, None, kernel, np.ascontiguousarray(T, dtype=float),
                  np.ascontiguousarray(z, dtype=float), np.ascontiguousarray(m, dtype=float),
                  np.ascontiguousarray(valid, dtype=np.bool_), f_base(lat_rad), q_density(), R_DIAG.copy(), x, P, nis,
                  skipped, innovations)
@@ -603,7 +596,7 @@ def identify_proposed(t, v, p_rel, psi, f, schedule, arm_m: float, lat_deg: floa
     per = [None] * nb
     # the replicates' window means over the job's threads (each replicate's the same code: the
     # compiled pass is nogil, numpy's large ufuncs release the GIL)
-    run_threaded(_window_data_range, nb, batch_threads(nb), t, v, p_rel, psi_u, f, schedule, arm_m, common, plan,
+    run_threaded(_window_data_range, nb, None, t, v, p_rel, psi_u, f, schedule, arm_m, common, plan,
                  per)
     nw = max(len(a[0]) for a in per)
     T = np.zeros((nb, nw))
